@@ -1,0 +1,51 @@
+"""lsys3d: grow 3D plants and fractals from L-systems as clean meshes.
+
+The pipeline, one stage per module::
+
+    text --Grammar--> grammar --derive--> ModuleString --interpret--> Skeleton
+         --sweep--> tubes --union--> Mesh --export--> file
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError, version
+
+from .derive import DEFAULT_MAX_MODULES, derive, generations, predict_length
+from .errors import (
+    DerivationError,
+    ExportError,
+    GeometryError,
+    GrammarError,
+    InterpretError,
+    LimitError,
+    LSystemError,
+)
+from .grammar import Grammar
+from .modules import ModuleString
+from .presets import DEFAULT_PRESET, list_presets, load, load_preset
+
+try:
+    __version__ = version("lsys3d")
+except PackageNotFoundError:  # pragma: no cover - running from a source tree
+    __version__ = "0.0.0+unknown"
+
+__all__ = [
+    "DEFAULT_MAX_MODULES",
+    "DEFAULT_PRESET",
+    "DerivationError",
+    "ExportError",
+    "GeometryError",
+    "Grammar",
+    "GrammarError",
+    "InterpretError",
+    "LSystemError",
+    "LimitError",
+    "ModuleString",
+    "__version__",
+    "derive",
+    "generations",
+    "list_presets",
+    "load",
+    "load_preset",
+    "predict_length",
+]

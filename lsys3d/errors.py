@@ -1,0 +1,67 @@
+"""The exceptions lsys3d raises for user mistakes and impossible geometry.
+
+Every error a user can cause is an :class:`LSystemError`; the CLI prints its
+message on one line and exits 1.  Messages read ``where: what``.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "DerivationError",
+    "ExportError",
+    "GeometryError",
+    "GrammarError",
+    "InterpretError",
+    "LSystemError",
+    "LimitError",
+]
+
+
+class LSystemError(Exception):
+    """Base class of every error lsys3d raises for bad input."""
+
+
+class GrammarError(LSystemError, ValueError):
+    """A grammar that cannot be read: the message starts ``file:line:col:``.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong.
+    source : str
+        File name, or a pseudo-name such as ``<string>`` or ``rules[2]``.
+    line, col : int
+        1-based position of the offending character, when known.
+    """
+
+    def __init__(self, message: str, source: str = "<grammar>", line: int | None = None, col: int | None = None):
+        self.reason = message
+        self.source = source
+        self.line = line
+        self.col = col
+        where = source
+        if line is not None:
+            where += f":{line}"
+            if col is not None:
+                where += f":{col}"
+        super().__init__(f"{where}: {message}")
+
+
+class DerivationError(LSystemError, ArithmeticError):
+    """Rewriting failed: a numeric error in a rule, or a result too large."""
+
+
+class LimitError(DerivationError):
+    """A configured resource limit would be exceeded (the message says how to raise it)."""
+
+
+class InterpretError(LSystemError):
+    """The turtle could not read a module string (unbalanced ``]``, open polygon...)."""
+
+
+class GeometryError(LSystemError):
+    """Geometry that cannot be built into a valid mesh."""
+
+
+class ExportError(LSystemError, OSError):
+    """A file could not be written (the message names the file)."""

@@ -1,0 +1,137 @@
+"""The module string: the output of derivation and the input of the turtle.
+
+A string of ``m`` modules is stored as arrays, never as Python objects per module:
+
+``symbols : (m,) uint8``
+    Symbol ids.  ASCII symbols use their own code (``ord("F") == 70``); other
+    characters get free ids from 128 up, recorded in ``alphabet``.
+``arity : (m,) uint8``
+    Number of parameters of each module.
+``params : (k,) float64``
+    All parameters, module after module (``k == arity.sum()``).
+``alphabet : str``
+    256 characters; ``alphabet[id]`` is the symbol with that id.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+__all__ = ["ASCII_ALPHABET", "ModuleString", "format_number"]
+
+ASCII_ALPHABET = "".join(chr(i) for i in range(128)) + "\0" * 128
+
+
+def format_number(x: float) -> str:
+    """Canonical text of a parameter: ``%.6f`` without trailing zeros or dot, ``-0`` as ``0``.
+
+    >>> format_number(8 / 7), format_number(2.0), format_number(-1e-9)
+    ('1.142857', '2', '0')
+    """
+    s = "%.6f" % x
+    s = s.rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
+@dataclass(frozen=True, eq=False)
+class ModuleString:
+    """An immutable string of modules (see the module docstring for the arrays)."""
+
+    symbols: np.ndarray
+    arity: np.ndarray
+    params: np.ndarray
+    alphabet: str = ASCII_ALPHABET
+
+    def __post_init__(self):
+        for name in ("symbols", "arity", "params"):
+            getattr(self, name).setflags(write=False)
+
+    @classmethod
+    def from_symbols(cls, text: str, alphabet: str = ASCII_ALPHABET) -> ModuleString:
+        """A parameterless string from its text (every character one module)."""
+        codes = [alphabet.index(c) if ord(c) >= 128 else ord(c) for c in text]
+        m = len(codes)
+        return cls(np.array(codes, dtype=np.uint8), np.zeros(m, np.uint8), np.zeros(0, np.float64), alphabet)
+
+    def __len__(self) -> int:
+        return int(self.symbols.shape[0])
+
+    @cached_property
+    def offsets(self) -> np.ndarray:
+        """``(m + 1,) int64``: parameters of module ``i`` are ``params[offsets[i]:offsets[i+1]]``."""
+        out = np.zeros(len(self) + 1, dtype=np.int64)
+        np.cumsum(self.arity, out=out[1:])
+        return out
+
+    def symbol(self, i: int) -> str:
+        return self.alphabet[int(self.symbols[i])]
+
+    def module(self, i: int) -> tuple[str, tuple[float, ...]]:
+        """Module ``i`` as ``(symbol, parameters)``."""
+        o = self.offsets
+        return self.symbol(i), tuple(float(x) for x in self.params[o[i] : o[i + 1]])
+
+    def module_text(self, i: int) -> str:
+        sym, args = self.module(i)
+        return sym + ("(" + ",".join(map(format_number, args)) + ")" if args else "")
+
+    def count(self, symbol: str) -> int:
+        """How many modules have this symbol."""
+        code = ord(symbol) if ord(symbol) < 128 else self.alphabet.find(symbol)
+        return int(np.count_nonzero(self.symbols == code)) if code >= 0 else 0
+
+    def symbol_text(self) -> str:
+        """The symbols alone, without parameters."""
+        raw = self.symbols.tobytes().decode("latin-1")
+        if self.alphabet is ASCII_ALPHABET or self.alphabet[128:] == ASCII_ALPHABET[128:]:
+            return raw
+        return raw.translate({i: self.alphabet[i] for i in range(128, 256)})
+
+    def __str__(self) -> str:
+        text = self.symbol_text()
+        if not len(self.params):
+            return text
+        pieces = []
+        has = np.flatnonzero(self.arity)
+        values = [format_number(x) for x in self.params.tolist()]
+        off = self.offsets
+        last = 0
+        for i in has.tolist():
+            pieces.append(text[last : i + 1])
+            pieces.append("(" + ",".join(values[off[i] : off[i + 1]]) + ")")
+            last = i + 1
+        pieces.append(text[last:])
+        return "".join(pieces)
+
+    def __repr__(self) -> str:
+        s = str(self) if len(self) <= 60 else str(self[:60]) + "..."
+        return f"ModuleString({s!r}, modules={len(self)})"
+
+    def __getitem__(self, item: slice) -> ModuleString:
+        if not isinstance(item, slice):
+            raise TypeError("index a ModuleString with a slice; use .module(i) for one module")
+        start, stop, step = item.indices(len(self))
+        if step != 1:
+            raise ValueError("ModuleString slices must be contiguous")
+        o = self.offsets
+        return ModuleString(
+            self.symbols[start:stop].copy(),
+            self.arity[start:stop].copy(),
+            self.params[o[start] : o[max(start, stop)]].copy(),
+            self.alphabet,
+        )
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, ModuleString):
+            return NotImplemented
+        return (
+            np.array_equal(self.symbols, other.symbols)
+            and np.array_equal(self.arity, other.arity)
+            and np.array_equal(self.params, other.params)
+            and (self.alphabet == other.alphabet or self.symbol_text() == other.symbol_text())
+        )
+
+    __hash__ = None

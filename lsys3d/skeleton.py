@@ -1,0 +1,192 @@
+"""The branch skeleton: what the turtle draws, as arrays.
+
+This is the contract between the turtle (:mod:`lsys3d.turtle`) and the mesh
+stages (:mod:`lsys3d.sweep`, :mod:`lsys3d.union`).  Every array is indexed by
+segment (``n`` segments), leaf polygon or leaf instance; none holds Python
+objects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+__all__ = ["Chains", "Skeleton"]
+
+
+@dataclass(frozen=True)
+class Chains:
+    """Unbranched runs of segments, stored like a CSR matrix.
+
+    ``segments[offsets[c]:offsets[c + 1]]`` are the segment indices of chain
+    ``c`` from its base to its tip.  ``chain_of[s]`` is the chain of segment ``s``.
+    """
+
+    offsets: np.ndarray  # (c + 1,) int64
+    segments: np.ndarray  # (n,) int64
+    chain_of: np.ndarray  # (n,) int64
+
+    def __len__(self) -> int:
+        return len(self.offsets) - 1
+
+    def lengths(self) -> np.ndarray:
+        """Number of segments of each chain, ``(c,) int64``."""
+        return np.diff(self.offsets)
+
+
+@dataclass(frozen=True, eq=False)
+class Skeleton:
+    """Segments, leaves and leaf instances drawn by the turtle.
+
+    Segments (``n``):
+
+    start, end : (n, 3) float64
+        End points, world coordinates (Y up, metres by convention).
+    width_start, width_end : (n,) float64
+        Branch diameter at each end.
+    heading, left, up : (n, 3) float64
+        The turtle frame while the segment was drawn (orthonormal, H x L = U).
+    parent : (n,) int64
+        The segment whose end this one starts from, or -1.
+    order : (n,) int32
+        Branch order: 0 for the trunk, +1 per lateral branch (bracket level
+        relative to the parent).
+    material : (n,) int32
+        Material / colour index set with ``'``.
+    module : (n,) int64
+        Index of the module that drew the segment.
+
+    Leaf polygons (``p`` polygons, drawn with ``{ . }``):
+
+    polygon_points : (q, 3) float64
+    polygon_offsets : (p + 1,) int64
+        Points of polygon ``i`` are ``polygon_points[polygon_offsets[i]:polygon_offsets[i+1]]``.
+    polygon_material : (p,) int32
+
+    Leaf instances (``k``, placed by the leaf symbol):
+
+    leaf_position, leaf_heading, leaf_left, leaf_up : (k, 3) float64
+    leaf_size : (k,) float64
+        Scale of the leaf model (the step length in force).
+    leaf_material : (k,) int32
+    """
+
+    start: np.ndarray
+    end: np.ndarray
+    width_start: np.ndarray
+    width_end: np.ndarray
+    heading: np.ndarray
+    left: np.ndarray
+    up: np.ndarray
+    parent: np.ndarray
+    order: np.ndarray
+    material: np.ndarray
+    module: np.ndarray
+    polygon_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    polygon_offsets: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    polygon_material: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    leaf_position: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    leaf_heading: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    leaf_left: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    leaf_up: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    leaf_size: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    leaf_material: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+
+    def __len__(self) -> int:
+        return int(self.start.shape[0])
+
+    @property
+    def n_polygons(self) -> int:
+        return len(self.polygon_offsets) - 1
+
+    @property
+    def n_leaves(self) -> int:
+        """Leaf polygons plus leaf instances."""
+        return self.n_polygons + int(self.leaf_position.shape[0])
+
+    def lengths(self) -> np.ndarray:
+        """Length of each segment, ``(n,) float64``."""
+        return np.linalg.norm(self.end - self.start, axis=1)
+
+    def bounds(self) -> np.ndarray:
+        """``(2, 3)``: min and max corner of all segment end points (zeros when empty)."""
+        if not len(self):
+            return np.zeros((2, 3))
+        pts = np.concatenate([self.start, self.end])
+        return np.stack([pts.min(axis=0), pts.max(axis=0)])
+
+    @cached_property
+    def chains(self) -> Chains:
+        """Split the segments into chains (unbranched runs).
+
+        A segment continues its parent's chain when it is the parent's first
+        child (in drawing order) of the parent's own branch order; when no
+        child has that order, the first child drawn continues it.  Every other
+        segment starts a new chain.
+        """
+        n = len(self)
+        parent = self.parent
+        has_parent = np.flatnonzero(parent >= 0)
+        # preferred child of each parent: same order first, then earliest drawn
+        same = self.order[has_parent] != self.order[parent[has_parent]]
+        key = np.lexsort((has_parent, same, parent[has_parent]))
+        ranked = has_parent[key]
+        first = np.ones(len(ranked), dtype=bool)
+        first[1:] = parent[ranked[1:]] != parent[ranked[:-1]]
+        successor = np.full(n, -1, np.int64)
+        successor[parent[ranked[first]]] = ranked[first]
+        continues = np.zeros(n, dtype=bool)
+        continues[successor[successor >= 0]] = True
+        heads = np.flatnonzero(~continues)
+        # walk each chain; total work is O(n)
+        segments = np.empty(n, np.int64)
+        offsets = np.zeros(len(heads) + 1, np.int64)
+        succ = successor.tolist()
+        k = 0
+        for c, h in enumerate(heads.tolist()):
+            s = h
+            while s >= 0:
+                segments[k] = s
+                k += 1
+                s = succ[s]
+            offsets[c + 1] = k
+        chain_of = np.empty(n, np.int64)
+        chain_of[segments] = np.repeat(np.arange(len(heads)), np.diff(offsets))
+        return Chains(offsets, segments, chain_of)
+
+    def validate(self) -> None:
+        """Check shapes, finiteness and parent indices; raise ValueError if broken."""
+        n = len(self)
+        for name in ("start", "end", "heading", "left", "up"):
+            a = getattr(self, name)
+            if a.shape != (n, 3):
+                raise ValueError(f"skeleton.{name} has shape {a.shape}, expected ({n}, 3)")
+            if not np.isfinite(a).all():
+                raise ValueError(f"skeleton.{name} holds a NaN or infinite value")
+        for name in ("width_start", "width_end", "parent", "order", "material", "module"):
+            a = getattr(self, name)
+            if a.shape != (n,):
+                raise ValueError(f"skeleton.{name} has shape {a.shape}, expected ({n},)")
+        if n and (self.parent >= np.arange(n)).any():
+            raise ValueError("skeleton.parent must point to an earlier segment")
+
+    def save_npz(self, path) -> None:
+        """Write every array to a NumPy ``.npz`` file."""
+        arrays = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        np.savez(path, **arrays)
+
+    @classmethod
+    def load_npz(cls, path) -> Skeleton:
+        with np.load(path) as data:
+            return cls(**{k: data[k] for k in cls.__dataclass_fields__})
+
+    def polylines(self) -> list[np.ndarray]:
+        """Each chain as a polyline of points ``(segments + 1, 3)``."""
+        ch = self.chains
+        out = []
+        for c in range(len(ch)):
+            segs = ch.segments[ch.offsets[c] : ch.offsets[c + 1]]
+            out.append(np.concatenate([self.start[segs[:1]], self.end[segs]]))
+        return out
