@@ -117,6 +117,7 @@ def derive(
     iterations: int | None = None,
     seed: int | None = None,
     *,
+    start: ModuleString | None = None,
     max_modules: int = DEFAULT_MAX_MODULES,
 ) -> ModuleString:
     """Rewrite the axiom ``iterations`` times (default: the grammar's own).
@@ -128,6 +129,8 @@ def derive(
         Number of parallel rewriting steps; ``grammar.iterations`` if None.
     seed : int, optional
         Seed of stochastic choices; ``grammar.seed`` if None.
+    start : ModuleString, optional
+        Rewrite this string instead of the axiom (e.g. a result of an earlier call).
     max_modules : int
         Refuse (before allocating) to build a string longer than this.
 
@@ -146,10 +149,10 @@ def derive(
     """
     n = _check_iterations(grammar, iterations)
     plan = _Plan(grammar)
-    if plan.d0l:
+    if plan.d0l and start is None:
         return _derive_d0l(plan, n, max_modules)
     result = None
-    for result in generations(grammar, n, seed, max_modules=max_modules):
+    for result in generations(grammar, n, seed, start=start, max_modules=max_modules):
         pass
     return result
 
@@ -159,9 +162,10 @@ def generations(
     iterations: int | None = None,
     seed: int | None = None,
     *,
+    start: ModuleString | None = None,
     max_modules: int = DEFAULT_MAX_MODULES,
 ) -> Iterator[ModuleString]:
-    """Yield the axiom and then every generation up to ``iterations``, one at a time.
+    """Yield the axiom (or ``start``) and then every generation up to ``iterations``, one at a time.
 
     >>> from lsys3d import Grammar
     >>> [str(s) for s in generations(Grammar(axiom="D", rules=["D = DGD"]), 2)]
@@ -172,7 +176,9 @@ def generations(
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise DerivationError(f"seed must be a whole number >= 0, not {seed!r}")
     plan = _Plan(grammar)
-    current = grammar.axiom_modules
+    current = grammar.axiom_modules if start is None else start
+    if current.alphabet != plan.alphabet and current.alphabet[128:] != plan.alphabet[128:]:
+        raise DerivationError("the start string uses symbols this grammar does not know")
     _check_size(len(current), max_modules, grammar, 0)
     yield current
     for g in range(1, n + 1):

@@ -61,6 +61,7 @@ class SuccessorModule:
 
     symbol: str
     args: tuple[Expr, ...] = ()
+    offset: int = field(default=-1, compare=False)  # where the symbol stands in its text
 
 
 @dataclass(frozen=True)
@@ -146,11 +147,14 @@ class Grammar:
         alphabet = _Alphabet()
         axiom = _parse_modules(self.axiom, "axiom", (), self.defines, self.source, where_axiom, alphabet)
         productions = []
+        wheres = []
         for i, rule in enumerate(self.rules):
             if not isinstance(rule, str):
                 raise GrammarError(f"rule {i + 1} must be a string, not {type(rule).__name__}", self.source)
             where = self._where.get(("rules", i)) or _api_where(f"rules[{i}]")
             productions.append(_parse_rule(i, rule, self.defines, self.source, where, alphabet))
+            wheres.append(where)
+        _check_arities(productions, wheres, axiom, where_axiom, self.source)
         for ch in self.ignore:
             if not ch.isspace():
                 alphabet.code(ch)
@@ -497,6 +501,14 @@ def _parse_rule(index, rule, defines, source, where, alphabet) -> Production:
 
     arrow, width = _find_arrow(rule)
     if arrow is None:
+        opened = []
+        for i, ch in enumerate(rule):
+            if ch == "(":
+                opened.append(i)
+            elif ch == ")" and opened:
+                opened.pop()
+        if opened:
+            raise err("unclosed '('", opened[-1])
         raise err("malformed rule: expected '->' (or '=') between predecessor and successor", len(rule.rstrip()))
     lhs_end, rhs_start = arrow, arrow + width
 
@@ -628,7 +640,9 @@ def _parse_modules(text, kind, formals, defines, source, where, alphabet, start=
                 raise _error(f"unclosed '(' after {ch!r}", source, where, i)
             args = _parse_args(text, i + 1, j, ch, kind, formals, defines, source, where)
             i = j + 1
-        if ch == "[":
+        if kind == "predecessor":
+            pass  # a bracket predecessor is reported by the caller
+        elif ch == "[":
             stack.append(sym_at)
         elif ch == "]":
             if not stack and kind != "context":
@@ -640,7 +654,7 @@ def _parse_modules(text, kind, formals, defines, source, where, alphabet, start=
         if kind in ("predecessor", "context"):
             out.append(PatternModule(ch, args))
         else:
-            out.append(SuccessorModule(ch, args))
+            out.append(SuccessorModule(ch, args, sym_at))
     if stack and kind != "context":
         raise _error(f"unbalanced '[' in {kind}: no ']' closes it", source, where, stack[-1])
     if stack:
@@ -685,6 +699,27 @@ def _parse_args(text, start, stop, symbol, kind, formals, defines, source, where
             except ExprSyntaxError as exc:
                 raise _error(str(exc), source, where, a + exc.offset) from None
     return tuple(args)
+
+
+def _check_arities(productions, wheres, axiom, where_axiom, source):
+    """A module whose symbol has rules, but none of its arity, is almost always a typo."""
+    arities: dict[str, set[int]] = {}
+    for p in productions:
+        arities.setdefault(p.predecessor.symbol, set()).add(len(p.predecessor.formals))
+    for modules, where, what in [(axiom, where_axiom, "the axiom")] + [
+        (p.successor, w, f"the successor of rule '{p.text}'") for p, w in zip(productions, wheres, strict=True)
+    ]:
+        for m in modules:
+            expected = arities.get(m.symbol)
+            if expected is not None and len(m.args) not in expected:
+                want = " or ".join(str(k) for k in sorted(expected))
+                raise _error(
+                    f"wrong arity: {m.symbol!r} has {len(m.args)} parameter(s) in {what}, "
+                    f"but its rules expect {want}",
+                    source,
+                    where,
+                    m.offset,
+                )
 
 
 def _evaluate_axiom(axiom, alphabet, source, where) -> ModuleString:
