@@ -18,13 +18,18 @@ EXIT_INTERRUPTED = 130
 
 def _grammar_args(p: argparse.ArgumentParser, optional: bool = False):
     if optional:
-        p.add_argument("grammar", nargs="?", default=DEFAULT_PRESET, help=f"grammar file or preset (default: {DEFAULT_PRESET})")
+        p.add_argument(
+            "grammar", nargs="?", default=DEFAULT_PRESET, help=f"grammar file or preset (default: {DEFAULT_PRESET})"
+        )
     else:
         p.add_argument("grammar", help="a grammar file (.toml) or the name of a bundled preset")
     p.add_argument("-n", "--iterations", type=int, default=None, help="number of generations (default: the grammar's)")
     p.add_argument("--seed", type=int, default=None, help="seed of stochastic rules (default: the grammar's)")
     p.add_argument(
-        "--max-modules", type=int, default=DEFAULT_MAX_MODULES, help=f"size limit of derivation (default {DEFAULT_MAX_MODULES:,})"
+        "--max-modules",
+        type=int,
+        default=DEFAULT_MAX_MODULES,
+        help=f"size limit of derivation (default {DEFAULT_MAX_MODULES:,})",
     )
 
 

@@ -151,9 +151,7 @@ def derive(
     plan = _Plan(grammar)
     if plan.d0l and start is None:
         return _derive_d0l(plan, n, max_modules)
-    result = None
-    for result in generations(grammar, n, seed, start=start, max_modules=max_modules):
-        pass
+    *_, result = generations(grammar, n, seed, start=start, max_modules=max_modules)
     return result
 
 

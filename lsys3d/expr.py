@@ -245,7 +245,7 @@ class _Parser:
 
     def expect(self, value):
         kind, val, pos = self.take()
-        if val != value or kind == "end" and value:
+        if val != value or (kind == "end" and value):
             found = "end of expression" if kind == "end" else repr(val)
             raise ExprSyntaxError(f"expected {value!r}, found {found}", pos)
 

@@ -32,7 +32,7 @@ from .errors import GrammarError
 from .expr import CONSTANTS, FUNCTIONS, Expr, ExprSyntaxError, parse_expression
 from .modules import ASCII_ALPHABET, ModuleString
 
-__all__ = ["Grammar", "PatternModule", "Production", "SuccessorModule", "MAX_GRAMMAR_BYTES", "MAX_PARAMETERS"]
+__all__ = ["MAX_GRAMMAR_BYTES", "MAX_PARAMETERS", "Grammar", "PatternModule", "Production", "SuccessorModule"]
 
 MAX_GRAMMAR_BYTES = 1 << 20
 """Largest grammar file read, in bytes."""
@@ -138,7 +138,11 @@ class Grammar:
         set_ = object.__setattr__
         set_(self, "rules", tuple(self.rules))
         set_(self, "ignore", "".join(self.ignore) if not isinstance(self.ignore, str) else self.ignore)
-        set_(self, "defines", MappingProxyType(_check_defines(dict(self.defines), self.source, self._where.get("defines"))))
+        set_(
+            self,
+            "defines",
+            MappingProxyType(_check_defines(dict(self.defines), self.source, self._where.get("defines"))),
+        )
         set_(self, "turtle", MappingProxyType(dict(self.turtle)))
         self._check_scalars()
         where_axiom = self._where.get("axiom") or _api_where("axiom")
@@ -195,7 +199,10 @@ class Grammar:
         if unknown:
             line = _key_line(text, unknown[0])
             raise GrammarError(
-                f"unknown key '{unknown[0]}' (known keys: {', '.join(sorted(_KEYS))})", source, line, 1 if line else None
+                f"unknown key '{unknown[0]}' (known keys: {', '.join(sorted(_KEYS))})",
+                source,
+                line,
+                1 if line else None,
             )
         if "axiom" not in data:
             raise GrammarError("missing 'axiom' (the start string, e.g. axiom = \"F\")", source, 1, 1)
@@ -462,7 +469,9 @@ def _check_defines(defines: dict, source: str, where) -> dict:
             except (ExprSyntaxError, ArithmeticError) as exc:
                 raise GrammarError(f"define {name!r}: {exc}", *_loc(source, source_where, 0)) from None
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise GrammarError(f"define {name!r} must be a finite number, not {value!r}", *_loc(source, source_where, 0))
+            raise GrammarError(
+                f"define {name!r} must be a finite number, not {value!r}", *_loc(source, source_where, 0)
+            )
         out[name] = float(value)
     return out
 
@@ -483,10 +492,10 @@ def _top_level(text: str, start: int = 0, stop: int | None = None):
 
 def _find_arrow(rule: str):
     chars = list(_top_level(rule))
-    for k, (i, ch) in enumerate(chars):
+    for i, ch in chars:
         if ch == "-" and rule.startswith("->", i):
             return i, 2
-    for k, (i, ch) in enumerate(chars):
+    for i, ch in chars:
         if ch == "=":
             prev = rule[i - 1] if i else ""
             nxt = rule[i + 1] if i + 1 < len(rule) else ""
@@ -714,8 +723,7 @@ def _check_arities(productions, wheres, axiom, where_axiom, source):
             if expected is not None and len(m.args) not in expected:
                 want = " or ".join(str(k) for k in sorted(expected))
                 raise _error(
-                    f"wrong arity: {m.symbol!r} has {len(m.args)} parameter(s) in {what}, "
-                    f"but its rules expect {want}",
+                    f"wrong arity: {m.symbol!r} has {len(m.args)} parameter(s) in {what}, but its rules expect {want}",
                     source,
                     where,
                     m.offset,

@@ -31,7 +31,7 @@ def format_number(x: float) -> str:
     >>> format_number(8 / 7), format_number(2.0), format_number(-1e-9)
     ('1.142857', '2', '0')
     """
-    s = "%.6f" % x
+    s = f"{x:.6f}"
     s = s.rstrip("0").rstrip(".")
     return "0" if s in ("-0", "") else s
 

@@ -25,7 +25,7 @@ def naive_d0l(axiom: str, rules: dict[str, str], n: int) -> str:
     return s
 
 
-# -- the seed text's examples (its printed derivations have typos; these are the correct strings) --------------------
+# -- the seed text's examples (its printed derivations have typos; these are the correct strings) ------------
 def test_dog_swaps_back():
     g = load_preset("dog")
     assert [str(s) for s in generations(g, 3)] == ["DOG", "GOD", "DOG", "GOD"]
@@ -95,7 +95,7 @@ def test_both_engines_agree_on_d0l_grammars():
     assert fast == stepped
 
 
-# -- canonical text --------------------------------------------------------------------------------------------------
+# -- canonical text ------------------------------------------------------------------------------------------
 def test_canonical_numbers():
     assert format_number(8 / 7) == "1.142857"
     assert format_number(-0.0) == "0"
@@ -114,7 +114,7 @@ def test_module_string_is_arrays():
     assert str(s[0:2]) == "!(0.15)F(1)"
 
 
-# -- parametric rules and conditions ----------------------------------------------------------------------------------
+# -- parametric rules and conditions -------------------------------------------------------------------------
 def test_parametric_abop_example():
     # ABOP section 1.10, the example under equation (1.8)
     g = Grammar(
@@ -160,7 +160,7 @@ def test_condition_errors_name_the_rule():
         derive(g, 1)
 
 
-# -- context-sensitive rules (ABOP section 1.8) -------------------------------------------------------------------------
+# -- context-sensitive rules (ABOP section 1.8) --------------------------------------------------------------
 def rewrite_once(axiom: str, rule: str, ignore: str = "") -> str:
     return str(derive(Grammar(axiom=axiom, rules=[rule], ignore=ignore), 1))
 
@@ -243,7 +243,7 @@ def test_signal_propagation_matches_a_reference():
     assert str(derive(g)) == s
 
 
-# -- stochastic rules ---------------------------------------------------------------------------------------------------
+# -- stochastic rules ----------------------------------------------------------------------------------------
 def test_stochastic_frequencies():
     g = Grammar(axiom="A" * 4000, rules=["A -> B : 1", "A -> C : 3"])
     counts = Counter(str(derive(g, 1, seed=11)))
@@ -289,7 +289,7 @@ def test_pooling_needs_equal_conditions():
     assert out[0] == "D" and out[1] in "BC"
 
 
-# -- limits -------------------------------------------------------------------------------------------------------------
+# -- limits --------------------------------------------------------------------------------------------------
 def test_exponential_grammar_fails_fast_with_its_size():
     g = Grammar(axiom="A", rules=["A -> AA"])
     with pytest.raises(LimitError, match=r"1,099,511,627,776 modules.*--max-modules"):
@@ -311,13 +311,13 @@ def test_bad_arguments():
         derive(load_preset("koch-stochastic"), 1, seed=-4)
 
 
-# -- properties -----------------------------------------------------------------------------------------------------------
+# -- properties ----------------------------------------------------------------------------------------------
 SYMBOLS = "ABF+-"
 
 
 @st.composite
 def bracketed(draw, max_len=8):
-    parts = draw(st.lists(st.sampled_from(list(SYMBOLS) + ["[", "]"]), max_size=max_len))
+    parts = draw(st.lists(st.sampled_from([*SYMBOLS, "[", "]"]), max_size=max_len))
     out, depth = [], 0
     for p in parts:
         if p == "]":

@@ -18,7 +18,7 @@ def write(tmp_path: Path, text: str, name: str = "g.toml") -> Path:
     return path
 
 
-# -- rule notation ---------------------------------------------------------------------------------------------
+# -- rule notation -------------------------------------------------------------------------------------------
 def test_arrow_and_equals_are_the_same():
     a = Grammar(axiom="F", rules=["F -> F-F++F-F"])
     b = Grammar(axiom="F", rules=["F = F-F++F-F"])
@@ -77,7 +77,7 @@ def test_turtle_table_is_kept():
     assert g.turtle["heading"] == 0 and g.turtle["draw"] == "FG"
 
 
-# -- expressions ---------------------------------------------------------------------------------------------------
+# -- expressions ---------------------------------------------------------------------------------------------
 @pytest.mark.parametrize(
     ("text", "expected"),
     [
@@ -162,7 +162,7 @@ def test_grammar_file_never_runs_code(tmp_path):
     assert not canary.exists()
 
 
-# -- errors with file:line:col -------------------------------------------------------------------------------------
+# -- errors with file:line:col -------------------------------------------------------------------------------
 ERROR_CASES = [
     # (file text, line, col, message fragment)
     ('axiom = "F"\nrules = [\n  "F -> F[+F",\n]\n', 3, 10, "unbalanced '['"),
@@ -235,7 +235,7 @@ def test_missing_file_is_a_grammar_error(tmp_path):
         Grammar.from_file(tmp_path / "nope.toml")
 
 
-# -- presets ------------------------------------------------------------------------------------------------------------
+# -- presets -------------------------------------------------------------------------------------------------
 def test_presets_are_found_through_importlib_resources():
     names = lsys3d.list_presets()
     for required in ("dog", "dog-growing", "koch", "snowflake", "tree", "plant", "koch-stochastic"):

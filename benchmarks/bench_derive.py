@@ -1,0 +1,115 @@
+"""Derivation speed against plain-Python rewriters measured in the same run.
+
+    python benchmarks/bench_derive.py [--quick]
+
+Prints modules per second for lsys3d and for two baselines:
+
+* D0L (ABOP figure 1.24f, 9 to 11 generations): ``str.translate`` with a
+  table of successors, the fastest pure-string rewriter in Python.
+* Parametric (ABOP figure 2.6 monopodial tree): a per-module Python rewriter
+  with the rules written as Python lambdas (no parsing cost at all).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import lsys3d
+
+
+def best_of(fn, repeat=3):
+    best = float("inf")
+    result = None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        result = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, result
+
+
+def translate_rewriter(axiom: str, rules: dict[str, str], n: int) -> str:
+    table = str.maketrans(rules)
+    s = axiom
+    for _ in range(n):
+        s = s.translate(table)
+    return s
+
+
+def monopodial_python(n: int):
+    r1, r2, a0, a2, d, wr = 0.9, 0.6, 45.0, 45.0, 137.5, 0.707
+    rules = {
+        "A": lambda l, w: [
+            ("!", (w,)),
+            ("F", (l,)),
+            ("[", ()),
+            ("&", (a0,)),
+            ("B", (l * r2, w * wr)),
+            ("]", ()),
+            ("/", (d,)),
+            ("A", (l * r1, w * wr)),
+        ],
+        "B": lambda l, w: [
+            ("!", (w,)),
+            ("F", (l,)),
+            ("[", ()),
+            ("-", (a2,)),
+            ("$", ()),
+            ("C", (l * r2, w * wr)),
+            ("]", ()),
+            ("C", (l * r1, w * wr)),
+        ],
+        "C": lambda l, w: [
+            ("!", (w,)),
+            ("F", (l,)),
+            ("[", ()),
+            ("+", (a2,)),
+            ("$", ()),
+            ("B", (l * r2, w * wr)),
+            ("]", ()),
+            ("B", (l * r1, w * wr)),
+        ],
+    }
+    s = [("A", (1.0, 0.15))]
+    for _ in range(n):
+        out = []
+        for sym, args in s:
+            rule = rules.get(sym)
+            if rule is None:
+                out.append((sym, args))
+            else:
+                out.extend(rule(*args))
+        s = out
+    return s
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smaller sizes")
+    args = parser.parse_args()
+
+    print("D0L: ABOP figure 1.24f (X -> F-[[X]+X]+F[+FX]-X, F -> FF)")
+    print(f"{'n':>3} {'modules':>12} {'lsys3d Mmod/s':>14} {'translate Mmod/s':>17} {'ratio':>7}")
+    g = lsys3d.load_preset("abop-1.24f")
+    rules = {p.predecessor.symbol: "".join(m.symbol for m in p.successor) for p in g.productions}
+    for n in (7, 8, 9) if args.quick else (9, 10, 11):
+        t_ours, ours = best_of(lambda n=n: lsys3d.derive(g, n, max_modules=10**9))
+        t_base, base = best_of(lambda n=n: translate_rewriter(g.axiom, rules, n))
+        assert ours.symbol_text() == base
+        m = len(ours)
+        print(f"{n:>3} {m:>12,} {m / t_ours / 1e6:>14.1f} {m / t_base / 1e6:>17.1f} {t_base / t_ours:>6.1f}x")
+
+    print()
+    print("Parametric: ABOP figure 2.6 monopodial tree")
+    print(f"{'n':>3} {'modules':>12} {'lsys3d Mmod/s':>14} {'python Mmod/s':>14} {'ratio':>7}")
+    g = lsys3d.load_preset("monopodial")
+    for n in (12, 14) if args.quick else (14, 16, 18):
+        t_ours, ours = best_of(lambda n=n: lsys3d.derive(g, n, max_modules=10**9), repeat=2)
+        t_base, base = best_of(lambda n=n: monopodial_python(n), repeat=1)
+        assert len(ours) == len(base)
+        m = len(ours)
+        print(f"{n:>3} {m:>12,} {m / t_ours / 1e6:>14.2f} {m / t_base / 1e6:>14.2f} {t_base / t_ours:>6.1f}x")
+
+
+if __name__ == "__main__":
+    main()
