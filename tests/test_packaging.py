@@ -1,0 +1,38 @@
+"""A plain `pip install .` carries the presets inside the package."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_wheel_ships_the_presets(tmp_path):
+    wheels = tmp_path / "wheels"
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheels), str(ROOT)],
+        check=True,
+        capture_output=True,
+    )
+    (wheel,) = wheels.glob("lsys3d-*.whl")
+    target = tmp_path / "site"
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
+        check=True,
+        capture_output=True,
+    )
+    code = (
+        "import lsys3d, sys; assert lsys3d.__file__.startswith(sys.argv[1]), lsys3d.__file__;"
+        "names = lsys3d.list_presets(); print(len(names), lsys3d.derive(lsys3d.load_preset('dog'), 1))"
+    )
+    env = dict(os.environ, PYTHONPATH=str(target))
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(target)], env=env, cwd=tmp_path, capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    count, text = out.stdout.split()
+    assert int(count) == len(list((ROOT / "assets" / "presets").glob("*.toml")))
+    assert text == "GOD"
