@@ -23,6 +23,9 @@ from .errors import (
 from .grammar import Grammar
 from .modules import ModuleString
 from .presets import DEFAULT_PRESET, list_presets, load, load_preset
+from .skeleton import Skeleton
+from .stats import skeleton_stats
+from .turtle import TurtleOptions, interpret
 
 try:
     __version__ = version("lsys3d")
@@ -41,11 +44,15 @@ __all__ = [
     "LSystemError",
     "LimitError",
     "ModuleString",
+    "Skeleton",
+    "TurtleOptions",
     "__version__",
     "derive",
     "generations",
+    "interpret",
     "list_presets",
     "load",
     "load_preset",
     "predict_length",
+    "skeleton_stats",
 ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
 
@@ -10,6 +11,8 @@ from . import __version__
 from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import LSystemError
 from .presets import DEFAULT_PRESET, describe, list_presets, load
+from .stats import skeleton_stats
+from .turtle import interpret
 
 EXIT_USER_ERROR = 1
 EXIT_USAGE = 2
@@ -45,6 +48,11 @@ def build_parser() -> argparse.ArgumentParser:
     _grammar_args(p)
     p.set_defaults(func=cmd_derive)
 
+    p = sub.add_parser("stats", help="print counts and extents of the drawn plant")
+    _grammar_args(p)
+    p.add_argument("--json", action="store_true", help="one JSON object instead of a table")
+    p.set_defaults(func=cmd_stats)
+
     p = sub.add_parser("presets", help="list the bundled presets")
     p.set_defaults(func=cmd_presets)
     return parser
@@ -57,6 +65,27 @@ def cmd_derive(args) -> int:
     out.write(str(result))
     out.write("\n")
     return 0
+
+
+def cmd_stats(args) -> int:
+    grammar = load(args.grammar)
+    modules = derive(grammar, args.iterations, args.seed, max_modules=args.max_modules)
+    stats = skeleton_stats(modules, interpret(modules, grammar, seed=args.seed))
+    print_stats(stats, args.json)
+    return 0
+
+
+def print_stats(stats: dict, as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(stats, sort_keys=True))
+        return
+    width = max(map(len, stats))
+    for key, value in stats.items():
+        if isinstance(value, float):
+            value = f"{value:.6g}"
+        elif isinstance(value, list):
+            value = "  ".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in value)
+        print(f"{key:<{width}}  {value}")
 
 
 def cmd_presets(args) -> int:

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
 import pytest
 
+import lsys3d
 from lsys3d.cli import main
 
 
@@ -68,3 +70,16 @@ def test_usage_errors_exit_2():
     assert run("derive").returncode == 2
     assert run("frobnicate").returncode == 2
     assert run("derive", "koch", "-n", "x").returncode == 2
+
+
+def test_stats_json_and_table(capsys):
+
+    assert main(["stats", "abop-1.24a", "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    for key in ("modules", "segments", "chains", "branches", "leaves", "bbox_min", "bbox_max", "total_length"):
+        assert key in stats
+    assert stats["segments"] == str(lsys3d.derive(lsys3d.load_preset("abop-1.24a"))).count("F")
+    assert list(stats) == sorted(stats)
+    assert main(["stats", "abop-1.24a"]) == 0
+    table = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in table] == sorted(stats)
