@@ -346,7 +346,7 @@ class _Context:
 
 def _fail(prod: Production, where: str, exc: EvalError, ms: ModuleString, idx: np.ndarray, generation: int):
     bad = int(idx[int(exc.index[0])]) if len(exc.index) and len(idx) else int(idx[0]) if len(idx) else -1
-    module = f" for module {ms.module_text(bad)} (#{bad})" if bad >= 0 else ""
+    module = f" for module {ms.module_text(bad, short=True)} (#{bad})" if bad >= 0 else ""
     return DerivationError(
         f"{prod.location}: rule '{prod.text}': {exc} in {where}{module} while deriving generation {generation}"
     )

@@ -74,9 +74,11 @@ class ModuleString:
         o = self.offsets
         return self.symbol(i), tuple(float(x) for x in self.params[o[i] : o[i + 1]])
 
-    def module_text(self, i: int) -> str:
+    def module_text(self, i: int, short: bool = False) -> str:
+        """Module ``i`` as text; ``short`` prints numbers with ``%.6g`` (for messages)."""
         sym, args = self.module(i)
-        return sym + ("(" + ",".join(map(format_number, args)) + ")" if args else "")
+        fmt = (lambda x: f"{x:.6g}") if short else format_number
+        return sym + ("(" + ",".join(map(fmt, args)) + ")" if args else "")
 
     def count(self, symbol: str) -> int:
         """How many modules have this symbol."""

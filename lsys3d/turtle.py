@@ -254,7 +254,7 @@ class TurtleOptions:
         values: dict = {"angle": grammar.angle, "seed": grammar.seed}
         for key, value in grammar.turtle.items():
             if key not in known:
-                raise _turtle_error(grammar, key, f"unknown key (known keys: {', '.join(sorted(known))})")
+                raise _turtle_error(grammar, key, f"unknown key {key!r} (known keys: {', '.join(sorted(known))})")
             try:
                 values[key] = _check_option(key, value)
             except ValueError as exc:
@@ -746,7 +746,7 @@ for _cmd in COMMANDS:
 def _module_error(modules: ModuleString, table: np.ndarray, i: int, what: str) -> InterpretError:
     cmd = _BY_OPCODE.get(int(table[modules.symbols[i]]))
     name = f" ({cmd.name})" if cmd else ""
-    return InterpretError(f"module {i} '{modules.module_text(i)}'{name}: {what}")
+    return InterpretError(f"module {i} '{modules.module_text(i, short=True)}'{name}: {what}")
 
 
 def _jitter(m: int, options: TurtleOptions, seed: int):

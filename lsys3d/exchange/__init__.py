@@ -1,0 +1,134 @@
+"""Export a :class:`~lsys3d.tree.Tree` to a file; the writer is chosen by the file's suffix.
+
+==========================  ====================================================
+suffix                      writer
+==========================  ====================================================
+``.glb``                    binary glTF 2.0 (:mod:`lsys3d.exchange.gltf`)
+``.gltf``                   glTF 2.0 JSON plus a ``.bin`` buffer beside it
+``.usda`` ``.usdc`` ``.usd``  OpenUSD text / crate (:mod:`lsys3d.exchange.usd`)
+``.usdz``                   OpenUSD package holding one ``.usdc``
+``.obj`` ``.ply`` ``.stl``  the bark mesh alone, through trimesh
+==========================  ====================================================
+
+Every writer is atomic (a temporary file beside the target, renamed over it)
+and deterministic (the same tree gives the same bytes).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ExportError
+from ..tree import Tree
+from .atomic import check_target, write_bytes
+from .common import ExportOptions, file_frame
+
+__all__ = ["SUPPORTED_SUFFIXES", "ExportOptions", "export"]
+
+
+def _glb(tree, path, options):
+    from .gltf import write_glb
+
+    return write_glb(tree, path, options)
+
+
+def _gltf(tree, path, options):
+    from .gltf import write_gltf
+
+    return write_gltf(tree, path, options)
+
+
+def _usd(tree, path, options):
+    from .usd import write_usd
+
+    return write_usd(tree, path, options)
+
+
+def _usdz(tree, path, options):
+    from .usd import write_usdz
+
+    return write_usdz(tree, path, options)
+
+
+def _trimesh(tree, path, options):
+    """The bark alone, in the file frame, through trimesh's exporters (no provenance: the formats have no place)."""
+    import trimesh
+
+    frame = file_frame(options)
+    vertices = np.asarray(tree.bark.vertices) @ frame.T
+    mesh = trimesh.Trimesh(vertices, np.asarray(tree.bark.faces), process=False)
+    file_type = path.suffix[1:].lower()
+    data = mesh.export(file_type=file_type)
+    if isinstance(data, str):
+        data = data.encode("utf-8")
+    elif isinstance(data, io.BytesIO):  # pragma: no cover - older trimesh
+        data = data.getvalue()
+    return write_bytes(path, [memoryview(data)], options.no_clobber)
+
+
+_WRITERS: dict[str, Callable[[Tree, Path, ExportOptions], Path]] = {
+    ".glb": _glb,
+    ".gltf": _gltf,
+    ".usda": _usd,
+    ".usdc": _usd,
+    ".usd": _usd,
+    ".usdz": _usdz,
+    ".obj": _trimesh,
+    ".ply": _trimesh,
+    ".stl": _trimesh,
+}
+
+#: The file suffixes :func:`export` can write.
+SUPPORTED_SUFFIXES: tuple[str, ...] = tuple(_WRITERS)
+
+
+def export(tree: Tree, path: str | os.PathLike, options: ExportOptions | None = None) -> Path:
+    """Write ``tree`` to ``path`` in the format its suffix names.
+
+    Parameters
+    ----------
+    tree : Tree
+        The asset: bark, leaves, skeleton, materials and provenance.
+    path : str or path-like
+        Target file; the suffix (case-insensitive) picks the format, see
+        :data:`SUPPORTED_SUFFIXES`.  The folder must exist.
+    options : ExportOptions, optional
+        Units, up axis, leaf instancing, skeleton curves, no_clobber.
+        Default: metres, Y up, the format's leaf representation, no curves.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written (for ``.gltf`` the ``.bin`` lies beside it).
+
+    Raises
+    ------
+    ExportError
+        ``path: reason`` for an unknown suffix, a missing or unwritable
+        folder, a full disk, an existing file with ``no_clobber``, or a tree
+        that cannot be written.  The target is never left half-written.
+
+    Examples
+    --------
+    >>> from lsys3d.exchange import export, ExportOptions
+    >>> export(tree, "tree.usdc", ExportOptions(up_axis="Z"))  # doctest: +SKIP
+    PosixPath('tree.usdc')
+    """
+    path = Path(path)
+    options = ExportOptions() if options is None else options
+    if not isinstance(options, ExportOptions):
+        raise ExportError(f"{path}: options must be an ExportOptions, not {type(options).__name__}")
+    suffix = path.suffix.lower()
+    writer = _WRITERS.get(suffix)
+    if writer is None:
+        what = f"unknown suffix {suffix!r}" if suffix else "no suffix"
+        raise ExportError(f"{path}: {what}; supported: {', '.join(SUPPORTED_SUFFIXES)}")
+    if not isinstance(tree, Tree):
+        raise ExportError(f"{path}: expected a lsys3d Tree, got {type(tree).__name__}")
+    check_target(path, options.no_clobber)  # fail before the (possibly long) gathering
+    return writer(tree, path, options)
