@@ -302,7 +302,7 @@ def test_bracket_with_argument():
         ("F!(-1)F", r"^module 1 '!\(-1\)' \(width\): the width must be"),
         ('F"(-1)F', r"^module 1 '\"\(-1\)' \(step length\)"),
         ("+(1,2)F", r"^module 0 '\+\(1,2\)' \(turn left\): takes at most 1 argument"),
-        ("F(1e308)F(1e308)", r"^module 1 'F\(\d+\)' \(forward\): the turtle's position became infinite"),
+        ("F(1e308)F(1e308)", r"^module 1 'F\(1e\+308\)' \(forward\): the turtle's position became infinite"),
     ],
 )
 def test_interpret_errors(axiom, message):
