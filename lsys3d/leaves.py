@@ -1,0 +1,274 @@
+"""Leaves: flat meshes for the leaf polygons and the leaf instances of a skeleton.
+
+Leaves are not unioned with the bark; they are thin sheets meant for a
+double-sided material (:data:`lsys3d.tree.LEAF`).  Two kinds come out of the
+turtle:
+
+* polygons drawn with ``{ . }``: each becomes a flat triangulated mesh in
+  world space (:func:`polygon_leaves`);
+* leaf instances placed by the leaf symbol: one leaf model (the built-in
+  :func:`default_leaf` or the user's) placed by a transform per instance
+  (:func:`leaf_transforms`), and baked in place for formats without
+  instancing (:func:`instance_leaves`).
+
+Leaf model convention: the model lives in the turtle's frame at the leaf,
+``x`` = left, ``y`` = up, ``z`` = heading; the blade starts at the origin and
+grows along ``+z`` to ``z = 1``, lying in the ``x``-``z`` plane with its front
+facing ``+y``.  ``leaf_transforms`` has rotation columns left, up, heading,
+each scaled by the leaf size, and the leaf position as translation -- so a
+model of length 1 becomes a leaf one step long.
+
+Every mesh carries the ``corner_normals`` / ``corner_uv`` face attributes of
+:mod:`lsys3d.tree`: the normal is the face normal (leaves are flat), ``uv``
+maps the leaf's box onto [0, 1] x [0, 1].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import manifold3d
+import numpy as np
+import trimesh
+
+from .errors import GeometryError
+from .skeleton import Skeleton
+from .sweep import corner_mesh
+
+__all__ = ["Leaves", "default_leaf", "instance_leaves", "leaf_transforms", "leaves", "polygon_leaves"]
+
+
+@dataclass(frozen=True, eq=False)
+class Leaves:
+    """All leaf geometry of one skeleton (the leaf fields of :class:`lsys3d.tree.Tree`).
+
+    Attributes
+    ----------
+    merged : trimesh.Trimesh or None
+        Polygon leaves plus every instance baked in place; None without leaves.
+    model : trimesh.Trimesh or None
+        The leaf model the transforms place; None without leaf instances.
+    transforms : (k, 4, 4) float64
+        One transform per leaf instance (see :func:`leaf_transforms`).
+    polygons : trimesh.Trimesh or None
+        The ``{ . }`` polygons; None without polygons.
+    """
+
+    merged: trimesh.Trimesh | None
+    model: trimesh.Trimesh | None
+    transforms: np.ndarray
+    polygons: trimesh.Trimesh | None
+
+
+def default_leaf(points: int = 7) -> trimesh.Trimesh:
+    """The built-in leaf: a pointed oval blade, length 1 along ``+z``, width 0.5 along ``x``.
+
+    Parameters
+    ----------
+    points : int
+        Rows across the blade between base and tip (at least 1).
+
+    Returns
+    -------
+    trimesh.Trimesh
+        ``4 * points`` triangles facing ``+y``, with corner normals and uv.
+
+    Examples
+    --------
+    >>> m = default_leaf()
+    >>> len(m.faces), m.bounds.round(3).tolist()
+    (28, [[-0.25, 0.0, 0.0], [0.25, 0.0, 1.0]])
+    """
+    if points < 1:
+        raise ValueError(f"default_leaf: points must be >= 1, got {points}")
+    z = np.linspace(0.0, 1.0, points + 2)[1:-1]
+    half = np.sin(np.pi * z) ** 0.8
+    half *= 0.25 / half.max()
+    # vertices: base, then (left, mid, right) per row, then tip
+    verts = np.zeros((3 * points + 2, 3))
+    verts[1:-1:3, 0] = -half
+    verts[3:-1:3, 0] = half
+    verts[1:-1, 2] = np.repeat(z, 3)
+    verts[-1, 2] = 1.0
+    faces = [[0, 1, 2], [0, 2, 3]]
+    for i in range(points - 1):
+        a, b = 1 + 3 * i, 4 + 3 * i
+        faces += [[a, b, b + 1], [a, b + 1, a + 1], [a + 1, b + 1, b + 2], [a + 1, b + 2, a + 2]]
+    a, t = 1 + 3 * (points - 1), len(verts) - 1
+    faces += [[a, t, a + 1], [a + 1, t, a + 2]]
+    faces = np.array(faces, np.int64)
+    # wind every triangle so that the front faces +y
+    tri = verts[faces]
+    back = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[:, 1] < 0
+    faces[back] = faces[back][:, ::-1]
+    normals = np.broadcast_to(np.array([0.0, 1.0, 0.0], np.float32), (len(faces), 3, 3))
+    uv = np.stack([verts[:, 0] / 0.5 + 0.5, verts[:, 2]], axis=1)[faces]
+    return corner_mesh(verts, faces, normals, uv)
+
+
+def leaf_transforms(skeleton: Skeleton) -> np.ndarray:
+    """World transforms of the leaf instances, ``(k, 4, 4) float64``.
+
+    Rotation columns are left, up, heading scaled by ``leaf_size``; the
+    translation is ``leaf_position``.
+    """
+    k = len(skeleton.leaf_position)
+    out = np.zeros((k, 4, 4))
+    size = np.asarray(skeleton.leaf_size, np.float64)[:, None]
+    out[:, :3, 0] = skeleton.leaf_left * size
+    out[:, :3, 1] = skeleton.leaf_up * size
+    out[:, :3, 2] = skeleton.leaf_heading * size
+    out[:, :3, 3] = skeleton.leaf_position
+    out[:, 3, 3] = 1.0
+    return out
+
+
+def instance_leaves(model: trimesh.Trimesh, transforms: np.ndarray) -> trimesh.Trimesh | None:
+    """Copies of ``model`` baked in place by each transform (None when there are none).
+
+    Corner normals follow the rotation (inverse transpose, renormalised); uv
+    are copied.  Transforms with a zero scale give degenerate copies, which
+    are dropped.
+    """
+    transforms = np.asarray(transforms, np.float64)
+    if transforms.ndim != 3 or transforms.shape[1:] != (4, 4):
+        raise ValueError(f"instance_leaves: transforms must have shape (k, 4, 4), got {transforms.shape}")
+    lin = transforms[:, :3, :3]
+    det = np.linalg.det(lin)
+    ok = np.abs(det) > 1e-30
+    transforms, lin, det = transforms[ok], lin[ok], det[ok]
+    if not len(transforms):
+        return None
+    verts = np.asarray(model.vertices, np.float64)
+    faces = np.asarray(model.faces, np.int64)
+    attrs = model.face_attributes
+    normals = attrs.get("corner_normals")
+    if normals is None:
+        normals = np.repeat(np.asarray(model.face_normals)[:, None, :], 3, axis=1)
+    uv = attrs.get("corner_uv")
+    if uv is None:
+        uv = np.zeros((len(faces), 3, 2))
+    k, nv = len(transforms), len(verts)
+    world = verts[None] @ lin.transpose(0, 2, 1) + transforms[:, None, :3, 3]
+    inv = np.linalg.inv(lin)  # normals transform by the inverse transpose: n' = n @ inv
+    wn = (np.asarray(normals, np.float64).reshape(1, -1, 3) @ inv).astype(np.float32)
+    wn /= np.maximum(np.linalg.norm(wn, axis=-1, keepdims=True), 1e-30)
+    wfaces = faces[None] + (np.arange(k) * nv)[:, None, None]
+    if (det < 0).any():  # a mirroring transform turns the winding around
+        wfaces[det < 0] = wfaces[det < 0][:, :, ::-1]
+    return corner_mesh(
+        world.reshape(-1, 3),
+        wfaces.reshape(-1, 3),
+        wn.reshape(-1, 3, 3),
+        np.broadcast_to(np.asarray(uv), (k, *np.shape(uv))).reshape(-1, 3, 2),
+    )
+
+
+def _plane_frames(points: np.ndarray, offsets: np.ndarray):
+    """Newell normal and an in-plane axis of every polygon."""
+    n = len(offsets) - 1
+    counts = np.diff(offsets)
+    poly = np.repeat(np.arange(n), counts)
+    nxt = np.arange(len(points)) + 1
+    last = offsets[1:] - 1
+    nxt[last] = offsets[:-1]
+    normal = np.zeros((n, 3))
+    np.add.at(normal, poly, np.cross(points, points[nxt]))
+    area2 = np.linalg.norm(normal, axis=1)
+    normal = normal / np.where(area2 > 0, area2, 1.0)[:, None]
+    edge = points[offsets[:-1] + 1] - points[offsets[:-1]]
+    x = edge - np.einsum("ij,ij->i", edge, normal)[:, None] * normal
+    x = x / np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-300)
+    return normal, x, np.cross(normal, x), area2 * 0.5, poly
+
+
+def polygon_leaves(skeleton: Skeleton) -> trimesh.Trimesh | None:
+    """The ``{ . }`` polygons of a skeleton as one flat mesh (None when there are none).
+
+    Each polygon is projected onto its best-fit plane (Newell normal) and
+    triangulated (ear clipping by manifold3d, so concave outlines are fine);
+    polygons of zero area are dropped.  Vertices are shared within a polygon,
+    not between polygons.
+    """
+    offsets = np.asarray(skeleton.polygon_offsets, np.int64)
+    points = np.asarray(skeleton.polygon_points, np.float64)
+    counts = np.diff(offsets)
+    keep = counts >= 3
+    if not keep.any():
+        return None
+    if not keep.all():
+        sel = np.flatnonzero(keep)
+        idx = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in sel])
+        points, counts = points[idx], counts[sel]
+        offsets = np.concatenate([[0], np.cumsum(counts)])
+    normal, ax, ay, area, poly = _plane_frames(points, offsets)
+    scale = np.abs(points).max() + 1.0
+    good = area > 1e-12 * scale * scale
+    rel = points - points[offsets[:-1]][poly]
+    uv2 = np.stack([np.einsum("ij,ij->i", rel, ax[poly]), np.einsum("ij,ij->i", rel, ay[poly])], axis=1)
+    # convex polygons (all turns to the same side) are fans; the rest go to manifold's triangulator
+    nxt = np.arange(len(points)) + 1
+    nxt[offsets[1:] - 1] = offsets[:-1]
+    e = uv2[nxt] - uv2
+    turn = e[:, 0] * e[nxt, 1] - e[:, 1] * e[nxt, 0]
+    convex = np.ones(len(counts), bool)
+    np.logical_and.at(convex, poly, turn >= -1e-12 * scale * scale)
+    faces = []
+    fan = good & convex
+    if fan.any():
+        c = counts[fan]
+        p = np.repeat(np.flatnonzero(fan), c - 2)
+        k = np.arange(int((c - 2).sum())) - np.repeat(np.cumsum(c - 2) - (c - 2), c - 2)
+        o = offsets[p]
+        faces.append(np.stack([o, o + k + 1, o + k + 2], axis=1))
+    for i in np.flatnonzero(good & ~convex).tolist():
+        tri = manifold3d.triangulate([np.ascontiguousarray(uv2[offsets[i] : offsets[i + 1]], np.float64)])
+        tri = np.asarray(tri, np.int64).reshape(-1, 3)
+        if len(tri) != counts[i] - 2:
+            raise GeometryError(f"polygon_leaves: polygon {i} could not be triangulated (self-intersecting outline?)")
+        faces.append(tri + offsets[i])
+    if not faces:
+        return None
+    faces = np.concatenate(faces)
+    fpoly = poly[faces[:, 0]]
+    lo = np.full((len(counts), 2), np.inf)
+    hi = np.full((len(counts), 2), -np.inf)
+    np.minimum.at(lo, poly, uv2)
+    np.maximum.at(hi, poly, uv2)
+    uv = (uv2 - lo[poly]) / np.maximum(hi - lo, 1e-300)[poly]
+    normals = np.repeat(normal[fpoly][:, None, :], 3, axis=1)
+    used = np.unique(faces)
+    remap = np.full(len(points), -1, np.int64)
+    remap[used] = np.arange(len(used))
+    return corner_mesh(points[used], remap[faces], normals, uv[faces])
+
+
+def leaves(skeleton: Skeleton, model: trimesh.Trimesh | None = None) -> Leaves:
+    """Every leaf of a skeleton: polygons, instances (model + transforms) and all merged.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+    model : trimesh.Trimesh, optional
+        Leaf model in the convention of this module (default :func:`default_leaf`).
+    """
+    polygons = polygon_leaves(skeleton)
+    transforms = leaf_transforms(skeleton)
+    leaf_model = None
+    baked = None
+    if len(transforms):
+        leaf_model = default_leaf() if model is None else model
+        baked = instance_leaves(leaf_model, transforms)
+    parts = [m for m in (polygons, baked) if m is not None]
+    if not parts:
+        merged = None
+    elif len(parts) == 1:
+        merged = parts[0]
+    else:
+        merged = corner_mesh(
+            np.concatenate([polygons.vertices, baked.vertices]),
+            np.concatenate([polygons.faces, baked.faces + len(polygons.vertices)]),
+            np.concatenate([polygons.face_attributes["corner_normals"], baked.face_attributes["corner_normals"]]),
+            np.concatenate([polygons.face_attributes["corner_uv"], baked.face_attributes["corner_uv"]]),
+        )
+    return Leaves(merged, leaf_model, transforms, polygons)

@@ -1,0 +1,591 @@
+"""Sweep: :class:`~lsys3d.skeleton.Skeleton` -> closed tubes, one per chain.
+
+Every unbranched chain of segments (:attr:`Skeleton.chains`) becomes one
+generalized cylinder: a ring of ``sides`` vertices at the chain's base, at
+every joint and at its tip, closed by a flat cap (a fan around a centre
+vertex) at both ends.  The rings follow a rotation-minimising frame
+(parallel transport by double reflection, Wang et al. 2008), so a tube never
+twists; a joint ring lies in the plane that bisects the bend and is
+stretched by ``1 / cos(bend / 2)`` across the bend (a mitred pipe elbow), so
+the tube keeps its width on both sides of the joint.
+
+Where a chain turns more than a ring can follow -- more than
+``SweepOptions.max_bend``, or so sharply for its width that neighbouring
+mitre planes would cross inside the tube -- the chain is split into two
+tubes there.  Each piece runs on past the joint by ``r * min(tan(bend / 2),
+1)`` so that the two pieces cover the outside of the elbow, and the union
+(:mod:`lsys3d.union`) joins them.
+
+Counts (exact, per tube with ``R`` rings of ``S`` sides)::
+
+    points (welded vertices)   R * S + 2        (rings + two cap centres)
+    triangles                  2 * S * R        (2 S (R - 1) around, S per cap)
+    wedges (attribute corners) (R + 2) * (S + 1)
+
+``R`` is the number of segments of the piece plus one, less the joint rings
+that add no shape: a joint where the chain goes straight on (within
+``merge_angle``) and the width tapers linearly through it needs no ring.
+
+A *wedge* is a vertex together with one set of shading attributes (Hoppe's
+term): the seam of a tube (``u = 0`` and ``u = 1``) and the cap rims share a
+point with a ring vertex but not its normal or texture coordinate.
+:class:`Tubes` keeps points, wedges and faces separately so that a union
+(which needs closed, welded meshes) and a renderer (which needs the
+attributes) read the same arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+import trimesh
+
+from .skeleton import Skeleton
+
+__all__ = ["SweepOptions", "Tubes", "sweep"]
+
+
+@dataclass(frozen=True)
+class SweepOptions:
+    """How chains become tubes; every default lives here.
+
+    Attributes
+    ----------
+    sides : int
+        Vertices per ring of the trunk (branch order 0); at least 3.
+    sides_step : int
+        Sides dropped per branch order: a chain of order ``k`` gets
+        ``max(min_sides, sides - k * sides_step)`` sides (0: all the same).
+    min_sides : int
+        Fewest sides of any tube; at least 3.
+    min_width : float
+        Smallest tube diameter; thinner (or zero) widths are clamped to it.
+    min_length : float
+        Segments shorter than this are dropped (zero-length segments).
+    max_bend : float
+        Degrees: a chain that turns more than this at a joint is split there.
+    merge_angle : float
+        Degrees: a joint that turns less than this, with a width that tapers
+        linearly through it, gets no ring (it would add no shape).
+    merge_width : float
+        Relative tolerance of "tapers linearly" for ``merge_angle``.
+
+    Examples
+    --------
+    >>> SweepOptions(sides=6, sides_step=1, min_sides=4).sides_for_order([0, 1, 2, 5]).tolist()
+    [6, 5, 4, 4]
+    """
+
+    sides: int = 8
+    sides_step: int = 0
+    min_sides: int = 3
+    min_width: float = 1e-3
+    min_length: float = 1e-9
+    max_bend: float = 120.0
+    merge_angle: float = 0.01
+    merge_width: float = 1e-6
+
+    def __post_init__(self):
+        checks = {
+            "sides": self.sides >= 3,
+            "sides_step": self.sides_step >= 0,
+            "min_sides": self.min_sides >= 3,
+            "min_width": self.min_width > 0,
+            "min_length": self.min_length >= 0,
+            "max_bend": 0 < self.max_bend < 180,
+            "merge_angle": 0 <= self.merge_angle < 90,
+            "merge_width": self.merge_width >= 0,
+        }
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"SweepOptions.{f.name}: expected a finite number, got {value!r}")
+            if f.type == "int" and value != int(value):
+                raise ValueError(f"SweepOptions.{f.name}: expected an integer, got {value!r}")
+            if not checks[f.name]:
+                raise ValueError(f"SweepOptions.{f.name}: value {value!r} is out of range")
+
+    def sides_for_order(self, order) -> np.ndarray:
+        """Sides of the rings of chains of branch order ``order``, ``int64``."""
+        order = np.asarray(order, np.int64)
+        return np.maximum(min(self.min_sides, self.sides), self.sides - order * self.sides_step)
+
+
+@dataclass(frozen=True, eq=False)
+class Tubes:
+    """Closed tubes, each a welded 2-manifold, stored as flat arrays.
+
+    Tube ``t`` owns ``points[point_offsets[t]:point_offsets[t+1]]``, the
+    wedges ``wedge_offsets[t]:wedge_offsets[t+1]`` and the faces
+    ``face_offsets[t]:face_offsets[t+1]``; all indices are global.
+
+    Attributes
+    ----------
+    points : (V, 3) float64
+        Welded vertex positions.
+    wedge_point : (W,) int64
+        The point of each wedge.
+    wedge_normal : (W, 3) float32
+        Unit normal of each wedge (smooth around a tube, sharp at the caps).
+    wedge_uv : (W, 2) float32
+        ``u`` around the tube in [0, 1] (caps: planar, also in [0, 1]),
+        ``v`` along the chain in skeleton units (metres).
+    faces : (F, 3) int64
+        Triangles as wedge indices, counter-clockwise seen from outside.
+    point_offsets, wedge_offsets, face_offsets : (t + 1,) int64
+    chain : (t,) int64
+        The chain (:attr:`Skeleton.chains`) each tube was swept along.
+    sides, rings : (t,) int64
+        Ring size and ring count of each tube.
+    order : (t,) int32
+        Branch order of each tube's chain.
+    """
+
+    points: np.ndarray
+    wedge_point: np.ndarray
+    wedge_normal: np.ndarray
+    wedge_uv: np.ndarray
+    faces: np.ndarray
+    point_offsets: np.ndarray
+    wedge_offsets: np.ndarray
+    face_offsets: np.ndarray
+    chain: np.ndarray
+    sides: np.ndarray
+    rings: np.ndarray
+    order: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.point_offsets) - 1
+
+    @classmethod
+    def empty(cls) -> Tubes:
+        z = np.zeros(1, np.int64)
+        e = np.zeros(0, np.int64)
+        return cls(
+            np.zeros((0, 3)),
+            e,
+            np.zeros((0, 3), np.float32),
+            np.zeros((0, 2), np.float32),
+            np.zeros((0, 3), np.int64),
+            z,
+            z,
+            z,
+            e,
+            e,
+            e,
+            np.zeros(0, np.int32),
+        )
+
+    @property
+    def face_points(self) -> np.ndarray:
+        """Triangles as point indices, ``(F, 3) int64``."""
+        return self.wedge_point[self.faces]
+
+    def bounds(self) -> np.ndarray:
+        """Axis-aligned box of each tube, ``(t, 2, 3)``."""
+        if not len(self):
+            return np.zeros((0, 2, 3))
+        starts = self.point_offsets[:-1]
+        lo = np.minimum.reduceat(self.points, starts, axis=0)
+        hi = np.maximum.reduceat(self.points, starts, axis=0)
+        return np.stack([lo, hi], axis=1)
+
+    def volumes(self) -> np.ndarray:
+        """Enclosed volume of each tube, ``(t,) float64`` (divergence theorem)."""
+        if not len(self):
+            return np.zeros(0)
+        tri = self.points[self.face_points]
+        six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+        return np.add.reduceat(six, self.face_offsets[:-1]) / 6.0
+
+    def select(self, which) -> Tubes:
+        """The tubes ``which`` (indices or a boolean mask), renumbered."""
+        which = np.arange(len(self))[which]
+        pts, p_old, p_new = _gather(self.point_offsets, which)
+        wed, w_old, w_new = _gather(self.wedge_offsets, which)
+        fac, _, f_new = _gather(self.face_offsets, which)
+        wedge_point = self.wedge_point[wed] - np.repeat(p_old - p_new[:-1], np.diff(w_new))
+        faces = self.faces[fac] - np.repeat(w_old - w_new[:-1], np.diff(f_new))[:, None]
+        return Tubes(
+            self.points[pts],
+            wedge_point,
+            self.wedge_normal[wed],
+            self.wedge_uv[wed],
+            faces,
+            p_new,
+            w_new,
+            f_new,
+            self.chain[which],
+            self.sides[which],
+            self.rings[which],
+            self.order[which],
+        )
+
+    def mesh(self, i: int | None = None) -> trimesh.Trimesh:
+        """Tube ``i`` (or all tubes, as one tube soup) as a welded ``Trimesh``.
+
+        The mesh carries ``corner_normals`` and ``corner_uv`` in
+        ``face_attributes`` (see :mod:`lsys3d.tree`).
+        """
+        tubes = self if i is None else self.select([i])
+        return corner_mesh(
+            tubes.points, tubes.face_points, tubes.wedge_normal[tubes.faces], tubes.wedge_uv[tubes.faces]
+        )
+
+
+def corner_mesh(points, faces, corner_normals, corner_uv) -> trimesh.Trimesh:
+    """A ``Trimesh`` with per-corner ``corner_normals`` / ``corner_uv`` face attributes, as is."""
+    return trimesh.Trimesh(
+        vertices=np.asarray(points, np.float64),
+        faces=np.asarray(faces, np.int64),
+        face_attributes={
+            "corner_normals": np.asarray(corner_normals, np.float32),
+            "corner_uv": np.asarray(corner_uv, np.float32),
+        },
+        process=False,
+        validate=False,
+    )
+
+
+def _gather(offsets: np.ndarray, which: np.ndarray):
+    """Indices of the CSR rows ``which``, their old starts and the new offsets."""
+    counts = offsets[which + 1] - offsets[which]
+    new = np.zeros(len(which) + 1, np.int64)
+    np.cumsum(counts, out=new[1:])
+    old = offsets[which]
+    idx = np.arange(new[-1]) + np.repeat(old - new[:-1], counts)
+    return idx, old, new
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("...i,...i->...", a, b)
+
+
+def _reflect_transport(u: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Carry ``u`` (perpendicular to unit ``a``) to unit ``b`` by the minimal rotation.
+
+    The rotation is the product of two reflections: in the plane normal to
+    ``a + b`` (which maps ``a`` to ``-b``) and in the plane normal to ``b``.
+    """
+    n = a + b
+    u = u - (2.0 * _dot(u, n) / np.maximum(_dot(n, n), 1e-30))[:, None] * n
+    u = u - (2.0 * _dot(u, b))[:, None] * b
+    # remove drift so the frame stays orthonormal over long chains
+    return _unit(u - _dot(u, b)[:, None] * b)
+
+
+def _perpendicular(d: np.ndarray, hint: np.ndarray) -> np.ndarray:
+    """``hint`` made perpendicular to unit ``d`` and unit (any perpendicular if parallel)."""
+    u = hint - _dot(hint, d)[:, None] * d
+    bad = np.linalg.norm(u, axis=1) < 1e-6
+    if bad.any():
+        axis = np.where(np.abs(d[bad, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+        u[bad] = np.cross(d[bad], axis)
+    return _unit(u)
+
+
+def sweep(skeleton: Skeleton, options: SweepOptions | None = None) -> Tubes:
+    """Sweep a closed tube along every chain of a skeleton.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+        Segments with widths (diameters) and turtle frames.
+    options : SweepOptions, optional
+        Sides, minimum width, bend limits (defaults if None).
+
+    Returns
+    -------
+    Tubes
+        One tube per chain, or more where a chain bends too sharply; none for
+        an empty skeleton.  Zero-length segments are dropped, widths below
+        ``min_width`` clamped.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from lsys3d.skeleton import Skeleton
+    >>> z = np.zeros(2)
+    >>> sk = Skeleton(
+    ...     start=np.array([[0.0, 0, 0], [0, 1, 0]]), end=np.array([[0.0, 1, 0], [0, 2, 0]]),
+    ...     width_start=np.array([0.2, 0.2]), width_end=np.array([0.2, 0.1]),
+    ...     heading=np.array([[0.0, 1, 0]] * 2), left=np.array([[-1.0, 0, 0]] * 2), up=np.array([[0.0, 0, 1]] * 2),
+    ...     parent=np.array([-1, 0]), order=np.zeros(2, np.int32), material=np.zeros(2, np.int32), module=np.arange(2))
+    >>> tubes = sweep(sk, SweepOptions(sides=6))
+    >>> len(tubes), tubes.rings.tolist(), len(tubes.points), len(tubes.faces)
+    (1, [3], 20, 36)
+    """
+    opt = SweepOptions() if options is None else options
+    if not len(skeleton):
+        return Tubes.empty()
+    chains = skeleton.chains
+    seg = chains.segments
+    chain = np.repeat(np.arange(len(chains)), chains.lengths())
+    p0 = skeleton.start[seg].astype(np.float64)
+    p1 = skeleton.end[seg].astype(np.float64)
+    length = np.linalg.norm(p1 - p0, axis=1)
+    # v along the chain counts every segment, dropped ones included
+    cum = np.cumsum(length)
+    v1 = cum - np.repeat(cum[chains.offsets[:-1]] - length[chains.offsets[:-1]], chains.lengths())
+    keep = length > opt.min_length
+    if not keep.any():
+        return Tubes.empty()
+    seg, chain, p0, p1, length, v1 = seg[keep], chain[keep], p0[keep], p1[keep], length[keep], v1[keep]
+    d = (p1 - p0) / length[:, None]
+    v0 = v1 - length
+    w0 = np.maximum(skeleton.width_start[seg], opt.min_width)
+    w1 = np.maximum(skeleton.width_end[seg], opt.min_width)
+    k = len(seg)
+
+    # ---- joints between consecutive kept segments: split where a ring cannot follow
+    same = chain[1:] == chain[:-1]
+    cos = np.clip(_dot(d[:-1], d[1:]), -1.0, 1.0)
+    tan_half = np.sqrt((1.0 - cos) / np.maximum(1.0 + cos, 1e-12))
+    r_joint = 0.25 * (w1[:-1] + w0[1:])
+    scale = np.abs(p1).max() + 1.0
+    gap = np.linalg.norm(p0[1:] - p1[:-1], axis=1) > 1e-9 * scale + 1e-6 * np.minimum(length[:-1], length[1:])
+    bend = cos < math.cos(math.radians(opt.max_bend))
+    fold = r_joint * tan_half > 0.5 * np.minimum(length[:-1], length[1:])
+    split = same & (gap | bend | fold)
+    extend = np.where(split & ~gap, r_joint * np.minimum(tan_half, 1.0), 0.0)
+    first = np.ones(k, bool)
+    first[1:] = ~same | split
+    piece_start = np.flatnonzero(first)
+    npieces = len(piece_start)
+    piece_len = np.diff(np.append(piece_start, k))
+    piece_of = np.repeat(np.arange(npieces), piece_len)
+    last = np.zeros(k, bool)
+    last[piece_start[1:] - 1] = True
+    last[-1] = True
+    ext_start = np.zeros(k)
+    ext_start[1:] = extend
+    ext_end = np.zeros(k)
+    ext_end[:-1] = extend
+
+    # ---- rotation-minimising frame: u[s] perpendicular to d[s]; all pieces advance together
+    u = np.empty((k, 3))
+    u[piece_start] = _perpendicular(d[piece_start], skeleton.left[seg[piece_start]])
+    by_len = np.argsort(-piece_len, kind="stable")
+    starts_sorted = piece_start[by_len]
+    neg_len = -piece_len[by_len]
+    for step in range(1, int(piece_len.max())):
+        rows = starts_sorted[: np.searchsorted(neg_len, -step, side="left")] + step
+        u[rows] = _reflect_transport(u[rows - 1], d[rows - 1], d[rows])
+
+    # ---- rings: one at each piece start, one at the end of every segment
+    nr = k + npieces
+    ring_of_end = np.arange(k) + piece_of + 1
+    ring_start = piece_start + np.arange(npieces)
+    center = np.empty((nr, 3))
+    tangent = np.empty((nr, 3))
+    axis_a = np.empty((nr, 3))
+    width = np.empty(nr)
+    v = np.empty(nr)
+    stretch = np.ones(nr)
+    bend_dir = np.zeros((nr, 3))
+    joint = np.zeros(nr, bool)
+
+    center[ring_start] = p0[piece_start] - ext_start[piece_start, None] * d[piece_start]
+    tangent[ring_start] = d[piece_start]
+    axis_a[ring_start] = u[piece_start]
+    width[ring_start] = w0[piece_start]
+    v[ring_start] = v0[piece_start] - ext_start[piece_start]
+
+    e = np.flatnonzero(last)
+    re = ring_of_end[e]
+    center[re] = p1[e] + ext_end[e, None] * d[e]
+    tangent[re] = d[e]
+    axis_a[re] = u[e]
+    width[re] = w1[e]
+    v[re] = v1[e] + ext_end[e]
+
+    j = np.flatnonzero(~last)  # segment j ends at a joint with segment j + 1
+    rj = ring_of_end[j]
+    joint[rj] = True
+    center[rj] = p1[j]
+    tangent[rj] = _unit(d[j] + d[j + 1])
+    axis_a[rj] = _reflect_transport(u[j], d[j], tangent[rj])
+    width[rj] = 0.5 * (w1[j] + w0[j + 1])
+    v[rj] = v1[j]
+    cj = cos[j]
+    turning = cj < 1.0 - 1e-12
+    stretch[rj] = np.where(turning, np.sqrt(2.0 / (1.0 + cj)), 1.0)
+    bend_dir[rj] = np.where(turning[:, None], _unit(d[j + 1] - d[j]), 0.0)
+
+    # rings that add no shape: straight on, linear taper
+    kept = np.ones(nr, bool)
+    ds0 = v[rj] - v[rj - 1]
+    ds1 = v[rj + 1] - v[rj]
+    interp = (width[rj - 1] * ds1 + width[rj + 1] * ds0) / np.maximum(ds0 + ds1, 1e-300)
+    straight = cj >= math.cos(math.radians(opt.merge_angle))
+    kept[rj] = ~(straight & (np.abs(width[rj] - interp) <= opt.merge_width * width[rj]))
+    ring_piece = np.repeat(np.arange(npieces), piece_len + 1)
+    sel = np.flatnonzero(kept)
+    center, tangent, axis_a, width, v = center[sel], tangent[sel], axis_a[sel], width[sel], v[sel]
+    stretch, bend_dir, ring_piece = stretch[sel], bend_dir[sel], ring_piece[sel]
+    rings = np.bincount(ring_piece, minlength=npieces)
+    radius = 0.5 * width
+    axis_b = np.cross(tangent, axis_a)
+
+    # taper slope dr/ds between neighbouring rings, for the normals
+    ring_first = np.zeros(npieces + 1, np.int64)
+    np.cumsum(rings, out=ring_first[1:])
+    nxt = np.arange(len(sel)) + 1
+    prv = np.arange(len(sel)) - 1
+    is_last = np.zeros(len(sel), bool)
+    is_last[ring_first[1:] - 1] = True
+    is_first = np.zeros(len(sel), bool)
+    is_first[ring_first[:-1]] = True
+    nxt[is_last] -= 1
+    prv[is_first] += 1
+    slope = (radius[nxt] - radius[prv]) / np.maximum(v[nxt] - v[prv], 1e-300)
+
+    chain_of_piece = chain[piece_start]
+    order_of_piece = skeleton.order[skeleton.chains.segments[skeleton.chains.offsets[chain_of_piece]]]
+    sides_of_piece = opt.sides_for_order(order_of_piece)
+
+    parts = []
+    for s in np.unique(sides_of_piece).tolist():
+        pieces = np.flatnonzero(sides_of_piece == s)
+        rsel = np.flatnonzero(sides_of_piece[ring_piece] == s)
+        parts.append(
+            (
+                pieces,
+                _build(
+                    s,
+                    rings[pieces],
+                    center[rsel],
+                    tangent[rsel],
+                    axis_a[rsel],
+                    axis_b[rsel],
+                    radius[rsel],
+                    slope[rsel],
+                    v[rsel],
+                    stretch[rsel],
+                    bend_dir[rsel],
+                ),
+            )
+        )
+    order_all = np.concatenate([p for p, _ in parts])
+    tubes = _concat([t for _, t in parts])
+    return Tubes(
+        tubes.points,
+        tubes.wedge_point,
+        tubes.wedge_normal,
+        tubes.wedge_uv,
+        tubes.faces,
+        tubes.point_offsets,
+        tubes.wedge_offsets,
+        tubes.face_offsets,
+        chain_of_piece[order_all],
+        sides_of_piece[order_all],
+        rings[order_all],
+        order_of_piece[order_all].astype(np.int32),
+    )
+
+
+def _offsets(counts: np.ndarray) -> np.ndarray:
+    out = np.zeros(len(counts) + 1, np.int64)
+    np.cumsum(counts, out=out[1:])
+    return out
+
+
+def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch, bend_dir) -> Tubes:
+    """Tubes of ``s`` sides; ring arrays hold the rings of every tube, tube after tube."""
+    nt = len(rings)
+    n = len(center)
+    theta = 2.0 * np.pi * np.arange(s + 1) / s
+    c, si = np.cos(theta), np.sin(theta)
+    c[s], si[s] = 1.0, 0.0
+    radial = c[None, :, None] * axis_a[:, None, :] + si[None, :, None] * axis_b[:, None, :]  # (n, s+1, 3)
+    off = radius[:, None, None] * radial
+    off += ((stretch - 1.0)[:, None] * _dot(off, bend_dir[:, None, :]))[:, :, None] * bend_dir[:, None, :]
+    ring_pts = center[:, None, :] + off[:, :s]
+    normal = _unit(radial - slope[:, None, None] * tangent[:, None, :])
+
+    p_off = _offsets(rings * s + 2)
+    w_off = _offsets((rings + 2) * (s + 1))
+    f_off = _offsets(2 * s * rings)
+    first_ring = _offsets(rings)[:-1]
+    tube_of_ring = np.repeat(np.arange(nt), rings)
+    local = np.arange(n) - first_ring[tube_of_ring]
+    jj = np.arange(s + 1)
+
+    points = np.empty((p_off[-1], 3))
+    points[(p_off[tube_of_ring] + local * s)[:, None] + jj[:s]] = ring_pts
+    base = first_ring
+    tip = first_ring + rings - 1
+    points[p_off[1:] - 2] = center[base]
+    points[p_off[1:] - 1] = center[tip]
+
+    nw = w_off[-1]
+    wedge_point = np.empty(nw, np.int64)
+    wedge_normal = np.empty((nw, 3), np.float32)
+    wedge_uv = np.empty((nw, 2), np.float32)
+    ring_w = (w_off[tube_of_ring] + local * (s + 1))[:, None] + jj  # (n, s+1)
+    wedge_point[ring_w] = (p_off[tube_of_ring] + local * s)[:, None] + jj % s
+    wedge_normal[ring_w] = normal
+    wedge_uv[ring_w, 0] = jj / s
+    wedge_uv[ring_w, 1] = v[:, None]
+    # caps: centre then rim, base cap before tip cap; planar u, v in metres
+    cap_w = (w_off[:-1] + rings * (s + 1))[:, None] + np.array([0, s + 1])  # (nt, 2)
+    for which, ring, sign, centre_point in ((0, base, -1.0, p_off[1:] - 2), (1, tip, 1.0, p_off[1:] - 1)):
+        cw = cap_w[:, which]
+        wedge_point[cw] = centre_point
+        rim = cw[:, None] + 1 + jj[:s]
+        wedge_point[rim] = (p_off[:-1] + local[ring] * s)[:, None] + jj[:s]
+        wedge_normal[cw] = sign * tangent[ring]
+        wedge_normal[rim] = sign * tangent[ring][:, None, :]
+        wedge_uv[cw] = np.stack([np.full(nt, 0.5), v[ring]], axis=1)
+        wedge_uv[rim, 0] = 0.5 + 0.5 * c[None, :s]
+        wedge_uv[rim, 1] = v[ring][:, None] + radius[ring][:, None] * si[None, :s]
+
+    faces = np.empty((f_off[-1], 3), np.int64)
+    template = np.empty((2 * s, 3), np.int64)
+    js = np.arange(s)
+    template[0::2] = np.stack([js, js + 1, js + s + 2], axis=1)
+    template[1::2] = np.stack([js, js + s + 2, js + s + 1], axis=1)
+    body = np.flatnonzero(local < rings[tube_of_ring] - 1)  # rings followed by another ring
+    tb = tube_of_ring[body]
+    dest = (f_off[tb] + local[body] * 2 * s)[:, None] + np.arange(2 * s)
+    faces[dest] = ring_w[body, 0][:, None, None] + template[None]
+    cap_f = f_off[1:] - 2 * s
+    fan = np.stack([np.zeros(s, np.int64), js + 2, js + 1], axis=1)
+    fan[-1, 1] = 1  # wrap the rim
+    faces[cap_f[:, None] + js] = cap_w[:, 0][:, None, None] + fan[None]
+    faces[(cap_f + s)[:, None] + js] = cap_w[:, 1][:, None, None] + fan[None][:, :, [0, 2, 1]]
+    z = np.zeros(nt, np.int64)
+    return Tubes(
+        points, wedge_point, wedge_normal, wedge_uv, faces, p_off, w_off, f_off, z, z, rings, z.astype(np.int32)
+    )
+
+
+def _concat(parts: list[Tubes]) -> Tubes:
+    """Tubes of several :func:`_build` calls, one after another (indices shifted)."""
+    if len(parts) == 1:
+        return parts[0]
+    p_shift = np.cumsum([0] + [len(t.points) for t in parts[:-1]])
+    w_shift = np.cumsum([0] + [len(t.wedge_point) for t in parts[:-1]])
+    f_shift = np.cumsum([0] + [len(t.faces) for t in parts[:-1]])
+
+    def offsets(name, shift):
+        return np.concatenate([[0]] + [getattr(t, name)[1:] + sh for t, sh in zip(parts, shift, strict=True)])
+
+    return Tubes(
+        np.concatenate([t.points for t in parts]),
+        np.concatenate([t.wedge_point + sh for t, sh in zip(parts, p_shift, strict=True)]),
+        np.concatenate([t.wedge_normal for t in parts]),
+        np.concatenate([t.wedge_uv for t in parts]),
+        np.concatenate([t.faces + sh for t, sh in zip(parts, w_shift, strict=True)]),
+        offsets("point_offsets", p_shift),
+        offsets("wedge_offsets", w_shift),
+        offsets("face_offsets", f_shift),
+        *(np.concatenate([getattr(t, name) for t in parts]) for name in ("chain", "sides", "rings", "order")),
+    )

@@ -1,0 +1,528 @@
+"""Union: tubes -> one watertight bark mesh, through manifold3d.
+
+This module is the boundary with manifold3d: every Manifold it builds or
+computes has its status checked here, and a problem raises
+:class:`~lsys3d.errors.GeometryError` naming the part and the status; an
+empty or broken mesh is never returned.
+
+How the union stays fast
+------------------------
+A boolean in manifold costs time for every triangle it is given, touched or
+not, and more for every triangle an intersection cuts.  So the tubes are not
+unioned one by one, nor in one batch (manifold's own batch union groups
+operands by bounding box, and the box of a long branch overlaps nearly
+everything):
+
+1. *Which tubes can touch.*  Each tube is covered by capsules, one per span
+   (the piece between two neighbouring rings: the centroids of the two rings
+   and the farthest ring vertex as radius).  The span boxes are hashed into a
+   uniform grid and candidate pairs are confirmed with a segment-segment
+   distance.  In a tree this leaves little more than the junctions: a branch
+   meets its parent and its siblings.
+2. *Only junctions go through the boolean* (``UnionOptions.local``).  A
+   maximal run of spans of one tube that may touch another tube is closed
+   with a temporary cap on each ring where it meets an untouched span and
+   goes into the boolean; the untouched spans stay out.  Afterwards the
+   temporary caps (found by their face ids) are removed and the untouched
+   spans are welded back onto their rings (matched by exact position).  The
+   seam and the result are checked (every directed edge once, its reverse
+   once); if anything does not match, whole tubes are unioned instead.  When
+   most spans touch something (every joint of ``monopodial`` carries a
+   branch) the stitching would cost more than it saves and whole tubes go in.
+3. *Layers instead of many operands.*  The may-touch graph (of runs, or of
+   tubes) is coloured greedily; parts of one colour are pairwise disjoint, so
+   each colour becomes one Manifold built from one mesh with no boolean at
+   all (what ``Manifold.compose`` does, without building thousands of small
+   Manifolds first).  A tree needs few colours (three for the benchmark
+   trees); the layers are unioned with one ``Manifold.batch_boolean``, which
+   manifold runs on all cores.
+
+Shading attributes ride through the boolean as manifold vertex properties
+(position, normal, uv: 8 channels).  The seam and cap wedges of each tube are
+tied to their ring vertex with manifold's merge vectors, so manifold sees
+closed meshes; new vertices on the intersection curves get interpolated
+properties, and the normals are renormalised on the way out.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import manifold3d
+import numpy as np
+import trimesh
+
+from .errors import GeometryError
+from .sweep import Tubes, corner_mesh
+
+__all__ = ["UnionOptions", "concatenate", "may_touch", "union"]
+
+log = logging.getLogger("lsys3d")
+
+_NUM_PROP = 8  # x y z, nx ny nz, u v
+
+
+@dataclass(frozen=True)
+class UnionOptions:
+    """How tubes are unioned; every default lives here.
+
+    Attributes
+    ----------
+    layers : bool
+        Group pairwise-disjoint tubes into layers before the boolean (fast).
+        False hands every tube to ``Manifold.batch_boolean`` separately
+        (manifold's own bounding-box grouping; slower, for comparison).
+    local : bool
+        Send only the spans that may touch another tube through the boolean
+        and stitch the rest of each tube back on (needs ``layers``).
+    local_max : float
+        Use the local path only while at most this fraction of the spans may
+        touch another tube (above it, stitching costs more than it saves).
+    margin : float
+        Relative padding of the touch test (fraction of the capsule radii),
+        so that tubes that only graze still count as touching.
+    """
+
+    layers: bool = True
+    local: bool = True
+    local_max: float = 0.75
+    margin: float = 0.01
+
+    def __post_init__(self):
+        for name in ("margin", "local_max"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value <= 1):
+                raise ValueError(f"UnionOptions.{name}: value {value!r} is out of range [0, 1]")
+
+
+def concatenate(tubes: Tubes) -> trimesh.Trimesh:
+    """All tubes as one tube-soup mesh (no boolean): the ``union=False`` bark.
+
+    Each tube stays a closed, welded component; tubes may overlap.  The mesh
+    has the ``corner_normals`` / ``corner_uv`` face attributes of
+    :mod:`lsys3d.tree`.
+    """
+    return tubes.mesh()
+
+
+def _check(manifold: manifold3d.Manifold, where: str) -> manifold3d.Manifold:
+    status = manifold.status()
+    if status != manifold3d.Error.NoError:
+        raise GeometryError(f"{where}: manifold3d reported {status.name}")
+    return manifold
+
+
+def _manifold(tubes: Tubes, where: str) -> manifold3d.Manifold:
+    """One Manifold of whole (pairwise disjoint) tubes, attributes as properties."""
+    return _manifold_of(tubes, tubes.faces, np.arange(len(tubes.faces)), where)
+
+
+class _Spans:
+    """The spans of a set of tubes (the piece between two neighbouring rings), tube after tube.
+
+    ``lo, hi (m, 3)`` box of the span's points; ``p, q (m, 3)`` centroids of its
+    two rings and ``radius (m,)`` the farthest ring point from them, so the
+    span lies inside the capsule ``p q`` of that radius; ``tube, local (m,)``.
+    """
+
+    def __init__(self, tubes: Tubes):
+        rings, sides = tubes.rings, tubes.sides
+        ring_sides = np.repeat(sides, rings)
+        # ring points are every point but the two cap centres closing each tube
+        mask = np.ones(len(tubes.points), bool)
+        mask[tubes.point_offsets[1:] - 1] = False
+        mask[tubes.point_offsets[1:] - 2] = False
+        pts = tubes.points[mask]
+        first = _offsets(ring_sides)[:-1]
+        lo = np.minimum.reduceat(pts, first, axis=0)
+        hi = np.maximum.reduceat(pts, first, axis=0)
+        centre = np.add.reduceat(pts, first, axis=0) / ring_sides[:, None]
+        dist = np.linalg.norm(pts - np.repeat(centre, ring_sides, axis=0), axis=1)
+        radius = np.maximum.reduceat(dist, first)
+        local_ring = _local(rings)
+        a = np.flatnonzero(local_ring < np.repeat(rings, rings) - 1)  # first ring of each span
+        self.lo = np.minimum(lo[a], lo[a + 1])
+        self.hi = np.maximum(hi[a], hi[a + 1])
+        self.p, self.q = centre[a], centre[a + 1]
+        self.radius = np.maximum(radius[a], radius[a + 1])
+        self.tube = np.repeat(np.arange(len(tubes)), rings)[a]
+        self.local = local_ring[a]
+
+    def __len__(self) -> int:
+        return len(self.tube)
+
+
+def _local(counts: np.ndarray) -> np.ndarray:
+    """``0..counts[i]-1`` for each ``i``, concatenated."""
+    starts = np.repeat(np.cumsum(counts) - counts, counts)
+    return np.arange(int(counts.sum())) - starts
+
+
+def _offsets(counts: np.ndarray) -> np.ndarray:
+    out = np.zeros(len(counts) + 1, np.int64)
+    np.cumsum(counts, out=out[1:])
+    return out
+
+
+def _segment_distance(p1, q1, p2, q2) -> np.ndarray:
+    """Distance between segments ``p1 q1`` and ``p2 q2`` (rows)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a = np.einsum("ij,ij->i", d1, d1)
+    e = np.einsum("ij,ij->i", d2, d2)
+    f = np.einsum("ij,ij->i", d2, r)
+    c = np.einsum("ij,ij->i", d1, r)
+    b = np.einsum("ij,ij->i", d1, d2)
+    tiny = 1e-300
+    denom = a * e - b * b
+    s = np.where(denom > tiny, np.clip((b * f - c * e) / np.maximum(denom, tiny), 0, 1), 0.0)
+    t = np.where(e > tiny, (b * s + f) / np.maximum(e, tiny), 0.0)
+    s = np.where(
+        t < 0, np.clip(-c / np.maximum(a, tiny), 0, 1), np.where(t > 1, np.clip((b - c) / np.maximum(a, tiny), 0, 1), s)
+    )
+    t = np.clip(t, 0, 1)
+    return np.linalg.norm(p1 + d1 * s[:, None] - p2 - d2 * t[:, None], axis=1)
+
+
+def may_touch(tubes: Tubes, margin: float = 0.01) -> np.ndarray:
+    """Pairs of tubes that may touch, ``(m, 2) int64`` with ``i < j``.
+
+    Each tube is covered by capsules, one per span (the piece between two
+    neighbouring rings); two tubes may touch when two of their capsules
+    (radii padded by ``margin``) intersect.  Tubes that are not listed are
+    disjoint; listed ones may or may not touch.
+    """
+    owner, a, b = _span_pairs(tubes, margin)
+    if not len(a):
+        return np.zeros((0, 2), np.int64)
+    ta, tb = owner[a], owner[b]
+    return np.unique(np.stack([np.minimum(ta, tb), np.maximum(ta, tb)], axis=1), axis=0)
+
+
+def _span_pairs(tubes: Tubes, margin: float, spans: _Spans | None = None):
+    """Spans of different tubes that may touch: ``owner (m,)`` (tube of each span), span pairs ``a, b``.
+
+    Broad phase: span boxes hashed into a grid; narrow phase: the capsules
+    around the spans (padded by ``margin``) intersect.
+    """
+    spans = _Spans(tubes) if spans is None else spans
+    lo, hi, owner = spans.lo, spans.hi, spans.tube
+    none = np.zeros(0, np.int64)
+    if len(tubes) < 2:
+        return owner, none, none
+    pad = margin * (hi - lo).max(axis=1, keepdims=True) + 1e-9 * (np.abs(hi).max() + 1.0)
+    lo, hi = lo - pad, hi + pad
+    size = (hi - lo).max(axis=1)
+    cell = max(float(np.median(size)), 1e-12)
+    origin = lo.min(axis=0)
+    for _ in range(20):  # grow the cells until the number of box-cell entries is modest
+        c0 = np.floor((lo - origin) / cell).astype(np.int64)
+        c1 = np.floor((hi - origin) / cell).astype(np.int64)
+        ext = c1 - c0 + 1
+        count = ext.prod(axis=1)
+        if count.sum() <= 8 * len(lo) + 1000:
+            break
+        cell *= 1.5
+    dims = c1.max(axis=0) + 1
+    box = np.repeat(np.arange(len(lo)), count)
+    k = _local(count)
+    ex = ext[box]
+    ix = c0[box, 0] + k % ex[:, 0]
+    iy = c0[box, 1] + (k // ex[:, 0]) % ex[:, 1]
+    iz = c0[box, 2] + k // (ex[:, 0] * ex[:, 1])
+    key = (iz * dims[1] + iy) * dims[0] + ix
+    srt = np.argsort(key, kind="stable")
+    key, box = key[srt], box[srt]
+    # every pair inside each cell: entry p pairs with the later entries of its cell
+    brk = np.flatnonzero(np.diff(key)) + 1
+    cell_end = np.repeat(np.append(brk, len(key)), np.diff(np.concatenate([[0], brk, [len(key)]])))
+    later = cell_end - np.arange(len(key)) - 1
+    a = np.repeat(np.arange(len(key)), later)
+    b = a + 1 + _local(later)
+    a, b = box[a], box[b]
+    ok = owner[a] != owner[b]
+    a, b = a[ok], b[ok]
+    ok = ((lo[a] <= hi[b]) & (lo[b] <= hi[a])).all(axis=1)
+    a, b = a[ok], b[ok]
+    # a pair found in several cells counts once
+    pair = np.unique(np.minimum(a, b) * len(lo) + np.maximum(a, b))
+    a, b = pair // len(lo), pair % len(lo)
+    reach = (spans.radius[a] + spans.radius[b]) * (1.0 + margin) + 1e-9 * (np.abs(hi).max() + 1.0)
+    ok = _segment_distance(spans.p[a], spans.q[a], spans.p[b], spans.q[b]) <= reach
+    return owner, a[ok], b[ok]
+
+
+def _colour(n: int, pairs: np.ndarray) -> np.ndarray:
+    """Greedy colouring of the may-touch graph, largest degree first."""
+    colour = np.full(n, -1, np.int64)
+    if not len(pairs):
+        colour[:] = 0
+        return colour
+    both = np.concatenate([pairs, pairs[:, ::-1]])
+    both = both[np.argsort(both[:, 0], kind="stable")]
+    offsets = np.searchsorted(both[:, 0], np.arange(n + 1))
+    nbr = both[:, 1].tolist()
+    off = offsets.tolist()
+    col = colour.tolist()
+    for t in np.argsort(-np.diff(offsets), kind="stable").tolist():
+        used = {col[x] for x in nbr[off[t] : off[t + 1]]}
+        c = 0
+        while c in used:
+            c += 1
+        col[t] = c
+    return np.asarray(col, np.int64)
+
+
+def union(tubes: Tubes, options: UnionOptions | None = None) -> trimesh.Trimesh:
+    """Union the tubes of one tree into one watertight, consistently oriented mesh.
+
+    Parameters
+    ----------
+    tubes : Tubes
+        Closed tubes from :func:`lsys3d.sweep.sweep`.
+    options : UnionOptions, optional
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Welded, watertight 2-manifold with outward faces and the
+        ``corner_normals`` (unit) / ``corner_uv`` face attributes of
+        :mod:`lsys3d.tree`.
+
+    Raises
+    ------
+    GeometryError
+        No tubes, a tube manifold3d rejects, a failed boolean, or an empty
+        result; the message says which part and manifold3d's status.
+    """
+    opt = UnionOptions() if options is None else options
+    where = f"union of {len(tubes)} tubes"
+    if not len(tubes):
+        raise GeometryError("union: no tubes to union (empty skeleton?)")
+    if not opt.layers:
+        parts = [_manifold(tubes.select([i]), f"union: tube {i} (chain {tubes.chain[i]})") for i in range(len(tubes))]
+        return _to_trimesh(_batch_union(parts, where), where)
+    spans = _Spans(tubes)
+    owner, a, b = _span_pairs(tubes, opt.margin, spans)
+    busy = np.zeros(len(spans), bool)
+    busy[a] = True
+    busy[b] = True
+    if opt.local and len(a) and busy.mean() <= opt.local_max:
+        mesh = _local_union(tubes, spans, busy, a, b, where)
+        if mesh is not None:
+            return mesh
+    ta, tb = owner[a], owner[b]
+    pairs = np.unique(np.stack([np.minimum(ta, tb), np.maximum(ta, tb)], axis=1), axis=0)
+    colour = _colour(len(tubes), pairs)
+    parts = [_manifold(tubes.select(colour == c), f"union: layer {c}") for c in range(int(colour.max()) + 1)]
+    log.debug("union: %d tubes in %d layers", len(tubes), len(parts))
+    return _to_trimesh(_batch_union(parts, where), where)
+
+
+def _batch_union(parts: list[manifold3d.Manifold], where: str) -> manifold3d.Manifold:
+    result = parts[0] if len(parts) == 1 else manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add)
+    _check(result, where)
+    if result.is_empty() or result.num_tri() == 0:
+        raise GeometryError(f"{where}: manifold3d returned an empty mesh")
+    return result
+
+
+def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b: np.ndarray, where: str):
+    """Union only the runs of spans that may touch another tube; stitch the free spans back on.
+
+    A *run* is a maximal stretch of busy spans of one tube.  Each run goes
+    into the boolean as a closed piece: where it ends at a free span it is
+    closed by a temporary cap on that ring.  No other tube comes near such a
+    ring (the free span's capsule touches nothing), so manifold leaves the cap
+    as it was; it is removed from the result, and the free spans of the tube
+    (kept out of the boolean) are welded onto the ring.  Returns None when the
+    result does not stitch exactly (the caller then unions whole tubes).
+    """
+    nt = len(tubes)
+    rings, sides = tubes.rings, tubes.sides
+    nspan = rings - 1
+    span_off = _offsets(nspan)
+    # runs of busy spans
+    prev_busy = np.zeros(len(busy), bool)
+    prev_busy[1:] = busy[:-1]
+    starts = busy & ((spans.local == 0) | ~prev_busy)
+    run_of_span = np.cumsum(starts) - 1
+    run_start = np.flatnonzero(starts)
+    nxt_busy = np.zeros(len(busy), bool)
+    nxt_busy[:-1] = busy[1:]
+    ends = busy & ((spans.local == nspan[spans.tube] - 1) | ~nxt_busy)
+    run_end = np.flatnonzero(ends)
+    run_tube = spans.tube[run_start]
+    k0, k1 = spans.local[run_start], spans.local[run_end]
+
+    # every face of every tube: its span and whether it goes into the boolean
+    fo = tubes.face_offsets
+    nf = len(tubes.faces)
+    face_tube = np.repeat(np.arange(nt), np.diff(fo))
+    lf = np.arange(nf) - fo[face_tube]
+    s2 = 2 * sides[face_tube]
+    body_faces = s2 * nspan[face_tube]
+    face_span_local = np.where(lf < body_faces, lf // s2, np.where(lf < body_faces + s2 // 2, 0, nspan[face_tube] - 1))
+    face_span = span_off[face_tube] + face_span_local
+    face_busy = busy[face_span]
+
+    # temporary caps where a run meets a free span: a fan from ring vertex 0
+    cut_tube = np.concatenate([run_tube[k0 > 0], run_tube[k1 < nspan[run_tube] - 1]])
+    cut_ring = np.concatenate([k0[k0 > 0], k1[k1 < nspan[run_tube] - 1] + 1])
+    cut_run = np.concatenate([np.flatnonzero(k0 > 0), np.flatnonzero(k1 < nspan[run_tube] - 1)])
+    cut_tip = np.concatenate([np.zeros((k0 > 0).sum(), bool), np.ones((k1 < nspan[run_tube] - 1).sum(), bool)])
+    cap_faces, cap_run = [], []
+    for s in np.unique(sides[cut_tube]).tolist() if len(cut_tube) else []:
+        c = np.flatnonzero(sides[cut_tube] == s)
+        j = np.arange(1, s - 1)
+        fan_tip = np.stack([np.zeros_like(j), j, j + 1], axis=1)
+        base = tubes.wedge_offsets[cut_tube[c]] + cut_ring[c] * (s + 1)
+        fan = np.where(cut_tip[c][:, None, None], fan_tip[None], fan_tip[None][:, :, [0, 2, 1]])
+        cap_faces.append((base[:, None, None] + fan).reshape(-1, 3))
+        cap_run.append(np.repeat(cut_run[c], s - 2))
+    cap_faces = np.concatenate(cap_faces) if cap_faces else np.zeros((0, 3), np.int64)
+    cap_run = np.concatenate(cap_run) if cap_run else np.zeros(0, np.int64)
+
+    # colour the runs; one Manifold per colour; union
+    ra, rb = run_of_span[a], run_of_span[b]
+    run_pairs = np.unique(np.stack([np.minimum(ra, rb), np.maximum(ra, rb)], axis=1), axis=0)
+    colour = _colour(len(run_start), run_pairs)
+    bf = np.flatnonzero(face_busy)
+    tri = np.concatenate([tubes.faces[bf], cap_faces])
+    tri_id = np.concatenate([bf, nf + np.arange(len(cap_faces))])  # ids >= nf mark temporary caps
+    tri_colour = colour[np.concatenate([run_of_span[face_span[bf]], cap_run])]
+    parts = []
+    for c in range(int(colour.max()) + 1):
+        sel = np.flatnonzero(tri_colour == c)
+        parts.append(_manifold_of(tubes, tri[sel], tri_id[sel], f"union: layer {c} of the junction runs"))
+    result = _batch_union(parts, where)
+    log.debug("union: %d of %d spans in %d runs, %d layers", busy.sum(), len(busy), len(run_start), len(parts))
+
+    out = result.to_mesh()
+    props = np.asarray(out.vert_properties)
+    otri = np.asarray(out.tri_verts, np.int64)
+    fid = np.asarray(out.face_id, np.int64)
+    if props.shape[1] != _NUM_PROP or len(fid) != len(otri):
+        raise GeometryError(f"{where}: manifold3d returned {props.shape[1]} properties, {len(fid)} face ids")
+    point_of, npts = _weld(len(props), out)
+    temp = fid >= nf
+    if temp.sum() != len(cap_faces):
+        log.debug("union: a temporary cap was changed by the boolean; unioning whole tubes")
+        return None
+    keep = ~temp
+    # the rings under the temporary caps, found again by their (float32) positions
+    cut_points = (
+        tubes.point_offsets[cut_tube][:, None] + (cut_ring * sides[cut_tube])[:, None] + np.arange(sides.max())[None]
+    )
+    cut_points = cut_points[np.arange(sides.max())[None] < sides[cut_tube][:, None]]
+    seam = np.unique(point_of[otri[temp]])
+    if len(seam) != len(cut_points):
+        log.debug("union: the temporary caps do not meet the boolean at their rings; unioning whole tubes")
+        return None
+    seam_pos = np.empty((npts, 3), np.float32)
+    seam_pos[point_of] = props[:, :3]
+    found = _match_rows(seam_pos[seam], tubes.points[cut_points].astype(np.float32))
+    if found is None:
+        log.debug("union: the rings of the temporary caps moved in the boolean; unioning whole tubes")
+        return None
+    # free spans: their faces, their points (ring points on a cut map onto the seam)
+    ff = np.flatnonzero(~face_busy)
+    free_pts = tubes.wedge_point[tubes.faces[ff]]
+    new_index = np.full(len(tubes.points), -1, np.int64)
+    used = np.zeros(len(tubes.points), bool)
+    used[free_pts] = True
+    used[cut_points] = False
+    fresh = np.flatnonzero(used)
+    new_index[fresh] = npts + np.arange(len(fresh))
+    new_index[cut_points] = seam[found]
+    vertices = np.concatenate([seam_pos.astype(np.float64), tubes.points[fresh]])
+    faces = np.concatenate([point_of[otri[keep]], new_index[free_pts]])
+    normals = np.concatenate([_unit_rows(props[otri[keep], 3:6]), tubes.wedge_normal[tubes.faces[ff]]])
+    uv = np.concatenate([props[otri[keep], 6:], tubes.wedge_uv[tubes.faces[ff]]])
+    if not _closed(faces, len(vertices)):
+        log.debug("union: the stitched mesh is not closed; unioning whole tubes")
+        return None
+    return corner_mesh(vertices, faces, normals, uv)
+
+
+def _manifold_of(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, where: str) -> manifold3d.Manifold:
+    """One Manifold of the wedge-indexed triangles ``tri`` of ``tubes``, ``tri_id`` as face ids."""
+    used = np.zeros(len(tubes.wedge_point), bool)
+    used[tri] = True
+    wedges = np.flatnonzero(used)
+    remap = np.empty(len(tubes.wedge_point), np.int64)
+    remap[wedges] = np.arange(len(wedges))
+    w = len(wedges)
+    wp = tubes.wedge_point[wedges]
+    props = np.empty((w, _NUM_PROP), np.float32)
+    props[:, :3] = tubes.points[wp]
+    props[:, 3:6] = tubes.wedge_normal[wedges]
+    props[:, 6:] = tubes.wedge_uv[wedges]
+    rep = np.empty(len(tubes.points), np.int64)
+    rep[wp] = np.arange(w)
+    merge_to = rep[wp]
+    merge_from = np.flatnonzero(merge_to != np.arange(w))
+    mesh = manifold3d.Mesh(
+        vert_properties=props,
+        tri_verts=remap[tri].astype(np.uint32),
+        merge_from_vert=merge_from.astype(np.uint32),
+        merge_to_vert=merge_to[merge_from].astype(np.uint32),
+        face_id=tri_id.astype(np.uint32),
+    )
+    return _check(manifold3d.Manifold(mesh), where)
+
+
+def _weld(nprops: int, mesh: manifold3d.Mesh):
+    """Point index of every property vertex of a manifold3d Mesh (merge vectors applied)."""
+    rep = np.arange(nprops)
+    rep[np.asarray(mesh.merge_from_vert, np.int64)] = np.asarray(mesh.merge_to_vert, np.int64)
+    while (rep[rep] != rep).any():  # follow chains, should manifold ever write one
+        rep = rep[rep]
+    root = np.zeros(nprops, bool)
+    root[rep] = True
+    index = np.cumsum(root) - 1
+    return index[rep], int(root.sum())
+
+
+def _unit_rows(v: np.ndarray) -> np.ndarray:
+    length = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(length > 1e-12, length, 1.0)
+
+
+def _match_rows(have: np.ndarray, want: np.ndarray):
+    """Index into ``have`` of every row of ``want`` (exact match), or None if any is missing or twice."""
+    void = np.dtype((np.void, have.dtype.itemsize * 3))
+    hk = np.ascontiguousarray(have).view(void).ravel()
+    wk = np.ascontiguousarray(want).view(void).ravel()
+    order = np.argsort(hk)
+    hs = hk[order]
+    if len(hs) > 1 and (hs[1:] == hs[:-1]).any():
+        return None
+    pos = np.searchsorted(hs, wk)
+    pos = np.minimum(pos, len(hs) - 1)
+    if not (hs[pos] == wk).all() or len(np.unique(pos)) != len(pos):
+        return None
+    return order[pos]
+
+
+def _closed(faces: np.ndarray, nverts: int) -> bool:
+    """Every directed edge once, and its reverse once: closed and consistently oriented."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    fwd = np.sort(e[:, 0] * nverts + e[:, 1])
+    if len(fwd) > 1 and (fwd[1:] == fwd[:-1]).any():
+        return False
+    rev = e[:, 1] * nverts + e[:, 0]
+    pos = np.minimum(np.searchsorted(fwd, rev), len(fwd) - 1)
+    return bool((fwd[pos] == rev).all())
+
+
+def _to_trimesh(manifold: manifold3d.Manifold, where: str) -> trimesh.Trimesh:
+    mesh = manifold.to_mesh()
+    props = np.asarray(mesh.vert_properties)
+    if props.shape[1] != _NUM_PROP:
+        raise GeometryError(f"{where}: expected {_NUM_PROP} vertex properties, manifold3d returned {props.shape[1]}")
+    tri = np.asarray(mesh.tri_verts, np.int64)
+    point_of, npts = _weld(len(props), mesh)
+    vertices = np.empty((npts, 3))
+    vertices[point_of] = props[:, :3]
+    return corner_mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:])

@@ -1,0 +1,355 @@
+"""Sweep: exact counts, closed tubes, frames, normals, uv and degenerate skeletons."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from lsys3d.skeleton import Skeleton
+from lsys3d.sweep import SweepOptions, Tubes, sweep
+
+# ---------------------------------------------------------------- skeleton factory
+
+
+def make_skeleton(start, end, width_start, width_end=None, parent=None, order=None) -> Skeleton:
+    """A Skeleton from bare segments; turtle frames follow the segment directions."""
+    start = np.asarray(start, float).reshape(-1, 3)
+    end = np.asarray(end, float).reshape(-1, 3)
+    n = len(start)
+    w0 = np.broadcast_to(np.asarray(width_start, float), (n,)).copy()
+    w1 = w0.copy() if width_end is None else np.broadcast_to(np.asarray(width_end, float), (n,)).copy()
+    parent = np.arange(n) - 1 if parent is None else np.asarray(parent, np.int64)
+    order = np.zeros(n, np.int32) if order is None else np.asarray(order, np.int32)
+    h = end - start
+    norm = np.linalg.norm(h, axis=1, keepdims=True)
+    h = np.where(norm > 0, h / np.where(norm > 0, norm, 1), [[0.0, 1.0, 0.0]])
+    left = np.cross([0.31, 0.52, 0.79], h)
+    left /= np.linalg.norm(left, axis=1, keepdims=True)
+    return Skeleton(
+        start=start,
+        end=end,
+        width_start=w0,
+        width_end=w1,
+        heading=h,
+        left=left,
+        up=np.cross(h, left),
+        parent=parent,
+        order=order,
+        material=np.zeros(n, np.int32),
+        module=np.arange(n),
+    )
+
+
+def polyline(points, width=0.1, width_end=None) -> Skeleton:
+    """One chain through ``points``."""
+    p = np.asarray(points, float)
+    return make_skeleton(p[:-1], p[1:], width, width_end)
+
+
+def zigzag(m: int, angle: float = 20.0) -> np.ndarray:
+    """``m + 1`` points of unit steps turning ``angle`` degrees alternately left and right in the XY plane."""
+    pts = [np.zeros(3)]
+    for i in range(m):
+        a = math.radians(90 + (angle / 2 if i % 2 else -angle / 2))
+        pts.append(pts[-1] + [math.cos(a), math.sin(a), 0.0])
+    return np.array(pts)
+
+
+def y_junction() -> Skeleton:
+    """A trunk with two children at its tip."""
+    return make_skeleton(
+        start=[[0, 0, 0], [0, 1, 0], [0, 1, 0]],
+        end=[[0, 1, 0], [0.6, 1.8, 0], [-0.6, 1.8, 0.1]],
+        width_start=[0.2, 0.12, 0.1],
+        width_end=[0.15, 0.05, 0.05],
+        parent=[-1, 0, 0],
+        order=[0, 1, 1],
+    )
+
+
+# ---------------------------------------------------------------- helpers
+
+
+def counts_ok(tubes: Tubes):
+    """The documented formulas: points R*S + 2, triangles 2*S*R, wedges (R + 2)(S + 1)."""
+    r, s = tubes.rings, tubes.sides
+    assert (np.diff(tubes.point_offsets) == r * s + 2).all()
+    assert (np.diff(tubes.face_offsets) == 2 * s * r).all()
+    assert (np.diff(tubes.wedge_offsets) == (r + 2) * (s + 1)).all()
+    assert len(tubes.points) == (r * s + 2).sum()
+    assert len(tubes.faces) == (2 * s * r).sum()
+
+
+def tubes_closed(tubes: Tubes):
+    vols = tubes.volumes()
+    for i in range(len(tubes)):
+        m = tubes.mesh(i)
+        assert m.is_watertight, i
+        assert m.is_winding_consistent, i
+        assert m.volume > 0, i
+        assert math.isclose(m.volume, vols[i], rel_tol=1e-9)
+
+
+# ---------------------------------------------------------------- counts
+
+
+@pytest.mark.parametrize("sides", [3, 5, 8, 16])
+def test_straight_chain_needs_two_rings(sides):
+    # collinear segments of equal width: the joint rings add no shape
+    tubes = sweep(polyline([[0, 0, 0], [0, 1, 0], [0, 2, 0], [0, 3, 0]]), SweepOptions(sides=sides))
+    assert len(tubes) == 1
+    assert tubes.rings.tolist() == [2]
+    assert len(tubes.points) == 2 * sides + 2
+    assert len(tubes.faces) == 4 * sides
+    counts_ok(tubes)
+    tubes_closed(tubes)
+
+
+def test_linear_taper_keeps_no_joint_ring():
+    sk = polyline([[0, 0, 0], [0, 1, 0], [0, 2, 0]], width=[0.3, 0.2], width_end=[0.2, 0.1])
+    assert sweep(sk).rings.tolist() == [2]
+    # a kink in the taper needs its ring
+    sk = polyline([[0, 0, 0], [0, 1, 0], [0, 2, 0]], width=[0.3, 0.2], width_end=[0.2, 0.2])
+    assert sweep(sk).rings.tolist() == [3]
+
+
+@pytest.mark.parametrize("m", [1, 2, 7, 30])
+@pytest.mark.parametrize("sides", [4, 8])
+def test_bent_chain_counts(m, sides):
+    tubes = sweep(polyline(zigzag(m)), SweepOptions(sides=sides))
+    assert len(tubes) == 1
+    assert tubes.rings.tolist() == [m + 1]
+    assert len(tubes.points) == (m + 1) * sides + 2
+    assert len(tubes.faces) == 2 * sides * (m + 1)
+    assert len(tubes.wedge_point) == (m + 3) * (sides + 1)
+    counts_ok(tubes)
+    tubes_closed(tubes)
+
+
+def test_cylinder_volume_is_prism_volume():
+    s, r, length = 8, 0.25, 3.0
+    tubes = sweep(polyline([[1, 2, 3], [1, 2 + length, 3]], width=2 * r), SweepOptions(sides=s))
+    expected = 0.5 * s * r * r * math.sin(2 * math.pi / s) * length
+    assert tubes.volumes()[0] == pytest.approx(expected, rel=1e-12)
+
+
+def test_y_junction_two_tubes():
+    sk = y_junction()
+    tubes = sweep(sk)
+    assert len(tubes) == len(sk.chains) == 2
+    counts_ok(tubes)
+    tubes_closed(tubes)
+
+
+def test_sides_by_order():
+    opt = SweepOptions(sides=8, sides_step=3, min_sides=4)
+    tubes = sweep(y_junction(), opt)
+    assert sorted(tubes.sides.tolist()) == [5, 8]
+    counts_ok(tubes)
+    tubes_closed(tubes)
+
+
+def test_random_trees_counts_and_closed():
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        sk = random_small_tree(rng, 40)
+        tubes = sweep(sk, SweepOptions(sides=6, sides_step=1))
+        counts_ok(tubes)
+        tubes_closed(tubes)
+        assert set(tubes.chain.tolist()) == set(range(len(sk.chains)))
+
+
+def random_small_tree(rng, n) -> Skeleton:
+    start, end, par, order = [np.zeros(3)], [np.array([0.0, 1.0, 0.0])], [-1], [0]
+    for i in range(1, n):
+        p = int(rng.integers(0, i))
+        d = end[p] - start[p]
+        d = d / np.linalg.norm(d) + rng.normal(scale=0.5, size=3)
+        start.append(end[p])
+        end.append(end[p] + 0.5 * d / np.linalg.norm(d))
+        par.append(p)
+        order.append(order[p] + int(rng.random() < 0.5))
+    w = 0.12 * 0.85 ** np.array(order)
+    return make_skeleton(start, end, w, w * 0.9, par, order)
+
+
+# ---------------------------------------------------------------- sharp bends
+
+
+def test_sharp_bend_splits_the_chain():
+    sk = polyline([[0, 0, 0], [0, 1, 0], [0.17, 0.02, 0]])  # turns back ~170 degrees
+    tubes = sweep(sk)
+    assert len(tubes) == 2
+    assert (tubes.chain == 0).all()
+    counts_ok(tubes)
+    tubes_closed(tubes)
+    # each piece runs on past the joint to cover the outside of the elbow
+    top = tubes.points[:, 1].max()
+    assert top > 1.0
+
+
+def test_thick_tube_with_short_segments_splits_where_it_would_fold():
+    # 60 degree turn, radius 0.5, segments 0.3 long: r * tan(30) > 0.15
+    sk = polyline([[0, 0, 0], [0, 0.3, 0], [0.26, 0.45, 0]], width=1.0)
+    assert len(sweep(sk)) == 2
+    # the same turn with a thin tube follows the bend with a mitred ring
+    sk = polyline([[0, 0, 0], [0, 0.3, 0], [0.26, 0.45, 0]], width=0.05)
+    tubes = sweep(sk)
+    assert len(tubes) == 1 and tubes.rings.tolist() == [3]
+
+
+def test_mitre_ring_keeps_the_width():
+    # a 90 degree elbow: the joint ring lies on both cylinders (radius 0.1 about
+    # the Y axis and about the line y = 2, z = 0)
+    sk = polyline([[0, 0, 0], [0, 2, 0], [2, 2, 0]], width=0.2)
+    tubes = sweep(sk, SweepOptions(sides=8))
+    x, y, z = (tubes.points[8:16] - [0, 2, 0]).T
+    np.testing.assert_allclose(np.hypot(x, z), 0.1, rtol=1e-12)
+    np.testing.assert_allclose(np.hypot(y, z), 0.1, rtol=1e-12)
+
+
+# ---------------------------------------------------------------- frames, normals, uv
+
+
+def test_frame_does_not_twist():
+    # a chain bending in the XY plane: the ring's first vertex keeps its angle to +Z
+    tubes = sweep(polyline(zigzag(12, angle=30)), SweepOptions(sides=8))
+    s = 8
+    centers = np.array(zigzag(12, angle=30))
+    # mitre rings stretch within the XY plane only, so the Z offset shows any twist
+    first = tubes.points[0 : 13 * s : s] - centers
+    assert np.ptp(first[:, 2]) < 1e-9
+
+
+def test_helix_frame_is_rotation_minimising():
+    t = np.linspace(0, 4 * np.pi, 80)
+    pts = np.stack([np.cos(t), 0.3 * t, np.sin(t)], axis=1)
+    tubes = sweep(polyline(pts, width=0.05), SweepOptions(sides=6))
+    assert len(tubes) == 1
+    # the ring frame turns about the tangent by as little as possible: consecutive
+    # first ring vertices (relative to the centres) stay close to parallel
+    first = tubes.points[0 : 80 * 6 : 6] - pts
+    first /= np.linalg.norm(first, axis=1, keepdims=True)
+    assert (np.einsum("ij,ij->i", first[1:], first[:-1]) > math.cos(math.radians(12))).all()
+
+
+def test_normals_unit_and_sharp_caps():
+    tubes = sweep(polyline(zigzag(5)))
+    n = tubes.wedge_normal
+    assert n.dtype == np.float32
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-6)
+    m = tubes.mesh(0)
+    corner = m.face_attributes["corner_normals"]
+    assert corner.shape == (len(m.faces), 3, 3) and corner.dtype == np.float32
+    # smooth around: normals point away from the axis; caps: every corner has the face normal
+    cap = slice(len(m.faces) - 16, None)
+    np.testing.assert_allclose(corner[cap], np.repeat(m.face_normals[cap][:, None], 3, axis=1), atol=1e-6)
+    body = slice(0, len(m.faces) - 16)
+    assert (np.einsum("fcj,fj->fc", corner[body], m.face_normals[body]) > 0.8).all()
+
+
+def test_normals_lean_with_the_taper():
+    tubes = sweep(polyline([[0, 0, 0], [0, 1, 0]], width=1.0, width_end=0.0), SweepOptions(min_width=1e-3))
+    body = tubes.wedge_normal[: 2 * 9]
+    # a cone narrowing along +Y: its side normals lean towards +Y
+    assert (body[:, 1] > 0.3).all()
+
+
+def test_uv_u_around_v_along_in_metres():
+    pts = zigzag(6)
+    sk = polyline(pts)
+    tubes = sweep(sk, SweepOptions(sides=8))
+    uv = tubes.wedge_uv
+    assert uv.dtype == np.float32
+    assert uv[:, 0].min() >= 0 and uv[:, 0].max() <= 1
+    ring_uv = uv[: 7 * 9].reshape(7, 9, 2)
+    np.testing.assert_allclose(ring_uv[:, :, 0], np.tile(np.arange(9) / 8, (7, 1)), atol=1e-7)
+    expected_v = np.concatenate([[0], np.cumsum(sk.lengths())])
+    np.testing.assert_allclose(ring_uv[:, 0, 1], expected_v, atol=1e-6)
+    np.testing.assert_allclose(np.diff(ring_uv[:, 0, 1]), sk.lengths(), atol=1e-6)
+
+
+def test_v_continues_along_the_chain_through_branches():
+    tubes = sweep(y_junction())
+    # the trunk continues into the first child: v runs on to trunk + child length
+    trunk = tubes.select(np.flatnonzero(tubes.order == 0))
+    ring_v = trunk.wedge_uv[: trunk.rings[0] * (trunk.sides[0] + 1), 1]
+    assert ring_v.min() == 0
+    assert ring_v.max() == pytest.approx(1.0 + math.hypot(0.6, 0.8), abs=1e-5)
+
+
+# ---------------------------------------------------------------- degenerate input
+
+
+def test_zero_length_segments_are_dropped():
+    clean = sweep(polyline(zigzag(4)))
+    pts = zigzag(4)
+    dup = np.insert(pts, [2, 2, 4], pts[[2, 2, 4]], axis=0)  # three zero-length segments
+    tubes = sweep(polyline(dup))
+    assert len(tubes) == 1
+    assert tubes.rings.tolist() == clean.rings.tolist()
+    np.testing.assert_allclose(tubes.points, clean.points, atol=1e-12)
+    tubes_closed(tubes)
+
+
+def test_only_zero_length_segments_give_no_tubes():
+    tubes = sweep(polyline([[1, 1, 1], [1, 1, 1], [1, 1, 1]]))
+    assert len(tubes) == 0 and len(tubes.points) == 0 and tubes.mesh().is_empty
+
+
+def test_empty_skeleton():
+    sk = make_skeleton(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+    assert len(sweep(sk)) == 0
+
+
+@pytest.mark.parametrize("width", [0.0, 1e-9, -1.0])
+def test_zero_width_is_clamped(width):
+    opt = SweepOptions(min_width=0.01)
+    tubes = sweep(polyline(zigzag(3), width=width), opt)
+    tubes_closed(tubes)
+    ring0 = tubes.points[:8] - [0, 0, 0]
+    np.testing.assert_allclose(np.linalg.norm(ring0, axis=1), 0.005)
+
+
+def test_duplicated_segments_make_coincident_tubes():
+    sk = make_skeleton([[0, 0, 0], [0, 0, 0]], [[0, 1, 0], [0, 1, 0]], 0.1, parent=[-1, -1])
+    tubes = sweep(sk)
+    assert len(tubes) == 2
+    np.testing.assert_array_equal(tubes.points[: len(tubes.points) // 2], tubes.points[len(tubes.points) // 2 :])
+    tubes_closed(tubes)
+
+
+def test_gap_in_a_chain_splits_without_extension():
+    # a segment whose parent ends elsewhere (turtle moves with f break parents, but be safe)
+    sk = make_skeleton([[0, 0, 0], [0, 2, 0]], [[0, 1, 0], [0, 3, 0]], 0.1, parent=[-1, 0])
+    tubes = sweep(sk)
+    assert len(tubes) == 2
+    assert tubes.points[:, 1].max() == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"sides": 2},
+        {"sides": 8.5},
+        {"min_width": 0},
+        {"max_bend": 180},
+        {"min_length": -1},
+        {"merge_angle": float("nan")},
+        {"sides_step": True},
+    ],
+)
+def test_bad_options(bad):
+    with pytest.raises(ValueError, match="SweepOptions"):
+        SweepOptions(**bad)
+
+
+def test_select_round_trip():
+    tubes = sweep(random_small_tree(np.random.default_rng(0), 30))
+    part = tubes.select([2, 0])
+    assert len(part) == 2
+    np.testing.assert_array_equal(part.mesh(0).faces, tubes.mesh(2).faces)
+    np.testing.assert_allclose(part.mesh(1).vertices, tubes.mesh(0).vertices)
+    counts_ok(part)

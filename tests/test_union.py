@@ -1,0 +1,326 @@
+"""Union: watertight, consistently oriented, volume-bounded; attributes carried; errors raised."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import lsys3d
+from lsys3d.errors import GeometryError
+from lsys3d.skeleton import Skeleton
+from lsys3d.sweep import SweepOptions, Tubes, sweep
+from lsys3d.union import UnionOptions, _manifold, concatenate, may_touch, union
+
+# ---------------------------------------------------------------- skeleton factory (as in test_sweep)
+
+
+def make_skeleton(start, end, width_start, width_end=None, parent=None, order=None) -> Skeleton:
+    start = np.asarray(start, float).reshape(-1, 3)
+    end = np.asarray(end, float).reshape(-1, 3)
+    n = len(start)
+    w0 = np.broadcast_to(np.asarray(width_start, float), (n,)).copy()
+    w1 = w0.copy() if width_end is None else np.broadcast_to(np.asarray(width_end, float), (n,)).copy()
+    parent = np.arange(n) - 1 if parent is None else np.asarray(parent, np.int64)
+    order = np.zeros(n, np.int32) if order is None else np.asarray(order, np.int32)
+    h = end - start
+    norm = np.linalg.norm(h, axis=1, keepdims=True)
+    h = np.where(norm > 0, h / np.where(norm > 0, norm, 1), [[0.0, 1.0, 0.0]])
+    left = np.cross([0.31, 0.52, 0.79], h)
+    left /= np.linalg.norm(left, axis=1, keepdims=True)
+    return Skeleton(
+        start=start,
+        end=end,
+        width_start=w0,
+        width_end=w1,
+        heading=h,
+        left=left,
+        up=np.cross(h, left),
+        parent=parent,
+        order=order,
+        material=np.zeros(n, np.int32),
+        module=np.arange(n),
+    )
+
+
+def random_tree(seed: int, n: int, spread: float = 0.5, width: float = 0.12) -> Skeleton:
+    """``n`` segments, each starting at the end of a random earlier one."""
+    rng = np.random.default_rng(seed)
+    start, end, par, order = [np.zeros(3)], [np.array([0.0, 1.0, 0.0])], [-1], [0]
+    for i in range(1, n):
+        p = int(rng.integers(0, i))
+        d = end[p] - start[p]
+        d = d / np.linalg.norm(d) + rng.normal(scale=spread, size=3)
+        start.append(end[p])
+        end.append(end[p] + rng.uniform(0.05, 0.8) * d / np.linalg.norm(d))
+        par.append(p)
+        order.append(order[p] + int(rng.random() < 0.5))
+    w = width * 0.85 ** np.array(order)
+    return make_skeleton(start, end, w, w * rng.uniform(0.3, 1.0, n), par, order)
+
+
+def chainy_tree(seed: int, n: int) -> Skeleton:
+    """Gently curving, tapering chains of 3-9 segments with a branch at some joints (most spans touch nothing)."""
+    rng = np.random.default_rng(seed)
+    start, end, w0, w1, par, order = [], [], [], [], [], []
+    queue = [(np.zeros(3), np.array([0.0, 1.0, 0.0]), 0.3, 1.0, 0, -1)]
+    while queue and len(start) < n:
+        p, d, w, step, o, parent = queue.pop(0)
+        m = int(rng.integers(3, 10))
+        widths = np.linspace(w, 0.5 * w, m + 1)
+        for i in range(min(m, n - len(start))):
+            d = d + rng.normal(scale=0.08, size=3)
+            d /= np.linalg.norm(d)
+            q = p + step * d
+            start.append(p), end.append(q), w0.append(widths[i]), w1.append(widths[i + 1])
+            par.append(parent), order.append(o)
+            parent = len(start) - 1
+            if i < m - 1 and rng.random() < 0.35:
+                side = np.cross(d, rng.normal(size=3))
+                cd = d + 1.2 * side / np.linalg.norm(side)
+                queue.append((q, cd / np.linalg.norm(cd), 0.6 * widths[i + 1], 0.8 * step, o + 1, parent))
+            p = q
+    return make_skeleton(start, end, w0, w1, par, order)
+
+
+def y_junction() -> Skeleton:
+    return make_skeleton(
+        start=[[0, 0, 0], [0, 1, 0], [0, 1, 0]],
+        end=[[0, 1, 0], [0.6, 1.8, 0], [-0.6, 1.8, 0.1]],
+        width_start=[0.2, 0.12, 0.1],
+        width_end=[0.15, 0.05, 0.05],
+        parent=[-1, 0, 0],
+        order=[0, 1, 1],
+    )
+
+
+# ---------------------------------------------------------------- checks
+
+
+def check_union(tubes: Tubes, mesh):
+    """The contract of every union result."""
+    assert mesh.is_watertight
+    assert mesh.is_winding_consistent
+    assert mesh.volume > 0
+    assert mesh.volume <= tubes.volumes().sum() * (1 + 1e-5)
+    # float32 positions in manifold: the union is at least as big as its largest tube
+    assert mesh.volume >= tubes.volumes().max() * (1 - 1e-4)
+    # welded by manifold's topology (two sheets that only touch may keep two vertices
+    # at one place), and no vertex left unused
+    assert len(np.unique(mesh.faces)) == len(mesh.vertices)
+    n = mesh.face_attributes["corner_normals"]
+    uv = mesh.face_attributes["corner_uv"]
+    assert n.shape == (len(mesh.faces), 3, 3) and n.dtype == np.float32
+    assert uv.shape == (len(mesh.faces), 3, 2) and uv.dtype == np.float32
+    np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-5)
+    assert uv[:, :, 0].min() >= -1e-6 and uv[:, :, 0].max() <= 1 + 1e-6
+    # smooth normals still point out of their faces (slivers have no normal to compare)
+    big = mesh.area_faces > 1e-9 * mesh.scale**2
+    facing = np.einsum("fcj,fj->fc", n[big], mesh.face_normals[big])
+    assert np.mean(facing > 0) > 0.97
+
+
+SYNTHETIC = {
+    "single": make_skeleton([[0, 0, 0]], [[0, 1, 0]], 0.1),
+    "y-junction": y_junction(),
+    "crossing": make_skeleton([[-1, 0, 0], [0, -1, 0.01]], [[1, 0, 0], [0, 1, 0.01]], 0.2, parent=[-1, -1]),
+    "disjoint": make_skeleton([[0, 0, 0], [5, 0, 0]], [[0, 1, 0], [5, 1, 0]], 0.1, parent=[-1, -1]),
+    "coincident": make_skeleton([[0, 0, 0], [0, 0, 0]], [[0, 1, 0], [0, 1, 0]], 0.1, parent=[-1, -1]),
+    "elbow-split": make_skeleton([[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [0.17, 0.02, 0]], 0.1),
+    "star": make_skeleton(
+        np.zeros((12, 3)),
+        [[math.cos(a) * math.sin(b), math.cos(b), math.sin(a) * math.sin(b)] for a in range(4) for b in (0.5, 1.2, 2)],
+        0.15,
+        parent=[-1] * 12,
+    ),
+    "random-40": random_tree(1, 40),
+    "random-200": random_tree(2, 200, spread=0.3),
+    "chainy-300": chainy_tree(4, 300),
+}
+
+
+@pytest.mark.parametrize("name", list(SYNTHETIC))
+@pytest.mark.parametrize("layers", [True, False])
+def test_synthetic_unions(name, layers):
+    tubes = sweep(SYNTHETIC[name])
+    mesh = union(tubes, UnionOptions(layers=layers))
+    check_union(tubes, mesh)
+
+
+def test_degenerate_skeleton_unions():
+    # zero-length segments, zero widths and a duplicated branch in one tree
+    sk = make_skeleton(
+        start=[[0, 0, 0], [0, 1, 0], [0, 1, 0], [0, 1, 0], [0, 1, 0], [0, 1, 0]],
+        end=[[0, 1, 0], [0, 1, 0], [0, 2, 0], [0.5, 1.5, 0], [0.5, 1.5, 0], [-0.5, 1.5, 0]],
+        width_start=[0.2, 0.2, 0.0, 0.08, 0.08, 0.0],
+        parent=[-1, 0, 1, 0, 0, 0],
+        order=[0, 0, 0, 1, 1, 1],
+    )
+    tubes = sweep(sk)
+    check_union(tubes, union(tubes))
+
+
+def test_disjoint_tubes_keep_their_volume():
+    tubes = sweep(SYNTHETIC["disjoint"])
+    mesh = union(tubes)
+    assert mesh.volume == pytest.approx(tubes.volumes().sum(), rel=1e-5)
+    assert len(mesh.faces) == len(tubes.faces)  # two untouched tubes
+
+
+def test_coincident_tubes_count_once():
+    tubes = sweep(SYNTHETIC["coincident"])
+    assert union(tubes).volume == pytest.approx(tubes.volumes()[0], rel=1e-5)
+
+
+def test_layered_and_plain_unions_agree():
+    tubes = sweep(random_tree(5, 120))
+    a = union(tubes, UnionOptions(layers=True))
+    b = union(tubes, UnionOptions(layers=False))
+    assert a.volume == pytest.approx(b.volume, rel=1e-5)
+
+
+def test_fewer_sides_for_twigs():
+    tubes = sweep(random_tree(6, 80), SweepOptions(sides=8, sides_step=2, min_sides=4))
+    assert set(tubes.sides.tolist()) > {8}
+    check_union(tubes, union(tubes))
+
+
+def test_local_path_stitches_free_spans(caplog):
+    tubes = sweep(chainy_tree(11, 400))
+    with caplog.at_level("DEBUG", logger="lsys3d"):
+        local = union(tubes)
+    assert "spans in" in caplog.text  # the junction-only boolean ran and stitched
+    check_union(tubes, local)
+    whole = union(tubes, UnionOptions(local=False))
+    assert local.volume == pytest.approx(whole.volume, rel=1e-6)
+    assert local.area == pytest.approx(whole.area, rel=1e-5)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 120), sides=st.integers(3, 9))
+def test_any_local_union_is_watertight_or_raises(seed, n, sides):
+    tubes = sweep(chainy_tree(seed, n), SweepOptions(sides=sides))
+    try:
+        mesh = union(tubes, UnionOptions(local_max=1.0))
+    except GeometryError:
+        return
+    check_union(tubes, mesh)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 40),
+    spread=st.floats(0.0, 3.0),
+    width=st.floats(0.0, 0.5),
+    sides=st.integers(3, 10),
+)
+def test_any_union_is_watertight_or_raises(seed, n, spread, width, sides):
+    tubes = sweep(random_tree(seed, n, spread, width), SweepOptions(sides=sides))
+    try:
+        mesh = union(tubes, UnionOptions(local_max=1.0))
+    except GeometryError:
+        return
+    check_union(tubes, mesh)
+
+
+# ---------------------------------------------------------------- tube soup
+
+
+def test_concatenate_keeps_every_tube():
+    tubes = sweep(random_tree(3, 30))
+    soup = concatenate(tubes)
+    assert len(soup.faces) == len(tubes.faces)
+    assert len(soup.vertices) == len(tubes.points)
+    assert soup.is_watertight and soup.is_winding_consistent
+    assert soup.volume == pytest.approx(tubes.volumes().sum())
+    assert soup.face_attributes["corner_normals"].shape == (len(soup.faces), 3, 3)
+    assert soup.face_attributes["corner_uv"].dtype == np.float32
+
+
+# ---------------------------------------------------------------- touch test
+
+
+def test_may_touch_pairs_neighbours_only():
+    sk = make_skeleton(
+        [[0, 0, 0], [0, 1, 0], [10, 0, 0]], [[0, 1, 0], [1, 2, 0], [10, 1, 0]], 0.1, parent=[-1, 0, -1], order=[0, 1, 0]
+    )
+    tubes = sweep(sk)
+    # chain 0: segments 0 and 1 (one chain), chain 1: segment 2 far away
+    assert len(tubes) == 2
+    assert may_touch(tubes).tolist() == []
+    tubes = sweep(y_junction())
+    assert may_touch(tubes).tolist() == [[0, 1]]
+
+
+def test_may_touch_never_misses_a_real_overlap():
+    tubes = sweep(random_tree(7, 150, spread=1.0))
+    pairs = {tuple(p) for p in may_touch(tubes).tolist()}
+    boxes = tubes.bounds()
+    solids = [_manifold(tubes.select([i]), "test") for i in range(len(tubes))]
+    checked = 0
+    for i in range(len(tubes)):
+        for j in range(i + 1, len(tubes)):
+            overlap = (boxes[i, 0] <= boxes[j, 1]).all() and (boxes[j, 0] <= boxes[i, 1]).all()
+            if overlap and (i, j) not in pairs:
+                checked += 1
+                assert (solids[i] ^ solids[j]).volume() == 0, (i, j)
+    assert checked > 0  # the span test is finer than the tube boxes
+    # every parent-child junction is a pair (a chain split at a sharp bend has several tubes)
+    sk = random_tree(7, 150, spread=1.0)
+    chain_of = sk.chains.chain_of
+    for s in range(len(sk)):
+        p = sk.parent[s]
+        if p >= 0 and chain_of[s] != chain_of[p]:
+            mine = np.flatnonzero(tubes.chain == chain_of[s])
+            theirs = np.flatnonzero(tubes.chain == chain_of[p])
+            assert any((min(a, b), max(a, b)) in pairs for a in mine for b in theirs)
+
+
+# ---------------------------------------------------------------- errors
+
+
+def test_no_tubes_raises():
+    with pytest.raises(GeometryError, match="no tubes"):
+        union(Tubes.empty())
+
+
+def test_broken_tube_raises_with_status():
+    tubes = sweep(SYNTHETIC["single"])
+    faces = tubes.faces.copy()
+    faces[0] = faces[0, [0, 2, 1]]  # one face turned inside out: not a manifold
+    broken = Tubes(**{**{f: getattr(tubes, f) for f in tubes.__dataclass_fields__}, "faces": faces})
+    with pytest.raises(GeometryError, match=r"union: layer 0: manifold3d reported NotManifold"):
+        union(broken)
+
+
+def test_non_finite_tube_raises():
+    tubes = sweep(SYNTHETIC["single"])
+    points = tubes.points.copy()
+    points[0] = np.nan
+    broken = Tubes(**{**{f: getattr(tubes, f) for f in tubes.__dataclass_fields__}, "points": points})
+    with pytest.raises(GeometryError, match="manifold3d reported NonFiniteVertex"):
+        union(broken)
+
+
+# ---------------------------------------------------------------- presets (when the turtle is there)
+
+try:
+    from lsys3d.turtle import interpret
+except ImportError:  # pragma: no cover - the turtle lands separately
+    interpret = None
+
+PRESETS_3D = ["monopodial", "ternary", "bush", "hilbert3d", "abop-1.24a", "abop-1.24c", "abop-1.24e", "abop-1.24f"]
+
+
+@pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
+@pytest.mark.parametrize("name", PRESETS_3D)
+def test_presets_union(name):
+    g = lsys3d.load_preset(name)
+    sk = interpret(lsys3d.derive(g), g)
+    tubes = sweep(sk)
+    mesh = union(tubes)
+    check_union(tubes, mesh)
