@@ -1,0 +1,56 @@
+"""Export speed for a 1M-triangle mesh, against trimesh's own exporter in the same run.
+
+    python benchmarks/bench_export.py
+
+Prints seconds per format for lsys3d's writers (.glb with normals and UVs, .usdc,
+.usdz) and for trimesh's ``.glb`` export of the same mesh (positions and indices only,
+so the baseline does less work than we do), and the ratio.  Vertices in traversal
+order and scrambled (as a union returns them).
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+
+import export_fixtures as fx
+
+from lsys3d.exchange import export
+
+
+def best_of(fn, repeat=3):
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def main():
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        for scramble in (False, True):
+            bark = fx.make_tube(1000, 500, scramble=scramble)
+            tree = fx.tree_from_bark(bark)
+            label = "scrambled" if scramble else "traversal order"
+            print(f"{len(bark.faces):,} triangles, vertices in {label}")
+            export(tree, tmp / "warm.glb")
+            export(tree, tmp / "warm.usdc")
+
+            def trimesh_glb(bark=bark):
+                bark.export(tmp / "trimesh.glb")
+
+            base = best_of(trimesh_glb)
+            print(f"  {'trimesh .glb (positions only)':<28} {base:6.3f} s   (baseline)")
+            for suffix in (".glb", ".gltf", ".usdc", ".usdz"):
+                t = best_of(lambda suffix=suffix, tree=tree: export(tree, tmp / f"out{suffix}"))
+                print(f"  {'lsys3d ' + suffix:<28} {t:6.3f} s   {base / t:5.1f}x the baseline's speed")
+
+
+if __name__ == "__main__":
+    main()

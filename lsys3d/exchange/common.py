@@ -1,0 +1,407 @@
+"""What every writer shares: the options, the file frame, and mesh gathering.
+
+The writers gather plain arrays here (split vertices, instance transforms,
+polylines) and then write them; nothing here knows a file format.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import trimesh
+
+from ..errors import ExportError
+
+__all__ = [
+    "ExportOptions",
+    "MeshArrays",
+    "decompose_transforms",
+    "file_frame",
+    "frame_transforms",
+    "gather_mesh",
+    "provenance_json",
+]
+
+log = logging.getLogger("lsys3d")
+
+UNITS = {"m": 1.0, "cm": 0.01}
+UP_AXES = ("Y", "Z")
+
+# Y up -> Z up: a +90 degree turn about X, so +Y (the trunk) goes to +Z and +Z to -Y.
+_Y_TO_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class ExportOptions:
+    """How :func:`lsys3d.exchange.export` writes a tree.
+
+    Parameters
+    ----------
+    units : {"m", "cm"}
+        Length unit of the file.  ``"cm"`` scales the geometry by 100 and
+        authors ``metersPerUnit = 0.01`` (USD).  glTF is always metres.
+    up_axis : {"Y", "Z"}
+        The axis the tree stands along.  ``"Z"`` turns the geometry +90
+        degrees about X and authors ``upAxis = "Z"`` (USD).  glTF is always Y up.
+    instance_leaves : bool or None
+        Write leaves as instances of one leaf model (USD ``PointInstancer``,
+        glTF ``EXT_mesh_gpu_instancing``) instead of one merged mesh.  ``None``
+        (default) picks the format's natural choice: instanced for USD, merged
+        for glTF (readable by every viewer).
+    skeleton_curves : bool
+        Also write the branch skeleton as curves (USD ``BasisCurves`` with
+        purpose ``guide``; glTF a ``LINES`` primitive).
+    no_clobber : bool
+        Refuse to overwrite an existing file.
+    """
+
+    units: Literal["m", "cm"] = "m"
+    up_axis: Literal["Y", "Z"] = "Y"
+    instance_leaves: bool | None = None
+    skeleton_curves: bool = False
+    no_clobber: bool = False
+
+    def __post_init__(self):
+        if self.units not in UNITS:
+            raise ExportError(f"ExportOptions: units must be one of {sorted(UNITS)}, not {self.units!r}")
+        if self.up_axis not in UP_AXES:
+            raise ExportError(f"ExportOptions: up_axis must be one of {list(UP_AXES)}, not {self.up_axis!r}")
+
+    @property
+    def meters_per_unit(self) -> float:
+        return UNITS[self.units]
+
+
+def file_frame(options: ExportOptions) -> np.ndarray:
+    """The linear map ``(3, 3)`` from lsys3d's frame (metres, Y up) to the file's (units, up axis).
+
+    It is a rotation times a uniform scale, so it maps normals too (after
+    dropping the scale).
+    """
+    m = np.eye(3) / options.meters_per_unit
+    if options.up_axis == "Z":
+        m = _Y_TO_Z @ m
+    return m
+
+
+@dataclass(frozen=True)
+class MeshArrays:
+    """A mesh gathered for writing.
+
+    points : (v, 3) float32
+        Welded vertices, renumbered in the order faces first use them (unused ones dropped).
+    faces : (f, 3) int32
+        Triangles indexing ``points``.
+    normals : (f * 3, 3) float32
+        Unit normal per face corner.
+    uv : (f * 3, 2) float32 or None
+        Texture coordinates per face corner.
+    split_points, split_normals, split_uv : (s, ...) float32
+        One vertex per unique (point, normal, uv): what glTF needs.
+    split_index : (f * 3,) uint32
+        Split vertex of each face corner.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray
+    uv: np.ndarray | None
+    split_points: np.ndarray
+    split_normals: np.ndarray
+    split_uv: np.ndarray | None
+    split_index: np.ndarray
+
+
+def _unit_normals(normals: np.ndarray, faces: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Rows of ``normals`` (float32, ``(f * 3, 3)``) scaled to unit length, in place when possible.
+
+    Rows of zero or non-finite length take the normal of their face.
+    """
+    x, y, z = normals[:, 0], normals[:, 1], normals[:, 2]
+    length2 = x * x + y * y + z * z
+    off = ~(np.abs(length2 - 1) < 4e-7)  # also catches NaN
+    if not off.any():
+        return normals
+    rows = np.flatnonzero(off)
+    length = np.sqrt(length2[rows].astype(np.float64))
+    fixed = normals[rows].astype(np.float64)
+    bad = ~(np.isfinite(length) & (length > 1e-20))
+    if bad.any():
+        tri = vertices[faces[rows[bad] // 3]]
+        fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        fl = np.linalg.norm(fn, axis=1)
+        fn[fl == 0] = (0.0, 1.0, 0.0)  # a degenerate face with no usable normal: any unit vector
+        fixed[bad] = fn
+        length[bad] = np.where(fl == 0, 1.0, fl)
+    normals[rows] = (fixed / length[:, None]).astype(np.float32)
+    return normals
+
+
+def _first_use_order(corner_v: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """Renumber vertices in the order the face list first uses them.
+
+    Returns ``(old_of_new, new_of_old)`` (unused vertices get ``-1`` in
+    ``new_of_old``), or None when the numbering is already in that order.
+    """
+    # the first corner of each vertex: scatter the corners in reverse order so the earliest write lands last
+    m = corner_v.size
+    first = np.full(n, m, np.int64)
+    order = np.arange(m - 1, -1, -1, dtype=np.int64)
+    first[corner_v[::-1]] = order
+    used = first < m
+    if used.all() and (np.diff(first) > 0).all():
+        return None
+    old_of_new = np.flatnonzero(used)
+    if not (np.diff(first[old_of_new]) > 0).all():
+        old_of_new = old_of_new[np.argsort(first[old_of_new], kind="stable")]
+    new_of_old = np.full(n, -1, np.int64)
+    new_of_old[old_of_new] = np.arange(old_of_new.size)
+    return old_of_new, new_of_old
+
+
+def gather_mesh(mesh: trimesh.Trimesh, frame: np.ndarray, where: str) -> MeshArrays:
+    """Gather a welded mesh with corner attributes into arrays for the writers.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        Welded vertices; ``face_attributes`` may hold ``corner_normals (f, 3, 3)``
+        and ``corner_uv (f, 3, 2)``.  Missing normals are taken from the
+        (smooth) vertex normals; missing UVs are left out.
+    frame : (3, 3) float64
+        Linear map into the file's frame (see :func:`file_frame`).
+    where : str
+        Name used in error messages.
+    """
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if faces.ndim != 2 or faces.shape[1] != 3 or not len(faces):
+        raise ExportError(f"{where}: the mesh has no triangles")
+    if not np.isfinite(vertices).all():
+        raise ExportError(f"{where}: the mesh has non-finite vertices")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise ExportError(f"{where}: a face points past the {len(vertices)} vertices")
+    nf = len(faces)
+    attrs = getattr(mesh, "face_attributes", None) or {}
+    normals = attrs.get("corner_normals")
+    if normals is None:
+        normals = np.asarray(mesh.vertex_normals)[faces]
+    # a private float32 copy: it is normalised and rotated in place
+    normals = np.array(normals, dtype=np.float32).reshape(-1, 3)
+    if normals.shape[0] != nf * 3:
+        raise ExportError(f"{where}: corner_normals has {normals.shape[0]} rows, expected {nf * 3}")
+    uv = attrs.get("corner_uv")
+    if uv is not None:
+        uv = np.ascontiguousarray(uv, dtype=np.float32).reshape(-1, 2)
+        if uv.shape[0] != nf * 3:
+            raise ExportError(f"{where}: corner_uv has {uv.shape[0]} rows, expected {nf * 3}")
+        if not np.isfinite(uv).all():
+            raise ExportError(f"{where}: corner_uv holds a NaN or infinite value")
+
+    corner_v = faces.reshape(-1)
+    renumber = _first_use_order(corner_v, len(vertices))
+    if renumber is not None:
+        old_of_new, new_of_old = renumber
+        corner_v = new_of_old[corner_v]
+        vertices = vertices[old_of_new]
+    identity = np.array_equal(frame, np.eye(3))
+    points = (vertices if identity else vertices @ frame.T).astype(np.float32)
+
+    if not identity:
+        rotation = (frame / np.cbrt(np.linalg.det(frame))).astype(np.float32)
+        normals = normals @ rotation.T
+    normals = _unit_normals(normals, corner_v.reshape(-1, 3), points)
+    normals += np.float32(0.0)  # -0.0 -> 0.0, so corners that compare equal are equal bit for bit
+
+    split_index, split_points, split_normals, split_uv = _split(points, corner_v, normals, uv)
+    return MeshArrays(
+        points=points,
+        faces=corner_v.astype(np.int32).reshape(-1, 3),
+        normals=normals,
+        uv=uv,
+        split_points=split_points,
+        split_normals=split_normals,
+        split_uv=split_uv,
+        split_index=split_index,
+    )
+
+
+def _split(points, corner_v, normals, uv):
+    """Un-weld: one vertex per unique (point, normal, uv), numbered like the points, seams appended.
+
+    Most corners carry the same attributes as some representative corner of
+    their point; only the others (seams, creases) are sorted to find their
+    distinct combinations, so the cost stays linear for a typical mesh.
+    """
+    n = len(points)
+    m = corner_v.size
+    rep = np.empty(n, np.int64)
+    rep[corner_v] = np.arange(m)  # any corner of each point will do
+    r = rep[corner_v]
+    # compare bit patterns, a few columns at a time (normals were normalised, -0.0 folded)
+    raw = normals.view(np.uint8).reshape(-1)
+    xy = np.ndarray((m,), np.dtype(np.uint64), raw, 0, (12,))
+    z = normals.view(np.uint32)[:, 2]
+    same = xy == xy[r]
+    same &= z == z[r]
+    if uv is not None:
+        uv64 = uv.view(np.uint64).reshape(-1)
+        same &= uv64 == uv64[r]
+    split_index = corner_v.astype(np.uint32)
+    extra = np.flatnonzero(~same)
+    corners = rep
+    vertex_of_split = None
+    if extra.size:
+        cols = [corner_v[extra, None].astype(np.uint32), normals[extra].view(np.uint32)]
+        if uv is not None:
+            cols.append(uv[extra].view(np.uint32))
+        key = np.concatenate(cols, axis=1)
+        first, inverse = _unique_rows(key)
+        # number the new vertices in order of first use, so the output does not depend on the sort
+        by_use = np.argsort(first, kind="stable")
+        rank = np.empty(first.size, np.int64)
+        rank[by_use] = np.arange(first.size)
+        split_index[extra] = (n + rank[inverse.reshape(-1)]).astype(np.uint32)
+        new_corners = extra[first[by_use]]
+        corners = np.concatenate([rep, new_corners])
+        vertex_of_split = np.concatenate([np.arange(n), corner_v[new_corners]])
+    split_points = points if vertex_of_split is None else points[vertex_of_split]
+    split_normals = normals[corners]
+    split_uv = None if uv is None else uv[corners]
+    return split_index, split_points, split_normals, split_uv
+
+
+def _unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Group equal rows of ``key`` (``(m, c) uint32``): the first row of each group and each row's group.
+
+    Rows are hashed to 64 bits and the hashes sorted (much faster than
+    sorting whole rows); the grouping is then checked row by row, and in the
+    unlikely case of a hash collision the rows themselves are sorted.
+    """
+    h = np.full(len(key), 0x9E3779B97F4A7C15, np.uint64)
+    for c in range(key.shape[1]):
+        h ^= key[:, c].astype(np.uint64)
+        h *= np.uint64(0xBF58476D1CE4E5B9)
+        h ^= h >> np.uint64(31)
+    _, first, inverse = np.unique(h, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    if not (key == key[first[inverse]]).all():  # pragma: no cover - a 64-bit collision
+        rows = np.ascontiguousarray(key).view(np.dtype((np.void, key.shape[1] * 4))).reshape(-1)
+        _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+        inverse = inverse.reshape(-1)
+    return first, inverse
+
+
+def decompose_transforms(transforms: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Split instance transforms into translation, rotation and scale.
+
+    Parameters
+    ----------
+    transforms : (k, 4, 4) float64
+        Rotation times scale in the upper 3x3 (columns may have different
+        lengths), translation in the last column.
+
+    Returns
+    -------
+    translation : (k, 3) float64
+    quaternion : (k, 4) float64
+        Unit quaternions ``(x, y, z, w)`` with ``w >= 0``.
+    scale : (k, 3) float64
+        Per-axis scale (negative on x when the frame is mirrored).
+    """
+    t = np.asarray(transforms, dtype=np.float64)
+    if t.ndim != 3 or t.shape[1:] != (4, 4):
+        raise ExportError(f"{where}: leaf_transforms has shape {t.shape}, expected (k, 4, 4)")
+    if not np.isfinite(t).all():
+        raise ExportError(f"{where}: leaf_transforms holds a NaN or infinite value")
+    linear = t[:, :3, :3]
+    scale = np.linalg.norm(linear, axis=1)  # column lengths
+    if (scale <= 0).any():
+        raise ExportError(f"{where}: a leaf transform has zero scale")
+    rot = linear / scale[:, None, :]
+    mirrored = np.linalg.det(rot) < 0
+    if mirrored.any():
+        scale[mirrored, 0] *= -1
+        rot[mirrored, :, 0] *= -1
+    # the columns should be orthonormal now; project onto the nearest rotation when they are not quite
+    if not np.allclose(np.einsum("kji,kjl->kil", rot, rot), np.eye(3), atol=1e-4):
+        raise ExportError(f"{where}: a leaf transform is sheared (not rotation times scale)")
+    u, _, vt = np.linalg.svd(rot)
+    rot = u @ vt
+    return t[:, :3, 3].copy(), _quaternions(rot), scale
+
+
+def _quaternions(r: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``(k, 3, 3)`` to unit quaternions ``(k, 4)`` as ``(x, y, z, w)``, ``w >= 0``."""
+    k = r.shape[0]
+    q = np.empty((k, 4))
+    m00, m11, m22 = r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]
+    trace = m00 + m11 + m22
+    # pick the numerically largest component for each matrix (Shepperd's method)
+    cases = np.argmax(np.stack([trace, m00, m11, m22], axis=1), axis=1)
+    i = cases == 0
+    s = np.sqrt(1.0 + trace[i]) * 2
+    q[i] = np.stack(
+        [(r[i, 2, 1] - r[i, 1, 2]) / s, (r[i, 0, 2] - r[i, 2, 0]) / s, (r[i, 1, 0] - r[i, 0, 1]) / s, s / 4], 1
+    )
+    i = cases == 1
+    s = np.sqrt(1.0 + m00[i] - m11[i] - m22[i]) * 2
+    q[i] = np.stack(
+        [s / 4, (r[i, 0, 1] + r[i, 1, 0]) / s, (r[i, 0, 2] + r[i, 2, 0]) / s, (r[i, 2, 1] - r[i, 1, 2]) / s], 1
+    )
+    i = cases == 2
+    s = np.sqrt(1.0 + m11[i] - m00[i] - m22[i]) * 2
+    q[i] = np.stack(
+        [(r[i, 0, 1] + r[i, 1, 0]) / s, s / 4, (r[i, 1, 2] + r[i, 2, 1]) / s, (r[i, 0, 2] - r[i, 2, 0]) / s], 1
+    )
+    i = cases == 3
+    s = np.sqrt(1.0 + m22[i] - m00[i] - m11[i]) * 2
+    q[i] = np.stack(
+        [(r[i, 0, 2] + r[i, 2, 0]) / s, (r[i, 1, 2] + r[i, 2, 1]) / s, s / 4, (r[i, 1, 0] - r[i, 0, 1]) / s], 1
+    )
+    q[q[:, 3] < 0] *= -1
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def frame_transforms(transforms: np.ndarray, frame: np.ndarray) -> np.ndarray:
+    """Instance transforms ``(k, 4, 4)`` in the file frame: ``F @ T``.
+
+    The instanced model itself is written untouched (model space), so a world
+    point ``T x`` becomes ``F T x``: the frame's rotation and unit scale go
+    into each instance's rotation, scale and translation.
+    """
+    t = np.asarray(transforms, dtype=np.float64).copy()
+    s = np.cbrt(np.linalg.det(frame))
+    rotation = frame / s
+    t[:, :3, :3] = s * (rotation @ t[:, :3, :3])
+    t[:, :3, 3] = t[:, :3, 3] @ frame.T
+    return t
+
+
+def _jsonable(value, where: str):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v, where) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v, where) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist(), where)
+    if isinstance(value, np.generic):
+        return value.item()
+    if value is None or isinstance(value, (str, bool, int)):
+        return value
+    if isinstance(value, float):
+        if not np.isfinite(value):
+            raise ExportError(f"{where}: provenance holds a non-finite number")
+        return value
+    raise ExportError(f"{where}: provenance value of type {type(value).__name__} is not JSON-serialisable")
+
+
+def provenance_json(provenance: dict, where: str) -> dict:
+    """A JSON-ready copy of ``tree.provenance`` (numpy scalars and arrays become plain values)."""
+    out = _jsonable(dict(provenance or {}), where)
+    json.dumps(out)  # fail here rather than half-way through a file
+    return out

@@ -1,0 +1,225 @@
+"""OpenUSD writer (``.usda``, ``.usdc``, ``.usd``, ``.usdz``) with usd-core's ``pxr``.
+
+The stage::
+
+    /Tree                       Xform, kind = component, defaultPrim; customData lsys3d provenance
+        Geom                    Xform
+            bark                Mesh (subdivisionScheme none, faceVarying normals, indexed primvars:st)
+            leaf                PointInstancer of Prototypes/leaf_model  -- or all leaves merged in a Mesh
+                Prototypes      Scope
+                    leaf_model  Mesh (model space)
+            leaf_polygons       Mesh (leaves drawn as polygons; only with instancing)
+            skeleton            BasisCurves, linear, widths, purpose guide (only with skeleton_curves)
+        Looks                   Scope
+            bark, leaf          Material with a UsdPreviewSurface
+
+The parts have the same names as in glTF (``bark``, ``leaf``, ``leaf_polygons``,
+``skeleton``), so a DCC shows the same objects whichever format it read.
+``upAxis`` and ``metersPerUnit`` follow :class:`~lsys3d.exchange.ExportOptions`;
+the geometry is turned and scaled to match, so every DCC sees the tree upright
+at its true size.  Points are numbered in the order faces first use them,
+which keeps the crate file's integer compression fast.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
+
+from ..errors import ExportError
+from ..tree import Material, Tree
+from .atomic import atomic_path
+from .common import ExportOptions, MeshArrays, decompose_transforms, file_frame, frame_transforms, gather_mesh
+from .common import provenance_json as _provenance_json
+
+__all__ = ["ROOT", "build_stage", "write_usd", "write_usdz"]
+
+ROOT = "/Tree"
+GEOM = f"{ROOT}/Geom"
+LOOKS = f"{ROOT}/Looks"
+
+
+def _extent(points: np.ndarray) -> Vt.Vec3fArray:
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    return Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))])
+
+
+def _material(stage: Usd.Stage, name: str, m: Material) -> UsdShade.Material:
+    material = UsdShade.Material.Define(stage, f"{LOOKS}/{name}")
+    shader = UsdShade.Shader.Define(stage, f"{LOOKS}/{name}/PreviewSurface")
+    shader.CreateIdAttr("UsdPreviewSurface")
+    r, g, b, a = (float(c) for c in m.base_color)
+    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(r, g, b))
+    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(m.roughness))
+    shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(float(m.metallic))
+    if a < 1.0:
+        shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(a)
+    material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    return material
+
+
+def _mesh(stage: Usd.Stage, path: str, arrays: MeshArrays, material: UsdShade.Material, double_sided: bool):
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    n_faces = len(arrays.faces)
+    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(arrays.points))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(n_faces, 3, np.int32)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(arrays.faces.reshape(-1).astype(np.int32, copy=False)))
+    mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(arrays.normals))
+    mesh.SetNormalsInterpolation(UsdGeom.Tokens.faceVarying)
+    if arrays.uv is not None:
+        # indexed by the split vertices: each distinct (point, normal, uv) corner's uv once
+        st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
+            "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying
+        )
+        st.Set(Vt.Vec2fArray.FromNumpy(arrays.split_uv))
+        st.SetIndices(Vt.IntArray.FromNumpy(arrays.split_index.astype(np.int32)))
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreateExtentAttr(_extent(arrays.points))
+    if double_sided:
+        mesh.CreateDoubleSidedAttr(True)
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(material)
+    return mesh
+
+
+def _skeleton(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray) -> None:
+    sk = tree.skeleton
+    ch = sk.chains
+    if not len(ch):
+        return
+    points = np.concatenate(sk.polylines()) @ frame.T
+    widths = []
+    for c in range(len(ch)):
+        segs = ch.segments[ch.offsets[c] : ch.offsets[c + 1]]
+        widths.append(np.concatenate([sk.width_start[segs[:1]], sk.width_end[segs]]))
+    widths = np.concatenate(widths) * float(np.cbrt(np.linalg.det(frame)))
+    curves = UsdGeom.BasisCurves.Define(stage, path)
+    curves.CreateTypeAttr(UsdGeom.Tokens.linear)
+    curves.CreateCurveVertexCountsAttr(Vt.IntArray.FromNumpy((np.diff(ch.offsets) + 1).astype(np.int32)))
+    pts = Vt.Vec3fArray.FromNumpy(points.astype(np.float32))
+    w = Vt.FloatArray.FromNumpy(widths.astype(np.float32))
+    curves.CreatePointsAttr(pts)
+    curves.CreateWidthsAttr(w)
+    curves.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
+    curves.CreatePurposeAttr(UsdGeom.Tokens.guide)
+    curves.CreateExtentAttr(UsdGeom.Curves.ComputeExtent(pts, w))
+
+
+def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, material, where: str) -> None:
+    instancer = UsdGeom.PointInstancer.Define(stage, path)
+    UsdGeom.Scope.Define(stage, f"{path}/Prototypes")
+    model = gather_mesh(tree.leaf_model, np.eye(3), f"{where}: leaf_model")
+    proto = _mesh(stage, f"{path}/Prototypes/leaf_model", model, material, tree.leaf_material.double_sided)
+    instancer.CreatePrototypesRel().SetTargets([proto.GetPath()])
+    translation, quaternion, scale = decompose_transforms(frame_transforms(tree.leaf_transforms, frame), where)
+    k = len(translation)
+    instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(np.zeros(k, np.int32)))
+    instancer.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(translation.astype(np.float32)))
+    # Gf.Quath is stored imaginary-first, so (x, y, z, w) rows are its memory layout
+    instancer.CreateOrientationsAttr(Vt.QuathArray.FromNumpy(quaternion.astype(np.float16)))
+    instancer.CreateScalesAttr(Vt.Vec3fArray.FromNumpy(scale.astype(np.float32)))
+    extent = instancer.ComputeExtentAtTime(Usd.TimeCode.Default(), Usd.TimeCode.Default())
+    instancer.CreateExtentAttr(extent)
+
+
+def _names(materials: list[Material]) -> list[str]:
+    """Valid, distinct prim names for the materials."""
+    out = []
+    for m in materials:
+        name = Tf.MakeValidIdentifier(m.name or "material")
+        base, i = name, 1
+        while name in out:
+            i += 1
+            name = f"{base}_{i}"
+        out.append(name)
+    return out
+
+
+def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> Usd.Stage:
+    """Build the tree's stage in memory (see the module docstring for its layout)."""
+    from .. import __version__
+
+    frame = file_frame(options)
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z if options.up_axis == "Z" else UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, options.meters_per_unit)
+    root = UsdGeom.Xform.Define(stage, ROOT)
+    prim = root.GetPrim()
+    stage.SetDefaultPrim(prim)
+    Usd.ModelAPI(prim).SetKind(Kind.Tokens.component)
+    provenance = _provenance_json(tree.provenance, where)
+    name = provenance.get("name") if isinstance(provenance.get("name"), str) else None
+    Usd.ModelAPI(prim).SetAssetName(name or "tree")
+    prim.SetCustomDataByKey(
+        "lsys3d", {"generator": f"lsys3d {__version__}", "provenance": json.dumps(provenance, sort_keys=True)}
+    )
+    UsdGeom.Xform.Define(stage, GEOM)
+    UsdGeom.Scope.Define(stage, LOOKS)
+    bark_name, leaf_name = _names([tree.bark_material, tree.leaf_material])
+    bark_material = _material(stage, bark_name, tree.bark_material)
+
+    bark = gather_mesh(tree.bark, frame, f"{where}: bark")
+    _mesh(stage, f"{GEOM}/bark", bark, bark_material, tree.bark_material.double_sided)
+
+    instanced = options.instance_leaves is not False and tree.leaf_model is not None and len(tree.leaf_transforms) > 0
+    has_polygons = tree.polygon_leaves is not None and len(tree.polygon_leaves.faces) > 0
+    # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
+    merged = tree.leaves if tree.leaves is not None else tree.polygon_leaves
+    has_merged = merged is not None and len(merged.faces) > 0
+    if instanced or has_merged:
+        leaf_material = _material(stage, leaf_name, tree.leaf_material)
+        double = tree.leaf_material.double_sided
+        if instanced:
+            _leaf_instancer(stage, f"{GEOM}/leaf", tree, frame, leaf_material, where)
+            if has_polygons:
+                polygons = gather_mesh(tree.polygon_leaves, frame, f"{where}: polygon_leaves")
+                _mesh(stage, f"{GEOM}/leaf_polygons", polygons, leaf_material, double)
+        else:
+            leaves = gather_mesh(merged, frame, f"{where}: leaves")
+            _mesh(stage, f"{GEOM}/leaf", leaves, leaf_material, double)
+
+    if options.skeleton_curves:
+        _skeleton(stage, f"{GEOM}/skeleton", tree, frame)
+    return stage
+
+
+def _export_layer(layer: Sdf.Layer, tmp: Path, path: Path) -> None:
+    try:
+        ok = layer.Export(str(tmp))
+    except Tf.ErrorException as exc:
+        raise ExportError(f"{path}: {str(exc).strip().splitlines()[-1]}") from None
+    if not ok:
+        raise ExportError(f"{path}: USD could not write the file")
+
+
+def write_usd(tree: Tree, path: Path, options: ExportOptions) -> Path:
+    """Write ``tree`` as ``.usda`` (text), ``.usdc`` (crate) or ``.usd`` (crate)."""
+    stage = build_stage(tree, options, str(path))
+    with atomic_path(path, options.no_clobber) as tmp:
+        _export_layer(stage.GetRootLayer(), tmp, path)
+    return path
+
+
+def write_usdz(tree: Tree, path: Path, options: ExportOptions) -> Path:
+    """Write ``tree`` as a ``.usdz`` package holding one ``.usdc`` layer (no external files)."""
+    stage = build_stage(tree, options, str(path))
+    inner = f"{Tf.MakeValidIdentifier(path.stem)}.usdc"
+    with atomic_path(path, options.no_clobber) as tmp, tempfile.TemporaryDirectory(prefix="lsys3d-") as folder:
+        layer_path = Path(folder) / inner
+        _export_layer(stage.GetRootLayer(), layer_path, path)
+        # the zip entry's date is the file's modification time, in local time: pin it to the
+        # earliest date a zip can hold so the package's bytes depend on nothing but the tree
+        stamp = time.mktime((1980, 1, 1, 0, 0, 0, 0, 0, -1))
+        os.utime(layer_path, (stamp, stamp))
+        try:
+            writer = Sdf.ZipFileWriter.CreateNew(str(tmp))
+            writer.AddFile(str(layer_path), inner)
+            writer.Save()
+        except Tf.ErrorException as exc:
+            raise ExportError(f"{path}: {str(exc).strip().splitlines()[-1]}") from None
+    return path

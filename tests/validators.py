@@ -1,0 +1,137 @@
+"""Thin wrappers around the real validators the export tests rely on.
+
+* Khronos glTF-Validator: ``node tools/gltf_validate.mjs FILE`` with the npm
+  package pinned in ``package.json`` (install with ``npm ci``).
+* usd-core's ``UsdValidation`` validators and ``UsdGeom.Mesh.ValidateTopology``
+  (in process: usd-core is a dependency of lsys3d).
+* Blender: ``tools/blender_import.py`` run by the Python of a separate
+  environment holding ``bpy`` (``.venv-bpy`` at the repository root, or the
+  interpreter named by ``LSYS3D_BPY_PYTHON``), in a child process so that a
+  Blender crash is a test failure, not a dead test run.
+
+When a tool is missing, :func:`require` skips the test with the command that
+installs it -- unless the environment variable ``CI`` is set, where a missing
+tool fails the test: CI must run every check.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+GLTF_SCRIPT = REPO / "tools" / "gltf_validate.mjs"
+BLENDER_SCRIPT = REPO / "tools" / "blender_import.py"
+BLENDER_MARK = "LSYS3D-BLENDER "
+
+
+def in_ci() -> bool:
+    return bool(os.environ.get("CI"))
+
+
+def require(available: bool, reason: str) -> None:
+    """Skip (locally) or fail (under CI) when a validator is not installed."""
+    if available:
+        return
+    if in_ci():
+        pytest.fail(f"{reason} -- CI is set, so the validator must be installed")
+    pytest.skip(reason)
+
+
+# ---------------------------------------------------------------- glTF
+
+
+def gltf_validator_available() -> tuple[bool, str]:
+    if shutil.which("node") is None:
+        return False, "node is not on PATH (install Node.js >= 18)"
+    if not (REPO / "node_modules" / "gltf-validator").is_dir():
+        return False, "gltf-validator is not installed (run `npm ci` at the repository root)"
+    return True, ""
+
+
+def validate_gltf(path: Path) -> dict:
+    """The Khronos glTF-Validator's report of ``path`` (skips/fails when the validator is missing)."""
+    ok, reason = gltf_validator_available()
+    require(ok, reason)
+    proc = subprocess.run(["node", str(GLTF_SCRIPT), str(path)], capture_output=True, text=True, timeout=300, cwd=REPO)
+    if proc.returncode != 0:
+        pytest.fail(f"glTF-Validator could not validate {path}: {proc.stderr.strip()}")
+    return json.loads(proc.stdout)
+
+
+def gltf_issues(report: dict, severity: int) -> list[str]:
+    """``code @ pointer: message`` of the report's issues of one severity (0 error, 1 warning, 2 info, 3 hint)."""
+    return [
+        f"{m['code']} @ {m.get('pointer', '')}: {m['message']}"
+        for m in report["issues"]["messages"]
+        if m["severity"] == severity
+    ]
+
+
+# ---------------------------------------------------------------- USD
+
+
+def usd_problems(path: Path) -> list[str]:
+    """Errors and warnings of every registered ``UsdValidation`` validator, and failed mesh topology checks."""
+    from pxr import Usd, UsdGeom, UsdValidation
+
+    stage = Usd.Stage.Open(str(path))
+    assert stage is not None, f"{path}: USD could not open it"
+    registry = UsdValidation.ValidationRegistry()
+    validators = registry.GetOrLoadAllValidators()
+    assert validators, "no UsdValidation validators are registered"
+    context = UsdValidation.ValidationContext(validators)
+    problems = []
+    for error in context.Validate(stage):
+        if error.GetType() in (UsdValidation.ValidationErrorType.Error, UsdValidation.ValidationErrorType.Warn):
+            problems.append(f"{error.GetType()}: {error.GetIdentifier()}: {error.GetMessage()}")
+    predicate = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
+    for prim in Usd.PrimRange.Stage(stage, predicate):
+        if prim.IsA(UsdGeom.Mesh):
+            mesh = UsdGeom.Mesh(prim)
+            ok, why = UsdGeom.Mesh.ValidateTopology(
+                mesh.GetFaceVertexIndicesAttr().Get(),
+                mesh.GetFaceVertexCountsAttr().Get(),
+                len(mesh.GetPointsAttr().Get()),
+            )
+            if not ok:
+                problems.append(f"ValidateTopology: {prim.GetPath()}: {why}")
+    return problems
+
+
+# ---------------------------------------------------------------- Blender
+
+
+def bpy_python() -> Path | None:
+    """The interpreter of the environment that holds ``bpy``, or None."""
+    named = os.environ.get("LSYS3D_BPY_PYTHON")
+    if named:
+        return Path(named)
+    candidate = REPO / ".venv-bpy" / "bin" / "python"
+    return candidate if candidate.exists() else None
+
+
+def blender_import(path: Path, timeout: float = 600) -> dict:
+    """Import ``path`` into Blender in a child process; the report of ``tools/blender_import.py``."""
+    python = bpy_python()
+    require(
+        python is not None and python.exists(),
+        "Blender (bpy) is not installed: python3.11 -m venv .venv-bpy && .venv-bpy/bin/pip install bpy==5.0.1 "
+        "(or set LSYS3D_BPY_PYTHON)",
+    )
+    proc = subprocess.run(
+        [str(python), str(BLENDER_SCRIPT), str(path)], capture_output=True, text=True, timeout=timeout, cwd=REPO
+    )
+    if proc.returncode < 0:
+        pytest.fail(f"Blender crashed (signal {-proc.returncode}) importing {path}:\n{proc.stderr[-2000:]}")
+    if proc.returncode != 0:
+        pytest.fail(f"Blender import of {path} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith(BLENDER_MARK)]
+    if not lines:
+        pytest.fail(f"Blender import of {path} printed no report:\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
+    return json.loads(lines[-1][len(BLENDER_MARK) :])

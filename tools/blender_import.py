@@ -1,0 +1,127 @@
+"""Import a file into Blender (``bpy`` as a module) and print what arrived, as one JSON line.
+
+Run it with the interpreter of the Blender environment (``.venv-bpy``)::
+
+    .venv-bpy/bin/python tools/blender_import.py tree.glb
+
+``.glb``/``.gltf`` go through Blender's glTF importer (with merged vertices, so
+a welded mesh comes back welded), ``.usd*`` through its USD importer.  The
+last line of output is ``LSYS3D-BLENDER ``, then JSON with the Blender version,
+the imported objects (type, parent, vertex and face counts, world bounding
+box, materials, whether ``Mesh.validate`` had to repair anything), the
+materials (Principled BSDF base colour and roughness) and the world bounding
+box of everything Blender draws, instances included.
+
+Blender crashes on some malformed files: the caller should run this in a
+child process and treat a signal as a failure (``tests/validators.py`` does).
+"""
+
+import json
+import os
+import sys
+
+MARK = "LSYS3D-BLENDER "
+
+
+def _bbox(points, matrix):
+    import numpy as np
+
+    if not len(points):
+        return None
+    m = np.array(matrix)
+    w = points @ m[:3, :3].T + m[:3, 3]
+    return [w.min(axis=0).tolist(), w.max(axis=0).tolist()]
+
+
+def _merge(a, b):
+    if a is None:
+        return b
+    if b is None:
+        return a
+    return [[min(x, y) for x, y in zip(a[0], b[0], strict=True)], [max(x, y) for x, y in zip(a[1], b[1], strict=True)]]
+
+
+def _points(mesh):
+    import numpy as np
+
+    co = np.empty(len(mesh.vertices) * 3, np.float64)
+    mesh.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3)
+
+
+def main(path):
+    import bpy
+    import numpy as np
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    ext = os.path.splitext(path)[1].lower()
+    if ext in (".glb", ".gltf"):
+        bpy.ops.import_scene.gltf(filepath=path, merge_vertices=True)
+    else:
+        bpy.ops.wm.usd_import(filepath=path)
+
+    objects = []
+    for o in sorted(bpy.data.objects, key=lambda o: o.name):
+        entry = {
+            "name": o.name,
+            "type": o.type,
+            "parent": o.parent.name if o.parent else None,
+            "collections": sorted(c.name for c in o.users_collection),
+            "hidden": bool(o.hide_get() or o.hide_render),
+        }
+        if o.type == "MESH":
+            me = o.data
+            entry.update(
+                vertices=len(me.vertices),
+                unique_positions=len(np.unique(_points(me), axis=0)),
+                faces=len(me.polygons),
+                edges=len(me.edges),
+                uv_layers=[uv.name for uv in me.uv_layers],
+                materials=[s.material.name if s.material else None for s in o.material_slots],
+                bbox=_bbox(_points(me), o.matrix_world),
+                repaired=bool(me.validate(verbose=False, clean_customdata=False)),
+            )
+        objects.append(entry)
+
+    materials = []
+    for m in sorted(bpy.data.materials, key=lambda m: m.name):
+        entry = {"name": m.name}
+        if m.node_tree:
+            bsdf = next((n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED"), None)
+            if bsdf is not None:
+                entry["base_color"] = list(bsdf.inputs["Base Color"].default_value)
+                entry["roughness"] = bsdf.inputs["Roughness"].default_value
+        materials.append(entry)
+
+    # what is drawn, instances included: evaluate the dependency graph
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    drawn = None
+    instances = 0
+    for inst in depsgraph.object_instances:
+        ob = inst.object
+        if ob.type != "MESH":
+            continue
+        if not inst.show_self:
+            continue
+        instances += int(inst.is_instance)
+        me = ob.data
+        drawn = _merge(drawn, _bbox(_points(me), inst.matrix_world))
+
+    report = {
+        "blender": bpy.app.version_string,
+        "objects": objects,
+        "materials": materials,
+        "drawn_bbox": drawn,
+        "drawn_instances": instances,
+    }
+    sys.stdout.write("\n" + MARK + json.dumps(report) + "\n")
+    sys.stdout.flush()
+    return 0
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        sys.stderr.write(__doc__)
+        sys.exit(2)
+    rc = main(os.path.abspath(sys.argv[1]))
+    os._exit(rc)  # skip Blender's atexit teardown
