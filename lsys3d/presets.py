@@ -11,7 +11,7 @@ from .grammar import Grammar
 
 __all__ = ["DEFAULT_PRESET", "list_presets", "load", "load_preset", "preset_text"]
 
-DEFAULT_PRESET = "abop-1.24d"
+DEFAULT_PRESET = "tree3d"
 """The preset the CLI grows when it is given no grammar."""
 
 
