@@ -1,12 +1,17 @@
 # Two commands do everything on a fresh machine:
 #   make demo   grow the default tree and write tree.glb
-#   make test   lint and run the whole test suite
+#   make test   lint and run the whole test suite, with the real validators
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# Blender's importer (the bpy wheel) needs its own Python 3.11 environment.
+BPY_PYTHON ?= python3.11
+BPY_VENV := .venv-bpy
+BPY_STAMP := $(BPY_VENV)/.installed
+BPY_VERSION := 5.0.1
 
-.PHONY: demo test lint format clean
+.PHONY: demo test lint format validators clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -14,10 +19,21 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-demo: $(STAMP)
-	$(BIN)/lsys3d derive
+# The Khronos glTF-Validator, pinned in package.json / package-lock.json.
+node_modules/.package-lock.json: package.json package-lock.json
+	npm ci --no-audit --no-fund --loglevel=error
 
-test: $(STAMP)
+$(BPY_STAMP):
+	$(BPY_PYTHON) -m venv $(BPY_VENV)
+	$(BPY_VENV)/bin/pip install --quiet bpy==$(BPY_VERSION)
+	touch $(BPY_STAMP)
+
+validators: node_modules/.package-lock.json $(BPY_STAMP)
+
+demo: $(STAMP)
+	$(BIN)/lsys3d generate
+
+test: $(STAMP) validators
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/pytest
@@ -27,4 +43,4 @@ format: $(STAMP)
 	$(BIN)/ruff format .
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache
+	rm -rf $(VENV) $(BPY_VENV) node_modules build *.egg-info .pytest_cache

@@ -20,12 +20,17 @@ from .errors import (
     LimitError,
     LSystemError,
 )
+from .exchange import ExportOptions, export
 from .grammar import Grammar
 from .modules import ModuleString
+from .pipeline import GenerateOptions, generate
 from .presets import DEFAULT_PRESET, list_presets, load, load_preset
 from .skeleton import Skeleton
-from .stats import skeleton_stats
+from .stats import mesh_stats, skeleton_stats
+from .sweep import SweepOptions, sweep
+from .tree import Tree
 from .turtle import TurtleOptions, interpret
+from .union import UnionOptions, union
 
 try:
     __version__ = version("lsys3d")
@@ -37,6 +42,8 @@ __all__ = [
     "DEFAULT_PRESET",
     "DerivationError",
     "ExportError",
+    "ExportOptions",
+    "GenerateOptions",
     "GeometryError",
     "Grammar",
     "GrammarError",
@@ -45,14 +52,22 @@ __all__ = [
     "LimitError",
     "ModuleString",
     "Skeleton",
+    "SweepOptions",
+    "Tree",
     "TurtleOptions",
+    "UnionOptions",
     "__version__",
     "derive",
+    "export",
+    "generate",
     "generations",
     "interpret",
     "list_presets",
     "load",
     "load_preset",
+    "mesh_stats",
     "predict_length",
     "skeleton_stats",
+    "sweep",
+    "union",
 ]

@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import logging
 import sys
+import time
 
 from . import __version__
 from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import LSystemError
 from .presets import DEFAULT_PRESET, describe, list_presets, load
-from .stats import skeleton_stats
+from .stats import mesh_stats, skeleton_stats
 from .turtle import interpret
+
+DEFAULT_OUTPUT = "tree.glb"
 
 EXIT_USER_ERROR = 1
 EXIT_USAGE = 2
@@ -36,6 +40,51 @@ def _grammar_args(p: argparse.ArgumentParser, optional: bool = False):
     )
 
 
+def _mesh_args(p: argparse.ArgumentParser):
+    p.add_argument("--sides", type=int, default=None, help="vertices around the trunk's tubes (default 8)")
+    p.add_argument("--no-union", action="store_true", help="skip the union: the tube soup, a fast preview")
+
+
+def _generate_options(args):
+    from .pipeline import GenerateOptions
+
+    options = GenerateOptions(union=not args.no_union, max_modules=args.max_modules)
+    if args.sides is not None:
+        options = dataclasses.replace(options, sweep=dataclasses.replace(options.sweep, sides=args.sides))
+    return options
+
+
+class _Progress:
+    """Stage names on stderr while attached to a terminal; silent when piped or with -q."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+
+    def __call__(self, stage: str, event: str, seconds: float) -> None:
+        if not self.enabled:
+            return
+        if event == "start":
+            sys.stderr.write(f"\rlsys3d: {stage}...\x1b[K")
+        else:
+            sys.stderr.write(f"\rlsys3d: {stage} {seconds:.2f} s\x1b[K")
+        sys.stderr.flush()
+
+    def clear(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\r\x1b[K")
+            sys.stderr.flush()
+
+
+def _timed(progress, name, fn, *args, **kw):
+    progress(name, "start", 0.0)
+    t0 = time.perf_counter()
+    result = fn(*args, **kw)
+    seconds = time.perf_counter() - t0
+    logging.getLogger("lsys3d").info("%-9s %.3f s", name, seconds)
+    progress(name, "done", seconds)
+    return result
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="lsys3d", description="Grow 3D plants and fractals from L-systems.")
     parser.add_argument("--version", action="version", version=f"lsys3d {__version__}")
@@ -44,6 +93,28 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
+    p = sub.add_parser("generate", help="grow a plant and write it as a mesh asset (.glb, .usdc, ...)")
+    _grammar_args(p, optional=True)
+    _mesh_args(p)
+    p.add_argument(
+        "-o",
+        "--output",
+        default=DEFAULT_OUTPUT,
+        help=f"output file; its suffix picks the format (default {DEFAULT_OUTPUT})",
+    )
+    p.add_argument("--units", choices=("m", "cm"), default="m", help="length unit of a USD file (default m)")
+    p.add_argument("--up-axis", choices=("Y", "Z"), default="Y", help="up axis of a USD file (default Y)")
+    leaves = p.add_mutually_exclusive_group()
+    leaves.add_argument(
+        "--instance-leaves", dest="instance_leaves", action="store_true", default=None, help="leaves as instances"
+    )
+    leaves.add_argument(
+        "--merge-leaves", dest="instance_leaves", action="store_false", help="leaves as one merged mesh"
+    )
+    p.add_argument("--skeleton-curves", action="store_true", help="also write the branch skeleton as curves")
+    p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
+    p.set_defaults(func=cmd_generate)
+
     p = sub.add_parser("derive", help="print the derived module string")
     _grammar_args(p)
     p.set_defaults(func=cmd_derive)
@@ -51,6 +122,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("stats", help="print counts and extents of the drawn plant")
     _grammar_args(p)
     p.add_argument("--json", action="store_true", help="one JSON object instead of a table")
+    p.add_argument("--mesh", action="store_true", help="also build the mesh and report its counts and measures")
+    _mesh_args(p)
     p.set_defaults(func=cmd_stats)
 
     p = sub.add_parser("presets", help="list the bundled presets")
@@ -67,8 +140,46 @@ def cmd_derive(args) -> int:
     return 0
 
 
+def cmd_generate(args) -> int:
+    from .exchange import ExportOptions, check_output, export
+    from .pipeline import generate
+
+    export_options = ExportOptions(
+        units=args.units,
+        up_axis=args.up_axis,
+        instance_leaves=args.instance_leaves,
+        skeleton_curves=args.skeleton_curves,
+        no_clobber=args.no_clobber,
+    )
+    check_output(args.output, export_options)  # before minutes of work, not after
+    progress = _Progress(sys.stderr.isatty() and not args.quiet)
+    t0 = time.perf_counter()
+    try:
+        tree = generate(
+            load(args.grammar), args.iterations, args.seed, options=_generate_options(args), progress=progress
+        )
+        path = _timed(progress, "export", export, tree, args.output, export_options)
+    finally:
+        progress.clear()
+    if not args.quiet:
+        stats = mesh_stats(tree)
+        leaves = len(tree.leaf_transforms) + tree.skeleton.n_polygons
+        print(
+            f"wrote {path}: {stats['vertices']:,} vertices, {stats['faces']:,} faces, {leaves:,} leaves "
+            f"({time.perf_counter() - t0:.1f} s)"
+        )
+    return 0
+
+
 def cmd_stats(args) -> int:
     grammar = load(args.grammar)
+    if args.mesh:
+        from .pipeline import generate
+
+        tree = generate(grammar, args.iterations, args.seed, options=_generate_options(args))
+        stats = {**skeleton_stats(tree.modules, tree.skeleton), **mesh_stats(tree)}
+        print_stats(dict(sorted(stats.items())), args.json)
+        return 0
     modules = derive(grammar, args.iterations, args.seed, max_modules=args.max_modules)
     stats = skeleton_stats(modules, interpret(modules, grammar, seed=args.seed))
     print_stats(stats, args.json)
@@ -99,7 +210,8 @@ def cmd_presets(args) -> int:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(format="lsys3d: %(message)s", level=logging.DEBUG if args.verbose else logging.WARNING)
+    level = logging.INFO if args.verbose else logging.ERROR if args.quiet else logging.WARNING
+    logging.basicConfig(format="lsys3d: %(message)s", level=level)
     try:
         return args.func(args)
     except LSystemError as exc:

@@ -13,8 +13,10 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
+import trimesh
 
 from .derive import DEFAULT_MAX_MODULES, derive
+from .errors import GeometryError
 from .grammar import Grammar
 from .leaves import leaves as build_leaves
 from .presets import load
@@ -116,10 +118,25 @@ def generate(
 
     modules = stage("derive", derive, grammar, n, seed, max_modules=options.max_modules)
     skeleton = stage("interpret", interpret, modules, grammar, seed=seed)
+    if len(skeleton) == 0 and skeleton.n_leaves == 0:
+        raise GeometryError(
+            f"{grammar.name or 'grammar'}: nothing to mesh: the {len(modules):,} modules after {n} iterations draw "
+            "no segment and no leaf (segments are drawn by F, or the [turtle] table's draw symbols)"
+        )
     tubes = stage("sweep", sweep, skeleton, options.sweep)
-    merge = (lambda t: union(t, options.union_options)) if options.union else concatenate
-    bark = stage("union", merge, tubes)
+    if len(skeleton) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
+        bark = stage("union", lambda _: trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)), tubes)
+    else:
+        merge = (lambda t: union(t, options.union_options)) if options.union else concatenate
+        bark = stage("union", merge, tubes)
     leaves = stage("leaves", build_leaves, skeleton)
+    counts = {
+        "modules": len(modules),
+        "segments": len(skeleton),
+        "tubes": len(tubes.sides),
+        "tube_vertices": len(tubes.points),
+        "tube_faces": len(tubes.faces),
+    }
     provenance = {
         "generator": f"lsys3d {_version()}",
         "lsys3d_version": _version(),
@@ -129,7 +146,7 @@ def generate(
         "iterations": int(n),
         "seed": int(seed),
         "options": _plain(asdict(options)),
-        "modules": len(modules),
+        "counts": counts,
     }
     return Tree(
         bark=bark,
@@ -140,6 +157,7 @@ def generate(
         leaf_transforms=leaves.transforms,
         polygon_leaves=leaves.polygons,
         unioned=options.union,
+        modules=modules,
     )
 
 

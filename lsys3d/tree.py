@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
+from .modules import ModuleString
 from .skeleton import Skeleton
 
 __all__ = ["Material", "Tree"]
@@ -67,6 +68,8 @@ class Tree:
         lsys3d version; written into every export.
     unioned : bool
         Whether ``bark`` went through the manifold union.
+    modules : ModuleString or None
+        The derived string the turtle read (None for trees built by hand).
     """
 
     bark: trimesh.Trimesh
@@ -79,3 +82,4 @@ class Tree:
     unioned: bool = True
     bark_material: Material = BARK
     leaf_material: Material = LEAF
+    modules: ModuleString | None = None

@@ -324,7 +324,33 @@ def _batch_union(parts: list[manifold3d.Manifold], where: str) -> manifold3d.Man
     _check(result, where)
     if result.is_empty() or result.num_tri() == 0:
         raise GeometryError(f"{where}: manifold3d returned an empty mesh")
-    return result
+    return _drop_slivers(result)
+
+
+def _drop_slivers(manifold: manifold3d.Manifold) -> manifold3d.Manifold:
+    """Remove the closed, flat crumbs a boolean can leave where many tubes meet.
+
+    Where several tubes cross at almost one point, manifold3d may return, beside
+    the tree, a few separate pieces of 4-6 triangles that enclose no volume
+    (seen on the ``tree`` preset: 17 of them, areas below 1e-6 m^2).  A piece is
+    dropped when it is both tiny (area below 1e-6 of the whole) and flat (volume
+    below 1e-3 * area^1.5, where a thin tube's ratio is near 0.2 * sqrt(r/L)).
+    Real parts of a plant (a separate branch after an ``f`` move) are kept.
+    """
+    parts = manifold.decompose()
+    if len(parts) < 2:
+        return manifold
+    area = np.array([p.surface_area() for p in parts])
+    volume = np.abs([p.volume() for p in parts])
+    crumb = (area < 1e-6 * area.sum()) & (volume < 1e-3 * area**1.5)
+    if not crumb.any():
+        return manifold
+    log.debug(
+        "union: dropped %d flat crumbs of %d triangles",
+        crumb.sum(),
+        sum(parts[i].num_tri() for i in np.flatnonzero(crumb)),
+    )
+    return manifold3d.Manifold.compose([p for p, c in zip(parts, crumb, strict=True) if not c])
 
 
 def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b: np.ndarray, where: str):
@@ -398,7 +424,7 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
     result = _batch_union(parts, where)
     log.debug("union: %d of %d spans in %d runs, %d layers", busy.sum(), len(busy), len(run_start), len(parts))
 
-    out = result.to_mesh()
+    out = result.to_mesh64()
     props = np.asarray(out.vert_properties)
     otri = np.asarray(out.tri_verts, np.int64)
     fid = np.asarray(out.face_id, np.int64)
@@ -410,7 +436,7 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
         log.debug("union: a temporary cap was changed by the boolean; unioning whole tubes")
         return None
     keep = ~temp
-    # the rings under the temporary caps, found again by their (float32) positions
+    # the rings under the temporary caps, found again by their positions
     cut_points = (
         tubes.point_offsets[cut_tube][:, None] + (cut_ring * sides[cut_tube])[:, None] + np.arange(sides.max())[None]
     )
@@ -419,9 +445,9 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
     if len(seam) != len(cut_points):
         log.debug("union: the temporary caps do not meet the boolean at their rings; unioning whole tubes")
         return None
-    seam_pos = np.empty((npts, 3), np.float32)
+    seam_pos = np.empty((npts, 3), np.float64)
     seam_pos[point_of] = props[:, :3]
-    found = _match_rows(seam_pos[seam], tubes.points[cut_points].astype(np.float32))
+    found = _match_rows(seam_pos[seam], tubes.points[cut_points])
     if found is None:
         log.debug("union: the rings of the temporary caps moved in the boolean; unioning whole tubes")
         return None
@@ -435,7 +461,7 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
     fresh = np.flatnonzero(used)
     new_index[fresh] = npts + np.arange(len(fresh))
     new_index[cut_points] = seam[found]
-    vertices = np.concatenate([seam_pos.astype(np.float64), tubes.points[fresh]])
+    vertices = np.concatenate([seam_pos, tubes.points[fresh]])
     faces = np.concatenate([point_of[otri[keep]], new_index[free_pts]])
     normals = np.concatenate([_unit_rows(props[otri[keep], 3:6]), tubes.wedge_normal[tubes.faces[ff]]])
     uv = np.concatenate([props[otri[keep], 6:], tubes.wedge_uv[tubes.faces[ff]]])
@@ -454,7 +480,7 @@ def _manifold_of(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, where: str) 
     remap[wedges] = np.arange(len(wedges))
     w = len(wedges)
     wp = tubes.wedge_point[wedges]
-    props = np.empty((w, _NUM_PROP), np.float32)
+    props = np.empty((w, _NUM_PROP), np.float64)  # float64: float32 would weld nearby vertices into slivers
     props[:, :3] = tubes.points[wp]
     props[:, 3:6] = tubes.wedge_normal[wedges]
     props[:, 6:] = tubes.wedge_uv[wedges]
@@ -462,12 +488,12 @@ def _manifold_of(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, where: str) 
     rep[wp] = np.arange(w)
     merge_to = rep[wp]
     merge_from = np.flatnonzero(merge_to != np.arange(w))
-    mesh = manifold3d.Mesh(
+    mesh = manifold3d.Mesh64(
         vert_properties=props,
-        tri_verts=remap[tri].astype(np.uint32),
-        merge_from_vert=merge_from.astype(np.uint32),
-        merge_to_vert=merge_to[merge_from].astype(np.uint32),
-        face_id=tri_id.astype(np.uint32),
+        tri_verts=remap[tri].astype(np.uint64),
+        merge_from_vert=merge_from.astype(np.uint64),
+        merge_to_vert=merge_to[merge_from].astype(np.uint64),
+        face_id=tri_id.astype(np.uint64),
     )
     return _check(manifold3d.Manifold(mesh), where)
 
@@ -517,7 +543,7 @@ def _closed(faces: np.ndarray, nverts: int) -> bool:
 
 
 def _to_trimesh(manifold: manifold3d.Manifold, where: str) -> trimesh.Trimesh:
-    mesh = manifold.to_mesh()
+    mesh = manifold.to_mesh64()
     props = np.asarray(mesh.vert_properties)
     if props.shape[1] != _NUM_PROP:
         raise GeometryError(f"{where}: expected {_NUM_PROP} vertex properties, manifold3d returned {props.shape[1]}")

@@ -83,3 +83,62 @@ def test_stats_json_and_table(capsys):
     assert main(["stats", "abop-1.24a"]) == 0
     table = capsys.readouterr().out.splitlines()
     assert [line.split()[0] for line in table] == sorted(stats)
+
+
+def test_generate_without_arguments_writes_tree_glb(tmp_path):
+    out = run("generate", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    glb = tmp_path / "tree.glb"
+    assert glb.read_bytes()[:4] == b"glTF"
+    assert out.stdout.startswith("wrote tree.glb: ") and "leaves" in out.stdout
+    assert out.stderr == ""  # piped: no progress lines
+    assert [p.name for p in tmp_path.iterdir()] == ["tree.glb"]  # no temporary files left
+
+
+def test_generate_options_reach_the_file(tmp_path, capsys):
+    path = tmp_path / "k.usda"
+    args = ["generate", "koch", "-n", "1", "--sides", "5", "--no-union", "--units", "cm", "--up-axis", "Z"]
+    assert main([*args, "--skeleton-curves", "-o", str(path)]) == 0
+    text = path.read_text()
+    assert "metersPerUnit = 0.01" in text and 'upAxis = "Z"' in text and "BasisCurves" in text
+    # koch n=1: 4 segments in one chain, one tube of 5 sides (tube soup, no union)
+    from pxr import Usd
+
+    stage = Usd.Stage.Open(str(path))
+    stats = json.loads(stage.GetDefaultPrim().GetCustomDataByKey("lsys3d")["provenance"])
+    assert stats["options"]["union"] is False and stats["options"]["sweep"]["sides"] == 5
+    assert main(["-q", "generate", "koch", "-n", "1", "-o", str(tmp_path / "q.glb")]) == 0
+    assert capsys.readouterr().out.count("wrote") == 1  # -q printed nothing
+
+
+def test_generate_refuses_before_working(tmp_path):
+    out = run("generate", "-o", str(tmp_path / "tree.fbx"))
+    assert out.returncode == 1 and "unknown suffix '.fbx'" in out.stderr and len(out.stderr.splitlines()) == 1
+    out = run("generate", "-o", str(tmp_path / "missing" / "tree.glb"))
+    assert out.returncode == 1 and "does not exist" in out.stderr
+    (tmp_path / "old.glb").write_bytes(b"precious")
+    out = run("generate", "koch", "-n", "1", "--no-clobber", "-o", str(tmp_path / "old.glb"))
+    assert out.returncode == 1 and "file exists" in out.stderr
+    assert (tmp_path / "old.glb").read_bytes() == b"precious"
+    out = run("generate", "algae", "-o", str(tmp_path / "a.glb"))
+    assert out.returncode == 1 and "nothing to mesh" in out.stderr and "Traceback" not in out.stderr
+    assert not (tmp_path / "a.glb").exists()
+
+
+def test_generate_verbose_times_each_stage(tmp_path):
+    out = run("-v", "generate", "koch", "-n", "2", "-o", str(tmp_path / "k.glb"))
+    assert out.returncode == 0
+    for stage in ("derive", "interpret", "sweep", "union", "leaves", "export"):
+        assert f"lsys3d: {stage}" in out.stderr
+
+
+def test_stats_mesh(capsys):
+    assert main(["stats", "abop-1.24a", "-n", "2", "--mesh", "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)
+    for key in ("vertices", "faces", "volume", "area", "watertight", "components", "tube_vertices", "segments"):
+        assert key in stats
+    assert stats["watertight"] and stats["components"] == 1 and stats["volume"] > 0
+    assert list(stats) == sorted(stats)
+    assert main(["stats", "abop-1.24a", "-n", "2", "--mesh", "--no-union", "--json"]) == 0
+    soup = json.loads(capsys.readouterr().out)
+    assert soup["faces"] == soup["tube_faces"] == stats["tube_faces"]

@@ -20,10 +20,17 @@ def blocks(lang: str):
             yield pytest.param(m.group(1), id=f"{path.name}-{lang}-{k}")
 
 
-@pytest.mark.parametrize("code", list(blocks("python")))
-def test_python_examples_run(code, tmp_path, monkeypatch):
+@pytest.mark.parametrize(
+    "path", [p for p in DOCS if "```python" in p.read_text(encoding="utf-8")], ids=lambda p: p.name
+)
+def test_python_examples_run(path, tmp_path, monkeypatch):
+    """A page's ``python`` blocks run in order, in one namespace, as a reader would type them."""
     monkeypatch.chdir(tmp_path)
-    exec(compile(code, "<doc example>", "exec"), {"__name__": "__doc_example__"})
+    namespace = {"__name__": "__doc_example__"}
+    text = path.read_text(encoding="utf-8")
+    for m in re.finditer(r"```python\n(.*?)```", text, re.DOTALL):
+        line = text.count("\n", 0, m.start()) + 2
+        exec(compile("\n" * (line - 1) + m.group(1), str(path), "exec"), namespace)
 
 
 @pytest.mark.parametrize("text", [b for b in blocks("toml") if "axiom" in b.values[0]])

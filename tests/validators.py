@@ -64,6 +64,11 @@ def validate_gltf(path: Path) -> dict:
     return json.loads(proc.stdout)
 
 
+#: Validator infos that are not defects: an unused object (a leaf model only instanced) and
+#: EXT_mesh_gpu_instancing, which the validator knows by name but does not check.
+HARMLESS_INFOS = {"UNUSED_OBJECT", "UNSUPPORTED_EXTENSION"}
+
+
 def gltf_issues(report: dict, severity: int) -> list[str]:
     """``code @ pointer: message`` of the report's issues of one severity (0 error, 1 warning, 2 info, 3 hint)."""
     return [

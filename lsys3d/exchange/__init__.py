@@ -28,7 +28,7 @@ from ..tree import Tree
 from .atomic import check_target, write_bytes
 from .common import ExportOptions, file_frame
 
-__all__ = ["SUPPORTED_SUFFIXES", "ExportOptions", "export"]
+__all__ = ["SUPPORTED_SUFFIXES", "ExportOptions", "check_output", "export"]
 
 
 def _glb(tree, path, options):
@@ -87,6 +87,31 @@ _WRITERS: dict[str, Callable[[Tree, Path, ExportOptions], Path]] = {
 SUPPORTED_SUFFIXES: tuple[str, ...] = tuple(_WRITERS)
 
 
+def check_output(path: str | os.PathLike, options: ExportOptions | None = None) -> Path:
+    """Check, before any long work, that :func:`export` could write ``path``.
+
+    Raises :class:`~lsys3d.errors.ExportError` for an unknown suffix, a missing
+    or unwritable folder, or an existing file with ``no_clobber``; writes nothing.
+
+    Examples
+    --------
+    >>> check_output("tree.fbx")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+      ...
+    lsys3d.errors.ExportError: tree.fbx: unknown suffix '.fbx'; supported: .glb, .gltf, .usda, ...
+    """
+    path = Path(path)
+    options = ExportOptions() if options is None else options
+    if not isinstance(options, ExportOptions):
+        raise ExportError(f"{path}: options must be an ExportOptions, not {type(options).__name__}")
+    suffix = path.suffix.lower()
+    if suffix not in _WRITERS:
+        what = f"unknown suffix {suffix!r}" if suffix else "no suffix"
+        raise ExportError(f"{path}: {what}; supported: {', '.join(SUPPORTED_SUFFIXES)}")
+    check_target(path, options.no_clobber)
+    return path
+
+
 def export(tree: Tree, path: str | os.PathLike, options: ExportOptions | None = None) -> Path:
     """Write ``tree`` to ``path`` in the format its suffix names.
 
@@ -121,14 +146,7 @@ def export(tree: Tree, path: str | os.PathLike, options: ExportOptions | None = 
     """
     path = Path(path)
     options = ExportOptions() if options is None else options
-    if not isinstance(options, ExportOptions):
-        raise ExportError(f"{path}: options must be an ExportOptions, not {type(options).__name__}")
-    suffix = path.suffix.lower()
-    writer = _WRITERS.get(suffix)
-    if writer is None:
-        what = f"unknown suffix {suffix!r}" if suffix else "no suffix"
-        raise ExportError(f"{path}: {what}; supported: {', '.join(SUPPORTED_SUFFIXES)}")
+    check_output(path, options)  # fail before the (possibly long) gathering
     if not isinstance(tree, Tree):
         raise ExportError(f"{path}: expected a lsys3d Tree, got {type(tree).__name__}")
-    check_target(path, options.no_clobber)  # fail before the (possibly long) gathering
-    return writer(tree, path, options)
+    return _WRITERS[path.suffix.lower()](tree, path, options)

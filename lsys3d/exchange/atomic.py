@@ -44,6 +44,8 @@ def check_target(path: Path, no_clobber: bool) -> None:
         raise ExportError(f"{path}: folder {str(folder)!r} {what}")
     if path.is_dir():
         raise ExportError(f"{path}: is a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ExportError(f"{path}: folder {str(folder)!r} is not writable")
     if no_clobber and (path.exists() or path.is_symlink()):
         raise ExportError(f"{path}: file exists (no_clobber is set)")
 

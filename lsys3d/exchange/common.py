@@ -215,6 +215,7 @@ def gather_mesh(mesh: trimesh.Trimesh, frame: np.ndarray, where: str) -> MeshArr
         rotation = (frame / np.cbrt(np.linalg.det(frame))).astype(np.float32)
         normals = normals @ rotation.T
     normals = _unit_normals(normals, corner_v.reshape(-1, 3), points)
+    normals = np.ascontiguousarray(normals, dtype=np.float32)  # _split views the rows as bytes
     normals += np.float32(0.0)  # -0.0 -> 0.0, so corners that compare equal are equal bit for bit
 
     split_index, split_points, split_normals, split_uv = _split(points, corner_v, normals, uv)

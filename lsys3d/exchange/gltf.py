@@ -168,8 +168,9 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         materials.append(_material(m))
         return len(materials) - 1
 
-    bark = gather_mesh(tree.bark, eye, f"{where}: bark")
-    add_node("bark", [_primitive(buf, bark, material_index(tree.bark_material))])
+    if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
+        bark = gather_mesh(tree.bark, eye, f"{where}: bark")
+        add_node("bark", [_primitive(buf, bark, material_index(tree.bark_material))])
 
     instanced = bool(options.instance_leaves) and tree.leaf_model is not None and len(tree.leaf_transforms) > 0
     if instanced:
@@ -215,16 +216,13 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
     scene = {"name": "tree", "nodes": [0]}
     if provenance:
         scene["extras"] = provenance
-    doc.update(
-        scene=0,
-        scenes=[scene],
-        nodes=nodes,
-        meshes=meshes,
-        materials=materials,
-        accessors=buf.accessors,
-        bufferViews=buf.views,
-        buffers=[{"byteLength": buf.size + (-buf.size % 4)}],
-    )
+    doc.update(scene=0, scenes=[scene], nodes=nodes)
+    # glTF arrays may not be empty: leave out what a tree without geometry lacks
+    for key, value in (("meshes", meshes), ("materials", materials), ("accessors", buf.accessors)):
+        if value:
+            doc[key] = value
+    if buf.views:
+        doc.update(bufferViews=buf.views, buffers=[{"byteLength": buf.size + (-buf.size % 4)}])
     return doc, buf
 
 
@@ -240,11 +238,13 @@ def write_glb(tree: Tree, path: Path, options: ExportOptions) -> Path:
     body += b" " * (-len(body) % 4)
     chunks = buf.padded_chunks()
     bin_length = sum(c.nbytes for c in chunks)
-    total = 12 + 8 + len(body) + 8 + bin_length
+    total = 12 + 8 + len(body) + (8 + bin_length if "buffers" in doc else 0)
     if total >= 2**32:
         raise ExportError(f"{path}: the asset is {total} bytes, over the 4 GiB limit of a .glb (write .gltf)")
     head = struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<I4s", len(body), b"JSON")
-    out = [memoryview(head), memoryview(body), memoryview(struct.pack("<I4s", bin_length, b"BIN\0")), *chunks]
+    out = [memoryview(head), memoryview(body)]
+    if "buffers" in doc:
+        out += [memoryview(struct.pack("<I4s", bin_length, b"BIN\0")), *chunks]
     return write_bytes(path, out, options.no_clobber)
 
 
@@ -254,6 +254,8 @@ def write_gltf(tree: Tree, path: Path, options: ExportOptions) -> Path:
     check_target(path, options.no_clobber)
     check_target(bin_path, options.no_clobber)
     doc, buf = build(tree, options, str(path))
+    if "buffers" not in doc:  # nothing to store: no .bin
+        return write_bytes(path, [memoryview(_json_bytes(doc, indent=1) + b"\n")], options.no_clobber)
     doc["buffers"][0]["uri"] = quote(bin_path.name)
     # both files are complete before either is renamed into place; the buffer goes first
     with atomic_path(path, options.no_clobber) as tmp_json:

@@ -161,10 +161,10 @@ def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> U
     UsdGeom.Xform.Define(stage, GEOM)
     UsdGeom.Scope.Define(stage, LOOKS)
     bark_name, leaf_name = _names([tree.bark_material, tree.leaf_material])
-    bark_material = _material(stage, bark_name, tree.bark_material)
-
-    bark = gather_mesh(tree.bark, frame, f"{where}: bark")
-    _mesh(stage, f"{GEOM}/bark", bark, bark_material, tree.bark_material.double_sided)
+    if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
+        bark_material = _material(stage, bark_name, tree.bark_material)
+        bark = gather_mesh(tree.bark, frame, f"{where}: bark")
+        _mesh(stage, f"{GEOM}/bark", bark, bark_material, tree.bark_material.double_sided)
 
     instanced = options.instance_leaves is not False and tree.leaf_model is not None and len(tree.leaf_transforms) > 0
     has_polygons = tree.polygon_leaves is not None and len(tree.polygon_leaves.faces) > 0
