@@ -301,7 +301,7 @@ def union(tubes: Tubes, options: UnionOptions | None = None) -> trimesh.Trimesh:
         raise GeometryError("union: no tubes to union (empty skeleton?)")
     if not opt.layers:
         parts = [_manifold(tubes.select([i]), f"union: tube {i} (chain {tubes.chain[i]})") for i in range(len(tubes))]
-        return _to_trimesh(_batch_union(parts, where), where)
+        return _weld_float32(_to_trimesh(_batch_union(parts, where), where))
     spans = _Spans(tubes)
     owner, a, b = _span_pairs(tubes, opt.margin, spans)
     busy = np.zeros(len(spans), bool)
@@ -310,13 +310,59 @@ def union(tubes: Tubes, options: UnionOptions | None = None) -> trimesh.Trimesh:
     if opt.local and len(a) and busy.mean() <= opt.local_max:
         mesh = _local_union(tubes, spans, busy, a, b, where)
         if mesh is not None:
-            return mesh
+            return _weld_float32(mesh)
     ta, tb = owner[a], owner[b]
     pairs = np.unique(np.stack([np.minimum(ta, tb), np.maximum(ta, tb)], axis=1), axis=0)
     colour = _colour(len(tubes), pairs)
     parts = [_manifold(tubes.select(colour == c), f"union: layer {c}") for c in range(int(colour.max()) + 1)]
     log.debug("union: %d tubes in %d layers", len(tubes), len(parts))
-    return _to_trimesh(_batch_union(parts, where), where)
+    return _weld_float32(_to_trimesh(_batch_union(parts, where), where))
+
+
+def _repair_corners(mesh: trimesh.Trimesh) -> None:
+    """Give corners whose interpolated attributes manifold3d left non-finite the face normal and uv 0 (in place).
+
+    Seen on degenerate input (hypothesis: 15 zero-width tubes 1e-12 apart) where
+    manifold3d interpolates properties over a zero-area triangle.
+    """
+    normals = mesh.face_attributes["corner_normals"]
+    bad = ~np.isfinite(normals).all(axis=2) | (np.abs(normals).sum(axis=2) == 0)
+    if bad.any():
+        fn = np.nan_to_num(np.asarray(mesh.face_normals, np.float32))
+        fn[np.abs(fn).sum(axis=1) == 0] = (0.0, 1.0, 0.0)
+        normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad]
+    uv = mesh.face_attributes["corner_uv"]
+    uv[~np.isfinite(uv)] = 0.0
+
+
+def _weld_float32(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """Merge vertices that share a float32 position and drop the triangles that collapse, if it stays closed.
+
+    Where tubes meet almost tangentially, manifold3d keeps distinct vertices a
+    few micrometres apart joined by needle triangles.  Stored as float32 (glTF,
+    USD) they land on one position, and a reader that welds by position (as
+    Blender's glTF import does) sees edges shared by four faces.  Welding here
+    removes them (tree3d: 54 triangles of 73,608) while every edge keeps exactly
+    two opposite faces; when it would not (crossings of coplanar tubes in the
+    flat presets), the mesh is returned as manifold3d made it.
+    """
+    _repair_corners(mesh)
+    v32 = np.asarray(mesh.vertices, np.float32)
+    unique, first, point = np.unique(v32, axis=0, return_index=True, return_inverse=True)
+    if len(unique) == len(v32):
+        return mesh
+    point = point.ravel()
+    faces = point[np.asarray(mesh.faces)]
+    a, b, c = faces.T
+    keep = (a != b) & (b != c) & (c != a)
+    order = np.argsort(first)  # number the points in their first appearance, as before
+    renumber = np.empty(len(order), np.int64)
+    renumber[order] = np.arange(len(order))
+    faces = renumber[faces[keep]]
+    if not _closed(faces, len(unique)):
+        return mesh
+    attrs = mesh.face_attributes
+    return corner_mesh(unique[order].astype(np.float64), faces, attrs["corner_normals"][keep], attrs["corner_uv"][keep])
 
 
 def _batch_union(parts: list[manifold3d.Manifold], where: str) -> manifold3d.Manifold:

@@ -43,6 +43,27 @@ def test_every_preset_is_one_watertight_solid(name):
     np.testing.assert_allclose(np.linalg.norm(bark.face_attributes["corner_normals"], axis=-1), 1, atol=1e-4)
 
 
+# 2D presets whose coplanar tubes cross or touch (the dragon curve revisits its corners): manifold3d leaves
+# distinct vertices at one float32 position there, which welding by position would make non-manifold.
+TOUCHING = {"abop-1.24b", "abop-1.24c", "abop-1.24d", "abop-1.24e", "abop-1.24f", "context-1.31a", "dragon", "tree"}
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="coplanar crossings, see TOUCHING"))
+        if n in TOUCHING
+        else n
+        for n in DRAWING_PRESETS
+    ],
+)
+def test_bark_stays_closed_when_welded_by_float32_position(name):
+    """What a reader that merges vertices by position (Blender's glTF import, mesh checkers) sees."""
+    bark = grown(name).bark
+    v32 = np.asarray(bark.vertices, np.float32)
+    assert len(np.unique(v32, axis=0)) == len(v32)
+
+
 @pytest.mark.parametrize("name", DRAWING_PRESETS)
 def test_every_preset_passes_the_khronos_validator(name, tmp_path):
     tree = grown(name)
@@ -66,25 +87,12 @@ def test_default_tree_stands_upright_in_blender(name, tmp_path):
     tree = grown("tree3d")
     report = validators.blender_import(export(tree, tmp_path / name))
     bark = {o["name"]: o for o in report["objects"]}["bark"]
-    if name.endswith(".usdc"):
-        assert bark["faces"] == len(tree.bark.faces)
-    else:
-        # Blender's glTF import merges vertices at equal (float32) positions and drops the faces that
-        # collapse: the union's few zero-area triangles where tubes meet near-tangentially (see README)
-        assert len(tree.bark.faces) - _collapsing_faces(tree.bark) <= bark["faces"] <= len(tree.bark.faces)
+    assert bark["faces"] == len(tree.bark.faces)
     lo, hi = np.array(bark["bbox"])
     # our Y up is Blender's Z up: the trunk starts on the ground and the crown is on top
     expected = np.asarray(tree.bark.bounds)[:, [0, 2, 1]] * [1, -1, 1]
     np.testing.assert_allclose([lo, hi], np.sort(expected, axis=0), atol=1e-3)
     assert lo[2] == pytest.approx(0.0, abs=1e-3) and hi[2] > 5.0
-
-
-def _collapsing_faces(mesh) -> int:
-    _, point = np.unique(np.asarray(mesh.vertices, np.float32), axis=0, return_inverse=True)
-    corners = point.ravel()[mesh.faces]
-    return int(
-        ((corners[:, 0] == corners[:, 1]) | (corners[:, 1] == corners[:, 2]) | (corners[:, 2] == corners[:, 0])).sum()
-    )
 
 
 def test_generate_records_provenance_and_counts():
