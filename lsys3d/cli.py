@@ -75,16 +75,6 @@ class _Progress:
             sys.stderr.flush()
 
 
-def _timed(progress, name, fn, *args, **kw):
-    progress(name, "start", 0.0)
-    t0 = time.perf_counter()
-    result = fn(*args, **kw)
-    seconds = time.perf_counter() - t0
-    logging.getLogger("lsys3d").info("%-9s %.3f s", name, seconds)
-    progress(name, "done", seconds)
-    return result
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="lsys3d", description="Grow 3D plants and fractals from L-systems.")
     parser.add_argument("--version", action="version", version=f"lsys3d {__version__}")
@@ -142,7 +132,7 @@ def cmd_derive(args) -> int:
 
 def cmd_generate(args) -> int:
     from .exchange import ExportOptions, check_output, export
-    from .pipeline import generate
+    from .pipeline import generate, run_stage
 
     export_options = ExportOptions(
         units=args.units,
@@ -158,14 +148,13 @@ def cmd_generate(args) -> int:
         tree = generate(
             load(args.grammar), args.iterations, args.seed, options=_generate_options(args), progress=progress
         )
-        path = _timed(progress, "export", export, tree, args.output, export_options)
+        path = run_stage("export", export, tree, args.output, export_options, progress=progress)
     finally:
         progress.clear()
     if not args.quiet:
-        stats = mesh_stats(tree)
-        leaves = len(tree.leaf_transforms) + tree.skeleton.n_polygons
+        bark, leaves = tree.bark, tree.skeleton.n_leaves
         print(
-            f"wrote {path}: {stats['vertices']:,} vertices, {stats['faces']:,} faces, {leaves:,} leaves "
+            f"wrote {path}: {len(bark.vertices):,} vertices, {len(bark.faces):,} faces, {leaves:,} leaves "
             f"({time.perf_counter() - t0:.1f} s)"
         )
     return 0

@@ -25,7 +25,7 @@ from .tree import Tree
 from .turtle import interpret
 from .union import UnionOptions, concatenate, union
 
-__all__ = ["STAGES", "GenerateOptions", "generate"]
+__all__ = ["STAGES", "GenerateOptions", "generate", "run_stage"]
 
 log = logging.getLogger("lsys3d")
 
@@ -59,6 +59,19 @@ def _version() -> str:
     from . import __version__
 
     return __version__
+
+
+def run_stage(name: str, fn: Callable, *args, progress: Callable[[str, str, float], None] | None = None, **kw):
+    """Call ``fn(*args, **kw)`` as stage ``name``: report it to ``progress`` and log its time."""
+    if progress:
+        progress(name, "start", 0.0)
+    t0 = time.perf_counter()
+    result = fn(*args, **kw)
+    seconds = time.perf_counter() - t0
+    log.info("%-9s %.3f s", name, seconds)
+    if progress:
+        progress(name, "done", seconds)
+    return result
 
 
 def generate(
@@ -103,18 +116,9 @@ def generate(
         grammar = load(grammar)
     n = grammar.iterations if iterations is None else iterations
     seed = grammar.seed if seed is None else seed
-    timings: dict[str, float] = {}
 
     def stage(name, fn, *args, **kw):
-        if progress:
-            progress(name, "start", 0.0)
-        t0 = time.perf_counter()
-        result = fn(*args, **kw)
-        timings[name] = time.perf_counter() - t0
-        log.info("%-9s %.3f s", name, timings[name])
-        if progress:
-            progress(name, "done", timings[name])
-        return result
+        return run_stage(name, fn, *args, progress=progress, **kw)
 
     modules = stage("derive", derive, grammar, n, seed, max_modules=options.max_modules)
     skeleton = stage("interpret", interpret, modules, grammar, seed=seed)
