@@ -19,12 +19,14 @@ from .errors import (
     InterpretError,
     LimitError,
     LSystemError,
+    PreviewError,
 )
 from .exchange import ExportOptions, export
 from .grammar import Grammar
 from .modules import ModuleString
 from .pipeline import GenerateOptions, generate
 from .presets import DEFAULT_PRESET, list_presets, load, load_preset
+from .preview import PreviewOptions, preview
 from .skeleton import Skeleton
 from .stats import mesh_stats, skeleton_stats
 from .sweep import SweepOptions, sweep
@@ -51,6 +53,8 @@ __all__ = [
     "LSystemError",
     "LimitError",
     "ModuleString",
+    "PreviewError",
+    "PreviewOptions",
     "Skeleton",
     "SweepOptions",
     "Tree",
@@ -67,6 +71,7 @@ __all__ = [
     "load_preset",
     "mesh_stats",
     "predict_length",
+    "preview",
     "skeleton_stats",
     "sweep",
     "union",

@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import json
 import logging
+import re
 import sys
 import time
 
@@ -17,6 +18,7 @@ from .stats import mesh_stats, skeleton_stats
 from .turtle import interpret
 
 DEFAULT_OUTPUT = "tree.glb"
+DEFAULT_PICTURE = "tree.png"
 
 EXIT_USER_ERROR = 1
 EXIT_USAGE = 2
@@ -52,6 +54,15 @@ def _generate_options(args):
     if args.sides is not None:
         options = dataclasses.replace(options, sweep=dataclasses.replace(options.sweep, sides=args.sides))
     return options
+
+
+def _pixels(text: str) -> tuple[int, int]:
+    """``WxH`` (or one number for a square) as a (width, height) pair."""
+    m = re.fullmatch(r"\s*(\d+)\s*(?:[xX]\s*(\d+)\s*)?", text)
+    if not m or not all(1 <= int(v) <= 16384 for v in m.groups() if v):
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels (1..16384), e.g. 800x600, not {text!r}")
+    width = int(m.group(1))
+    return width, int(m.group(2) or width)
 
 
 class _Progress:
@@ -105,6 +116,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
     p.set_defaults(func=cmd_generate)
 
+    p = sub.add_parser("preview", help="grow a plant and render a shaded picture of it (.png) with Blender")
+    _grammar_args(p, optional=True)
+    _mesh_args(p)
+    p.add_argument("-o", "--output", default=DEFAULT_PICTURE, help=f"the .png to write (default {DEFAULT_PICTURE})")
+    p.add_argument("--size", type=_pixels, default=(800, 800), metavar="WxH", help="image size (default 800x800)")
+    p.add_argument("--view", choices=("front", "side", "iso"), default="front", help="camera (default front)")
+    p.add_argument("--samples", type=int, default=16, help="Cycles samples per pixel (default 16, denoised)")
+    p.add_argument(
+        "--blender",
+        metavar="PATH",
+        default=None,
+        help="a blender executable or a Python that imports bpy (default: $LSYS3D_BLENDER, this Python, PATH)",
+    )
+    p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
+    p.set_defaults(func=cmd_preview)
+
     p = sub.add_parser("derive", help="print the derived module string")
     _grammar_args(p)
     p.set_defaults(func=cmd_derive)
@@ -157,6 +184,28 @@ def cmd_generate(args) -> int:
             f"wrote {path}: {len(bark.vertices):,} vertices, {len(bark.faces):,} faces, {leaves:,} leaves "
             f"({time.perf_counter() - t0:.1f} s)"
         )
+    return 0
+
+
+def cmd_preview(args) -> int:
+    from .pipeline import generate, run_stage
+    from .preview import PreviewOptions, check_preview, preview
+
+    options = PreviewOptions(size=args.size, view=args.view, samples=args.samples, blender=args.blender)
+    options = dataclasses.replace(options, no_clobber=args.no_clobber)
+    check_preview(args.output, options)  # no Blender, no minutes of work
+    progress = _Progress(sys.stderr.isatty() and not args.quiet)
+    t0 = time.perf_counter()
+    try:
+        tree = generate(
+            load(args.grammar), args.iterations, args.seed, options=_generate_options(args), progress=progress
+        )
+        path = run_stage("render", preview, tree, args.output, options, progress=progress)
+    finally:
+        progress.clear()
+    if not args.quiet:
+        width, height = options.size
+        print(f"wrote {path}: {width}x{height}, {options.view} view ({time.perf_counter() - t0:.1f} s)")
     return 0
 
 

@@ -14,6 +14,7 @@ __all__ = [
     "InterpretError",
     "LSystemError",
     "LimitError",
+    "PreviewError",
 ]
 
 
@@ -65,3 +66,7 @@ class GeometryError(LSystemError):
 
 class ExportError(LSystemError, OSError):
     """A file could not be written (the message names the file)."""
+
+
+class PreviewError(LSystemError):
+    """A picture could not be rendered: no Blender to render with, or Blender failed (the message says which)."""

@@ -1,0 +1,286 @@
+"""Pictures: render a shaded preview of a :class:`~lsys3d.tree.Tree` to a PNG with Blender.
+
+The renderer is Blender (Cycles on the CPU, so no display and no GPU are
+needed), run in a child process: lsys3d writes the tree to a temporary
+``.glb`` with :func:`lsys3d.exchange.export`, and Blender's Python runs
+:mod:`lsys3d.preview_blender` on it.  That script imports only ``bpy`` and the
+standard library, so any Blender works: a ``blender`` executable, or a Python
+that can ``import bpy`` (the ``bpy`` wheel, which needs Python 3.11).
+
+Which Blender, in this order:
+
+1. ``PreviewOptions.blender`` (the CLI's ``--blender PATH``);
+2. the environment variable ``LSYS3D_BLENDER``;
+3. the running interpreter, when it can import ``bpy``;
+4. ``blender`` on ``PATH``.
+
+A path whose file name starts with ``python`` is run as a Python interpreter
+(``python preview_blender.py -- JOB``), anything else as Blender
+(``blender --background --factory-startup --python preview_blender.py -- JOB``).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import logging
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from .errors import PreviewError
+from .exchange import export
+from .exchange.atomic import atomic_path, check_target
+from .tree import Tree
+
+__all__ = ["ENV_BLENDER", "INSTALL_HINT", "VIEWS", "PreviewOptions", "blender_command", "check_preview", "preview"]
+
+log = logging.getLogger("lsys3d")
+
+VIEWS = ("front", "side", "iso")
+"""Camera positions: ``front`` looks along the tree's -Z (glTF's front), ``side`` along -X, ``iso`` from
+45 degrees to the side and 30 degrees above."""
+
+ENV_BLENDER = "LSYS3D_BLENDER"
+INSTALL_HINT = (
+    "install Blender and put `blender` on PATH, or make a Blender Python: "
+    "`python3.11 -m venv .venv-bpy && .venv-bpy/bin/pip install bpy==5.0.1`, "
+    f"then set {ENV_BLENDER}=.venv-bpy/bin/python (or pass --blender PATH)"
+)
+SCRIPT = Path(__file__).with_name("preview_blender.py")
+_PYTHON_NAME = re.compile(r"python[0-9.]*(\.exe)?$", re.IGNORECASE)
+_STDERR_LINES = 6
+
+
+@dataclass(frozen=True)
+class PreviewOptions:
+    """How :func:`preview` renders a tree.
+
+    Parameters
+    ----------
+    size : (int, int)
+        Width and height of the image in pixels.
+    view : {"front", "side", "iso"}
+        Where the camera stands (see :data:`VIEWS`); it is fitted to the
+        tree's vertices for that view.
+    samples : int
+        Cycles samples per pixel; the denoiser cleans up the rest.
+    denoise : bool
+        Run Blender's OpenImageDenoise on the render.
+    background : (float, float, float)
+        sRGB colour of the background, each in [0, 1].
+    margin : float
+        Fraction of the frame left free around the tree, in [0, 0.5).
+    blender : str or None
+        A ``blender`` executable or a Python that imports ``bpy``; None
+        searches (see the module's documentation).
+    threads : int
+        CPU threads Cycles uses; 0 uses every core.
+    timeout : float or None
+        Seconds before Blender is stopped and :class:`PreviewError` raised.
+    no_clobber : bool
+        Refuse to overwrite an existing file.
+    """
+
+    size: tuple[int, int] = (800, 800)
+    view: Literal["front", "side", "iso"] = "front"
+    samples: int = 16
+    denoise: bool = True
+    background: tuple[float, float, float] = (0.96, 0.96, 0.95)
+    margin: float = 0.06
+    blender: str | None = None
+    threads: int = 0
+    timeout: float | None = 600.0
+    no_clobber: bool = False
+
+    def __post_init__(self):
+        size = tuple(self.size)
+        if len(size) != 2 or not all(isinstance(v, int) and 1 <= v <= 16384 for v in size):
+            raise PreviewError(f"PreviewOptions: size must be two whole numbers of pixels in 1..16384, not {self.size}")
+        object.__setattr__(self, "size", size)
+        if self.view not in VIEWS:
+            raise PreviewError(f"PreviewOptions: view must be one of {', '.join(VIEWS)}, not {self.view!r}")
+        if not isinstance(self.samples, int) or self.samples < 1:
+            raise PreviewError(f"PreviewOptions: samples must be a whole number >= 1, not {self.samples!r}")
+        background = tuple(float(c) for c in self.background)
+        if len(background) != 3 or not all(0.0 <= c <= 1.0 for c in background):
+            raise PreviewError(f"PreviewOptions: background must be three numbers in [0, 1], not {self.background}")
+        object.__setattr__(self, "background", background)
+        if not 0.0 <= self.margin < 0.5:
+            raise PreviewError(f"PreviewOptions: margin must be in [0, 0.5), not {self.margin!r}")
+        if not isinstance(self.threads, int) or self.threads < 0:
+            raise PreviewError(f"PreviewOptions: threads must be a whole number >= 0, not {self.threads!r}")
+
+
+def _is_python(executable: str) -> bool:
+    return bool(_PYTHON_NAME.match(Path(executable).name))
+
+
+def _command(executable: str, job: str) -> list[str]:
+    if _is_python(executable):
+        return [executable, str(SCRIPT), "--", job]
+    return [
+        executable,
+        "--background",
+        "--factory-startup",
+        "--python-exit-code",
+        "1",
+        "--python",
+        str(SCRIPT),
+        "--",
+        job,
+    ]
+
+
+def blender_command(blender: str | None = None) -> str:
+    """Find the Blender to render with: ``blender``, ``$LSYS3D_BLENDER``, this Python, ``blender`` on PATH.
+
+    Returns
+    -------
+    str
+        A ``blender`` executable or a Python interpreter that imports ``bpy``.
+
+    Raises
+    ------
+    PreviewError
+        When the named one does not exist, or none is found; the message says how to get one.
+    """
+    for named, where in ((blender, "--blender"), (os.environ.get(ENV_BLENDER), ENV_BLENDER)):
+        if named:
+            found = shutil.which(named)
+            if found is None:
+                raise PreviewError(f"{where} {named}: no such executable; {INSTALL_HINT}")
+            return os.path.abspath(found)  # Blender runs in a temporary folder
+    if importlib.util.find_spec("bpy") is not None:
+        return sys.executable
+    found = shutil.which("blender")
+    if found is None:
+        raise PreviewError(f"no Blender to render with; {INSTALL_HINT}")
+    return found
+
+
+def check_preview(path: str | os.PathLike, options: PreviewOptions | None = None) -> tuple[Path, str]:
+    """Check, before any long work, that :func:`preview` could write ``path``; find Blender.
+
+    Returns
+    -------
+    (pathlib.Path, str)
+        The target and the Blender executable or Python that will render.
+
+    Raises
+    ------
+    PreviewError
+        A suffix other than ``.png``, or no Blender.
+    ExportError
+        A missing or unwritable folder, or an existing file with ``no_clobber``.
+    """
+    path = Path(path)
+    options = PreviewOptions() if options is None else options
+    if not isinstance(options, PreviewOptions):
+        raise PreviewError(f"{path}: options must be a PreviewOptions, not {type(options).__name__}")
+    if path.suffix.lower() != ".png":
+        what = f"suffix {path.suffix!r}" if path.suffix else "no suffix"
+        raise PreviewError(f"{path}: a preview is a .png image, not {what}")
+    check_target(path, options.no_clobber)
+    return path, blender_command(options.blender)
+
+
+def _failure(path: Path, blender: str, proc: subprocess.CompletedProcess) -> PreviewError:
+    """The error for a render that wrote no image, with the last lines Blender printed."""
+    err = proc.stderr.decode("utf-8", "replace")
+    if _is_python(blender) and "No module named 'bpy'" in err:
+        return PreviewError(f"{path}: {blender} cannot import bpy; {INSTALL_HINT}")
+    lines = [ln.rstrip() for ln in err.splitlines() if ln.strip() and "DeprecationWarning" not in ln]
+    if not lines:  # Blender writes some errors to stdout
+        lines = [ln.rstrip() for ln in proc.stdout.decode("utf-8", "replace").splitlines() if ln.strip()]
+    if proc.returncode < 0:
+        what = f"was killed by signal {-proc.returncode}"
+    elif proc.returncode > 0:
+        what = f"failed with status {proc.returncode}"
+    else:
+        what = "exited without writing the image"
+    tail = "".join(f"\n  {ln}" for ln in lines[-_STDERR_LINES:])
+    return PreviewError(f"{path}: Blender ({blender}) {what}{tail}")
+
+
+def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None = None) -> Path:
+    """Render a shaded picture of ``tree`` to the PNG file ``path``.
+
+    The tree goes to Blender as a temporary ``.glb`` (so bark and leaves keep
+    their exported materials), stands upright on the ground, and is framed
+    by a camera fitted to it for ``options.view``, lit by a sun and a sky
+    over a light background.
+
+    Parameters
+    ----------
+    tree : Tree
+        The plant to picture.
+    path : str or path-like
+        The ``.png`` to write (8-bit RGB).  Written atomically: an error or
+        Ctrl-C never leaves a half-written image.
+    options : PreviewOptions, optional
+        Size, view, samples, background, which Blender...
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    PreviewError
+        No Blender found (the message says how to install one), a tree with
+        nothing to draw, or a failed render (with Blender's last lines of error output).
+    ExportError
+        The folder is missing or not writable, or the file exists with ``no_clobber``.
+
+    Examples
+    --------
+    >>> import lsys3d
+    >>> from lsys3d.preview import preview, PreviewOptions
+    >>> tree = lsys3d.generate("tree3d", iterations=4)  # doctest: +SKIP
+    >>> preview(tree, "tree.png", PreviewOptions(size=(400, 400), view="iso"))  # doctest: +SKIP
+    PosixPath('tree.png')
+    """
+    options = PreviewOptions() if options is None else options
+    path, blender = check_preview(path, options)
+    if not isinstance(tree, Tree):
+        raise PreviewError(f"{path}: expected a lsys3d Tree, got {type(tree).__name__}")
+    if len(tree.bark.faces) == 0 and (tree.leaves is None or len(tree.leaves.faces) == 0):
+        raise PreviewError(f"{path}: the tree has no bark and no leaves to draw")
+    width, height = options.size
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="lsys3d-preview-") as folder:
+        glb = export(tree, Path(folder) / "tree.glb")
+        with atomic_path(path, options.no_clobber) as tmp:
+            job = {
+                "glb": str(glb),
+                "png": str(tmp.resolve()),
+                "width": width,
+                "height": height,
+                "view": options.view,
+                "samples": options.samples,
+                "denoise": options.denoise,
+                "background": list(options.background),
+                "margin": options.margin,
+                "threads": options.threads,
+            }
+            command = _command(blender, json.dumps(job))
+            log.info("render: %s", " ".join(command[:-1]))
+            try:
+                proc = subprocess.run(command, capture_output=True, cwd=folder, timeout=options.timeout)
+            except subprocess.TimeoutExpired:
+                raise PreviewError(f"{path}: Blender ({blender}) took more than {options.timeout:g} s") from None
+            except OSError as exc:
+                raise PreviewError(f"{path}: cannot run {blender}: {exc.strerror or exc}; {INSTALL_HINT}") from None
+            if proc.returncode != 0 or not tmp.exists() or tmp.stat().st_size == 0:
+                raise _failure(path, blender, proc)
+    log.info("render: %dx%d %s view in %.1f s", width, height, options.view, time.perf_counter() - t0)
+    return path

@@ -1,0 +1,187 @@
+"""Render a ``.glb`` to a PNG inside Blender: the Blender side of :mod:`lsys3d.preview`.
+
+This file runs in Blender's Python, not in lsys3d's: it imports only ``bpy``
+and the standard library (never lsys3d, which Blender's Python need not have).
+:func:`lsys3d.preview.preview` runs it in a child process, either as
+
+    blender --background --factory-startup --python-exit-code 1 --python preview_blender.py -- JSON
+
+or, with the ``bpy`` module, as ``python preview_blender.py -- JSON``.  ``JSON``
+is one object: ``glb`` (the scene), ``png`` (the image to write), ``width``,
+``height``, ``view`` (``front``, ``side`` or ``iso``), ``samples``, ``denoise``,
+``background`` (sRGB, 3 floats in [0, 1]), ``margin`` (fraction of the frame
+left around the object), ``threads`` (0: all cores).
+
+The scene: the glTF import (Blender turns glTF's Y up into its Z up, so the
+tree stands on the XY plane), a perspective camera fitted to every mesh vertex
+for the chosen view, a sun and a sky that light the object, and a background
+the camera sees in the flat ``background`` colour.  Colour management is
+Blender's "Standard" view, so that colour comes out as given.  Cycles renders
+on the CPU: it needs no display and no GPU.
+"""
+
+import array
+import json
+import math
+import sys
+
+#: Camera direction per view, Blender frame (Z up; glTF's front, +Z, is Blender's -Y):
+#: (azimuth from -Y towards +X, elevation above the horizon), in degrees.
+VIEWS = {"front": (0.0, 4.0), "side": (90.0, 4.0), "iso": (45.0, 30.0)}
+LENS_MM = 50.0
+SUN_DIRECTION = (-0.45, -0.6, 0.66)  # towards the sun: up, in front, to the left of the camera
+
+
+def _srgb_to_linear(c):
+    return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
+
+
+def _direction(view):
+    azimuth, elevation = (math.radians(a) for a in VIEWS[view])
+    # from the object towards the camera
+    return (
+        math.sin(azimuth) * math.cos(elevation),
+        -math.cos(azimuth) * math.cos(elevation),
+        math.sin(elevation),
+    )
+
+
+def _mesh_points(bpy):
+    """World coordinates of every mesh vertex (instances included), as a flat list."""
+    from mathutils import Vector
+
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    coords = []
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type != "MESH":
+            continue
+        mesh = obj.data
+        flat = array.array("f", bytes(4 * 3 * len(mesh.vertices)))
+        mesh.vertices.foreach_get("co", flat)
+        matrix = inst.matrix_world
+        step = 3 * max(1, len(mesh.vertices) // 50000)  # a fit does not need every vertex of a huge mesh
+        for i in range(0, len(flat), step):
+            coords.extend(matrix @ Vector(flat[i : i + 3]))
+    return coords
+
+
+def _world(bpy, background, scene):
+    """A sky that lights the object, seen by the camera as the flat ``background`` colour."""
+    world = bpy.data.worlds.new("preview")
+    scene.world = world
+    if world.node_tree is None:  # Blender < 5 makes node trees on request; 5.0 deprecates the switch
+        world.use_nodes = True
+    nodes, links = world.node_tree.nodes, world.node_tree.links
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputWorld")
+    sky = nodes.new("ShaderNodeBackground")
+    sky.inputs["Color"].default_value = (0.75, 0.82, 1.0, 1.0)
+    sky.inputs["Strength"].default_value = 0.6
+    seen = nodes.new("ShaderNodeBackground")
+    seen.inputs["Color"].default_value = (*(_srgb_to_linear(c) for c in background), 1.0)
+    seen.inputs["Strength"].default_value = 1.0
+    path = nodes.new("ShaderNodeLightPath")
+    mix = nodes.new("ShaderNodeMixShader")
+    links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+    links.new(sky.outputs["Background"], mix.inputs[1])
+    links.new(seen.outputs["Background"], mix.inputs[2])
+    links.new(mix.outputs["Shader"], out.inputs["Surface"])
+
+
+def _camera(bpy, scene, view, margin):
+    from mathutils import Vector
+
+    data = bpy.data.cameras.new("preview")
+    camera = bpy.data.objects.new("preview", data)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    direction = Vector(_direction(view))
+    camera.rotation_euler = (-direction).to_track_quat("-Z", "Y").to_euler()
+    points = _mesh_points(bpy)
+    if not points:
+        raise RuntimeError("preview_blender: the scene holds no mesh to frame")
+    # Fit with a longer lens, then widen it: the object fills (1 - margin) of the frame.
+    data.lens = LENS_MM / (1.0 - margin)
+    bpy.context.view_layer.update()
+    location, _ = camera.camera_fit_coords(bpy.context.evaluated_depsgraph_get(), points)
+    camera.location = location
+    data.lens = LENS_MM
+    xs, ys, zs = points[0::3], points[1::3], points[2::3]
+    size = max(max(xs) - min(xs), max(ys) - min(ys), max(zs) - min(zs), 1e-6)
+    distance = (
+        Vector(location) - Vector(((max(xs) + min(xs)) / 2, (max(ys) + min(ys)) / 2, (max(zs) + min(zs)) / 2))
+    ).length
+    data.clip_start = max(distance - 2 * size, distance * 1e-3)
+    data.clip_end = distance + 2 * size
+
+
+def _sun(bpy, scene):
+    from mathutils import Vector
+
+    light = bpy.data.lights.new("sun", "SUN")
+    light.energy = 3.0
+    light.angle = math.radians(8.0)  # soft shadow edges
+    sun = bpy.data.objects.new("sun", light)
+    scene.collection.objects.link(sun)
+    sun.rotation_euler = (-Vector(SUN_DIRECTION)).to_track_quat("-Z", "Y").to_euler()
+
+
+def render(job):
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    bpy.ops.import_scene.gltf(filepath=job["glb"])
+    if not any(o.type == "MESH" for o in scene.objects):
+        raise RuntimeError(f"preview_blender: {job['glb']}: Blender imported no mesh")
+
+    render = scene.render
+    render.engine = "CYCLES"
+    render.resolution_x, render.resolution_y = job["width"], job["height"]
+    render.resolution_percentage = 100
+    render.film_transparent = False
+    render.use_file_extension = False
+    if job.get("threads"):
+        render.threads_mode = "FIXED"
+        render.threads = job["threads"]
+    render.image_settings.file_format = "PNG"
+    render.image_settings.color_mode = "RGB"
+    render.image_settings.color_depth = "8"
+    render.image_settings.compression = 90
+    scene.display_settings.display_device = "sRGB"
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+
+    cycles = scene.cycles
+    cycles.device = "CPU"
+    cycles.samples = job["samples"]
+    cycles.use_adaptive_sampling = True
+    cycles.max_bounces = 4
+    cycles.diffuse_bounces = 2
+    cycles.glossy_bounces = 1
+    cycles.transmission_bounces = 2
+    cycles.transparent_max_bounces = 4
+    cycles.seed = 0  # the same noise on every run
+    # OpenImageDenoise is in Blender's builds for x86-64 and arm64; without it, render the noise
+    cycles.use_denoising = bool(job["denoise"]) and getattr(bpy.app.build_options, "openimagedenoise", True)
+    if cycles.use_denoising:
+        cycles.denoiser = "OPENIMAGEDENOISE"
+
+    _world(bpy, job["background"], scene)
+    _sun(bpy, scene)
+    _camera(bpy, scene, job["view"], job["margin"])
+
+    render.filepath = job["png"]
+    bpy.ops.render.render(write_still=True)
+
+
+def main(argv):
+    if "--" not in argv:
+        raise SystemExit("usage: preview_blender.py -- JSON")
+    job = json.loads(argv[argv.index("--") + 1])
+    render(job)
+
+
+if __name__ == "__main__":
+    main(sys.argv)

@@ -1,0 +1,201 @@
+"""Previews: Blender renders a picture of the tree, upright, framed, in its materials' colours.
+
+Blender is the ``bpy`` Python of ``.venv-bpy`` (or ``LSYS3D_BPY_PYTHON``), found as
+``tests/validators.py`` finds it for the import tests: missing, the render tests skip
+locally and fail under ``CI``.  Renders are few and small, the suite runs on 2 cores.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import validators
+from pngs import read_png
+
+import lsys3d
+from lsys3d.errors import ExportError, PreviewError
+from lsys3d.preview import ENV_BLENDER, SCRIPT, PreviewOptions, blender_command, check_preview, preview
+
+BACKGROUND = (0.96, 0.96, 0.95)
+
+
+def bpy_python() -> str:
+    python = validators.bpy_python()
+    validators.require(
+        python is not None and python.exists(),
+        "Blender (bpy) is not installed: python3.11 -m venv .venv-bpy && .venv-bpy/bin/pip install bpy==5.0.1 "
+        "(or set LSYS3D_BPY_PYTHON)",
+    )
+    return str(python)
+
+
+@pytest.fixture(scope="module")
+def tree():
+    return lsys3d.generate("tree3d", iterations=4)
+
+
+def object_mask(image: np.ndarray) -> np.ndarray:
+    """Pixels that differ from the background colour by more than the denoiser's wobble."""
+    background = np.round(np.array(BACKGROUND) * 255)
+    return np.abs(image[..., :3].astype(int) - background).max(axis=2) > 12
+
+
+def test_front_view_of_tree3d(tree, tmp_path):
+    options = PreviewOptions(size=(200, 200), view="front", samples=8, blender=bpy_python(), background=BACKGROUND)
+    path = preview(tree, tmp_path / "tree.png", options)
+    assert path == tmp_path / "tree.png"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tree.png"], "a temporary file was left behind"
+    image = read_png(path)
+    assert image.shape == (200, 200, 3)
+    mask = object_mask(image)
+    assert 0.02 < mask.mean() < 0.9, f"the tree covers {mask.mean():.1%} of the picture"
+
+    # framed: the object nearly touches the frame on its long axis, and nothing is cut off at the edges
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    height, width = rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1
+    assert max(height, width) > 0.75 * 200
+    assert not (mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any())
+    # upright: taller than wide, and the trunk (a narrow band of object) at the bottom, the crown at the top
+    assert height > 1.1 * width, (height, width)
+    spread = mask.sum(axis=1)
+    assert spread[rows[-1] - 10 : rows[-1] + 1].max() < 0.15 * width, "no trunk at the bottom: not upright"
+    assert spread[rows[0] : rows[0] + height // 3].max() > 0.4 * width, "no crown at the top: not upright"
+
+    # the colours of the exported materials: brown bark, green leaves
+    pixels = image[mask].astype(int)
+    r, g, b = pixels.T
+    green = (g > r + 20) & (g > b + 20)
+    brown = (r > g + 8) & (g > b + 4)
+    assert green.mean() > 0.2, f"{green.mean():.1%} of the tree is green"
+    assert brown.sum() > 20, f"{brown.sum()} brown pixels"
+
+
+def test_cli_preview_iso_view_not_square(tmp_path):
+    out = tmp_path / "bush.png"
+    args = ["preview", "tree3d", "-n", "3", "--size", "160x120", "--view", "iso", "--samples", "4"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "lsys3d", *args, "--blender", bpy_python(), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith(f"wrote {out}: 160x120, iso view")
+    image = read_png(out)
+    assert image.shape == (120, 160, 3)
+    mask = object_mask(image)
+    assert 0.02 < mask.mean() < 0.9
+    rows = np.flatnonzero(mask.any(axis=1))
+    assert rows[-1] - rows[0] > 0.75 * 120, "the tree does not fill the frame's height"
+
+
+def test_a_blender_executable_gets_blenders_arguments(tree, tmp_path):
+    """A `blender` (here a stand-in that checks its arguments, then runs bpy) is run in background mode."""
+    fake = tmp_path / "blender"
+    fake.write_text(
+        "#!/bin/sh\n"
+        '[ "$1 $2 $3 $4 $5" = "--background --factory-startup --python-exit-code 1 --python" ] '
+        '|| { echo "unexpected arguments: $*" >&2; exit 9; }\n'
+        f'[ "$6" = "{SCRIPT}" ] && [ "$7" = "--" ] || exit 8\n'
+        f'exec "{bpy_python()}" "$6" -- "$8"\n'
+    )
+    fake.chmod(0o755)
+    options = PreviewOptions(size=(48, 48), samples=1, denoise=False, blender=str(fake))
+    image = read_png(preview(tree, tmp_path / "tiny.png", options))
+    assert image.shape == (48, 48, 3)
+    assert object_mask(image).any()
+
+
+# ---------------------------------------------------------------- no Blender, failed Blender
+
+
+def fake_python(folder: Path, body: str) -> Path:
+    """A stand-in Blender Python (its name starts with ``python``) that runs the shell ``body``."""
+    path = folder / "python3.11"
+    path.write_text(f"#!/bin/sh\n{body}\n")
+    path.chmod(0o755)
+    return path
+
+
+def test_a_failed_render_reports_blenders_last_lines_and_writes_nothing(tree, tmp_path):
+    target = tmp_path / "tree.png"
+    target.write_bytes(b"the previous picture")
+    lines = 'for i in 1 2 3 4 5 6 7 8; do echo "line $i" >&2; done; echo "boom: no GPU" >&2'
+    python = fake_python(tmp_path, f"{lines}; exit 3")
+    with pytest.raises(PreviewError) as info:
+        preview(tree, target, PreviewOptions(blender=str(python)))
+    message = str(info.value)
+    assert message.startswith(f"{target}: Blender ({python}) failed with status 3")
+    assert message.endswith("boom: no GPU") and "line 4" in message and "line 3" not in message
+    assert target.read_bytes() == b"the previous picture"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["python3.11", "tree.png"]
+
+
+def test_a_render_that_writes_no_image_is_an_error(tree, tmp_path):
+    python = fake_python(tmp_path, "echo 'Saved nothing'")
+    with pytest.raises(PreviewError, match="exited without writing the image\n  Saved nothing"):
+        preview(tree, tmp_path / "tree.png", PreviewOptions(blender=str(python)))
+    assert not (tmp_path / "tree.png").exists()
+
+
+def test_a_python_without_bpy_says_how_to_get_it(tree, tmp_path):
+    with pytest.raises(PreviewError, match=r"cannot import bpy; .*pip install bpy==5\.0\.1"):
+        preview(tree, tmp_path / "tree.png", PreviewOptions(blender=sys.executable))
+
+
+def test_blender_search_order(tmp_path, monkeypatch):
+    python = fake_python(tmp_path, "exit 0")
+    monkeypatch.setenv(ENV_BLENDER, str(python))
+    assert blender_command() == str(python)
+    assert blender_command(sys.executable) == sys.executable  # the explicit one wins
+    monkeypatch.setenv(ENV_BLENDER, str(tmp_path / "missing"))
+    with pytest.raises(PreviewError, match=f"^{ENV_BLENDER} .*missing: no such executable; "):
+        blender_command()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("bpy") is not None, reason="this Python can render")
+def test_cli_without_blender_is_one_line_and_exit_1(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != ENV_BLENDER}
+    env["PATH"] = str(tmp_path)  # no blender on it
+    proc = subprocess.run(
+        [sys.executable, "-m", "lsys3d", "preview", "-o", str(tmp_path / "t.png")],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 1
+    assert proc.stdout == ""
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("lsys3d: error: no Blender to render with; ")
+    assert "pip install bpy==5.0.1" in lines[0] and ENV_BLENDER in lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_targets_and_options_are_refused_before_rendering(tmp_path):
+    python = fake_python(tmp_path, "exit 0")
+    options = PreviewOptions(blender=str(python))
+    with pytest.raises(PreviewError, match=r"tree\.jpg: a preview is a \.png image, not suffix '\.jpg'"):
+        check_preview(tmp_path / "tree.jpg", options)
+    with pytest.raises(ExportError, match="does not exist"):
+        check_preview(tmp_path / "no" / "tree.png", options)
+    (tmp_path / "old.png").write_bytes(b"x")
+    with pytest.raises(ExportError, match="file exists"):
+        check_preview(tmp_path / "old.png", PreviewOptions(blender=str(python), no_clobber=True))
+    for bad in ({"view": "top"}, {"size": (0, 10)}, {"samples": 0}, {"background": (2, 0, 0)}, {"margin": 0.5}):
+        with pytest.raises(PreviewError, match=r"^PreviewOptions: "):
+            PreviewOptions(**bad)
+
+
+@pytest.mark.parametrize("size", ["0x10", "10x", "big", "20000x10"])
+def test_cli_size_usage_errors_exit_2(size):
+    proc = subprocess.run([sys.executable, "-m", "lsys3d", "preview", "--size", size], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "expected WIDTHxHEIGHT" in proc.stderr
