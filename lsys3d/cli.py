@@ -113,6 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--merge-leaves", dest="instance_leaves", action="store_false", help="leaves as one merged mesh"
     )
     p.add_argument("--skeleton-curves", action="store_true", help="also write the branch skeleton as curves")
+    p.add_argument("--hairline", action="store_true", help="SVG: lines one pixel wide instead of as wide as branches")
     p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
     p.set_defaults(func=cmd_generate)
 
@@ -167,18 +168,24 @@ def cmd_generate(args) -> int:
         instance_leaves=args.instance_leaves,
         skeleton_curves=args.skeleton_curves,
         no_clobber=args.no_clobber,
+        hairline=args.hairline,
     )
-    check_output(args.output, export_options)  # before minutes of work, not after
+    path = check_output(args.output, export_options)  # before minutes of work, not after
+    drawing = path.suffix.lower() == ".svg"
+    options = _generate_options(args)
+    if drawing:  # a line drawing of the skeleton: the union's minutes would be thrown away
+        options = dataclasses.replace(options, union=False)
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
     try:
-        tree = generate(
-            load(args.grammar), args.iterations, args.seed, options=_generate_options(args), progress=progress
-        )
+        tree = generate(load(args.grammar), args.iterations, args.seed, options=options, progress=progress)
         path = run_stage("export", export, tree, args.output, export_options, progress=progress)
     finally:
         progress.clear()
-    if not args.quiet:
+    if not args.quiet and drawing:
+        segments, leaves = len(tree.skeleton), tree.skeleton.n_leaves
+        print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
+    elif not args.quiet:
         bark, leaves = tree.bark, tree.skeleton.n_leaves
         print(
             f"wrote {path}: {len(bark.vertices):,} vertices, {len(bark.faces):,} faces, {leaves:,} leaves "

@@ -8,6 +8,7 @@ suffix                      writer
 ``.usda`` ``.usdc`` ``.usd``  OpenUSD text / crate (:mod:`lsys3d.exchange.usd`)
 ``.usdz``                   OpenUSD package holding one ``.usdc``
 ``.obj`` ``.ply`` ``.stl``  the bark mesh alone, through trimesh
+``.svg``                    the skeleton as a 2D line drawing (:mod:`lsys3d.exchange.svg`)
 ==========================  ====================================================
 
 Every writer is atomic (a temporary file beside the target, renamed over it)
@@ -55,6 +56,12 @@ def _usdz(tree, path, options):
     return write_usdz(tree, path, options)
 
 
+def _svg(tree, path, options):
+    from .svg import write_svg
+
+    return write_svg(tree, path, options)
+
+
 def _trimesh(tree, path, options):
     """The bark alone, in the file frame, through trimesh's exporters (no provenance: the formats have no place)."""
     import trimesh
@@ -81,6 +88,7 @@ _WRITERS: dict[str, Callable[[Tree, Path, ExportOptions], Path]] = {
     ".obj": _trimesh,
     ".ply": _trimesh,
     ".stl": _trimesh,
+    ".svg": _svg,
 }
 
 #: The file suffixes :func:`export` can write.

@@ -57,6 +57,9 @@ class ExportOptions:
         purpose ``guide``; glTF a ``LINES`` primitive).
     no_clobber : bool
         Refuse to overwrite an existing file.
+    hairline : bool
+        SVG only: draw every branch one pixel wide (at the drawing's natural
+        size) instead of as wide as the branch.
     """
 
     units: Literal["m", "cm"] = "m"
@@ -64,6 +67,7 @@ class ExportOptions:
     instance_leaves: bool | None = None
     skeleton_curves: bool = False
     no_clobber: bool = False
+    hairline: bool = False
 
     def __post_init__(self):
         if self.units not in UNITS:
