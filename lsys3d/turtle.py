@@ -40,11 +40,17 @@ Polygons
     three vertices are dropped with a warning.  Polygons do not nest.
 Natural variation
     With ``angle_jitter`` (degrees) each rotation angle of ``+ - & ^ \\ /`` gets
-    a uniform offset in ``[-angle_jitter, angle_jitter]``; with
-    ``length_jitter`` each move is scaled by ``max(0, 1 + u * length_jitter)``
-    for ``u`` uniform in ``[-1, 1]``.  Module ``i`` takes number ``i`` of a
-    PCG64 stream seeded with ``SeedSequence([seed, stream])``, so the result
-    depends only on the seed and the module string.
+    an offset ``u * angle_jitter``; with ``length_jitter`` each move is scaled
+    by ``max(0, 1 + u * length_jitter)``, with ``width_jitter`` each segment's
+    width by ``max(0, 1 + u * width_jitter)``; with ``branch_roll`` every ``[``
+    rolls the new branch about H by ``u * branch_roll`` degrees.  ``u`` lies in
+    ``[-1, 1]``: uniform, or (``jitter_distribution = "normal"``) normal with
+    sigma 1/2, redrawn while outside.  With ``branch_drop`` each ``[`` is,
+    with that probability, skipped together with everything up to its ``]``.
+    Each kind has its own PCG64 stream seeded with ``SeedSequence([seed,
+    stream])`` and module ``i`` takes number ``i`` of it, so the result
+    depends only on the seed and the module string, and turning one kind on
+    leaves the numbers of the others unchanged.
 """
 
 from __future__ import annotations
@@ -161,6 +167,9 @@ COMMANDS: tuple[Command, ...] = (
 
 _BY_OPCODE = {c.opcode: c for c in COMMANDS}
 
+JITTER_DISTRIBUTIONS = ("uniform", "normal")
+"""Values of ``TurtleOptions.jitter_distribution``."""
+
 
 # ------------------------------------------------------------------ options
 @dataclass(frozen=True)
@@ -197,6 +206,18 @@ class TurtleOptions:
         Largest random change of a rotation angle, degrees (0: off).
     length_jitter : float
         Largest random relative change of a step (0: off).
+    width_jitter : float
+        Largest random relative change of a segment's width (0: off).
+    branch_roll : float
+        Largest random roll about the heading at the start of a branch
+        (``[``), degrees (0: off; 180 rolls each branch to any angle).
+    branch_drop : float
+        Probability in [0, 1] that a branch (``[`` up to its ``]``) is left
+        out entirely (0: off).
+    jitter_distribution : {"uniform", "normal"}
+        Distribution of the jitters and of the branch roll: ``"uniform"`` in
+        plus or minus the setting, or ``"normal"`` with standard deviation
+        half the setting, truncated to plus or minus the setting.
     seed : int
         Seed of the jitter (the grammar's ``seed``).
     """
@@ -214,6 +235,10 @@ class TurtleOptions:
     elasticity: float = 0.0
     angle_jitter: float = 0.0
     length_jitter: float = 0.0
+    width_jitter: float = 0.0
+    branch_roll: float = 0.0
+    branch_drop: float = 0.0
+    jitter_distribution: str = "uniform"
     seed: int = 0
 
     def __post_init__(self):
@@ -293,6 +318,10 @@ def _check_option(key: str, value):
         if not isinstance(value, (list, tuple)) or len(value) != 3 or not all(_is_number(v) for v in value):
             raise ValueError(f"'tropism' must be a list of three numbers [x, y, z], not {value!r}")
         return tuple(float(v) for v in value)
+    if key == "jitter_distribution":
+        if value not in JITTER_DISTRIBUTIONS:
+            raise ValueError(f"'{key}' must be one of {', '.join(map(repr, JITTER_DISTRIBUTIONS))}, not {value!r}")
+        return value
     if key == "seed":
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise ValueError(f"'seed' must be a whole number >= 0, not {value!r}")
@@ -302,10 +331,13 @@ def _check_option(key: str, value):
     value = float(value)
     lower = {"step": (0, False), "width_scale": (0, False), "length_scale": (0, False), "width": (0, True)}
     lower.update({"angle_jitter": (0, True), "length_jitter": (0, True)})
+    lower.update({"width_jitter": (0, True), "branch_roll": (0, True), "branch_drop": (0, True)})
     if key in lower:
         bound, inclusive = lower[key]
         if value < bound or (value == bound and not inclusive):
             raise ValueError(f"'{key}' must be {'>=' if inclusive else '>'} {bound}, not {value:g}")
+    if key == "branch_drop" and value > 1:
+        raise ValueError(f"'{key}' is a probability: it must be <= 1, not {value:g}")
     return value
 
 
@@ -464,6 +496,9 @@ def _kernel(
     tropism,
     angle_noise,
     length_factor,
+    width_factor,
+    roll_noise,
+    skipped,
     stack_f,
     stack_i,
     seg_frame,
@@ -508,6 +543,9 @@ def _kernel(
     bend = elasticity != 0.0 and (tx != 0.0 or ty != 0.0 or tz != 0.0)
     jitter_angle = angle_noise.shape[0] > 0
     jitter_length = length_factor.shape[0] > 0
+    jitter_width = width_factor.shape[0] > 0
+    roll_branch = roll_noise.shape[0] > 0
+    drop_branch = skipped.shape[0] > 0
 
     px = py = pz = 0.0
     hx, hy = _cos_sin(config[1])
@@ -531,6 +569,8 @@ def _kernel(
     for i in range(m):
         code = table[symbols[i]]
         if code == _NONE:
+            continue
+        if drop_branch and skipped[i]:
             continue
         has_arg = arity[i] > 0
         arg = params[offsets[i]] if has_arg else 0.0
@@ -573,8 +613,9 @@ def _kernel(
                 _put(seg_h, s_, hx, hy, hz)
                 _put(seg_l, s_, lx, ly, lz)
                 _put(seg_u, s_, ux, uy, uz)
-                width_start[s_] = width
-                width_end[s_] = width
+                drawn = width * width_factor[i] if jitter_width else width
+                width_start[s_] = drawn
+                width_end[s_] = drawn
                 if anchor >= 0:
                     rise = depth - depth_of[anchor]
                     order = seg_order[anchor] + (rise if rise > 0 else 0)
@@ -642,6 +683,10 @@ def _kernel(
             stack_i[depth, 1] = last
             stack_i[depth, 2] = anchor
             depth += 1
+            if roll_branch:  # the branch starts rolled about H; the saved state is not
+                c, s = _cos_sin(roll_noise[i])
+                lx, ly, lz, ux, uy, uz = _pair(lx, ly, lz, ux, uy, uz, c, s)
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _orthonormal(hx, hy, hz, lx, ly, lz)
         elif code == _POP:
             if depth == 0:
                 return 1, i, n_seg, n_pts, n_poly, n_leaf, dropped
@@ -749,17 +794,70 @@ def _module_error(modules: ModuleString, table: np.ndarray, i: int, what: str) -
     return InterpretError(f"module {i} '{modules.module_text(i, short=True)}'{name}: {what}")
 
 
+# one random stream per kind of variation, so turning one on leaves the others' numbers alone
+_ANGLE_STREAM, _LENGTH_STREAM, _WIDTH_STREAM, _ROLL_STREAM, _DROP_STREAM = 1, 2, 3, 4, 5
+
+
+def _stream(seed: int, stream: int) -> np.random.Generator:
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, stream])))
+
+
+def _unit_jitter(rng: np.random.Generator, m: int, distribution: str) -> np.ndarray:
+    """``m`` numbers in [-1, 1]: uniform, or normal with sigma 1/2 truncated to [-1, 1] (redrawn outside)."""
+    if distribution == "uniform":
+        return rng.uniform(-1.0, 1.0, m)
+    z = rng.normal(0.0, 0.5, m)
+    bad = np.flatnonzero(np.abs(z) > 1.0)
+    while bad.size:
+        z[bad] = rng.normal(0.0, 0.5, bad.size)
+        bad = bad[np.abs(z[bad]) > 1.0]
+    return z
+
+
 def _jitter(m: int, options: TurtleOptions, seed: int):
-    """Per-module angle offsets (degrees) and length factors; empty arrays when off."""
+    """Per-module random arrays of the natural variation; an empty array for each kind that is off.
+
+    Returns angle offsets (degrees), length factors, width factors, branch
+    rolls (degrees) and whether a ``[`` there starts a dropped branch (bool).
+    """
     noise = np.zeros(0)
     factor = np.zeros(0)
+    width = np.zeros(0)
+    roll = np.zeros(0)
+    drop = np.zeros(0, np.bool_)
+    dist = options.jitter_distribution
     if options.angle_jitter > 0 and m:
-        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, 1])))
-        noise = rng.uniform(-1.0, 1.0, m) * options.angle_jitter
+        noise = _unit_jitter(_stream(seed, _ANGLE_STREAM), m, dist) * options.angle_jitter
     if options.length_jitter > 0 and m:
-        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, 2])))
-        factor = np.maximum(0.0, 1.0 + options.length_jitter * rng.uniform(-1.0, 1.0, m))
-    return noise, factor
+        factor = np.maximum(0.0, 1.0 + options.length_jitter * _unit_jitter(_stream(seed, _LENGTH_STREAM), m, dist))
+    if options.width_jitter > 0 and m:
+        width = np.maximum(0.0, 1.0 + options.width_jitter * _unit_jitter(_stream(seed, _WIDTH_STREAM), m, dist))
+    if options.branch_roll > 0 and m:
+        roll = _unit_jitter(_stream(seed, _ROLL_STREAM), m, dist) * options.branch_roll
+    if options.branch_drop > 0 and m:
+        drop = _stream(seed, _DROP_STREAM).random(m) < options.branch_drop
+    return noise, factor, width, roll, drop
+
+
+@numba.njit(cache=True, nogil=True)
+def _dropped_modules(table, symbols, drop):
+    """Modules inside a dropped branch: from a ``[`` whose ``drop`` is set to its matching ``]`` (or the end)."""
+    m = symbols.shape[0]
+    out = np.zeros(m, np.bool_)
+    depth = 0  # bracket depth inside the branch being dropped; 0: not dropping
+    for i in range(m):
+        code = table[symbols[i]]
+        if depth == 0:
+            if code == _PUSH and drop[i]:
+                depth = 1
+                out[i] = True
+            continue
+        out[i] = True
+        if code == _PUSH:
+            depth += 1
+        elif code == _POP:
+            depth -= 1
+    return out
 
 
 def interpret(modules: ModuleString, options: TurtleOptions | Grammar, seed: int | None = None) -> Skeleton:
@@ -832,7 +930,8 @@ def interpret(modules: ModuleString, options: TurtleOptions | Grammar, seed: int
             options.elasticity,
         ]
     )
-    noise, factor = _jitter(m, options, seed)
+    noise, factor, width_factor, roll, drop = _jitter(m, options, seed)
+    skipped = _dropped_modules(table, modules.symbols, drop) if len(drop) else drop
     stack_f = np.empty((max_depth, 14))
     stack_i = np.empty((max_depth, 3), np.int64)
     seg_frame = tuple(np.empty((n_seg, 3)) for _ in range(5))
@@ -855,6 +954,9 @@ def interpret(modules: ModuleString, options: TurtleOptions | Grammar, seed: int
         np.array(options.tropism, np.float64),
         noise,
         factor,
+        width_factor,
+        roll,
+        skipped,
         stack_f,
         stack_i,
         seg_frame,
