@@ -14,7 +14,6 @@ from . import __version__
 from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import LSystemError
 from .presets import DEFAULT_PRESET, describe, list_presets, load
-from .stats import mesh_stats, skeleton_stats
 from .turtle import interpret
 
 DEFAULT_OUTPUT = "tree.glb"
@@ -141,8 +140,19 @@ def build_parser() -> argparse.ArgumentParser:
     _grammar_args(p)
     p.add_argument("--json", action="store_true", help="one JSON object instead of a table")
     p.add_argument("--mesh", action="store_true", help="also build the mesh and report its counts and measures")
+    p.add_argument(
+        "--golden",
+        metavar="FILE",
+        help="also write the report with its recipe as a golden file, for 'lsys3d check'",
+    )
     _mesh_args(p)
     p.set_defaults(func=cmd_stats)
+
+    p = sub.add_parser("check", help="regrow the assets of golden files and compare their counts")
+    p.add_argument("golden", nargs="+", metavar="GOLDEN.json", help="golden files written by 'stats --golden'")
+    p.add_argument("--update", action="store_true", help="rewrite the golden files that changed, and say what changed")
+    p.add_argument("--rtol", type=float, default=None, help="relative tolerance of floating values (default 1e-6)")
+    p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("presets", help="list the bundled presets")
     p.set_defaults(func=cmd_presets)
@@ -217,24 +227,33 @@ def cmd_preview(args) -> int:
 
 
 def cmd_stats(args) -> int:
+    from .stats import flatten, report
+
     grammar = load(args.grammar)
+    options = _generate_options(args)
     if args.mesh:
         from .pipeline import generate
 
-        tree = generate(grammar, args.iterations, args.seed, options=_generate_options(args))
-        stats = {**skeleton_stats(tree.modules, tree.skeleton), **mesh_stats(tree)}
-        print_stats(dict(sorted(stats.items())), args.json)
-        return 0
-    modules = derive(grammar, args.iterations, args.seed, max_modules=args.max_modules)
-    stats = skeleton_stats(modules, interpret(modules, grammar, seed=args.seed))
-    print_stats(stats, args.json)
+        tree = generate(grammar, args.iterations, args.seed, options=options)
+        result = report(tree.modules, tree.skeleton, tree)
+    else:
+        modules = derive(grammar, args.iterations, args.seed, max_modules=args.max_modules)
+        result = report(modules, interpret(modules, grammar, seed=args.seed))
+    if args.golden:
+        from .golden import recipe_for, write_golden
+
+        n = grammar.iterations if args.iterations is None else args.iterations
+        seed = grammar.seed if args.seed is None else args.seed
+        recipe = recipe_for(grammar, n, seed, options, mesh=args.mesh, golden_path=args.golden)
+        write_golden(args.golden, recipe, result)
+    if args.json:
+        print(json.dumps(result, sort_keys=True))
+    else:
+        print_table(flatten(result))
     return 0
 
 
-def print_stats(stats: dict, as_json: bool) -> None:
-    if as_json:
-        print(json.dumps(stats, sort_keys=True))
-        return
+def print_table(stats: dict) -> None:
     width = max(map(len, stats))
     for key, value in stats.items():
         if isinstance(value, float):
@@ -242,6 +261,40 @@ def print_stats(stats: dict, as_json: bool) -> None:
         elif isinstance(value, list):
             value = "  ".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in value)
         print(f"{key:<{width}}  {value}")
+
+
+def cmd_check(args) -> int:
+    from .golden import RTOL, check, format_differences
+
+    failed = 0
+    for path in args.golden:
+        try:
+            result = check(path, update=args.update, rtol=RTOL if args.rtol is None else args.rtol)
+        except LSystemError as exc:  # one bad file does not stop the others
+            failed += 1
+            print(f"lsys3d: error: {exc}", file=sys.stderr)
+            continue
+        for warning in result.warnings:
+            print(f"{path}: warning: {warning}")
+        if result.updated:
+            what = ", ".join(d.key for d in result.differences) or "only the versions that produced it"
+            print(f"updated {path} ({result.recipe.describe()}): {what}")
+            if result.differences:
+                print(format_differences(result.differences))
+        elif result.ok:
+            within = sum(not d.failed for d in result.differences)
+            extra = f" ({within} within tolerance)" if within else ""
+            if not args.quiet:
+                print(f"ok      {path} ({result.recipe.describe()}){extra}")
+        else:
+            failed += 1
+            n = sum(d.failed for d in result.differences)
+            print(f"FAILED  {path} ({result.recipe.describe()}): {n} difference{'s' if n > 1 else ''}")
+            print(format_differences(result.differences))
+    if failed:
+        print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
+        return EXIT_USER_ERROR
+    return 0
 
 
 def cmd_presets(args) -> int:

@@ -10,6 +10,7 @@ __all__ = [
     "DerivationError",
     "ExportError",
     "GeometryError",
+    "GoldenError",
     "GrammarError",
     "InterpretError",
     "LSystemError",
@@ -70,3 +71,7 @@ class ExportError(LSystemError, OSError):
 
 class PreviewError(LSystemError):
     """A picture could not be rendered: no Blender to render with, or Blender failed (the message says which)."""
+
+
+class GoldenError(LSystemError):
+    """A golden file that cannot be read or used (the message names the file)."""

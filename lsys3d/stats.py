@@ -7,7 +7,10 @@ import numpy as np
 from .modules import ModuleString
 from .skeleton import Skeleton
 
-__all__ = ["components", "mesh_stats", "skeleton_stats"]
+__all__ = ["REPORT_FORMAT", "components", "flatten", "mesh_stats", "report", "skeleton_stats", "versions"]
+
+REPORT_FORMAT = 1
+"""Version of the layout of :func:`report` (bumped when a key is renamed or removed)."""
 
 
 def skeleton_stats(modules: ModuleString, skeleton: Skeleton) -> dict:
@@ -121,3 +124,106 @@ def mesh_stats(tree) -> dict:
         "unioned": bool(tree.unioned),
     }
     return dict(sorted(stats.items()))
+
+
+def versions() -> dict:
+    """Versions of lsys3d and of the libraries whose arithmetic shapes the counts."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from . import __version__
+
+    found = {"lsys3d": __version__}
+    for name in ("manifold3d", "numba", "numpy", "trimesh"):
+        try:
+            found[name] = version(name)
+        except PackageNotFoundError:  # pragma: no cover - all are dependencies
+            found[name] = "unknown"
+    return dict(sorted(found.items()))
+
+
+def _rounded(value):
+    """Floats to 9 significant digits (and -0.0 to 0.0), so a report reads the same wherever it is printed."""
+    if isinstance(value, float):
+        return float(f"{value:.9g}") + 0.0
+    if isinstance(value, list):
+        return [_rounded(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in sorted(value.items())}
+    return value
+
+
+def report(modules: ModuleString, skeleton: Skeleton, tree=None) -> dict:
+    """The stable report of a generated plant: every count per stage, measures and versions.
+
+    This is what ``lsys3d stats --json`` prints and what golden files hold.
+    Keys are sorted and stable (see :data:`REPORT_FORMAT`); integers are
+    exact, floats are rounded to 9 significant digits.
+
+    Parameters
+    ----------
+    modules : ModuleString
+        The derived string.
+    skeleton : Skeleton
+        What the turtle drew from it.
+    tree : Tree, optional
+        The meshes built from them; without it the report holds only the
+        ``derive`` and ``interpret`` sections (and ``versions``).
+
+    Returns
+    -------
+    dict
+        ``derive``: ``modules``, ``branches`` (``[`` modules).
+        ``interpret``: ``segments``, ``chains``, ``leaves``, ``leaf_instances``,
+        ``polygons``, ``max_order``, ``total_length``, ``bbox_min``, ``bbox_max``
+        (of the segment end points).
+        ``sweep``: ``tubes``, ``vertices``, ``faces`` (the tubes before the union).
+        ``bark``: ``vertices``, ``faces``, ``components``, ``volume``, ``area``,
+        ``watertight``, ``winding_consistent``, ``unioned`` (after the union, or
+        the tube soup without it).
+        ``leaves``: ``vertices``, ``faces`` (all leaves merged).
+        ``bbox``: ``min``, ``max`` of everything exported (bark and leaves).
+        ``versions``: lsys3d, manifold3d, numba, numpy, trimesh.
+
+    Examples
+    --------
+    >>> from lsys3d import generate
+    >>> tree = generate("abop-1.24a", iterations=1, sides=4)
+    >>> r = report(tree.modules, tree.skeleton, tree)
+    >>> r["derive"]["modules"], r["interpret"]["segments"], r["sweep"]["tubes"], r["bark"]["components"]
+    (11, 5, 3, 1)
+    """
+    flat = skeleton_stats(modules, skeleton)
+    out = {
+        "derive": {"branches": flat["branches"], "modules": flat["modules"]},
+        "interpret": {k: v for k, v in flat.items() if k not in ("branches", "modules")},
+        "versions": versions(),
+    }
+    if tree is not None:
+        m = mesh_stats(tree)
+        out["sweep"] = {"faces": m["tube_faces"], "tubes": m["tubes"], "vertices": m["tube_vertices"]}
+        bark_keys = ("area", "components", "faces", "unioned", "vertices", "volume", "watertight", "winding_consistent")
+        out["bark"] = {k: m[k] for k in bark_keys}
+        out["leaves"] = {"faces": m["leaf_faces"], "vertices": m["leaf_vertices"]}
+        points = [np.asarray(tree.bark.vertices).reshape(-1, 3)]
+        leaves = tree.leaves if tree.leaves is not None else tree.polygon_leaves
+        if leaves is not None:
+            points.append(np.asarray(leaves.vertices).reshape(-1, 3))
+        points = np.concatenate(points)
+        lo, hi = (points.min(axis=0), points.max(axis=0)) if len(points) else (np.zeros(3), np.zeros(3))
+        out["bbox"] = {"max": [float(x) for x in hi], "min": [float(x) for x in lo]}
+    return _rounded(out)
+
+
+def flatten(nested: dict, prefix: str = "") -> dict:
+    """``{"bark": {"faces": 1}}`` -> ``{"bark.faces": 1}`` (lists stay values), keys sorted.
+
+    >>> flatten({"b": {"y": 1, "x": [0, 1]}, "a": 2})
+    {'a': 2, 'b.x': [0, 1], 'b.y': 1}
+    """
+    flat = {}
+    for key, value in nested.items():
+        if isinstance(value, dict):
+            flat.update(flatten(value, f"{prefix}{key}."))
+        else:
+            flat[f"{prefix}{key}"] = value
+    return dict(sorted(flat.items()))

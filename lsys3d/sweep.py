@@ -42,9 +42,13 @@ from dataclasses import dataclass, fields
 import numpy as np
 import trimesh
 
+from .noise import fbm3
 from .skeleton import Skeleton
 
-__all__ = ["SweepOptions", "Tubes", "sweep"]
+__all__ = ["BARK_NOISE_STREAM", "SweepOptions", "Tubes", "sweep"]
+
+BARK_NOISE_STREAM = 6
+"""The bark displacement's noise has seed ``(seed, BARK_NOISE_STREAM)``: unrelated to the turtle's streams."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +75,17 @@ class SweepOptions:
         linearly through it, gets no ring (it would add no shape).
     merge_width : float
         Relative tolerance of "tapers linearly" for ``merge_angle``.
+    bark_displacement : float
+        Procedural bark: every ring vertex moves along its radial direction
+        by ``bark_displacement * r * fbm3(p)``, a fraction of the local tube
+        radius ``r`` (0: off; at most 0.5, so no tube gets thinner than half
+        its radius and thin twigs survive).  ``fbm3`` (:mod:`lsys3d.noise`)
+        lies in [-1, 1] and is evaluated at the undisplaced world position,
+        so tubes that meet at a junction carry the same bark pattern.
+    bark_frequency : float
+        Bark features per unit length (metre) of the noise's first octave.
+    bark_octaves : int
+        Octaves of the bark noise (each twice the frequency, half the amplitude).
 
     Examples
     --------
@@ -86,6 +101,9 @@ class SweepOptions:
     max_bend: float = 120.0
     merge_angle: float = 0.01
     merge_width: float = 1e-6
+    bark_displacement: float = 0.0
+    bark_frequency: float = 8.0
+    bark_octaves: int = 3
 
     def __post_init__(self):
         checks = {
@@ -97,6 +115,9 @@ class SweepOptions:
             "max_bend": 0 < self.max_bend < 180,
             "merge_angle": 0 <= self.merge_angle < 90,
             "merge_width": self.merge_width >= 0,
+            "bark_displacement": 0 <= self.bark_displacement <= 0.5,
+            "bark_frequency": self.bark_frequency > 0,
+            "bark_octaves": self.bark_octaves >= 1,
         }
         for f in fields(self):
             value = getattr(self, f.name)
@@ -291,7 +312,7 @@ def _perpendicular(d: np.ndarray, hint: np.ndarray) -> np.ndarray:
     return _unit(u)
 
 
-def sweep(skeleton: Skeleton, options: SweepOptions | None = None) -> Tubes:
+def sweep(skeleton: Skeleton, options: SweepOptions | None = None, *, seed: int = 0) -> Tubes:
     """Sweep a closed tube along every chain of a skeleton.
 
     Parameters
@@ -299,7 +320,9 @@ def sweep(skeleton: Skeleton, options: SweepOptions | None = None) -> Tubes:
     skeleton : Skeleton
         Segments with widths (diameters) and turtle frames.
     options : SweepOptions, optional
-        Sides, minimum width, bend limits (defaults if None).
+        Sides, minimum width, bend limits, bark displacement (defaults if None).
+    seed : int
+        Seed of the bark noise (used only with ``bark_displacement``).
 
     Returns
     -------
@@ -352,7 +375,8 @@ def sweep(skeleton: Skeleton, options: SweepOptions | None = None) -> Tubes:
     scale = np.abs(p1).max() + 1.0
     gap = np.linalg.norm(p0[1:] - p1[:-1], axis=1) > 1e-9 * scale + 1e-6 * np.minimum(length[:-1], length[1:])
     bend = cos < math.cos(math.radians(opt.max_bend))
-    fold = r_joint * tan_half > 0.5 * np.minimum(length[:-1], length[1:])
+    # a displaced ring reaches out to (1 + bark_displacement) r: mitre planes must not cross inside that
+    fold = r_joint * (1.0 + opt.bark_displacement) * tan_half > 0.5 * np.minimum(length[:-1], length[1:])
     split = same & (gap | bend | fold)
     extend = np.where(split & ~gap, r_joint * np.minimum(tan_half, 1.0), 0.0)
     first = np.ones(k, bool)
@@ -450,6 +474,12 @@ def sweep(skeleton: Skeleton, options: SweepOptions | None = None) -> Tubes:
     chain_of_piece = chain[piece_start]
     order_of_piece = skeleton.order[skeleton.chains.segments[skeleton.chains.offsets[chain_of_piece]]]
     sides_of_piece = opt.sides_for_order(order_of_piece)
+    displace = None
+    if opt.bark_displacement > 0:
+        amplitude, noise_seed = opt.bark_displacement, (int(seed), BARK_NOISE_STREAM)
+
+        def displace(points):
+            return amplitude * fbm3(points, noise_seed, octaves=opt.bark_octaves, frequency=opt.bark_frequency)
 
     parts = []
     for s in np.unique(sides_of_piece).tolist():
@@ -470,6 +500,7 @@ def sweep(skeleton: Skeleton, options: SweepOptions | None = None) -> Tubes:
                     v[rsel],
                     stretch[rsel],
                     bend_dir[rsel],
+                    displace,
                 ),
             )
         )
@@ -497,8 +528,13 @@ def _offsets(counts: np.ndarray) -> np.ndarray:
     return out
 
 
-def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch, bend_dir) -> Tubes:
-    """Tubes of ``s`` sides; ring arrays hold the rings of every tube, tube after tube."""
+def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch, bend_dir, displace=None) -> Tubes:
+    """Tubes of ``s`` sides; ring arrays hold the rings of every tube, tube after tube.
+
+    ``displace(points (k, 3)) -> (k,)`` moves each ring vertex along its radial
+    direction by that fraction of the ring's radius; the ring normals are then
+    taken from the displaced surface.
+    """
     nt = len(rings)
     n = len(center)
     theta = 2.0 * np.pi * np.arange(s + 1) / s
@@ -508,6 +544,9 @@ def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch,
     off = radius[:, None, None] * radial
     off += ((stretch - 1.0)[:, None] * _dot(off, bend_dir[:, None, :]))[:, :, None] * bend_dir[:, None, :]
     ring_pts = center[:, None, :] + off[:, :s]
+    if displace is not None:
+        bump = displace(ring_pts.reshape(-1, 3)).reshape(n, s) * radius[:, None]
+        ring_pts = ring_pts + bump[:, :, None] * radial[:, :s]
     normal = _unit(radial - slope[:, None, None] * tangent[:, None, :])
 
     p_off = _offsets(rings * s + 2)
@@ -561,10 +600,29 @@ def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch,
     fan[-1, 1] = 1  # wrap the rim
     faces[cap_f[:, None] + js] = cap_w[:, 0][:, None, None] + fan[None]
     faces[(cap_f + s)[:, None] + js] = cap_w[:, 1][:, None, None] + fan[None][:, :, [0, 2, 1]]
+    if displace is not None:
+        _surface_normals(points, wedge_point, wedge_normal, faces, f_off, 2 * s * (rings - 1), ring_w)
     z = np.zeros(nt, np.int64)
     return Tubes(
         points, wedge_point, wedge_normal, wedge_uv, faces, p_off, w_off, f_off, z, z, rings, z.astype(np.int32)
     )
+
+
+def _surface_normals(points, wedge_point, wedge_normal, faces, f_off, body_faces, ring_w) -> None:
+    """Set the ring wedges' normals to the area-weighted normals of the tube walls around their points.
+
+    ``body_faces[t]`` is the number of wall faces (before the caps) of tube ``t``;
+    the caps keep their flat normals.
+    """
+    tube_of_face = np.repeat(np.arange(len(body_faces)), np.diff(f_off))
+    body = np.flatnonzero(np.arange(len(faces)) - f_off[tube_of_face] < body_faces[tube_of_face])
+    fp = wedge_point[faces[body]]
+    tri = points[fp]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    pn = np.zeros((len(points), 3))
+    for c in range(3):
+        pn[:, c] = sum(np.bincount(fp[:, k], weights=fn[:, c], minlength=len(points)) for k in range(3))
+    wedge_normal[ring_w] = _unit(pn)[wedge_point[ring_w]]
 
 
 def _concat(parts: list[Tubes]) -> Tubes:

@@ -73,16 +73,17 @@ def test_usage_errors_exit_2():
 
 
 def test_stats_json_and_table(capsys):
-
     assert main(["stats", "abop-1.24a", "--json"]) == 0
     stats = json.loads(capsys.readouterr().out)
-    for key in ("modules", "segments", "chains", "branches", "leaves", "bbox_min", "bbox_max", "total_length"):
-        assert key in stats
-    assert stats["segments"] == str(lsys3d.derive(lsys3d.load_preset("abop-1.24a"))).count("F")
-    assert list(stats) == sorted(stats)
+    assert list(stats) == ["derive", "interpret", "versions"]  # no mesh sections without --mesh
+    assert set(stats["derive"]) == {"modules", "branches"}
+    for key in ("segments", "chains", "leaves", "bbox_min", "bbox_max", "total_length"):
+        assert key in stats["interpret"]
+    assert stats["interpret"]["segments"] == str(lsys3d.derive(lsys3d.load_preset("abop-1.24a"))).count("F")
     assert main(["stats", "abop-1.24a"]) == 0
     table = capsys.readouterr().out.splitlines()
-    assert [line.split()[0] for line in table] == sorted(stats)
+    keys = [line.split()[0] for line in table]
+    assert keys == sorted(keys) and "interpret.segments" in keys and "versions.numpy" in keys
 
 
 def test_generate_without_arguments_writes_tree_glb(tmp_path):
@@ -135,10 +136,11 @@ def test_generate_verbose_times_each_stage(tmp_path):
 def test_stats_mesh(capsys):
     assert main(["stats", "abop-1.24a", "-n", "2", "--mesh", "--json"]) == 0
     stats = json.loads(capsys.readouterr().out)
-    for key in ("vertices", "faces", "volume", "area", "watertight", "components", "tube_vertices", "segments"):
-        assert key in stats
-    assert stats["watertight"] and stats["components"] == 1 and stats["volume"] > 0
-    assert list(stats) == sorted(stats)
+    assert list(stats) == ["bark", "bbox", "derive", "interpret", "leaves", "sweep", "versions"]
+    bark = stats["bark"]
+    assert bark["watertight"] and bark["components"] == 1 and bark["volume"] > 0 and bark["unioned"]
+    assert stats["sweep"]["vertices"] > 0 and stats["interpret"]["segments"] == 25
     assert main(["stats", "abop-1.24a", "-n", "2", "--mesh", "--no-union", "--json"]) == 0
     soup = json.loads(capsys.readouterr().out)
-    assert soup["faces"] == soup["tube_faces"] == stats["tube_faces"]
+    assert soup["bark"]["faces"] == soup["sweep"]["faces"] == stats["sweep"]["faces"]
+    assert not soup["bark"]["unioned"]

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
 import trimesh
 import validators
+from grown import grown
 
 import lsys3d
 from lsys3d.errors import GeometryError
@@ -18,12 +17,6 @@ from lsys3d.sweep import sweep
 from lsys3d.union import concatenate
 
 DRAWING_PRESETS = [name for name in lsys3d.list_presets() if name not in ("algae", "dog", "dog-growing")]
-
-
-@functools.cache
-def grown(name: str):
-    """Each preset grown once per test session (at its own iterations and seed)."""
-    return generate(name)
 
 
 @pytest.mark.parametrize("name", DRAWING_PRESETS)
