@@ -27,17 +27,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import DerivationError, LimitError
-from .expr import EvalError
+from .errors import DerivationError, LimitError, clip
+from .expr import NOT_FINITE, EvalError
 from .grammar import Grammar, PatternModule, Production
 from .modules import ModuleString
 
-__all__ = ["DEFAULT_MAX_MODULES", "derive", "generations", "predict_length"]
+__all__ = ["DEFAULT_MAX_MODULES", "MAX_ITERATIONS", "derive", "generations", "predict_length"]
 
 log = logging.getLogger("lsys3d")
 
 DEFAULT_MAX_MODULES = 50_000_000
 """Largest module string derivation builds (about 50 bytes a module at the peak)."""
+MAX_ITERATIONS = 10_000
+"""Most generations one derivation runs: a string that stops growing would otherwise rewrite forever.
+
+Raise it by assigning ``lsys3d.derive.MAX_ITERATIONS``.
+"""
 
 _OPEN, _CLOSE = ord("["), ord("]")
 
@@ -87,11 +92,11 @@ class _Plan:
                 w = np.array([p.weight if p.weight is not None else 1.0 for p in pool.alternatives])
                 pool.cumulative = np.cumsum(w)
         self.context = any(p.left or p.right for p in pools.values())
-        self.d0l = (
-            not grammar.parametric
-            and not self.context
-            and all(p.cumulative is None and p.condition is None for p in pools.values())
+        # every module's successor length is known from its symbol and arity alone
+        self.predictable = not self.context and all(
+            p.cumulative is None and p.condition is None for p in pools.values()
         )
+        self.d0l = self.predictable and not grammar.parametric
 
 
 def _succ_codes(plan: _Plan, prod: Production) -> np.ndarray:
@@ -100,13 +105,19 @@ def _succ_codes(plan: _Plan, prod: Production) -> np.ndarray:
 
 # ---------------------------------------------------------------- public API
 def predict_length(grammar: Grammar, iterations: int | None = None) -> int | None:
-    """Exact module count after ``iterations`` steps for a D0L grammar, else None.
+    """Exact module count after ``iterations`` steps, or None when it depends on the derivation.
 
+    Known for grammars without contexts, conditions and stochastic choice
+    (parameters allowed: a successor's length does not depend on their values).
     Computed with Python integers from the growth (Parikh) matrix, so it costs
     nothing even when the answer is astronomically large.
+
+    >>> from lsys3d import Grammar
+    >>> predict_length(Grammar(axiom="A(1)", rules=["A(x) -> A(x)A(x + 1)"]), 40)
+    1099511627776
     """
     plan = _Plan(grammar)
-    if not plan.d0l:
+    if not plan.predictable:
         return None
     n = grammar.iterations if iterations is None else iterations
     return _d0l_lengths(plan, n)[1]
@@ -151,6 +162,8 @@ def derive(
     plan = _Plan(grammar)
     if plan.d0l and start is None:
         return _derive_d0l(plan, n, max_modules)
+    if plan.predictable and start is None:  # fail at once, not after building the generations below the limit
+        _check_size(_d0l_lengths(plan, n)[1], max_modules, grammar, n)
     *_, result = generations(grammar, n, seed, start=start, max_modules=max_modules)
     return result
 
@@ -178,6 +191,8 @@ def generations(
     if current.alphabet != plan.alphabet and current.alphabet[128:] != plan.alphabet[128:]:
         raise DerivationError("the start string uses symbols this grammar does not know")
     _check_size(len(current), max_modules, grammar, 0)
+    if start is not None:
+        _check_finite_start(current)
     yield current
     for g in range(1, n + 1):
         current = _step(plan, current, g, int(seed), max_modules)
@@ -188,8 +203,22 @@ def generations(
 def _check_iterations(grammar: Grammar, iterations) -> int:
     n = grammar.iterations if iterations is None else iterations
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
-        raise DerivationError(f"iterations must be a whole number >= 0, not {n!r}")
+        raise DerivationError(f"{grammar.source}: iterations must be a whole number >= 0, not {n!r}")
+    if n > MAX_ITERATIONS:
+        raise LimitError(
+            f"{grammar.source}: {n:,} iterations, more than the limit of {MAX_ITERATIONS:,} "
+            "(lsys3d.derive.MAX_ITERATIONS)"
+        )
     return int(n)
+
+
+def _check_finite_start(ms: ModuleString):
+    bad = np.flatnonzero(~np.isfinite(ms.params))
+    if len(bad):
+        i = int(np.searchsorted(ms.offsets, bad[0], side="right")) - 1
+        raise DerivationError(
+            f"start string: module {ms.module_text(i, short=True)} (#{i}) has a parameter that is not a finite number"
+        )
 
 
 def _check_size(total: int, max_modules: int, grammar: Grammar, generation: int):
@@ -202,11 +231,19 @@ def _check_size(total: int, max_modules: int, grammar: Grammar, generation: int)
 
 # ---------------------------------------------------------------- D0L engine
 def _d0l_lengths(plan: _Plan, n: int):
-    """Module counts per symbol after each step, and the final total (Python ints)."""
+    """Module counts per (symbol, arity) after each step, and the final total (Python ints).
+
+    Needs ``plan.predictable``: the first pool of each symbol and arity is the
+    one that rewrites every such module.
+    """
     succ = {}
     for code, pools in plan.pools_by_code.items():
-        succ[code] = [plan.code[m.symbol] for m in pools[0].alternatives[0].successor]
-    axiom = plan.grammar.axiom_modules.symbols.tolist()
+        for pool in pools:
+            key = (code, pool.arity)
+            if key not in succ:
+                succ[key] = [(plan.code[m.symbol], len(m.args)) for m in pool.alternatives[0].successor]
+    ms = plan.grammar.axiom_modules
+    axiom = list(zip(ms.symbols.tolist(), ms.arity.tolist(), strict=True))
     lengths = {c: 1 for c in set(axiom) | set(succ) | {t for s in succ.values() for t in s}}
     history = [lengths]
     for _ in range(n):
@@ -223,7 +260,7 @@ def _derive_d0l(plan: _Plan, n: int, max_modules: int) -> ModuleString:
     _check_size(total, max_modules, grammar, n)
     axiom = grammar.axiom_modules.symbols.tolist()
     succ = {c: _succ_codes(plan, pools[0].alternatives[0]).tolist() for c, pools in plan.pools_by_code.items()}
-    constant = {c: np.array([c], dtype=np.uint8) for c in history[0]}
+    constant = {c: np.array([c], dtype=np.uint8) for c, _ in history[0]}  # D0L: every arity is 0
     blocks = dict(constant)
     for _ in range(n):
         blocks = {
@@ -348,7 +385,7 @@ def _fail(prod: Production, where: str, exc: EvalError, ms: ModuleString, idx: n
     bad = int(idx[int(exc.index[0])]) if len(exc.index) and len(idx) else int(idx[0]) if len(idx) else -1
     module = f" for module {ms.module_text(bad, short=True)} (#{bad})" if bad >= 0 else ""
     return DerivationError(
-        f"{prod.location}: rule '{prod.text}': {exc} in {where}{module} while deriving generation {generation}"
+        f"{prod.location}: rule '{clip(prod.text)}': {exc} in {where}{module} while deriving generation {generation}"
     )
 
 
@@ -449,9 +486,37 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
             new_arity[pos] = len(smod.args)
             for expr in smod.args:
                 try:
-                    values = expr.evaluate(env, n)
+                    values = expr.evaluate(env, n, finite=False)  # checked below, all at once
                 except EvalError as exc:
-                    raise _fail(prod, f"parameter '{expr.text}' of {smod.symbol}", exc, ms, idx, generation) from None
+                    what = f"parameter '{clip(expr.text)}' of {smod.symbol}"
+                    raise _fail(prod, what, exc, ms, idx, generation) from None
                 new_params[par_off[idx] + p] = values
                 p += 1
+    # Overflow (A(x) -> A(x*1e300)) or NaN: one pass over the whole generation.  The sum is
+    # finite exactly when every parameter is, unless finite values overflow it; only then (and
+    # on a real error) the elementwise test runs.
+    with np.errstate(over="ignore"):
+        total = new_params.sum()
+    if not np.isfinite(total) and not np.isfinite(new_params).all():
+        raise _not_finite(chosen, ms, new_params, par_off, generation)
     return ModuleString(new_sym, new_arity, new_params, plan.alphabet)
+
+
+def _not_finite(chosen, ms: ModuleString, new_params, par_off, generation: int) -> DerivationError:
+    """The error for the first parameter of a generation that is infinite or NaN: its rule and module."""
+    k = int(np.flatnonzero(~np.isfinite(new_params))[0])
+    i = int(np.searchsorted(par_off, k, side="right")) - 1  # the module it was rewritten from
+    for prod, idx, _ in chosen:
+        pos = int(np.searchsorted(idx, i))
+        if pos < len(idx) and idx[pos] == i:
+            p = k - int(par_off[i])
+            for smod in prod.successor:
+                if p < len(smod.args):
+                    where = f"parameter '{clip(smod.args[p].text)}' of {smod.symbol}"
+                    return _fail(prod, where, EvalError(NOT_FINITE, [pos]), ms, idx, generation)
+                p -= len(smod.args)
+    # copied unchanged: only a start string given from Python can hold such a number
+    return DerivationError(
+        f"module {ms.module_text(i, short=True)} (#{i}) has a parameter that is not a finite number "
+        f"while deriving generation {generation}"
+    )

@@ -19,6 +19,19 @@ __all__ = [
 ]
 
 
+def clip(text: str, width: int = 60) -> str:
+    """``text`` short enough to quote in a one-line message: at most ``width`` characters, the middle elided.
+
+    >>> clip("F(" + "x+" * 50 + "1)", 20)
+    'F(x+x+x+x...x+x+x+1)'
+    """
+    text = str(text)
+    if len(text) <= width:
+        return text
+    head = (width - 3 + 1) // 2
+    return text[:head] + "..." + text[len(text) - (width - 3 - head) :]
+
+
 class LSystemError(Exception):
     """Base class of every error lsys3d raises for bad input."""
 

@@ -31,11 +31,17 @@ import numpy as np
 __all__ = ["CONSTANTS", "FUNCTIONS", "EvalError", "Expr", "ExprSyntaxError", "parse_expression"]
 
 MAX_DEPTH = 64
-"""Deepest nesting of an expression tree (parentheses, operators, calls)."""
+"""Deepest nesting of an expression: each parenthesis, call, prefix operator and operator of the tree is a level.
+
+``1+1+1`` is three levels deep (a chain of operators builds a tree as tall as
+the chain); ``((1))`` two.  Raise it by assigning ``lsys3d.expr.MAX_DEPTH``.
+"""
 MAX_LENGTH = 4096
 """Longest expression text, in characters."""
 
 CONSTANTS = {"pi": math.pi}
+
+NOT_FINITE = "result is not a finite number (overflow or NaN)"
 
 
 def _domain(mask_bad, what):
@@ -129,20 +135,26 @@ class Expr:
     def is_constant(self) -> bool:
         return self.op == "num"
 
-    def evaluate(self, env: dict[str, np.ndarray | float], size: int = 1) -> np.ndarray:
+    def evaluate(self, env: dict[str, np.ndarray | float], size: int = 1, finite: bool = True) -> np.ndarray:
         """Evaluate elementwise; ``env`` maps names to arrays of length ``size`` or scalars.
 
         Returns a float64 array of length ``size`` (comparisons give 1.0/0.0).
-        Raises :class:`EvalError` on division by zero, a domain error or overflow.
+        Raises :class:`EvalError` on division by zero, a domain error or, unless
+        ``finite`` is False (the caller checks many results at once), a result
+        that is infinite or NaN.
         """
-        with np.errstate(all="ignore"):
-            out = _eval(self, env)
+        try:
+            with np.errstate(all="ignore"):
+                out = _eval(self, env)
+        except RecursionError:  # only when MAX_DEPTH was raised beyond what Python's stack holds
+            raise EvalError(_STACK, np.zeros(0, np.int64)) from None
         out = np.asarray(out, dtype=np.float64)
         if out.shape != (size,):
             out = np.broadcast_to(out, (size,)).copy()
-        bad = ~np.isfinite(out)
-        if bad.any():
-            raise EvalError("result is not a finite number (overflow)", np.flatnonzero(bad)[:1])
+        if finite:
+            bad = ~np.isfinite(out)
+            if bad.any():
+                raise EvalError(NOT_FINITE, np.flatnonzero(bad)[:1])
         return out
 
 
@@ -233,7 +245,8 @@ class _Parser:
         self.i = 0
         self.names = names
         self.defines = defines
-        self.depth = 0
+        self.depth = 0  # parentheses, calls and prefix operators open around the current token
+        self.heights: dict[int, int] = {}  # id(node) -> height of its tree
 
     def peek(self):
         return self.tokens[self.i]
@@ -251,12 +264,19 @@ class _Parser:
 
     def node(self, op, start, value=None, args=()):
         end = self.tokens[self.i - 1][2] + len(self.tokens[self.i - 1][1]) if self.i else start
-        return Expr(op, value, tuple(args), self.text[start:end].strip())
+        # a chain of operators (1+1+...+1) builds a tree as tall as the chain without nesting
+        # the parser; evaluation recurses through that height, so it is limited too
+        height = 1 + max((self.heights.get(id(a), 1) for a in args), default=0)
+        if height > MAX_DEPTH:  # point at the operand that made it too tall
+            raise ExprSyntaxError(_too_deep(), self.tokens[self.i - 1][2] if self.i else start)
+        node = Expr(op, value, tuple(args), self.text[start:end].strip())
+        self.heights[id(node)] = height
+        return node
 
     def enter(self, pos):
         self.depth += 1
         if self.depth > MAX_DEPTH:
-            raise ExprSyntaxError(f"expression nested deeper than {MAX_DEPTH} levels", pos)
+            raise ExprSyntaxError(_too_deep(), pos)
 
     def parse(self) -> Expr:
         if self.peek()[0] == "end":
@@ -275,7 +295,6 @@ class _Parser:
         if level == len(self._LEVELS):
             return self.unary()
         start = self.peek()[2]
-        self.enter(start)
         left = self.binary(level + 1)
         ops = self._LEVELS[level]
         while self.peek()[0] == "op" and self.peek()[1] in ops:
@@ -284,7 +303,6 @@ class _Parser:
             left = self.node(op, start, args=(left, right))
             if level == 3 and self.peek()[1] in ops:
                 raise ExprSyntaxError("comparisons cannot be chained; use 'and'", self.peek()[2])
-        self.depth -= 1
         return left
 
     def negation(self) -> Expr:
@@ -373,6 +391,13 @@ class _Parser:
         return node
 
 
+def _too_deep() -> str:
+    return f"expression nested deeper than {MAX_DEPTH} levels (lsys3d.expr.MAX_DEPTH)"
+
+
+_STACK = "expression nested too deeply for Python's stack (lower lsys3d.expr.MAX_DEPTH)"
+
+
 def parse_expression(text: str, names=None, defines=None) -> Expr:
     """Parse ``text`` into an :class:`Expr`.
 
@@ -398,6 +423,9 @@ def parse_expression(text: str, names=None, defines=None) -> Expr:
     array([3., 5.])
     """
     if len(text) > MAX_LENGTH:
-        raise ExprSyntaxError(f"expression longer than {MAX_LENGTH} characters", MAX_LENGTH)
+        raise ExprSyntaxError(f"expression longer than {MAX_LENGTH} characters (lsys3d.expr.MAX_LENGTH)", MAX_LENGTH)
     parser = _Parser(text, frozenset(names) if names is not None else frozenset(), dict(defines or {}))
-    return parser.parse()
+    try:
+        return parser.parse()
+    except RecursionError:  # only when MAX_DEPTH was raised beyond what Python's stack holds
+        raise ExprSyntaxError(_STACK, parser.tokens[min(parser.i, len(parser.tokens) - 1)][2]) from None

@@ -28,7 +28,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .errors import GrammarError
+from .errors import GrammarError, clip
 from .expr import CONSTANTS, FUNCTIONS, Expr, ExprSyntaxError, parse_expression
 from .modules import ASCII_ALPHABET, ModuleString
 
@@ -136,8 +136,16 @@ class Grammar:
         if isinstance(self.rules, str):
             raise GrammarError("'rules' must be a list of rule strings, not one string", self.source)
         set_ = object.__setattr__
+        for key in ("defines", "turtle"):
+            if not isinstance(getattr(self, key), Mapping):
+                raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
+        if not isinstance(self.rules, (list, tuple)):
+            raise self._key_error("rules", f"must be a list of rule strings, not {type(self.rules).__name__}")
         set_(self, "rules", tuple(self.rules))
-        set_(self, "ignore", "".join(self.ignore) if not isinstance(self.ignore, str) else self.ignore)
+        if not isinstance(self.ignore, str):
+            if not isinstance(self.ignore, (list, tuple)) or not all(isinstance(c, str) for c in self.ignore):
+                raise self._key_error("ignore", f"must be a string of symbols, not {clip(repr(self.ignore))}")
+            set_(self, "ignore", "".join(self.ignore))
         set_(
             self,
             "defines",
@@ -166,19 +174,21 @@ class Grammar:
         set_(self, "alphabet", alphabet.table())
         set_(self, "axiom_modules", _evaluate_axiom(axiom, alphabet, self.source, where_axiom))
 
-    def _check_scalars(self):
-        def bad(key, what):
-            where = self._where.get(("key", key))
-            line = where(0)[0] if where else None
-            return GrammarError(f"'{key}' {what}", self.source, line, 1 if line else None)
+    def _key_error(self, key: str, what: str) -> GrammarError:
+        """``file:line:1: 'key' what``, with the line of the key when the grammar came from a file."""
+        where = self._where.get(("key", key))
+        line = where(0)[0] if where else None
+        return GrammarError(f"'{key}' {what}", self.source, line, 1 if line else None)
 
+    def _check_scalars(self):
+        bad = self._key_error
         it = self.iterations
         if isinstance(it, bool) or not isinstance(it, int) or it < 0:
-            raise bad("iterations", f"must be a whole number >= 0, not {it!r}")
+            raise bad("iterations", f"must be a whole number >= 0, not {clip(repr(it))}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise bad("seed", f"must be a whole number >= 0, not {self.seed!r}")
         if isinstance(self.angle, bool) or not isinstance(self.angle, (int, float)) or not math.isfinite(self.angle):
-            raise bad("angle", f"must be a number of degrees, not {self.angle!r}")
+            raise bad("angle", f"must be a number of degrees, not {clip(repr(self.angle))}")
         for key in ("name", "description", "axiom", "ignore"):
             if not isinstance(getattr(self, key), str):
                 raise bad(key, f"must be a string, not {type(getattr(self, key)).__name__}")
@@ -199,7 +209,7 @@ class Grammar:
         if unknown:
             line = _key_line(text, unknown[0])
             raise GrammarError(
-                f"unknown key '{unknown[0]}' (known keys: {', '.join(sorted(_KEYS))})",
+                f"unknown key '{clip(unknown[0])}' (known keys: {', '.join(sorted(_KEYS))})",
                 source,
                 line,
                 1 if line else None,
@@ -228,7 +238,13 @@ class Grammar:
                     f"grammar file is {size} bytes, larger than {MAX_GRAMMAR_BYTES} (lsys3d.grammar.MAX_GRAMMAR_BYTES)",
                     str(path),
                 )
-            raw = path.read_bytes()
+            with path.open("rb") as f:  # a device or pipe has no size: read no more than the limit
+                raw = f.read(MAX_GRAMMAR_BYTES + 1)
+            if len(raw) > MAX_GRAMMAR_BYTES:
+                raise GrammarError(
+                    f"grammar file is larger than {MAX_GRAMMAR_BYTES} bytes (lsys3d.grammar.MAX_GRAMMAR_BYTES)",
+                    str(path),
+                )
         except OSError as exc:
             raise GrammarError(f"cannot read grammar file: {exc.strerror or exc}", str(path)) from None
         try:
@@ -460,7 +476,7 @@ def _check_defines(defines: dict, source: str, where) -> dict:
     out = {}
     for name, value in defines.items():
         if not isinstance(name, str) or not _IDENT.match(name):
-            raise GrammarError(f"define name {name!r} is not a valid name", *_loc(source, source_where, 0))
+            raise GrammarError(f"define name {clip(repr(name))} is not a valid name", *_loc(source, source_where, 0))
         if name in FUNCTIONS or name in CONSTANTS or name in ("and", "or", "not"):
             raise GrammarError(f"define name {name!r} is reserved", *_loc(source, source_where, 0))
         if isinstance(value, str):
@@ -470,7 +486,7 @@ def _check_defines(defines: dict, source: str, where) -> dict:
                 raise GrammarError(f"define {name!r}: {exc}", *_loc(source, source_where, 0)) from None
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise GrammarError(
-                f"define {name!r} must be a finite number, not {value!r}", *_loc(source, source_where, 0)
+                f"define {name!r} must be a finite number, not {clip(repr(value))}", *_loc(source, source_where, 0)
             )
         out[name] = float(value)
     return out
@@ -696,9 +712,8 @@ def _parse_args(text, start, stop, symbol, kind, formals, defines, source, where
         if kind in ("predecessor", "context"):
             name = piece.strip()
             if not _IDENT.match(name):
-                raise _error(
-                    f"parameters of a {kind} must be names, not {name!r}", source, where, a + _lstrip_len(piece)
-                )
+                what = f"parameters of a {kind} must be names, not {clip(repr(name))}"
+                raise _error(what, source, where, a + _lstrip_len(piece))
             if name in FUNCTIONS or name in CONSTANTS or name in ("and", "or", "not"):
                 raise _error(f"parameter name {name!r} is reserved", source, where, a + _lstrip_len(piece))
             args.append(name)
@@ -716,7 +731,7 @@ def _check_arities(productions, wheres, axiom, where_axiom, source):
     for p in productions:
         arities.setdefault(p.predecessor.symbol, set()).add(len(p.predecessor.formals))
     for modules, where, what in [(axiom, where_axiom, "the axiom")] + [
-        (p.successor, w, f"the successor of rule '{p.text}'") for p, w in zip(productions, wheres, strict=True)
+        (p.successor, w, f"the successor of rule '{clip(p.text)}'") for p, w in zip(productions, wheres, strict=True)
     ]:
         for m in modules:
             expected = arities.get(m.symbol)
@@ -739,5 +754,5 @@ def _evaluate_axiom(axiom, alphabet, source, where) -> ModuleString:
             try:
                 params.append(float(e.evaluate({})[0]))
             except ArithmeticError as exc:
-                raise _error(f"in axiom parameter '{e.text}': {exc}", source, where, 0) from None
+                raise _error(f"in axiom parameter '{clip(e.text)}': {exc}", source, where, 0) from None
     return ModuleString(codes, arity, np.array(params, dtype=np.float64), alphabet.table())

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import lsys3d
-from lsys3d import DerivationError, Grammar, LimitError, derive, generations, load_preset
+from lsys3d import DerivationError, Grammar, LimitError, derive, generations, load_preset, predict_length
 from lsys3d.modules import ModuleString, format_number
 
 
@@ -297,10 +297,19 @@ def test_exponential_grammar_fails_fast_with_its_size():
 
 
 def test_size_guard_in_the_general_engine():
-    g = Grammar(axiom="A(1)", rules=["A(x) -> A(x)A(x + 1)"])
+    # a condition makes the length depend on the values: checked before each generation is allocated
+    g = Grammar(axiom="A(1)", rules=["A(x) : x > 0 -> A(x)A(x + 1)"])
+    assert predict_length(g, 40) is None
     with pytest.raises(LimitError, match="generation 11 would have 2,048 modules"):
         derive(g, 40, max_modules=2000)
     assert len(derive(g, 10, max_modules=2000)) == 1024
+
+
+def test_parametric_growth_is_predicted_before_any_work():
+    g = Grammar(axiom="A(1)", rules=["A(x) -> A(x)A(x + 1)"])
+    assert predict_length(g, 10) == len(derive(g, 10)) == 1024
+    with pytest.raises(LimitError, match=r"generation 40 would have 1,099,511,627,776 modules"):
+        derive(g, 40)
 
 
 def test_bad_arguments():
