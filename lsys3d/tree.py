@@ -13,6 +13,14 @@ bark is watertight) and per-face-corner shading attributes in
 ``corner_uv`` : (f, 3, 2) float32
     Texture coordinates at each corner: u around the tube in [0, 1], v along
     the chain in metres.
+
+and, optionally, per-vertex colours in ``mesh.vertex_attributes``:
+
+``vertex_color`` : (v, 3) float32
+    Linear RGB in [0, 1] at each vertex (bark colour variation,
+    :mod:`lsys3d.bark`).  Where present it is the surface colour in place of
+    the material's base colour: glTF ``COLOR_0`` with a white base colour
+    factor, USD ``primvars:displayColor`` read by the material.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import io
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,7 @@ from ..tree import Tree
 from .atomic import check_target, write_bytes
 from .common import ExportOptions, file_frame
 
-__all__ = ["SUPPORTED_SUFFIXES", "ExportOptions", "check_output", "export"]
+__all__ = ["SUPPORTED_SUFFIXES", "ExportOptions", "check_output", "export", "export_variants", "variant_paths"]
 
 
 def _glb(tree, path, options):
@@ -158,3 +158,69 @@ def export(tree: Tree, path: str | os.PathLike, options: ExportOptions | None = 
     if not isinstance(tree, Tree):
         raise ExportError(f"{path}: expected a lsys3d Tree, got {type(tree).__name__}")
     return _WRITERS[path.suffix.lower()](tree, path, options)
+
+
+_USD_SUFFIXES = (".usda", ".usdc", ".usd", ".usdz")
+
+
+def variant_paths(path: str | os.PathLike, count: int) -> list[Path]:
+    """Where :func:`export_variants` writes ``count`` siblings: one USD file, else ``<stem>_<i><suffix>``.
+
+    Examples
+    --------
+    >>> [p.name for p in variant_paths("out/tree.glb", 3)]
+    ['tree_0.glb', 'tree_1.glb', 'tree_2.glb']
+    >>> [p.name for p in variant_paths("tree.usdc", 3)]
+    ['tree.usdc']
+    """
+    path = Path(path)
+    if path.suffix.lower() in _USD_SUFFIXES:
+        return [path]
+    return [path.with_name(f"{path.stem}_{i}{path.suffix}") for i in range(count)]
+
+
+def export_variants(trees: Sequence[Tree], path: str | os.PathLike, options: ExportOptions | None = None) -> list[Path]:
+    """Write siblings of one plant: a USD file with a variant set, or one file per tree.
+
+    Parameters
+    ----------
+    trees : sequence of Tree
+        The siblings, e.g. one grammar grown with seeds 7, 8, 9.
+    path : str or path-like
+        For a USD suffix, the one file to write: ``/Tree`` gets the variant
+        set ``seed`` with one variant per tree, named ``seed_<seed>`` after
+        the tree's provenance (``seed_7``, ``seed_8``...), the first selected.
+        For any other suffix, the pattern of the files
+        (:func:`variant_paths`): ``tree.glb`` gives ``tree_0.glb``,
+        ``tree_1.glb``...
+    options : ExportOptions, optional
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+
+    Raises
+    ------
+    ExportError
+        As :func:`export`; also for no trees or two trees with the same seed
+        (their variants would have the same name).  With ``no_clobber`` every
+        target is checked before anything is written.
+    """
+    path = Path(path)
+    options = ExportOptions() if options is None else options
+    check_output(path, options)
+    trees = list(trees)
+    if not trees or not all(isinstance(t, Tree) for t in trees):
+        raise ExportError(f"{path}: expected one or more lsys3d Trees")
+    targets = variant_paths(path, len(trees))
+    if path.suffix.lower() in _USD_SUFFIXES:
+        from .usd import write_usd_variants
+
+        names = [f"seed_{int((t.provenance or {}).get('seed', i))}" for i, t in enumerate(trees)]
+        if len(set(names)) != len(names):
+            raise ExportError(f"{path}: two trees have the same seed, so their variants would share a name: {names}")
+        return [write_usd_variants(trees, names, path, options)]
+    for target in targets:
+        check_output(target, options)
+    return [export(tree, target, options) for tree, target in zip(trees, targets, strict=True)]

@@ -108,6 +108,9 @@ class MeshArrays:
         One vertex per unique (point, normal, uv): what glTF needs.
     split_index : (f * 3,) uint32
         Split vertex of each face corner.
+    colors, split_colors : (v, 3) / (s, 3) float32 or None
+        Linear RGB vertex colours (the mesh's ``vertex_color`` vertex
+        attribute, see :mod:`lsys3d.tree`), per point and per split vertex.
     """
 
     points: np.ndarray
@@ -118,6 +121,8 @@ class MeshArrays:
     split_normals: np.ndarray
     split_uv: np.ndarray | None
     split_index: np.ndarray
+    colors: np.ndarray | None = None
+    split_colors: np.ndarray | None = None
 
 
 def _unit_normals(normals: np.ndarray, faces: np.ndarray, vertices: np.ndarray) -> np.ndarray:
@@ -205,6 +210,13 @@ def gather_mesh(mesh: trimesh.Trimesh, frame: np.ndarray, where: str) -> MeshArr
             raise ExportError(f"{where}: corner_uv has {uv.shape[0]} rows, expected {nf * 3}")
         if not np.isfinite(uv).all():
             raise ExportError(f"{where}: corner_uv holds a NaN or infinite value")
+    colors = (getattr(mesh, "vertex_attributes", None) or {}).get("vertex_color")
+    if colors is not None:
+        colors = np.asarray(colors, dtype=np.float32)
+        if colors.shape != (len(vertices), 3):
+            raise ExportError(f"{where}: vertex_color has shape {colors.shape}, expected ({len(vertices)}, 3)")
+        if not (np.isfinite(colors).all() and (colors >= 0).all()):
+            raise ExportError(f"{where}: vertex_color holds a negative, NaN or infinite value")
 
     corner_v = faces.reshape(-1)
     renumber = _first_use_order(corner_v, len(vertices))
@@ -212,6 +224,8 @@ def gather_mesh(mesh: trimesh.Trimesh, frame: np.ndarray, where: str) -> MeshArr
         old_of_new, new_of_old = renumber
         corner_v = new_of_old[corner_v]
         vertices = vertices[old_of_new]
+        if colors is not None:
+            colors = colors[old_of_new]
     identity = np.array_equal(frame, np.eye(3))
     points = (vertices if identity else vertices @ frame.T).astype(np.float32)
 
@@ -222,7 +236,7 @@ def gather_mesh(mesh: trimesh.Trimesh, frame: np.ndarray, where: str) -> MeshArr
     normals = np.ascontiguousarray(normals, dtype=np.float32)  # _split views the rows as bytes
     normals += np.float32(0.0)  # -0.0 -> 0.0, so corners that compare equal are equal bit for bit
 
-    split_index, split_points, split_normals, split_uv = _split(points, corner_v, normals, uv)
+    split_index, split_points, split_normals, split_uv, split_colors = _split(points, corner_v, normals, uv, colors)
     return MeshArrays(
         points=points,
         faces=corner_v.astype(np.int32).reshape(-1, 3),
@@ -232,10 +246,12 @@ def gather_mesh(mesh: trimesh.Trimesh, frame: np.ndarray, where: str) -> MeshArr
         split_normals=split_normals,
         split_uv=split_uv,
         split_index=split_index,
+        colors=colors,
+        split_colors=split_colors,
     )
 
 
-def _split(points, corner_v, normals, uv):
+def _split(points, corner_v, normals, uv, colors=None):
     """Un-weld: one vertex per unique (point, normal, uv), numbered like the points, seams appended.
 
     Most corners carry the same attributes as some representative corner of
@@ -277,7 +293,10 @@ def _split(points, corner_v, normals, uv):
     split_points = points if vertex_of_split is None else points[vertex_of_split]
     split_normals = normals[corners]
     split_uv = None if uv is None else uv[corners]
-    return split_index, split_points, split_normals, split_uv
+    split_colors = None
+    if colors is not None:  # a colour belongs to the point: split vertices copy their point's
+        split_colors = colors if vertex_of_split is None else colors[vertex_of_split]
+    return split_index, split_points, split_normals, split_uv, split_colors
 
 
 def _unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -13,13 +13,15 @@ Layout of the file::
 glTF is metres and Y up by definition, so ``units`` and ``up_axis`` other
 than the defaults are refused.  Vertices are split per unique (position,
 normal, uv) corner as glTF requires; texture ``v`` is flipped (glTF's origin
-is the top-left corner of the image).
+is the top-left corner of the image).  A bark with vertex colours gets a
+``COLOR_0`` attribute and a white base colour factor (glTF multiplies the two).
 """
 
 from __future__ import annotations
 
 import json
 import struct
+from dataclasses import replace
 from pathlib import Path
 from urllib.parse import quote
 
@@ -106,6 +108,8 @@ def _primitive(buf: _Buffer, arrays: MeshArrays, material: int) -> dict:
         uv = arrays.split_uv.copy()
         uv[:, 1] = np.float32(1.0) - uv[:, 1]
         attributes["TEXCOORD_0"] = buf.accessor(uv)
+    if arrays.split_colors is not None:  # multiplies the base colour factor, which is white then
+        attributes["COLOR_0"] = buf.accessor(arrays.split_colors)
     index = _indices(arrays.split_index, len(arrays.split_points))
     return {
         "attributes": attributes,
@@ -170,7 +174,10 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
 
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
         bark = gather_mesh(tree.bark, eye, f"{where}: bark")
-        add_node("bark", [_primitive(buf, bark, material_index(tree.bark_material))])
+        material = tree.bark_material
+        if bark.split_colors is not None:  # COLOR_0 is the colour; glTF multiplies it by the factor
+            material = replace(material, base_color=(1.0, 1.0, 1.0, material.base_color[3]))
+        add_node("bark", [_primitive(buf, bark, material_index(material))])
 
     instanced = bool(options.instance_leaves) and tree.leaf_model is not None and len(tree.leaf_transforms) > 0
     if instanced:

@@ -4,7 +4,8 @@ The stage::
 
     /Tree                       Xform, kind = component, defaultPrim; customData lsys3d provenance
         Geom                    Xform
-            bark                Mesh (subdivisionScheme none, faceVarying normals, indexed primvars:st)
+            bark                Mesh (subdivisionScheme none, faceVarying normals, indexed primvars:st;
+                                vertex primvars:displayColor with bark colour variation)
             leaf                PointInstancer of Prototypes/leaf_model  -- or all leaves merged in a Mesh
                 Prototypes      Scope
                     leaf_model  Mesh (model space)
@@ -17,7 +18,9 @@ The parts have the same names as in glTF (``bark``, ``leaf``, ``leaf_polygons``,
 ``skeleton``), so a DCC shows the same objects whichever format it read.
 ``upAxis`` and ``metersPerUnit`` follow :class:`~lsys3d.exchange.ExportOptions`;
 the geometry is turned and scaled to match, so every DCC sees the tree upright
-at its true size.  Points are numbered in the order faces first use them,
+at its true size.  Siblings (the same grammar grown with several seeds) go into
+one stage as the variants of the variant set ``seed`` on ``/Tree``, each
+holding the whole layout above (:func:`build_variant_stage`).  Points are numbered in the order faces first use them,
 which keeps the crate file's integer compression fast.
 """
 
@@ -27,6 +30,7 @@ import json
 import os
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -38,9 +42,11 @@ from .atomic import atomic_path
 from .common import ExportOptions, MeshArrays, decompose_transforms, file_frame, frame_transforms, gather_mesh
 from .common import provenance_json as _provenance_json
 
-__all__ = ["ROOT", "build_stage", "write_usd", "write_usdz"]
+__all__ = ["ROOT", "VARIANT_SET", "build_stage", "build_variant_stage", "write_usd", "write_usd_variants", "write_usdz"]
 
 ROOT = "/Tree"
+VARIANT_SET = "seed"
+"""The variant set of a stage of siblings (:func:`build_variant_stage`)."""
 GEOM = f"{ROOT}/Geom"
 LOOKS = f"{ROOT}/Looks"
 
@@ -50,12 +56,21 @@ def _extent(points: np.ndarray) -> Vt.Vec3fArray:
     return Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))])
 
 
-def _material(stage: Usd.Stage, name: str, m: Material) -> UsdShade.Material:
+def _material(stage: Usd.Stage, name: str, m: Material, vertex_colors: bool = False) -> UsdShade.Material:
     material = UsdShade.Material.Define(stage, f"{LOOKS}/{name}")
     shader = UsdShade.Shader.Define(stage, f"{LOOKS}/{name}/PreviewSurface")
     shader.CreateIdAttr("UsdPreviewSurface")
     r, g, b, a = (float(c) for c in m.base_color)
-    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(r, g, b))
+    diffuse = shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f)
+    if vertex_colors:
+        # the mesh's displayColor primvar is the colour; the base colour is the fallback where it is missing
+        reader = UsdShade.Shader.Define(stage, f"{LOOKS}/{name}/displayColor")
+        reader.CreateIdAttr("UsdPrimvarReader_float3")
+        reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("displayColor")
+        reader.CreateInput("fallback", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(r, g, b))
+        diffuse.ConnectToSource(reader.CreateOutput("result", Sdf.ValueTypeNames.Float3))
+    else:
+        diffuse.Set(Gf.Vec3f(r, g, b))
     shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(m.roughness))
     shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(float(m.metallic))
     if a < 1.0:
@@ -79,6 +94,8 @@ def _mesh(stage: Usd.Stage, path: str, arrays: MeshArrays, material: UsdShade.Ma
         )
         st.Set(Vt.Vec2fArray.FromNumpy(arrays.split_uv))
         st.SetIndices(Vt.IntArray.FromNumpy(arrays.split_index.astype(np.int32)))
+    if arrays.colors is not None:
+        mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex).Set(Vt.Vec3fArray.FromNumpy(arrays.colors))
     mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
     mesh.CreateExtentAttr(_extent(arrays.points))
     if double_sided:
@@ -142,9 +159,38 @@ def _names(materials: list[Material]) -> list[str]:
 
 def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> Usd.Stage:
     """Build the tree's stage in memory (see the module docstring for its layout)."""
-    from .. import __version__
+    stage, prim = _new_stage(options)
+    _author_tree(stage, prim, tree, options, where)
+    return stage
 
-    frame = file_frame(options)
+
+def build_variant_stage(
+    trees: Sequence[Tree], names: Sequence[str], options: ExportOptions, where: str = "<stage>"
+) -> Usd.Stage:
+    """One stage whose ``/Tree`` holds every tree as a variant of the variant set ``seed``.
+
+    Variant ``names[i]`` holds all that :func:`build_stage` authors under
+    ``/Tree`` for ``trees[i]`` (parts, materials, provenance); the selection
+    is the first variant.  A layout artist switches siblings in place.
+    """
+    if not trees or len(trees) != len(names):
+        raise ExportError(f"{where}: variants need one name per tree, and at least one tree")
+    bad = [n for n in names if not Tf.IsValidIdentifier(n)]
+    if bad or len(set(names)) != len(names):
+        raise ExportError(f"{where}: variant names must be distinct identifiers, not {list(names)!r}")
+    stage, prim = _new_stage(options)
+    variants = prim.GetVariantSets().AddVariantSet(VARIANT_SET)
+    for name, tree in zip(names, trees, strict=True):
+        variants.AddVariant(name)
+        variants.SetVariantSelection(name)
+        with variants.GetVariantEditContext():
+            _author_tree(stage, prim, tree, options, f"{where}: variant {name}")
+    variants.SetVariantSelection(names[0])
+    return stage
+
+
+def _new_stage(options: ExportOptions) -> tuple[Usd.Stage, Usd.Prim]:
+    """An in-memory stage with its axis, units and the ``/Tree`` component (the default prim)."""
     stage = Usd.Stage.CreateInMemory()
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z if options.up_axis == "Z" else UsdGeom.Tokens.y)
     UsdGeom.SetStageMetersPerUnit(stage, options.meters_per_unit)
@@ -152,6 +198,14 @@ def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> U
     prim = root.GetPrim()
     stage.SetDefaultPrim(prim)
     Usd.ModelAPI(prim).SetKind(Kind.Tokens.component)
+    return stage, prim
+
+
+def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOptions, where: str) -> None:
+    """Author the tree under ``/Tree`` at the stage's edit target: provenance, parts, materials."""
+    from .. import __version__
+
+    frame = file_frame(options)
     provenance = _provenance_json(tree.provenance, where)
     name = provenance.get("name") if isinstance(provenance.get("name"), str) else None
     Usd.ModelAPI(prim).SetAssetName(name or "tree")
@@ -162,8 +216,8 @@ def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> U
     UsdGeom.Scope.Define(stage, LOOKS)
     bark_name, leaf_name = _names([tree.bark_material, tree.leaf_material])
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
-        bark_material = _material(stage, bark_name, tree.bark_material)
         bark = gather_mesh(tree.bark, frame, f"{where}: bark")
+        bark_material = _material(stage, bark_name, tree.bark_material, vertex_colors=bark.colors is not None)
         _mesh(stage, f"{GEOM}/bark", bark, bark_material, tree.bark_material.double_sided)
 
     instanced = options.instance_leaves is not False and tree.leaf_model is not None and len(tree.leaf_transforms) > 0
@@ -185,7 +239,6 @@ def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> U
 
     if options.skeleton_curves:
         _skeleton(stage, f"{GEOM}/skeleton", tree, frame)
-    return stage
 
 
 def _export_layer(layer: Sdf.Layer, tmp: Path, path: Path) -> None:
@@ -199,7 +252,18 @@ def _export_layer(layer: Sdf.Layer, tmp: Path, path: Path) -> None:
 
 def write_usd(tree: Tree, path: Path, options: ExportOptions) -> Path:
     """Write ``tree`` as ``.usda`` (text), ``.usdc`` (crate) or ``.usd`` (crate)."""
-    stage = build_stage(tree, options, str(path))
+    return _write_layer(build_stage(tree, options, str(path)), path, options)
+
+
+def write_usd_variants(trees: Sequence[Tree], names: Sequence[str], path: Path, options: ExportOptions) -> Path:
+    """Write the trees as the variants of one stage (:func:`build_variant_stage`), any USD suffix."""
+    stage = build_variant_stage(trees, names, options, str(path))
+    if path.suffix.lower() == ".usdz":
+        return _write_package(stage, path, options)
+    return _write_layer(stage, path, options)
+
+
+def _write_layer(stage: Usd.Stage, path: Path, options: ExportOptions) -> Path:
     with atomic_path(path, options.no_clobber) as tmp:
         _export_layer(stage.GetRootLayer(), tmp, path)
     return path
@@ -207,7 +271,10 @@ def write_usd(tree: Tree, path: Path, options: ExportOptions) -> Path:
 
 def write_usdz(tree: Tree, path: Path, options: ExportOptions) -> Path:
     """Write ``tree`` as a ``.usdz`` package holding one ``.usdc`` layer (no external files)."""
-    stage = build_stage(tree, options, str(path))
+    return _write_package(build_stage(tree, options, str(path)), path, options)
+
+
+def _write_package(stage: Usd.Stage, path: Path, options: ExportOptions) -> Path:
     inner = f"{Tf.MakeValidIdentifier(path.stem)}.usdc"
     with atomic_path(path, options.no_clobber) as tmp, tempfile.TemporaryDirectory(prefix="lsys3d-") as folder:
         layer_path = Path(folder) / inner
