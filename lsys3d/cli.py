@@ -14,7 +14,8 @@ from . import __version__
 from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import LSystemError
 from .presets import DEFAULT_PRESET, describe, list_presets, load
-from .turtle import interpret
+from .sweep import DEFAULT_MAX_TRIANGLES
+from .turtle import DEFAULT_MAX_SEGMENTS, interpret
 
 DEFAULT_OUTPUT = "tree.glb"
 DEFAULT_PICTURE = "tree.png"
@@ -24,6 +25,22 @@ EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
 
+def _at_least(lowest: int):
+    """An argparse type: a whole number >= ``lowest`` (anything else is a usage error, exit 2)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text.replace("_", ""))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, not {text!r}") from None
+        if value < lowest:
+            raise argparse.ArgumentTypeError(f"must be at least {lowest}, not {value}")
+        return value
+
+    parse.__name__ = "whole number"  # argparse names the type in its messages
+    return parse
+
+
 def _grammar_args(p: argparse.ArgumentParser, optional: bool = False):
     if optional:
         p.add_argument(
@@ -31,25 +48,44 @@ def _grammar_args(p: argparse.ArgumentParser, optional: bool = False):
         )
     else:
         p.add_argument("grammar", help="a grammar file (.toml) or the name of a bundled preset")
-    p.add_argument("-n", "--iterations", type=int, default=None, help="number of generations (default: the grammar's)")
-    p.add_argument("--seed", type=int, default=None, help="seed of stochastic rules (default: the grammar's)")
+    p.add_argument(
+        "-n", "--iterations", type=_at_least(0), default=None, help="number of generations (default: the grammar's)"
+    )
+    p.add_argument("--seed", type=_at_least(0), default=None, help="seed of stochastic rules (default: the grammar's)")
     p.add_argument(
         "--max-modules",
-        type=int,
+        type=_at_least(1),
         default=DEFAULT_MAX_MODULES,
         help=f"size limit of derivation (default {DEFAULT_MAX_MODULES:,})",
     )
 
 
 def _mesh_args(p: argparse.ArgumentParser):
-    p.add_argument("--sides", type=int, default=None, help="vertices around the trunk's tubes (default 8)")
+    p.add_argument("--sides", type=_at_least(3), default=None, help="vertices around the trunk's tubes (default 8)")
     p.add_argument("--no-union", action="store_true", help="skip the union: the tube soup, a fast preview")
+    p.add_argument(
+        "--max-segments",
+        type=_at_least(1),
+        default=DEFAULT_MAX_SEGMENTS,
+        help=f"most segments the turtle draws (default {DEFAULT_MAX_SEGMENTS:,})",
+    )
+    p.add_argument(
+        "--max-triangles",
+        type=_at_least(1),
+        default=DEFAULT_MAX_TRIANGLES,
+        help=f"most tube triangles before the union (default {DEFAULT_MAX_TRIANGLES:,})",
+    )
 
 
 def _generate_options(args):
     from .pipeline import GenerateOptions
 
-    options = GenerateOptions(union=not args.no_union, max_modules=args.max_modules)
+    options = GenerateOptions(
+        union=not args.no_union,
+        max_modules=args.max_modules,
+        max_segments=args.max_segments,
+        max_tube_triangles=args.max_triangles,
+    )
     if args.sides is not None:
         options = dataclasses.replace(options, sweep=dataclasses.replace(options.sweep, sides=args.sides))
     return options
@@ -85,8 +121,15 @@ class _Progress:
             sys.stderr.flush()
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors in one line, like every other error (subcommand parsers inherit the class)."""
+
+    def error(self, message: str):
+        self.exit(EXIT_USAGE, f"lsys3d: error: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="lsys3d", description="Grow 3D plants and fractals from L-systems.")
+    parser = _Parser(prog="lsys3d", description="Grow 3D plants and fractals from L-systems.")
     parser.add_argument("--version", action="version", version=f"lsys3d {__version__}")
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     parser.add_argument("-v", "--verbose", action="store_true", help="log each stage with its timing")
@@ -238,7 +281,7 @@ def cmd_stats(args) -> int:
         result = report(tree.modules, tree.skeleton, tree)
     else:
         modules = derive(grammar, args.iterations, args.seed, max_modules=args.max_modules)
-        result = report(modules, interpret(modules, grammar, seed=args.seed))
+        result = report(modules, interpret(modules, grammar, seed=args.seed, max_segments=args.max_segments))
     if args.golden:
         from .golden import recipe_for, write_golden
 
@@ -313,10 +356,22 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except LSystemError as exc:
-        print(f"lsys3d: error: {exc}", file=sys.stderr)
+        print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except MemoryError:
+        print(
+            "lsys3d: error: out of memory; use fewer iterations, or lower --max-modules, --max-segments or "
+            "--max-triangles",
+            file=sys.stderr,
+        )
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print("lsys3d: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:
         return 0
+
+
+def _one_line(message: str) -> str:
+    """An error message on one line, even when it quotes a rule written over several (TOML multi-line strings)."""
+    return " ".join(part.strip() for part in message.splitlines() if part.strip())

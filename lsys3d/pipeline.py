@@ -20,9 +20,9 @@ from .errors import GeometryError
 from .grammar import Grammar
 from .leaves import leaves as build_leaves
 from .presets import load
-from .sweep import SweepOptions, sweep
+from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import Tree
-from .turtle import interpret
+from .turtle import DEFAULT_MAX_SEGMENTS, interpret
 from .union import UnionOptions, concatenate, union
 
 __all__ = ["STAGES", "GenerateOptions", "generate", "run_stage"]
@@ -43,6 +43,10 @@ class GenerateOptions:
         Merge the tubes into one watertight mesh (False: the tube soup, a fast preview).
     max_modules : int
         Derivation size limit.
+    max_segments : int
+        Most segments the turtle draws.
+    max_tube_triangles : int
+        Most triangles the sweep builds (checked before the tubes are allocated).
     sweep : SweepOptions
         Tube sides, minimum width, bend splitting...
     union_options : UnionOptions
@@ -51,6 +55,8 @@ class GenerateOptions:
 
     union: bool = True
     max_modules: int = DEFAULT_MAX_MODULES
+    max_segments: int = DEFAULT_MAX_SEGMENTS
+    max_tube_triangles: int = DEFAULT_MAX_TRIANGLES
     sweep: SweepOptions = field(default_factory=SweepOptions)
     union_options: UnionOptions = field(default_factory=UnionOptions)
 
@@ -121,14 +127,19 @@ def generate(
         return run_stage(name, fn, *args, progress=progress, **kw)
 
     modules = stage("derive", derive, grammar, n, seed, max_modules=options.max_modules)
-    skeleton = stage("interpret", interpret, modules, grammar, seed=seed)
+    skeleton = stage("interpret", interpret, modules, grammar, seed=seed, max_segments=options.max_segments)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
-            f"{grammar.name or 'grammar'}: nothing to mesh: the {len(modules):,} modules after {n} iterations draw "
-            "no segment and no leaf (segments are drawn by F, or the [turtle] table's draw symbols)"
+            f"{grammar.name or grammar.source}: nothing to mesh: the {len(modules):,} modules after {n} "
+            "iterations draw no segment and no leaf (segments are drawn by F, or the [turtle] table's draw symbols)"
         )
-    tubes = stage("sweep", sweep, skeleton, options.sweep)
-    if len(skeleton) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
+    tubes = stage("sweep", sweep, skeleton, options.sweep, max_triangles=options.max_tube_triangles)
+    if len(tubes) == 0 and skeleton.n_leaves == 0:
+        raise GeometryError(
+            f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter than "
+            f"min_length ({options.sweep.min_length:g}) and there is no leaf"
+        )
+    if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
         bark = stage("union", lambda _: trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)), tubes)
     else:
         merge = (lambda t: union(t, options.union_options)) if options.union else concatenate

@@ -42,13 +42,17 @@ from dataclasses import dataclass, fields
 import numpy as np
 import trimesh
 
+from .errors import GeometryError, LimitError
 from .noise import fbm3
 from .skeleton import Skeleton
 
-__all__ = ["BARK_NOISE_STREAM", "SweepOptions", "Tubes", "sweep"]
+__all__ = ["BARK_NOISE_STREAM", "DEFAULT_MAX_TRIANGLES", "SweepOptions", "Tubes", "sweep"]
 
 BARK_NOISE_STREAM = 6
 """The bark displacement's noise has seed ``(seed, BARK_NOISE_STREAM)``: unrelated to the turtle's streams."""
+
+DEFAULT_MAX_TRIANGLES = 10_000_000
+"""Most tube triangles :func:`sweep` builds (about 50 bytes a triangle in the tubes, more in the union)."""
 
 
 @dataclass(frozen=True)
@@ -312,7 +316,13 @@ def _perpendicular(d: np.ndarray, hint: np.ndarray) -> np.ndarray:
     return _unit(u)
 
 
-def sweep(skeleton: Skeleton, options: SweepOptions | None = None, *, seed: int = 0) -> Tubes:
+def sweep(
+    skeleton: Skeleton,
+    options: SweepOptions | None = None,
+    *,
+    max_triangles: int = DEFAULT_MAX_TRIANGLES,
+    seed: int = 0,
+) -> Tubes:
     """Sweep a closed tube along every chain of a skeleton.
 
     Parameters
@@ -323,6 +333,9 @@ def sweep(skeleton: Skeleton, options: SweepOptions | None = None, *, seed: int 
         Sides, minimum width, bend limits, bark displacement (defaults if None).
     seed : int
         Seed of the bark noise (used only with ``bark_displacement``).
+    max_triangles : int
+        Refuse to build more triangles than this; the count is known exactly
+        (see the module docstring) before the tubes are allocated.
 
     Returns
     -------
@@ -330,6 +343,13 @@ def sweep(skeleton: Skeleton, options: SweepOptions | None = None, *, seed: int 
         One tube per chain, or more where a chain bends too sharply; none for
         an empty skeleton.  Zero-length segments are dropped, widths below
         ``min_width`` clamped.
+
+    Raises
+    ------
+    GeometryError
+        A segment whose end points, width or frame are not finite numbers.
+    LimitError
+        More than ``max_triangles`` triangles (the message gives the count).
 
     Examples
     --------
@@ -348,6 +368,7 @@ def sweep(skeleton: Skeleton, options: SweepOptions | None = None, *, seed: int 
     opt = SweepOptions() if options is None else options
     if not len(skeleton):
         return Tubes.empty()
+    _check_finite(skeleton)
     chains = skeleton.chains
     seg = chains.segments
     chain = np.repeat(np.arange(len(chains)), chains.lengths())
@@ -474,6 +495,14 @@ def sweep(skeleton: Skeleton, options: SweepOptions | None = None, *, seed: int 
     chain_of_piece = chain[piece_start]
     order_of_piece = skeleton.order[skeleton.chains.segments[skeleton.chains.offsets[chain_of_piece]]]
     sides_of_piece = opt.sides_for_order(order_of_piece)
+    triangles = int((2 * sides_of_piece * rings).sum())
+    if triangles > max_triangles:
+        raise LimitError(
+            f"sweep: the {len(skeleton):,} segments would make {triangles:,} tube triangles, more than the limit "
+            f"of {max_triangles:,}; use fewer iterations or sides, or raise the limit (--max-triangles, or "
+            "max_triangles=)"
+        )
+
     displace = None
     if opt.bark_displacement > 0:
         amplitude, noise_seed = opt.bark_displacement, (int(seed), BARK_NOISE_STREAM)
@@ -520,6 +549,18 @@ def sweep(skeleton: Skeleton, options: SweepOptions | None = None, *, seed: int 
         rings[order_all],
         order_of_piece[order_all].astype(np.int32),
     )
+
+
+def _check_finite(skeleton: Skeleton) -> None:
+    """A NaN or infinite coordinate would pass silently into every tube of its chain: refuse it by name."""
+    ok = np.isfinite(skeleton.start).all(axis=1) & np.isfinite(skeleton.end).all(axis=1)
+    ok &= np.isfinite(skeleton.left).all(axis=1) & np.isfinite(skeleton.width_start) & np.isfinite(skeleton.width_end)
+    if not ok.all():
+        s = int(np.flatnonzero(~ok)[0])
+        raise GeometryError(
+            f"sweep: segment {s} (module {int(skeleton.module[s])}) has a start, end, width or frame "
+            "that is not a finite number"
+        )
 
 
 def _offsets(counts: np.ndarray) -> np.ndarray:

@@ -64,14 +64,17 @@ from dataclasses import dataclass, fields, replace
 import numba
 import numpy as np
 
-from .errors import GrammarError, InterpretError
+from .errors import GrammarError, InterpretError, LimitError, clip
 from .grammar import Grammar, _key_line
 from .modules import ModuleString
 from .skeleton import Skeleton
 
-__all__ = ["COMMANDS", "Command", "TurtleOptions", "commands_markdown", "interpret"]
+__all__ = ["COMMANDS", "DEFAULT_MAX_SEGMENTS", "Command", "TurtleOptions", "commands_markdown", "interpret"]
 
 log = logging.getLogger("lsys3d")
+
+DEFAULT_MAX_SEGMENTS = 1_000_000
+"""Most segments :func:`interpret` draws (about 200 bytes a segment in the turtle, far more once swept)."""
 
 # ------------------------------------------------------------------ opcodes
 # The numba kernel switches on these; the table below is the only place that
@@ -279,7 +282,8 @@ class TurtleOptions:
         values: dict = {"angle": grammar.angle, "seed": grammar.seed}
         for key, value in grammar.turtle.items():
             if key not in known:
-                raise _turtle_error(grammar, key, f"unknown key {key!r} (known keys: {', '.join(sorted(known))})")
+                known_keys = ", ".join(sorted(known))
+                raise _turtle_error(grammar, key, f"unknown key {clip(repr(key))} (known keys: {known_keys})")
             try:
                 values[key] = _check_option(key, value)
             except ValueError as exc:
@@ -308,15 +312,15 @@ def _check_option(key: str, value):
     """The normalised value of an option, or ValueError('key' what)."""
     if key in ("draw", "move", "leaf"):
         if not isinstance(value, str):
-            raise ValueError(f"'{key}' must be a string of symbols, not {value!r}")
+            raise ValueError(f"'{key}' must be a string of symbols, not {clip(repr(value))}")
         if key == "leaf" and len(value) != 1:
             raise ValueError(f"'{key}' must be one symbol, not {value!r}")
         if any(c.isspace() or c in "()," for c in value):
-            raise ValueError(f"'{key}' holds a character that cannot be a symbol: {value!r}")
+            raise ValueError(f"'{key}' holds a character that cannot be a symbol: {clip(repr(value))}")
         return value
     if key == "tropism":
         if not isinstance(value, (list, tuple)) or len(value) != 3 or not all(_is_number(v) for v in value):
-            raise ValueError(f"'tropism' must be a list of three numbers [x, y, z], not {value!r}")
+            raise ValueError(f"'tropism' must be a list of three numbers [x, y, z], not {clip(repr(value))}")
         return tuple(float(v) for v in value)
     if key == "jitter_distribution":
         if value not in JITTER_DISTRIBUTIONS:
@@ -327,7 +331,7 @@ def _check_option(key: str, value):
             raise ValueError(f"'seed' must be a whole number >= 0, not {value!r}")
         return value
     if not _is_number(value):
-        raise ValueError(f"'{key}' must be a finite number, not {value!r}")
+        raise ValueError(f"'{key}' must be a finite number, not {clip(repr(value))}")
     value = float(value)
     lower = {"step": (0, False), "width_scale": (0, False), "length_scale": (0, False), "width": (0, True)}
     lower.update({"angle_jitter": (0, True), "length_jitter": (0, True)})
@@ -860,7 +864,13 @@ def _dropped_modules(table, symbols, drop):
     return out
 
 
-def interpret(modules: ModuleString, options: TurtleOptions | Grammar, seed: int | None = None) -> Skeleton:
+def interpret(
+    modules: ModuleString,
+    options: TurtleOptions | Grammar,
+    seed: int | None = None,
+    *,
+    max_segments: int = DEFAULT_MAX_SEGMENTS,
+) -> Skeleton:
     """Draw a module string with the 3D turtle.
 
     Parameters
@@ -870,8 +880,10 @@ def interpret(modules: ModuleString, options: TurtleOptions | Grammar, seed: int
     options : TurtleOptions or Grammar
         How to draw; a grammar stands for ``TurtleOptions.from_grammar(grammar)``.
     seed : int, optional
-        Seed of the natural variation (``angle_jitter``, ``length_jitter``);
-        the options' (grammar's) seed if None.
+        Seed of the natural variation (the ``*_jitter`` and ``branch_*``
+        options); the options' (grammar's) seed if None.
+    max_segments : int
+        Refuse (before drawing) a string with more drawing modules than this.
 
     Returns
     -------
@@ -887,6 +899,8 @@ def interpret(modules: ModuleString, options: TurtleOptions | Grammar, seed: int
         module's index and text.
     GrammarError
         Bad ``[turtle]`` settings in the grammar.
+    LimitError
+        More than ``max_segments`` segments (the message gives the count).
 
     Examples
     --------
@@ -916,6 +930,11 @@ def interpret(modules: ModuleString, options: TurtleOptions | Grammar, seed: int
     if why == 2:
         raise _module_error(modules, table, bad, "parameter is not a finite number")
     n_seg = int(counts[_FORWARD])
+    if n_seg > max_segments:
+        raise LimitError(
+            f"interpret: the module string would draw up to {n_seg:,} segments, more than the limit of "
+            f"{max_segments:,}; use fewer iterations, or raise the limit (--max-segments, or max_segments=)"
+        )
     n_poly = int(counts[_POLYGON_BEGIN])
     n_pts = int(counts[_FORWARD] + counts[_MOVE] + counts[_POLYGON_VERTEX]) if n_poly else 0
     n_leaf = int(counts[_LEAF])

@@ -99,7 +99,8 @@ def check_output(path: str | os.PathLike, options: ExportOptions | None = None) 
     """Check, before any long work, that :func:`export` could write ``path``.
 
     Raises :class:`~lsys3d.errors.ExportError` for an unknown suffix, a missing
-    or unwritable folder, or an existing file with ``no_clobber``; writes nothing.
+    or unwritable folder, or an existing file with ``no_clobber``; leaves nothing
+    behind (the folder is tested by creating and removing an empty hidden file).
 
     Examples
     --------

@@ -44,8 +44,14 @@ def check_target(path: Path, no_clobber: bool) -> None:
         raise ExportError(f"{path}: folder {str(folder)!r} {what}")
     if path.is_dir():
         raise ExportError(f"{path}: is a folder")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise ExportError(f"{path}: folder {str(folder)!r} is not writable")
+    # Try it rather than ask os.access(), which says yes to root even where the file system refuses (sysfs,
+    # read-only mounts), so that a folder nobody can write fails here and not after minutes of work.
+    probe = _temp_name(path)
+    try:
+        os.close(os.open(probe, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+    except OSError as exc:
+        raise ExportError(f"{path}: folder {str(folder)!r} is not writable ({_reason(exc)})") from None
+    _remove(probe)
     if no_clobber and (path.exists() or path.is_symlink()):
         raise ExportError(f"{path}: file exists (no_clobber is set)")
 
