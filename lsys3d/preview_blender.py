@@ -1,7 +1,8 @@
 """Render a ``.glb`` to a PNG inside Blender: the Blender side of :mod:`lsys3d.preview`.
 
-This file runs in Blender's Python, not in lsys3d's: it imports only ``bpy``
-and the standard library (never lsys3d, which Blender's Python need not have).
+This file runs in Blender's Python, not in lsys3d's: it imports only ``bpy``,
+the numpy that every Blender bundles and the standard library (never lsys3d,
+which Blender's Python need not have).
 :func:`lsys3d.preview.preview` runs it in a child process, either as
 
     blender --background --factory-startup --python-exit-code 1 --python preview_blender.py -- JSON
@@ -14,15 +15,17 @@ left around the object), ``threads`` (0: all cores).
 
 The scene: the glTF import (Blender turns glTF's Y up into its Z up, so the
 tree stands on the XY plane), a perspective camera fitted to every mesh vertex
-for the chosen view, a sun and a sky that light the object, and a background
-the camera sees in the flat ``background`` colour.  Colour management is
-Blender's "Standard" view, so that colour comes out as given.  Cycles renders
-on the CPU: it needs no display and no GPU.
+for the chosen view, and a sun and a sky that light the object.  Cycles
+renders on the CPU (it needs no display and no GPU) with a transparent film,
+into a scratch RGBA file beside the ``.glb``; the image is then laid over the
+flat ``background`` colour and written as 8-bit RGB.  Colour management is
+Blender's "Standard" view, so colours come out as the materials give them.
 """
 
 import array
 import json
 import math
+import os
 import sys
 
 #: Camera direction per view, Blender frame (Z up; glTF's front, +Z, is Blender's -Y):
@@ -30,10 +33,6 @@ import sys
 VIEWS = {"front": (0.0, 4.0), "side": (90.0, 4.0), "iso": (45.0, 30.0)}
 LENS_MM = 50.0
 SUN_DIRECTION = (-0.45, -0.6, 0.66)  # towards the sun: up, in front, to the left of the camera
-
-
-def _srgb_to_linear(c):
-    return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
 
 
 def _direction(view):
@@ -66,27 +65,41 @@ def _mesh_points(bpy):
     return coords
 
 
-def _world(bpy, background, scene):
-    """A sky that lights the object, seen by the camera as the flat ``background`` colour."""
+def _world(bpy, scene):
+    """A pale blue sky that lights the object from everywhere (the camera sees through it: film is transparent)."""
     world = bpy.data.worlds.new("preview")
     scene.world = world
     if world.node_tree is None:  # Blender < 5 makes node trees on request; 5.0 deprecates the switch
         world.use_nodes = True
-    nodes, links = world.node_tree.nodes, world.node_tree.links
+    nodes = world.node_tree.nodes
     nodes.clear()
     out = nodes.new("ShaderNodeOutputWorld")
     sky = nodes.new("ShaderNodeBackground")
     sky.inputs["Color"].default_value = (0.75, 0.82, 1.0, 1.0)
     sky.inputs["Strength"].default_value = 0.6
-    seen = nodes.new("ShaderNodeBackground")
-    seen.inputs["Color"].default_value = (*(_srgb_to_linear(c) for c in background), 1.0)
-    seen.inputs["Strength"].default_value = 1.0
-    path = nodes.new("ShaderNodeLightPath")
-    mix = nodes.new("ShaderNodeMixShader")
-    links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
-    links.new(sky.outputs["Background"], mix.inputs[1])
-    links.new(seen.outputs["Background"], mix.inputs[2])
-    links.new(mix.outputs["Shader"], out.inputs["Surface"])
+    world.node_tree.links.new(sky.outputs["Background"], out.inputs["Surface"])
+
+
+def _flatten(bpy, scene, rendered, png, background):
+    """Lay the transparent render ``rendered`` over the flat sRGB ``background``; write ``png`` as 8-bit RGB.
+
+    Cycles' denoiser speckles even a flat background, so the camera sees
+    none (transparent film) and the background colour is put in here, exactly.
+    """
+    import numpy as np  # every Blender bundles numpy
+
+    image = bpy.data.images.load(rendered)
+    width, height = image.size
+    rgba = np.empty(width * height * 4, np.float32)
+    image.pixels.foreach_get(rgba)  # straight alpha, sRGB-encoded values of the 8-bit file
+    rgba = rgba.reshape(-1, 4)
+    alpha = rgba[:, 3:]
+    rgba[:, :3] = rgba[:, :3] * alpha + np.asarray(background, np.float32) * (1.0 - alpha)
+    rgba[:, 3] = 1.0
+    flat = bpy.data.images.new("preview", width, height, alpha=False)
+    flat.pixels.foreach_set(rgba.ravel())
+    scene.render.image_settings.color_mode = "RGB"
+    flat.save_render(png, scene=scene)
 
 
 def _camera(bpy, scene, view, margin):
@@ -140,15 +153,16 @@ def render(job):
     render.engine = "CYCLES"
     render.resolution_x, render.resolution_y = job["width"], job["height"]
     render.resolution_percentage = 100
-    render.film_transparent = False
+    render.film_transparent = True
     render.use_file_extension = False
     if job.get("threads"):
         render.threads_mode = "FIXED"
         render.threads = job["threads"]
     render.image_settings.file_format = "PNG"
-    render.image_settings.color_mode = "RGB"
+    render.image_settings.color_mode = "RGBA"
     render.image_settings.color_depth = "8"
-    render.image_settings.compression = 90
+    render.image_settings.compression = 100
+    render.dither_intensity = 0.0  # dither noise would defeat the PNG compression and the flat background
     scene.display_settings.display_device = "sRGB"
     scene.view_settings.view_transform = "Standard"
     scene.view_settings.look = "None"
@@ -168,12 +182,14 @@ def render(job):
     if cycles.use_denoising:
         cycles.denoiser = "OPENIMAGEDENOISE"
 
-    _world(bpy, job["background"], scene)
+    _world(bpy, scene)
     _sun(bpy, scene)
     _camera(bpy, scene, job["view"], job["margin"])
 
-    render.filepath = job["png"]
+    rendered = os.path.join(os.path.dirname(job["glb"]), "rendered.png")  # lsys3d's temporary folder
+    render.filepath = rendered
     bpy.ops.render.render(write_still=True)
+    _flatten(bpy, scene, rendered, job["png"], job["background"])
 
 
 def main(argv):
