@@ -1,6 +1,9 @@
 # Two commands do everything on a fresh machine:
 #   make demo   grow the default tree and write tree.glb
 #   make test   lint and run the whole test suite, with the real validators
+# Pictures, rendered by Blender from .venv-bpy:
+#   make preview   a picture of the default tree, tree.png
+#   make gallery   regenerate docs/gallery.md and docs/gallery/
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -11,7 +14,7 @@ BPY_VENV := .venv-bpy
 BPY_STAMP := $(BPY_VENV)/.installed
 BPY_VERSION := 5.0.1
 
-.PHONY: demo test lint format validators clean
+.PHONY: demo preview gallery test lint format validators clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +36,12 @@ validators: node_modules/.package-lock.json $(BPY_STAMP)
 
 demo: $(STAMP)
 	$(BIN)/lsys3d generate
+
+preview: $(STAMP) $(BPY_STAMP)
+	LSYS3D_BLENDER=$(BPY_VENV)/bin/python $(BIN)/lsys3d preview
+
+gallery: $(STAMP) $(BPY_STAMP)
+	LSYS3D_BLENDER=$(BPY_VENV)/bin/python $(BIN)/python docs/make_gallery.py
 
 test: $(STAMP) validators
 	$(BIN)/ruff check .
