@@ -170,3 +170,10 @@ def test_cli_generate_koch_svg(tmp_path):
     root = parse((tmp_path / "koch.svg").read_text(encoding="utf-8"))
     assert len(drawn_segments(root)) == 256
     assert sorted(p.name for p in tmp_path.iterdir()) == ["koch.svg"]
+
+
+def test_centimetres_scale_the_drawing_and_the_up_axis_does_not_turn_it():
+    tree = grow("koch", 2)
+    metres = numbers(parse(svg_text(tree)).get("viewBox"))
+    cm = numbers(parse(svg_text(tree, ExportOptions(units="cm", up_axis="Z"))).get("viewBox"))
+    np.testing.assert_allclose(cm, metres * 100, rtol=1e-3)
