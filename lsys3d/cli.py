@@ -15,7 +15,7 @@ from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import LSystemError
 from .presets import DEFAULT_PRESET, describe, list_presets, load
 from .sweep import DEFAULT_MAX_TRIANGLES
-from .turtle import DEFAULT_MAX_SEGMENTS, interpret
+from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, interpret
 
 DEFAULT_OUTPUT = "tree.glb"
 DEFAULT_PICTURE = "tree.png"
@@ -75,6 +75,30 @@ def _mesh_args(p: argparse.ArgumentParser):
         default=DEFAULT_MAX_TRIANGLES,
         help=f"most tube triangles before the union (default {DEFAULT_MAX_TRIANGLES:,})",
     )
+    p.add_argument(
+        "--turtle",
+        metavar="KEY=VALUE",
+        action="append",
+        type=_turtle_setting,
+        default=[],
+        help="override a [turtle] setting of the grammar, e.g. --turtle width_jitter=0.2 --turtle branch_drop=0.1 "
+        "(repeatable; the variation keys are angle_jitter, length_jitter, width_jitter, branch_roll, branch_drop, "
+        "jitter_distribution)",
+    )
+    p.add_argument(
+        "--bark-displacement",
+        type=_between(0.0, 0.5),
+        default=0.0,
+        metavar="F",
+        help="procedural bark: displace the tubes by noise up to this fraction of their radius (0..0.5; default 0)",
+    )
+    p.add_argument(
+        "--bark-color-variation",
+        type=_between(0.0, 1.0),
+        default=0.0,
+        metavar="F",
+        help="vary the bark colour by noise up to this fraction, as vertex colours (0..1; default 0)",
+    )
 
 
 def _generate_options(args):
@@ -88,7 +112,46 @@ def _generate_options(args):
     )
     if args.sides is not None:
         options = dataclasses.replace(options, sweep=dataclasses.replace(options.sweep, sides=args.sides))
+    if args.bark_displacement:
+        bark = dataclasses.replace(options.sweep, bark_displacement=args.bark_displacement)
+        options = dataclasses.replace(options, sweep=bark)
+    if args.bark_color_variation:
+        options = dataclasses.replace(options, bark_color_variation=args.bark_color_variation)
+    if args.turtle:
+        options = dataclasses.replace(options, turtle=dict(args.turtle))
     return options
+
+
+def _between(lowest: float, highest: float):
+    """An argparse type: a number in [lowest, highest] (anything else is a usage error, exit 2)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, not {text!r}") from None
+        if not lowest <= value <= highest:
+            raise argparse.ArgumentTypeError(f"must be between {lowest:g} and {highest:g}, not {text}")
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
+def _turtle_setting(text: str) -> tuple[str, object]:
+    """``KEY=VALUE`` with a TOML value (``0.2``, ``"normal"``, ``[0, -1, 0]``); a bare word is a string."""
+    import tomllib
+
+    key, sep, value = text.partition("=")
+    key = key.strip()
+    known = {f.name for f in dataclasses.fields(TurtleOptions)} - {"angle", "seed"}
+    if not sep or key not in known:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE with KEY one of {', '.join(sorted(known))}, not {text!r}")
+    try:
+        parsed = tomllib.loads(f"v = {value.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        parsed = value.strip()
+    return key, parsed
 
 
 def _pixels(text: str) -> tuple[int, int]:
@@ -157,6 +220,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--skeleton-curves", action="store_true", help="also write the branch skeleton as curves")
     p.add_argument("--hairline", action="store_true", help="SVG: lines one pixel wide instead of as wide as branches")
     p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
+    p.add_argument(
+        "--variants",
+        type=_at_least(1),
+        default=1,
+        metavar="N",
+        help="grow N siblings with seeds SEED, SEED+1, ...: a USD output holds them as the variants of the "
+        "variant set 'seed'; any other is written as <stem>_0<suffix> ... <stem>_<N-1><suffix> (default 1)",
+    )
     p.set_defaults(func=cmd_generate)
 
     p = sub.add_parser("preview", help="grow a plant and render a shaded picture of it (.png) with Blender")
@@ -228,6 +299,8 @@ def cmd_generate(args) -> int:
     options = _generate_options(args)
     if drawing:  # a line drawing of the skeleton: the union's minutes would be thrown away
         options = dataclasses.replace(options, union=False)
+    if args.variants > 1:
+        return _generate_siblings(args, options, export_options)
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
     try:
@@ -244,6 +317,42 @@ def cmd_generate(args) -> int:
             f"wrote {path}: {len(bark.vertices):,} vertices, {len(bark.faces):,} faces, {leaves:,} leaves "
             f"({time.perf_counter() - t0:.1f} s)"
         )
+    return 0
+
+
+def _generate_siblings(args, options, export_options) -> int:
+    """``generate --variants N``: the grammar grown with seeds SEED .. SEED+N-1, written by export_variants."""
+    from .exchange import check_output, export_variants, variant_paths
+    from .pipeline import generate, run_stage
+
+    for target in variant_paths(args.output, args.variants):
+        check_output(target, export_options)
+    grammar = load(args.grammar)
+    first = grammar.seed if args.seed is None else args.seed
+    progress = _Progress(sys.stderr.isatty() and not args.quiet)
+    t0 = time.perf_counter()
+    try:
+        trees = [
+            generate(grammar, args.iterations, first + i, options=options, progress=progress)
+            for i in range(args.variants)
+        ]
+        paths = run_stage("export", export_variants, trees, args.output, export_options, progress=progress)
+    finally:
+        progress.clear()
+    if not args.quiet:
+        if len(paths) == 1:
+            print(
+                f"wrote {paths[0]}: {len(trees)} variants seed_{first} .. seed_{first + len(trees) - 1} of the "
+                f"variant set 'seed' ({time.perf_counter() - t0:.1f} s)"
+            )
+        else:
+            for path, tree in zip(paths, trees, strict=True):
+                bark = tree.bark
+                print(
+                    f"wrote {path}: seed {tree.provenance['seed']}, {len(bark.vertices):,} vertices, "
+                    f"{len(bark.faces):,} faces, {tree.skeleton.n_leaves:,} leaves"
+                )
+            print(f"{len(paths)} files in {time.perf_counter() - t0:.1f} s")
     return 0
 
 
@@ -281,7 +390,8 @@ def cmd_stats(args) -> int:
         result = report(tree.modules, tree.skeleton, tree)
     else:
         modules = derive(grammar, args.iterations, args.seed, max_modules=args.max_modules)
-        result = report(modules, interpret(modules, grammar, seed=args.seed, max_segments=args.max_segments))
+        turtle = TurtleOptions.from_grammar(grammar, **options.turtle) if options.turtle else grammar
+        result = report(modules, interpret(modules, turtle, seed=args.seed, max_segments=args.max_segments))
     if args.golden:
         from .golden import recipe_for, write_golden
 

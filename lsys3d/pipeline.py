@@ -10,19 +10,20 @@ import json
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 import trimesh
 
+from .bark import with_bark_colors
 from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import GeometryError
 from .grammar import Grammar
 from .leaves import leaves as build_leaves
 from .presets import load
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
-from .tree import Tree
-from .turtle import DEFAULT_MAX_SEGMENTS, interpret
+from .tree import BARK, Tree
+from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, interpret
 from .union import UnionOptions, concatenate, union
 
 __all__ = ["STAGES", "GenerateOptions", "generate", "run_stage"]
@@ -51,6 +52,15 @@ class GenerateOptions:
         Tube sides, minimum width, bend splitting...
     union_options : UnionOptions
         How the manifold union is organised.
+    turtle : dict
+        Settings that override the grammar's ``[turtle]`` table, e.g.
+        ``{"width_jitter": 0.2, "branch_drop": 0.1}`` (any
+        :class:`~lsys3d.turtle.TurtleOptions` field but ``angle`` and ``seed``).
+    bark_color_variation : float
+        Bark colour variation in [0, 1] written as vertex colours after the
+        union (:func:`lsys3d.bark.bark_colors`; 0: off, no colours).
+    bark_color_frequency : float
+        Colour features per metre of that pattern.
     """
 
     union: bool = True
@@ -59,6 +69,21 @@ class GenerateOptions:
     max_tube_triangles: int = DEFAULT_MAX_TRIANGLES
     sweep: SweepOptions = field(default_factory=SweepOptions)
     union_options: UnionOptions = field(default_factory=UnionOptions)
+    turtle: dict = field(default_factory=dict)
+    bark_color_variation: float = 0.0
+    bark_color_frequency: float = 2.0
+
+    def __post_init__(self):
+        known = {f.name for f in fields(TurtleOptions)} - {"angle", "seed"}
+        unknown = sorted(set(self.turtle) - known)
+        if unknown:
+            raise ValueError(
+                f"GenerateOptions.turtle: unknown setting {unknown[0]!r} (known: {', '.join(sorted(known))})"
+            )
+        if not 0 <= self.bark_color_variation <= 1:
+            raise ValueError(f"GenerateOptions.bark_color_variation: {self.bark_color_variation!r} is not in [0, 1]")
+        if not self.bark_color_frequency > 0:
+            raise ValueError(f"GenerateOptions.bark_color_frequency: {self.bark_color_frequency!r} is not > 0")
 
 
 def _version() -> str:
@@ -127,13 +152,14 @@ def generate(
         return run_stage(name, fn, *args, progress=progress, **kw)
 
     modules = stage("derive", derive, grammar, n, seed, max_modules=options.max_modules)
-    skeleton = stage("interpret", interpret, modules, grammar, seed=seed, max_segments=options.max_segments)
+    turtle = TurtleOptions.from_grammar(grammar, **options.turtle) if options.turtle else grammar
+    skeleton = stage("interpret", interpret, modules, turtle, seed=seed, max_segments=options.max_segments)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
             f"{grammar.name or grammar.source}: nothing to mesh: the {len(modules):,} modules after {n} "
             "iterations draw no segment and no leaf (segments are drawn by F, or the [turtle] table's draw symbols)"
         )
-    tubes = stage("sweep", sweep, skeleton, options.sweep, max_triangles=options.max_tube_triangles)
+    tubes = stage("sweep", sweep, skeleton, options.sweep, max_triangles=options.max_tube_triangles, seed=seed)
     if len(tubes) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
             f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter than "
@@ -143,6 +169,13 @@ def generate(
         bark = stage("union", lambda _: trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)), tubes)
     else:
         merge = (lambda t: union(t, options.union_options)) if options.union else concatenate
+        if options.bark_color_variation > 0:  # coloured in the union stage: the colours belong to its vertices
+            plain = merge
+            variation, frequency = options.bark_color_variation, options.bark_color_frequency
+
+            def merge(t):
+                return with_bark_colors(plain(t), BARK.base_color, variation, frequency, seed)
+
         bark = stage("union", merge, tubes)
     leaves = stage("leaves", build_leaves, skeleton)
     counts = {
