@@ -42,8 +42,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 import trimesh
 
+from .bark import bark_noise
 from .errors import GeometryError, LimitError
-from .noise import fbm3
 from .skeleton import Skeleton
 
 __all__ = ["BARK_NOISE_STREAM", "DEFAULT_MAX_TRIANGLES", "SweepOptions", "Tubes", "sweep"]
@@ -81,11 +81,12 @@ class SweepOptions:
         Relative tolerance of "tapers linearly" for ``merge_angle``.
     bark_displacement : float
         Procedural bark: every ring vertex moves along its radial direction
-        by ``bark_displacement * r * fbm3(p)``, a fraction of the local tube
+        by ``bark_displacement * r * n(p)``, a fraction of the local tube
         radius ``r`` (0: off; at most 0.5, so no tube gets thinner than half
-        its radius and thin twigs survive).  ``fbm3`` (:mod:`lsys3d.noise`)
-        lies in [-1, 1] and is evaluated at the undisplaced world position,
-        so tubes that meet at a junction carry the same bark pattern.
+        its radius and thin twigs survive).  ``n`` (:func:`lsys3d.bark.bark_noise`,
+        fBm with its contrast raised) lies in [-1, 1] and is evaluated at the
+        undisplaced world position, so tubes that meet at a junction carry
+        the same bark pattern.
     bark_frequency : float
         Bark features per unit length (metre) of the noise's first octave.
     bark_octaves : int
@@ -508,7 +509,7 @@ def sweep(
         amplitude, noise_seed = opt.bark_displacement, (int(seed), BARK_NOISE_STREAM)
 
         def displace(points):
-            return amplitude * fbm3(points, noise_seed, octaves=opt.bark_octaves, frequency=opt.bark_frequency)
+            return amplitude * bark_noise(points, noise_seed, octaves=opt.bark_octaves, frequency=opt.bark_frequency)
 
     parts = []
     for s in np.unique(sides_of_piece).tolist():
