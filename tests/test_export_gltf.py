@@ -278,7 +278,8 @@ def test_deterministic(tree, tmp_path):
 
 
 def test_supported_suffixes():
-    assert set(SUPPORTED_SUFFIXES) == {".glb", ".gltf", ".usda", ".usdc", ".usd", ".usdz", ".obj", ".ply", ".stl"}
+    meshes = {".glb", ".gltf", ".usda", ".usdc", ".usd", ".usdz", ".obj", ".ply", ".stl"}
+    assert set(SUPPORTED_SUFFIXES) == meshes | {".svg"}  # and the skeleton as a drawing
 
 
 def test_unknown_suffix(tree, tmp_path):
