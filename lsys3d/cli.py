@@ -383,6 +383,12 @@ def cmd_stats(args) -> int:
 
     grammar = load(args.grammar)
     options = _generate_options(args)
+    if args.golden:  # a golden file that cannot be written fails before the work, not after
+        from pathlib import Path
+
+        from .exchange.atomic import check_target
+
+        check_target(Path(args.golden), no_clobber=False)
     if args.mesh:
         from .pipeline import generate
 

@@ -193,6 +193,15 @@ def test_stats_writes_a_golden_file_for_a_grammar_file(tmp_path, capsys, monkeyp
     assert {d.key for d in result.differences if d.failed} >= {"derive.modules", "interpret.segments"}
 
 
+def test_stats_refuses_an_unwritable_golden_file_before_working(tmp_path, capsys, monkeypatch):
+    import lsys3d.pipeline
+
+    monkeypatch.setattr(lsys3d.pipeline, "generate", lambda *a, **k: pytest.fail("grew before checking the target"))
+    assert main(["stats", "koch", "--mesh", "--golden", str(tmp_path / "missing" / "k.json")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "does not exist" in err
+
+
 def test_stats_table_has_dotted_keys(capsys):
     assert main(["stats", "koch", "-n", "1"]) == 0
     lines = capsys.readouterr().out.splitlines()
