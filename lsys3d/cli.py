@@ -196,10 +196,21 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"lsys3d {__version__}")
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     parser.add_argument("-v", "--verbose", action="store_true", help="log each stage with its timing")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    # -q and -v also after the subcommand (lsys3d generate -q); SUPPRESS keeps the top level's value when absent
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument(
+        "-q", "--quiet", action="store_true", default=argparse.SUPPRESS, help="print nothing but errors"
+    )
+    common.add_argument(
+        "-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help="log each stage with its timing"
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
-    p = sub.add_parser("generate", help="grow a plant and write it as a mesh asset (.glb, .usdc, ...)")
+    def add(name: str, **kw) -> argparse.ArgumentParser:
+        return sub.add_parser(name, parents=[common], **kw)
+
+    p = add("generate", help="grow a plant and write it as a mesh asset (.glb, .usdc, ...)")
     _grammar_args(p, optional=True)
     _mesh_args(p)
     p.add_argument(
@@ -230,7 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_generate)
 
-    p = sub.add_parser("preview", help="grow a plant and render a shaded picture of it (.png) with Blender")
+    p = add("preview", help="grow a plant and render a shaded picture of it (.png) with Blender")
     _grammar_args(p, optional=True)
     _mesh_args(p)
     p.add_argument("-o", "--output", default=DEFAULT_PICTURE, help=f"the .png to write (default {DEFAULT_PICTURE})")
@@ -246,11 +257,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
     p.set_defaults(func=cmd_preview)
 
-    p = sub.add_parser("derive", help="print the derived module string")
+    p = add("derive", help="print the derived module string")
     _grammar_args(p)
     p.set_defaults(func=cmd_derive)
 
-    p = sub.add_parser("stats", help="print counts and extents of the drawn plant")
+    p = add("stats", help="print counts and extents of the drawn plant")
     _grammar_args(p)
     p.add_argument("--json", action="store_true", help="one JSON object instead of a table")
     p.add_argument("--mesh", action="store_true", help="also build the mesh and report its counts and measures")
@@ -262,13 +273,13 @@ def build_parser() -> argparse.ArgumentParser:
     _mesh_args(p)
     p.set_defaults(func=cmd_stats)
 
-    p = sub.add_parser("check", help="regrow the assets of golden files and compare their counts")
+    p = add("check", help="regrow the assets of golden files and compare their counts")
     p.add_argument("golden", nargs="+", metavar="GOLDEN.json", help="golden files written by 'stats --golden'")
     p.add_argument("--update", action="store_true", help="rewrite the golden files that changed, and say what changed")
     p.add_argument("--rtol", type=float, default=None, help="relative tolerance of floating values (default 1e-6)")
     p.set_defaults(func=cmd_check)
 
-    p = sub.add_parser("presets", help="list the bundled presets")
+    p = add("presets", help="list the bundled presets")
     p.set_defaults(func=cmd_presets)
     return parser
 

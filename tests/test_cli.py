@@ -144,3 +144,10 @@ def test_stats_mesh(capsys):
     soup = json.loads(capsys.readouterr().out)
     assert soup["bark"]["faces"] == soup["sweep"]["faces"] == stats["sweep"]["faces"]
     assert not soup["bark"]["unioned"]
+
+
+def test_quiet_and_verbose_after_the_subcommand(tmp_path, capsys):
+    assert main(["generate", "koch", "-n", "1", "-q", "-o", str(tmp_path / "k.glb")]) == 0
+    assert capsys.readouterr().out == ""
+    out = run("generate", "koch", "-n", "1", "-o", str(tmp_path / "k.glb"), "--verbose")
+    assert out.returncode == 0 and "lsys3d: union" in out.stderr
