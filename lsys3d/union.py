@@ -344,13 +344,14 @@ def _weld_float32(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     Blender's glTF import does) sees edges shared by four faces.  Welding here
     removes them (tree3d: 54 triangles of 73,608) while every edge keeps exactly
     two opposite faces; when it would not (crossings of coplanar tubes in the
-    flat presets), the mesh is returned as manifold3d made it.
+    flat presets), the vertices are moved apart instead
+    (:func:`_separate_float32`), and so are any left closer than readers weld.
     """
     _repair_corners(mesh)
     v32 = np.asarray(mesh.vertices, np.float32)
     unique, first, point = np.unique(v32, axis=0, return_index=True, return_inverse=True)
     if len(unique) == len(v32):
-        return mesh
+        return _separate_float32(mesh)
     point = point.ravel()
     faces = point[np.asarray(mesh.faces)]
     a, b, c = faces.T
@@ -359,10 +360,62 @@ def _weld_float32(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     renumber = np.empty(len(order), np.int64)
     renumber[order] = np.arange(len(order))
     faces = renumber[faces[keep]]
-    if not _closed(faces, len(unique)):
-        return mesh
     attrs = mesh.face_attributes
-    return corner_mesh(unique[order].astype(np.float64), faces, attrs["corner_normals"][keep], attrs["corner_uv"][keep])
+    if not _closed(faces, len(unique)):
+        return _separate_float32(mesh)
+    normals, uv = attrs["corner_normals"][keep], attrs["corner_uv"][keep]
+    return _separate_float32(corner_mesh(unique[order].astype(np.float64), faces, normals, uv))
+
+
+def _separate_float32(mesh: trimesh.Trimesh, rounds: int = 32) -> trimesh.Trimesh:
+    """Give distinct vertices distinct float32 positions, far enough apart that readers do not weld them.
+
+    Where a weld would break the mesh (crossings of coplanar tubes), a vertex
+    that shares its float32 position, or its cell of the 1e-8 grid that
+    trimesh's ``merge_vertices`` welds by, with an earlier vertex is moved
+    along its largest coordinate, on its own side of the earlier one, by
+    ``k`` steps of ``max(float32 step, 2e-8)`` (the k-th such vertex of a
+    position, so coincident vertices part too).  The moves are micrometres at
+    most on a plant metres tall; the faces do not change.  When no separation
+    is found in ``rounds`` passes the mesh is returned as it was.
+    """
+    v = np.asarray(mesh.vertices, np.float64)
+    v32 = v.astype(np.float32)
+    everything = np.arange(len(v32))
+    direction = np.zeros(len(v32))
+    for _ in range(rounds):
+        moved = False
+        for key in (lambda: v32, lambda: np.round(v32.astype(np.float64) * 1e8)):
+            _, first, group = np.unique(key(), axis=0, return_index=True, return_inverse=True)
+            owner = first[group.ravel()]
+            later = np.flatnonzero(owner != everything)
+            if not len(later):
+                continue
+            moved = True
+            axis = np.argmax(np.abs(v[later]), axis=1)
+            # a vertex keeps the side it first moved to, so it cannot swing between two neighbours
+            fresh = direction[later] == 0
+            direction[later[fresh]] = np.where(v[later, axis] >= v[owner[later], axis], 1.0, -1.0)[fresh]
+            side = direction[later]
+            by_owner = np.argsort(owner[later], kind="stable")
+            sorted_owner = owner[later][by_owner]
+            rank = np.empty(len(later), np.int64)
+            rank[by_owner] = np.arange(len(later)) - np.searchsorted(sorted_owner, sorted_owner, side="left") + 1
+            old = v32[later, axis]
+            step = np.maximum(np.spacing(np.abs(old)).astype(np.float64), 2e-8)
+            new = (old.astype(np.float64) + side * rank * step).astype(np.float32)
+            same = new == old
+            new[same] = np.nextafter(old[same], (side[same] * np.inf).astype(np.float32))
+            v32[later, axis] = new
+        if not moved:
+            break
+    else:
+        return mesh
+    moved = (v32 != v.astype(np.float32)).any(axis=1)
+    log.debug("union: %d vertices moved to positions of their own", int(moved.sum()))
+    points = np.where(moved[:, None], v32.astype(np.float64), v)
+    attrs = mesh.face_attributes
+    return corner_mesh(points, np.asarray(mesh.faces), attrs["corner_normals"], attrs["corner_uv"])
 
 
 def _batch_union(parts: list[manifold3d.Manifold], where: str) -> manifold3d.Manifold:

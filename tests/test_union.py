@@ -295,3 +295,39 @@ def test_presets_union(name):
     tubes = sweep(sk)
     mesh = union(tubes)
     check_union(tubes, mesh)
+
+
+def _face_touching_boxes(gap: float):
+    """Two closed boxes in one mesh, the second starting ``gap`` beyond the first's x = 1 face."""
+    import trimesh
+
+    from lsys3d.sweep import corner_mesh
+
+    a = trimesh.creation.box(bounds=[[0, 0, 0], [1, 1, 1]])
+    b = trimesh.creation.box(bounds=[[1 + gap, 0, 0], [2, 1, 1]])
+    points = np.concatenate([a.vertices, b.vertices])
+    faces = np.concatenate([a.faces, b.faces + len(a.vertices)])
+    normals = np.repeat(np.concatenate([a.face_normals, b.face_normals])[:, None, :], 3, axis=1).astype(np.float32)
+    return corner_mesh(points, faces, normals, np.zeros((len(faces), 3, 2), np.float32))
+
+
+@pytest.mark.parametrize("gap", [1e-9, 0.0])
+def test_vertices_a_weld_would_break_are_moved_apart(gap):
+    """Faces that touch: merging their float32-equal corners would give edges four faces, so they part."""
+    import sys
+
+    import trimesh
+
+    weld = sys.modules["lsys3d.union"]._weld_float32
+    mesh = _face_touching_boxes(gap)
+    out = weld(mesh.copy())
+    v32 = np.asarray(out.vertices, np.float32)
+    assert len(out.vertices) == 16 and np.array_equal(out.faces, mesh.faces)
+    assert len(np.unique(v32, axis=0)) == 16
+    moved = np.abs(out.vertices - mesh.vertices).max(axis=1)
+    assert (moved > 0).sum() == 4 and moved.max() < 1e-6  # the second box's four corners at x = 1, a step or two
+    assert out.is_watertight and out.is_winding_consistent
+    welded = trimesh.Trimesh(v32.astype(np.float64), out.faces, process=False)
+    welded.merge_vertices()
+    assert len(welded.vertices) == 16 and welded.is_watertight
+    assert weld(_face_touching_boxes(1e-3).copy()).vertices.tolist() == _face_touching_boxes(1e-3).vertices.tolist()
