@@ -15,6 +15,7 @@ import lsys3d
 from lsys3d import Grammar, GrammarError, derive, load_preset
 from lsys3d.bark import bark_colors
 from lsys3d.cli import main
+from lsys3d.errors import ExportError
 from lsys3d.exchange import ExportOptions, export, export_variants, variant_paths
 from lsys3d.pipeline import GenerateOptions
 from lsys3d.stats import components
@@ -378,6 +379,16 @@ def test_variants_as_files(siblings, tmp_path):
     points = [read_glb(p)[0]["accessors"][0]["max"] for p in paths]
     assert len({tuple(p) for p in points}) == 4  # different geometry, not just different provenance
     assert validators.gltf_issues(validators.validate_gltf(paths[2]), 0) == []
+
+
+def test_variants_no_clobber_checks_the_files_written(siblings, tmp_path):
+    """The pattern tree.glb is not written, so an existing tree.glb does not stop tree_0.glb..."""
+    (tmp_path / "tree.glb").write_bytes(b"precious")
+    paths = export_variants(siblings[:2], tmp_path / "tree.glb", ExportOptions(no_clobber=True))
+    assert [p.name for p in paths] == ["tree_0.glb", "tree_1.glb"]
+    assert (tmp_path / "tree.glb").read_bytes() == b"precious"
+    with pytest.raises(ExportError, match=r"tree_0\.glb: file exists"):  # ...but an existing tree_0.glb does
+        export_variants(siblings[:2], tmp_path / "tree.glb", ExportOptions(no_clobber=True))
 
 
 @pytest.mark.parametrize("suffix", [".usda", ".usdc", ".usdz"])

@@ -210,11 +210,12 @@ def export_variants(trees: Sequence[Tree], path: str | os.PathLike, options: Exp
     """
     path = Path(path)
     options = ExportOptions() if options is None else options
-    check_output(path, options)
     trees = list(trees)
     if not trees or not all(isinstance(t, Tree) for t in trees):
         raise ExportError(f"{path}: expected one or more lsys3d Trees")
     targets = variant_paths(path, len(trees))
+    for target in targets:  # the files written, not the pattern (tree.glb itself is not written)
+        check_output(target, options)
     if path.suffix.lower() in _USD_SUFFIXES:
         from .usd import write_usd_variants
 
@@ -222,6 +223,4 @@ def export_variants(trees: Sequence[Tree], path: str | os.PathLike, options: Exp
         if len(set(names)) != len(names):
             raise ExportError(f"{path}: two trees have the same seed, so their variants would share a name: {names}")
         return [write_usd_variants(trees, names, path, options)]
-    for target in targets:
-        check_output(target, options)
     return [export(tree, target, options) for tree, target in zip(trees, targets, strict=True)]
