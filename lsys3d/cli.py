@@ -15,7 +15,7 @@ from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import LSystemError
 from .presets import DEFAULT_PRESET, describe, list_presets, load
 from .sweep import DEFAULT_MAX_TRIANGLES
-from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, interpret
+from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions
 
 DEFAULT_OUTPUT = "tree.glb"
 DEFAULT_PICTURE = "tree.png"
@@ -191,19 +191,19 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"lsys3d: error: {message} (see '{self.prog} --help')\n")
 
 
+def _output_flags(p: argparse.ArgumentParser, default) -> None:
+    p.add_argument("-q", "--quiet", action="store_true", default=default, help="print nothing but errors")
+    p.add_argument("-v", "--verbose", action="store_true", default=default, help="log each stage with its timing")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="lsys3d", description="Grow 3D plants and fractals from L-systems.")
     parser.add_argument("--version", action="version", version=f"lsys3d {__version__}")
-    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log each stage with its timing")
-    # -q and -v also after the subcommand (lsys3d generate -q); SUPPRESS keeps the top level's value when absent
+    _output_flags(parser, default=False)
+    # -q and -v also after the subcommand (lsys3d generate -q); SUPPRESS keeps the top level's value when absent.
+    # Separate actions, not one parser shared as a parent: argparse shares parents' actions and their defaults.
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument(
-        "-q", "--quiet", action="store_true", default=argparse.SUPPRESS, help="print nothing but errors"
-    )
-    common.add_argument(
-        "-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help="log each stage with its timing"
-    )
+    _output_flags(common, default=argparse.SUPPRESS)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
@@ -400,20 +400,20 @@ def cmd_stats(args) -> int:
         from .exchange.atomic import check_target
 
         check_target(Path(args.golden), no_clobber=False)
+    n = grammar.iterations if args.iterations is None else args.iterations
+    seed = grammar.seed if args.seed is None else args.seed
     if args.mesh:
         from .pipeline import generate
 
-        tree = generate(grammar, args.iterations, args.seed, options=options)
+        tree = generate(grammar, n, seed, options=options)
         result = report(tree.modules, tree.skeleton, tree)
     else:
-        modules = derive(grammar, args.iterations, args.seed, max_modules=args.max_modules)
-        turtle = TurtleOptions.from_grammar(grammar, **options.turtle) if options.turtle else grammar
-        result = report(modules, interpret(modules, turtle, seed=args.seed, max_segments=args.max_segments))
+        from .pipeline import draw
+
+        result = report(*draw(grammar, n, seed, options))
     if args.golden:
         from .golden import recipe_for, write_golden
 
-        n = grammar.iterations if args.iterations is None else args.iterations
-        seed = grammar.seed if args.seed is None else args.seed
         recipe = recipe_for(grammar, n, seed, options, mesh=args.mesh, golden_path=args.golden)
         write_golden(args.golden, recipe, result)
     if args.json:

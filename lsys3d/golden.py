@@ -147,7 +147,7 @@ def _sha256(text: str) -> str:
 def _defaults() -> dict:
     from .pipeline import GenerateOptions
 
-    return json.loads(json.dumps(dataclasses.asdict(GenerateOptions())))
+    return GenerateOptions().plain()
 
 
 def _delta(values: dict, defaults: dict) -> dict:
@@ -215,7 +215,7 @@ def recipe_for(
         text = grammar.text if grammar.text is not None else _grammar_as_text(grammar)
         iterations = grammar.iterations if iterations is None else iterations
         seed = grammar.seed if seed is None else seed
-        plain = json.loads(json.dumps(dataclasses.asdict(options or GenerateOptions())))
+        plain = (options or GenerateOptions()).plain()
     kind: dict = {}
     name = source[len("presets/") : -len(".toml")] if source.startswith("presets/") else None
     if name in list_presets():
@@ -248,17 +248,17 @@ def _grammar(recipe: Recipe, folder: Path):
 
 def grow(recipe: Recipe, folder: str | os.PathLike = ".") -> dict:
     """Regrow the asset a recipe names and return its :func:`~lsys3d.stats.report`."""
-    from .derive import derive
-    from .pipeline import GenerateOptions, generate
-    from .turtle import interpret
+    return _grow(recipe, _grammar(recipe, Path(folder)))
 
-    grammar = _grammar(recipe, Path(folder))
+
+def _grow(recipe: Recipe, grammar) -> dict:
+    from .pipeline import GenerateOptions, draw, generate
+
     options = _options(recipe.options, GenerateOptions, "options")
     if recipe.mesh:
         tree = generate(grammar, recipe.iterations, recipe.seed, options=options)
         return report(tree.modules, tree.skeleton, tree)
-    modules = derive(grammar, recipe.iterations, recipe.seed, max_modules=options.max_modules)
-    return report(modules, interpret(modules, grammar, seed=recipe.seed))
+    return report(*draw(grammar, recipe.iterations, recipe.seed, options))
 
 
 # ---------------------------------------------------------------- files
@@ -407,8 +407,9 @@ def check(path: str | os.PathLike, update: bool = False, rtol: float = RTOL) -> 
     path = Path(path)
     recipe, recorded = read_golden(path)
     try:
-        actual = grow(recipe, path.parent)
-        text = _grammar(recipe, path.parent).text or ""
+        grammar = _grammar(recipe, path.parent)
+        actual = _grow(recipe, grammar)
+        text = grammar.text or ""
     except GoldenError:
         raise
     except LSystemError as exc:

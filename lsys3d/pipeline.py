@@ -20,13 +20,15 @@ from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import GeometryError
 from .grammar import Grammar
 from .leaves import leaves as build_leaves
+from .modules import ModuleString
 from .presets import load
+from .skeleton import Skeleton
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import BARK, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, interpret
 from .union import UnionOptions, concatenate, union
 
-__all__ = ["STAGES", "GenerateOptions", "generate", "run_stage"]
+__all__ = ["STAGES", "GenerateOptions", "draw", "generate", "run_stage"]
 
 log = logging.getLogger("lsys3d")
 
@@ -85,6 +87,10 @@ class GenerateOptions:
         if not self.bark_color_frequency > 0:
             raise ValueError(f"GenerateOptions.bark_color_frequency: {self.bark_color_frequency!r} is not > 0")
 
+    def plain(self) -> dict:
+        """The options as JSON-ready nested dicts with sorted keys (tuples as lists): provenance, golden recipes."""
+        return _plain(asdict(self))
+
 
 def _version() -> str:
     from . import __version__
@@ -103,6 +109,34 @@ def run_stage(name: str, fn: Callable, *args, progress: Callable[[str, str, floa
     if progress:
         progress(name, "done", seconds)
     return result
+
+
+def draw(
+    grammar: Grammar,
+    iterations: int,
+    seed: int,
+    options: GenerateOptions | None = None,
+    progress: Callable[[str, str, float], None] | None = None,
+) -> tuple[ModuleString, Skeleton]:
+    """The first two stages: derive the module string and let the turtle draw its skeleton.
+
+    ``options`` gives the size limits and the ``turtle`` overrides of the
+    grammar's ``[turtle]`` table; :func:`generate` goes on from here to the meshes.
+
+    Examples
+    --------
+    >>> from lsys3d import load_preset
+    >>> modules, skeleton = draw(load_preset("koch"), 1, 0)
+    >>> len(modules), len(skeleton)
+    (8, 4)
+    """
+    options = options or GenerateOptions()
+    modules = run_stage("derive", derive, grammar, iterations, seed, max_modules=options.max_modules, progress=progress)
+    turtle = TurtleOptions.from_grammar(grammar, **options.turtle) if options.turtle else grammar
+    skeleton = run_stage(
+        "interpret", interpret, modules, turtle, seed=seed, max_segments=options.max_segments, progress=progress
+    )
+    return modules, skeleton
 
 
 def generate(
@@ -151,9 +185,7 @@ def generate(
     def stage(name, fn, *args, **kw):
         return run_stage(name, fn, *args, progress=progress, **kw)
 
-    modules = stage("derive", derive, grammar, n, seed, max_modules=options.max_modules)
-    turtle = TurtleOptions.from_grammar(grammar, **options.turtle) if options.turtle else grammar
-    skeleton = stage("interpret", interpret, modules, turtle, seed=seed, max_segments=options.max_segments)
+    modules, skeleton = draw(grammar, n, seed, options, progress=progress)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
             f"{grammar.name or grammar.source}: nothing to mesh: the {len(modules):,} modules after {n} "
@@ -193,7 +225,7 @@ def generate(
         "grammar_text": grammar.text if grammar.text is not None else _grammar_as_text(grammar),
         "iterations": int(n),
         "seed": int(seed),
-        "options": _plain(asdict(options)),
+        "options": options.plain(),
         "counts": counts,
     }
     return Tree(

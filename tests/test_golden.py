@@ -317,3 +317,15 @@ def test_golden_files_do_not_depend_on_where_they_are(tmp_path):
     """Copying a golden file elsewhere keeps it valid (presets are named, not located)."""
     shutil.copy(GOLDEN / "koch.json", tmp_path / "koch.json")
     assert check(tmp_path / "koch.json").ok
+
+
+def test_a_recipe_without_mesh_keeps_the_turtle_settings(tmp_path, capsys):
+    """stats --turtle ... --golden (no --mesh) regrows with the same turtle overrides and limits."""
+    golden = tmp_path / "k.json"
+    args = ["stats", "koch", "-n", "2", "--turtle", "length_jitter=0.3", "--golden", str(golden), "--json"]
+    assert main(args) == 0
+    printed = json.loads(capsys.readouterr().out)
+    recipe, recorded = read_golden(golden)
+    assert recipe.options == {"turtle": {"length_jitter": 0.3}} and not recipe.mesh
+    assert recorded == printed and printed["interpret"]["total_length"] != 16.0  # the jitter changed the lengths
+    assert check(golden).ok
