@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from invariants import balanced
 
 import lsys3d
 from lsys3d import DerivationError, Grammar, LimitError, derive, generations, load_preset, predict_length
@@ -345,15 +346,6 @@ def d0l_grammars(draw):
     preds = draw(st.lists(st.sampled_from("ABF"), unique=True, min_size=1, max_size=3))
     rules = [f"{p} -> {draw(bracketed(6))}" for p in preds]
     return Grammar(axiom=axiom, rules=rules)
-
-
-def balanced(s: str) -> bool:
-    depth = 0
-    for c in s:
-        depth += {"[": 1, "]": -1}.get(c, 0)
-        if depth < 0:
-            return False
-    return depth == 0
 
 
 @settings(max_examples=60, deadline=None)

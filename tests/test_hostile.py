@@ -28,6 +28,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from invariants import balanced
 from skeletons import make_skeleton
 
 import lsys3d
@@ -552,15 +553,6 @@ RULE_ALPHABET = st.sampled_from(
 PIECE = st.lists(RULE_ALPHABET, max_size=7).map("".join)
 # mostly "left -> right", so that the random pieces reach every part of the rule parser (and beyond)
 RULE_TEXT = st.tuples(PIECE, st.sampled_from(["->", " -> ", "=", " : ", ""]), PIECE).map("".join)
-
-
-def balanced(symbols: str) -> bool:
-    depth = 0
-    for c in symbols:
-        depth += {"[": 1, "]": -1}.get(c, 0)
-        if depth < 0:
-            return False
-    return depth == 0
 
 
 def run_pipeline(grammar: Grammar, iterations: int, union_too: bool = True):
