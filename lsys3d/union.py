@@ -367,6 +367,24 @@ def _weld_float32(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     return _separate_float32(corner_mesh(unique[order].astype(np.float64), faces, normals, uv))
 
 
+def _first_equal_row(keys: np.ndarray) -> np.ndarray:
+    """For each row of an integer array ``(n, 3)``, the index of the first row equal to it.
+
+    What ``np.unique(keys, axis=0, return_index=True, return_inverse=True)``
+    gives, from one stable ``lexsort`` of the columns (several times faster).
+
+    >>> _first_equal_row(np.array([[1, 2, 3], [0, 0, 0], [1, 2, 3], [0, 0, 0]])).tolist()
+    [0, 1, 0, 1]
+    """
+    order = np.lexsort(keys.T[::-1])  # stable: equal rows keep their order, the first comes first
+    ranked = keys[order]
+    starts = np.ones(len(keys), bool)
+    starts[1:] = (ranked[1:] != ranked[:-1]).any(axis=1)
+    owner = np.empty(len(keys), np.int64)
+    owner[order] = order[np.flatnonzero(starts)][np.cumsum(starts) - 1]
+    return owner
+
+
 def _separate_float32(mesh: trimesh.Trimesh, rounds: int = 32) -> trimesh.Trimesh:
     """Give distinct vertices distinct float32 positions, far enough apart that readers do not weld them.
 
@@ -383,11 +401,17 @@ def _separate_float32(mesh: trimesh.Trimesh, rounds: int = 32) -> trimesh.Trimes
     v32 = v.astype(np.float32)
     everything = np.arange(len(v32))
     direction = np.zeros(len(v32))
+
+    def float32_bits():  # + 0.0 makes -0.0 and 0.0 one position
+        return (v32 + np.float32(0.0)).view(np.int32)
+
+    def weld_grid_cell():  # trimesh's merge_vertices rounds to 8 decimals
+        return np.round(v32.astype(np.float64) * 1e8).astype(np.int64)
+
     for _ in range(rounds):
         moved = False
-        for key in (lambda: v32, lambda: np.round(v32.astype(np.float64) * 1e8)):
-            _, first, group = np.unique(key(), axis=0, return_index=True, return_inverse=True)
-            owner = first[group.ravel()]
+        for key in (float32_bits, weld_grid_cell):
+            owner = _first_equal_row(key())
             later = np.flatnonzero(owner != everything)
             if not len(later):
                 continue
