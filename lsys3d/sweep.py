@@ -249,6 +249,102 @@ class Tubes:
             self.order[which],
         )
 
+    def insert_rings(self, tube: np.ndarray, ring: np.ndarray, t: np.ndarray) -> Tubes:
+        """These tubes with new rings between existing ones, each vertex interpolated along its wall edge.
+
+        A new ring goes into tube ``tube[i]`` between its rings ``ring[i]`` and
+        ``ring[i] + 1``, at the fraction ``0 < t[i] < 1`` of the way: vertex
+        ``j`` of the new ring lies on the wall edge joining vertex ``j`` of the
+        two rings, and its normal and uv are interpolated the same way.  On a
+        span whose wall quads are planar (a straight, linearly tapered piece of
+        tube, :func:`straight_spans`) the surface does not change; elsewhere it
+        moves by at most the quads' distance from planar.  The existing points
+        keep their exact values.
+        """
+        tube, ring, t = (np.asarray(x) for x in (tube, ring, t))
+        if not len(tube):
+            return self
+        nt, sides, rings = len(self), self.sides, self.rings
+        all_tube = np.concatenate([np.repeat(np.arange(nt), rings), tube.astype(np.int64)])
+        all_ring = np.concatenate([_local_counts(rings), ring.astype(np.int64)])
+        all_t = np.concatenate([np.zeros(int(rings.sum())), t.astype(np.float64)])
+        order = np.lexsort((all_t, all_ring, all_tube))
+        rt, rk, rf = all_tube[order], all_ring[order], all_t[order]
+        new_rings = np.bincount(rt, minlength=nt)
+        local = _local_counts(new_rings)
+        p_off = _offsets(new_rings * sides + 2)
+        w_off = _offsets((new_rings + 2) * (sides + 1))
+        f_off = _offsets(2 * sides * new_rings)
+
+        points = np.empty((p_off[-1], 3))
+        s_ring = sides[rt]
+        vert_ring = np.repeat(np.arange(len(rt)), s_ring)
+        j = _local_counts(s_ring)
+        src = self.point_offsets[rt[vert_ring]] + rk[vert_ring] * s_ring[vert_ring] + j
+        f = rf[vert_ring]
+        moved = f > 0
+        dest = p_off[rt[vert_ring]] + local[vert_ring] * s_ring[vert_ring] + j
+        points[dest] = self.points[src]
+        a, b, fm = src[moved], src[moved] + s_ring[vert_ring[moved]], f[moved][:, None]
+        points[dest[moved]] = (1.0 - fm) * self.points[a] + fm * self.points[b]
+        points[p_off[1:] - 2] = self.points[self.point_offsets[1:] - 2]
+        points[p_off[1:] - 1] = self.points[self.point_offsets[1:] - 1]
+
+        nw = w_off[-1]
+        wedge_point = np.empty(nw, np.int64)
+        wedge_normal = np.empty((nw, 3), np.float32)
+        wedge_uv = np.empty((nw, 2), np.float32)
+        w_ring = s_ring + 1
+        wedge_ring = np.repeat(np.arange(len(rt)), w_ring)
+        jw = _local_counts(w_ring)
+        s_w = w_ring[wedge_ring]
+        src = self.wedge_offsets[rt[wedge_ring]] + rk[wedge_ring] * s_w + jw
+        dest = w_off[rt[wedge_ring]] + local[wedge_ring] * s_w + jw
+        wedge_point[dest] = p_off[rt[wedge_ring]] + local[wedge_ring] * (s_w - 1) + jw % (s_w - 1)
+        wedge_normal[dest] = self.wedge_normal[src]
+        wedge_uv[dest] = self.wedge_uv[src]
+        f = rf[wedge_ring]
+        moved = f > 0
+        a, b, fm = src[moved], src[moved] + s_w[moved], f[moved][:, None]
+        wedge_normal[dest[moved]] = _unit(
+            (1.0 - fm) * self.wedge_normal[a].astype(np.float64) + fm * self.wedge_normal[b]
+        )
+        wedge_uv[dest[moved]] = (1.0 - fm) * self.wedge_uv[a].astype(np.float64) + fm * self.wedge_uv[b]
+        # caps: centre and rim, base then tip, as they were; the rims point at the first and last ring
+        cap_len = 2 * (sides + 1)
+        cap_tube = np.repeat(np.arange(nt), cap_len)
+        jc = _local_counts(cap_len)
+        src = self.wedge_offsets[cap_tube] + rings[cap_tube] * (sides[cap_tube] + 1) + jc
+        dest = w_off[cap_tube] + new_rings[cap_tube] * (sides[cap_tube] + 1) + jc
+        wedge_normal[dest] = self.wedge_normal[src]
+        wedge_uv[dest] = self.wedge_uv[src]
+        s_c = sides[cap_tube]
+        tip = jc > s_c
+        jj = np.where(tip, jc - s_c - 1, jc)  # 0: centre, 1..s: rim
+        rim_ring = np.where(tip, new_rings[cap_tube] - 1, 0)
+        wedge_point[dest] = np.where(
+            jj == 0, p_off[cap_tube + 1] - np.where(tip, 1, 2), p_off[cap_tube] + rim_ring * s_c + jj - 1
+        )
+
+        faces = np.empty((f_off[-1], 3), np.int64)
+        for s in np.unique(sides).tolist():
+            which = np.flatnonzero(sides == s)
+            _tube_faces(faces, s, new_rings[which], w_off[which], f_off[which])
+        return Tubes(
+            points,
+            wedge_point,
+            wedge_normal,
+            wedge_uv,
+            faces,
+            p_off,
+            w_off,
+            f_off,
+            self.chain,
+            self.sides,
+            new_rings,
+            self.order,
+        )
+
     def mesh(self, i: int | None = None) -> trimesh.Trimesh:
         """Tube ``i`` (or all tubes, as one tube soup) as a welded ``Trimesh``.
 
@@ -570,6 +666,38 @@ def _offsets(counts: np.ndarray) -> np.ndarray:
     return out
 
 
+def _local_counts(counts: np.ndarray) -> np.ndarray:
+    """``0..counts[i]-1`` for each ``i``, concatenated."""
+    counts = np.asarray(counts, np.int64)
+    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+
+
+def _tube_faces(faces: np.ndarray, s: int, rings: np.ndarray, wedge_start: np.ndarray, face_start: np.ndarray) -> None:
+    """Write the faces of tubes of ``s`` sides into ``faces`` (in place): the one layout every tube has.
+
+    Tube ``i`` has ``rings[i]`` rings of ``s + 1`` wedges from ``wedge_start[i]``, then the base and tip cap
+    (centre and rim, ``s + 1`` wedges each); its ``2 s (rings[i] - 1)`` wall faces (two per quad, ring after
+    ring) and ``2 s`` cap faces (base fan, tip fan) start at ``face_start[i]``.
+    """
+    if not len(rings):
+        return
+    js = np.arange(s)
+    template = np.empty((2 * s, 3), np.int64)
+    template[0::2] = np.stack([js, js + 1, js + s + 2], axis=1)
+    template[1::2] = np.stack([js, js + s + 2, js + s + 1], axis=1)
+    spans = rings - 1
+    tube = np.repeat(np.arange(len(rings)), spans)
+    k = np.arange(int(spans.sum())) - np.repeat(np.cumsum(spans) - spans, spans)  # span within its tube
+    dest = (face_start[tube] + k * 2 * s)[:, None] + np.arange(2 * s)
+    faces[dest] = (wedge_start[tube] + k * (s + 1))[:, None, None] + template[None]
+    cap_f = face_start + 2 * s * spans
+    cap_w = wedge_start + rings * (s + 1)
+    fan = np.stack([np.zeros(s, np.int64), js + 2, js + 1], axis=1)
+    fan[-1, 1] = 1  # wrap the rim
+    faces[cap_f[:, None] + js] = cap_w[:, None, None] + fan[None]
+    faces[(cap_f + s)[:, None] + js] = (cap_w + s + 1)[:, None, None] + fan[None][:, :, [0, 2, 1]]
+
+
 def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch, bend_dir, displace=None) -> Tubes:
     """Tubes of ``s`` sides; ring arrays hold the rings of every tube, tube after tube.
 
@@ -629,19 +757,7 @@ def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch,
         wedge_uv[rim, 1] = v[ring][:, None] + radius[ring][:, None] * si[None, :s]
 
     faces = np.empty((f_off[-1], 3), np.int64)
-    template = np.empty((2 * s, 3), np.int64)
-    js = np.arange(s)
-    template[0::2] = np.stack([js, js + 1, js + s + 2], axis=1)
-    template[1::2] = np.stack([js, js + s + 2, js + s + 1], axis=1)
-    body = np.flatnonzero(local < rings[tube_of_ring] - 1)  # rings followed by another ring
-    tb = tube_of_ring[body]
-    dest = (f_off[tb] + local[body] * 2 * s)[:, None] + np.arange(2 * s)
-    faces[dest] = ring_w[body, 0][:, None, None] + template[None]
-    cap_f = f_off[1:] - 2 * s
-    fan = np.stack([np.zeros(s, np.int64), js + 2, js + 1], axis=1)
-    fan[-1, 1] = 1  # wrap the rim
-    faces[cap_f[:, None] + js] = cap_w[:, 0][:, None, None] + fan[None]
-    faces[(cap_f + s)[:, None] + js] = cap_w[:, 1][:, None, None] + fan[None][:, :, [0, 2, 1]]
+    _tube_faces(faces, s, rings, w_off[:-1], f_off[:-1])
     if displace is not None:
         _surface_normals(points, wedge_point, wedge_normal, faces, f_off, 2 * s * (rings - 1), ring_w)
     z = np.zeros(nt, np.int64)

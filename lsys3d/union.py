@@ -1,41 +1,43 @@
 """Union: tubes -> one watertight bark mesh, through manifold3d.
 
 This module is the boundary with manifold3d: every Manifold it builds or
-computes has its status checked here, and a problem raises
+computes has its status checked, and a problem raises
 :class:`~lsys3d.errors.GeometryError` naming the part and the status; an
 empty or broken mesh is never returned.
 
-How the union stays fast
-------------------------
+How the union's cost follows its result
+---------------------------------------
 A boolean in manifold costs time for every triangle it is given, touched or
-not, and more for every triangle an intersection cuts.  So the tubes are not
-unioned one by one, nor in one batch (manifold's own batch union groups
+not, and much more for every triangle an intersection cuts.  So the tubes are
+not unioned one by one, nor in one batch (manifold's own batch union groups
 operands by bounding box, and the box of a long branch overlaps nearly
 everything):
 
-1. *Which tubes can touch.*  Each tube is covered by capsules, one per span
-   (the piece between two neighbouring rings: the centroids of the two rings
-   and the farthest ring vertex as radius).  The span boxes are hashed into a
-   uniform grid and candidate pairs are confirmed with a segment-segment
-   distance.  In a tree this leaves little more than the junctions: a branch
-   meets its parent and its siblings.
-2. *Only junctions go through the boolean* (``UnionOptions.local``).  A
-   maximal run of spans of one tube that may touch another tube is closed
-   with a temporary cap on each ring where it meets an untouched span and
-   goes into the boolean; the untouched spans stay out.  Afterwards the
-   temporary caps (found by their face ids) are removed and the untouched
-   spans are welded back onto their rings (matched by exact position).  The
-   seam and the result are checked (every directed edge once, its reverse
-   once); if anything does not match, whole tubes are unioned instead.  When
-   most spans touch something (every joint of ``monopodial`` carries a
-   branch) the stitching would cost more than it saves and whole tubes go in.
-3. *Layers instead of many operands.*  The may-touch graph (of runs, or of
-   tubes) is coloured greedily; parts of one colour are pairwise disjoint, so
-   each colour becomes one Manifold built from one mesh with no boolean at
-   all (what ``Manifold.compose`` does, without building thousands of small
-   Manifolds first).  A tree needs few colours (three for the benchmark
-   trees); the layers are unioned with one ``Manifold.batch_boolean``, which
-   manifold runs on all cores.
+1. *Culling* (:mod:`lsys3d.touch`).  A tube equal to an earlier one, or wholly
+   inside a straight span of another (a short thick twig buried in its
+   parent), adds nothing and stays out.
+2. *Which pieces can touch.*  Each tube is cut into pieces (a span between two
+   rings, or about a diameter of tiny spans) covered by capsules; boxes in a
+   grid and a segment-segment distance find the pairs that may touch, a
+   bounded chunk at a time.  More than ``UnionOptions.max_pairs`` pairs (a
+   thousand branches from one point) is refused up front with
+   :class:`~lsys3d.errors.LimitError`, before the memory is taken.
+3. *Refinement.*  A long straight span touched only near one place (a twig on
+   a trunk whose straight joints were merged into one span) gets new rings
+   around the touched stretch; on a straight span they lie exactly on the wall.
+4. *Only junctions go through the boolean* (``UnionOptions.local``).  A
+   maximal run of busy pieces of one tube is closed with a temporary cap on
+   each ring where it meets an untouched piece; the untouched pieces stay out
+   and are welded back onto their rings afterwards (caps found by manifold
+   face ids, rings by exact position; the seam and the result are checked,
+   and whole tubes are unioned if anything does not match).
+5. *Jobs* (:mod:`lsys3d.batches`).  Runs (or tubes) that touch form clusters;
+   small clusters are packed into jobs, a crowded cluster is split in space
+   and its halves merged back.  Within a job the touch graph is coloured
+   greedily and each colour becomes one Manifold of pairwise disjoint parts
+   (no boolean), unioned with one ``Manifold.batch_boolean``.  Big unions run
+   their jobs in worker processes on every core (``UnionOptions.workers``);
+   the result is the same bytes with any number of workers.
 
 Shading attributes ride through the boolean as manifold vertex properties
 (position, normal, uv: 8 channels).  The seam and cap wedges of each tube are
@@ -47,20 +49,26 @@ properties, and the normals are renormalised on the way out.
 from __future__ import annotations
 
 import logging
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import manifold3d
 import numpy as np
 import trimesh
 
+from . import batches, booleans
+from .booleans import BooleanError, Part
 from .errors import GeometryError
 from .sweep import Tubes, corner_mesh
+from .touch import DEFAULT_MAX_PAIRS, buried_tubes, duplicate_tubes, free_stretches, pieces, touching
 
 __all__ = ["UnionOptions", "concatenate", "may_touch", "union"]
 
 log = logging.getLogger("lsys3d")
 
 _NUM_PROP = 8  # x y z, nx ny nz, u v
+_JOB_TRIANGLES = 60_000  # smallest job worth its own boolean (a few tenths of a second in manifold)
 
 
 @dataclass(frozen=True)
@@ -74,26 +82,40 @@ class UnionOptions:
         False hands every tube to ``Manifold.batch_boolean`` separately
         (manifold's own bounding-box grouping; slower, for comparison).
     local : bool
-        Send only the spans that may touch another tube through the boolean
+        Send only the pieces that may touch another tube through the boolean
         and stitch the rest of each tube back on (needs ``layers``).
     local_max : float
-        Use the local path only while at most this fraction of the spans may
+        Use the local path only while at most this fraction of the pieces may
         touch another tube (above it, stitching costs more than it saves).
     margin : float
         Relative padding of the touch test (fraction of the capsule radii),
         so that tubes that only graze still count as touching.
+    workers : int
+        Processes the boolean may use; 0: one per core this process may run
+        on (its CPU affinity).  1 keeps everything in this process.  The result
+        does not depend on it.
+    max_pairs : int
+        Most pairs of tube pieces that may touch; more (a crowd of branches
+        at one place) is refused with :class:`~lsys3d.errors.LimitError`
+        before the boolean starts (about 0.1 ms of boolean work per pair).
     """
 
     layers: bool = True
     local: bool = True
     local_max: float = 0.75
     margin: float = 0.01
+    workers: int = 0
+    max_pairs: int = DEFAULT_MAX_PAIRS
 
     def __post_init__(self):
         for name in ("margin", "local_max"):
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value <= 1):
                 raise ValueError(f"UnionOptions.{name}: value {value!r} is out of range [0, 1]")
+        for name, lowest in (("workers", 0), ("max_pairs", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
+                raise ValueError(f"UnionOptions.{name}: expected a whole number >= {lowest}, got {value!r}")
 
 
 def concatenate(tubes: Tubes) -> trimesh.Trimesh:
@@ -106,150 +128,28 @@ def concatenate(tubes: Tubes) -> trimesh.Trimesh:
     return tubes.mesh()
 
 
-def _check(manifold: manifold3d.Manifold, where: str) -> manifold3d.Manifold:
-    status = manifold.status()
-    if status != manifold3d.Error.NoError:
-        raise GeometryError(f"{where}: manifold3d reported {status.name}")
-    return manifold
-
-
 def _manifold(tubes: Tubes, where: str) -> manifold3d.Manifold:
     """One Manifold of whole (pairwise disjoint) tubes, attributes as properties."""
-    return _manifold_of(tubes, tubes.faces, np.arange(len(tubes.faces)), where)
-
-
-class _Spans:
-    """The spans of a set of tubes (the piece between two neighbouring rings), tube after tube.
-
-    ``lo, hi (m, 3)`` box of the span's points; ``p, q (m, 3)`` centroids of its
-    two rings and ``radius (m,)`` the farthest ring point from them, so the
-    span lies inside the capsule ``p q`` of that radius; ``tube, local (m,)``.
-    """
-
-    def __init__(self, tubes: Tubes):
-        rings, sides = tubes.rings, tubes.sides
-        ring_sides = np.repeat(sides, rings)
-        # ring points are every point but the two cap centres closing each tube
-        mask = np.ones(len(tubes.points), bool)
-        mask[tubes.point_offsets[1:] - 1] = False
-        mask[tubes.point_offsets[1:] - 2] = False
-        pts = tubes.points[mask]
-        first = _offsets(ring_sides)[:-1]
-        lo = np.minimum.reduceat(pts, first, axis=0)
-        hi = np.maximum.reduceat(pts, first, axis=0)
-        centre = np.add.reduceat(pts, first, axis=0) / ring_sides[:, None]
-        dist = np.linalg.norm(pts - np.repeat(centre, ring_sides, axis=0), axis=1)
-        radius = np.maximum.reduceat(dist, first)
-        local_ring = _local(rings)
-        a = np.flatnonzero(local_ring < np.repeat(rings, rings) - 1)  # first ring of each span
-        self.lo = np.minimum(lo[a], lo[a + 1])
-        self.hi = np.maximum(hi[a], hi[a + 1])
-        self.p, self.q = centre[a], centre[a + 1]
-        self.radius = np.maximum(radius[a], radius[a + 1])
-        self.tube = np.repeat(np.arange(len(tubes)), rings)[a]
-        self.local = local_ring[a]
-
-    def __len__(self) -> int:
-        return len(self.tube)
-
-
-def _local(counts: np.ndarray) -> np.ndarray:
-    """``0..counts[i]-1`` for each ``i``, concatenated."""
-    starts = np.repeat(np.cumsum(counts) - counts, counts)
-    return np.arange(int(counts.sum())) - starts
-
-
-def _offsets(counts: np.ndarray) -> np.ndarray:
-    out = np.zeros(len(counts) + 1, np.int64)
-    np.cumsum(counts, out=out[1:])
-    return out
-
-
-def _segment_distance(p1, q1, p2, q2) -> np.ndarray:
-    """Distance between segments ``p1 q1`` and ``p2 q2`` (rows)."""
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a = np.einsum("ij,ij->i", d1, d1)
-    e = np.einsum("ij,ij->i", d2, d2)
-    f = np.einsum("ij,ij->i", d2, r)
-    c = np.einsum("ij,ij->i", d1, r)
-    b = np.einsum("ij,ij->i", d1, d2)
-    tiny = 1e-300
-    denom = a * e - b * b
-    s = np.where(denom > tiny, np.clip((b * f - c * e) / np.maximum(denom, tiny), 0, 1), 0.0)
-    t = np.where(e > tiny, (b * s + f) / np.maximum(e, tiny), 0.0)
-    s = np.where(
-        t < 0, np.clip(-c / np.maximum(a, tiny), 0, 1), np.where(t > 1, np.clip((b - c) / np.maximum(a, tiny), 0, 1), s)
-    )
-    t = np.clip(t, 0, 1)
-    return np.linalg.norm(p1 + d1 * s[:, None] - p2 - d2 * t[:, None], axis=1)
+    try:
+        return booleans.manifold_of(_part(tubes, tubes.faces, np.arange(len(tubes.faces))), where)
+    except BooleanError as exc:
+        raise GeometryError(str(exc)) from None
 
 
 def may_touch(tubes: Tubes, margin: float = 0.01) -> np.ndarray:
     """Pairs of tubes that may touch, ``(m, 2) int64`` with ``i < j``.
 
-    Each tube is covered by capsules, one per span (the piece between two
-    neighbouring rings); two tubes may touch when two of their capsules
-    (radii padded by ``margin``) intersect.  Tubes that are not listed are
-    disjoint; listed ones may or may not touch.
+    Each tube is covered by capsules, one per piece (a span between two
+    neighbouring rings, or a run of short spans); two tubes may touch when two
+    of their capsules (radii padded by ``margin``) intersect.  Tubes that are
+    not listed are disjoint; listed ones may or may not touch.
     """
-    owner, a, b = _span_pairs(tubes, margin)
+    pcs = pieces(tubes)
+    a, b = touching(pcs, margin, max_pairs=np.iinfo(np.int64).max)
     if not len(a):
         return np.zeros((0, 2), np.int64)
-    ta, tb = owner[a], owner[b]
+    ta, tb = pcs.tube[a], pcs.tube[b]
     return np.unique(np.stack([np.minimum(ta, tb), np.maximum(ta, tb)], axis=1), axis=0)
-
-
-def _span_pairs(tubes: Tubes, margin: float, spans: _Spans | None = None):
-    """Spans of different tubes that may touch: ``owner (m,)`` (tube of each span), span pairs ``a, b``.
-
-    Broad phase: span boxes hashed into a grid; narrow phase: the capsules
-    around the spans (padded by ``margin``) intersect.
-    """
-    spans = _Spans(tubes) if spans is None else spans
-    lo, hi, owner = spans.lo, spans.hi, spans.tube
-    none = np.zeros(0, np.int64)
-    if len(tubes) < 2:
-        return owner, none, none
-    pad = margin * (hi - lo).max(axis=1, keepdims=True) + 1e-9 * (np.abs(hi).max() + 1.0)
-    lo, hi = lo - pad, hi + pad
-    size = (hi - lo).max(axis=1)
-    cell = max(float(np.median(size)), 1e-12)
-    origin = lo.min(axis=0)
-    for _ in range(20):  # grow the cells until the number of box-cell entries is modest
-        c0 = np.floor((lo - origin) / cell).astype(np.int64)
-        c1 = np.floor((hi - origin) / cell).astype(np.int64)
-        ext = c1 - c0 + 1
-        count = ext.prod(axis=1)
-        if count.sum() <= 8 * len(lo) + 1000:
-            break
-        cell *= 1.5
-    dims = c1.max(axis=0) + 1
-    box = np.repeat(np.arange(len(lo)), count)
-    k = _local(count)
-    ex = ext[box]
-    ix = c0[box, 0] + k % ex[:, 0]
-    iy = c0[box, 1] + (k // ex[:, 0]) % ex[:, 1]
-    iz = c0[box, 2] + k // (ex[:, 0] * ex[:, 1])
-    key = (iz * dims[1] + iy) * dims[0] + ix
-    srt = np.argsort(key, kind="stable")
-    key, box = key[srt], box[srt]
-    # every pair inside each cell: entry p pairs with the later entries of its cell
-    brk = np.flatnonzero(np.diff(key)) + 1
-    cell_end = np.repeat(np.append(brk, len(key)), np.diff(np.concatenate([[0], brk, [len(key)]])))
-    later = cell_end - np.arange(len(key)) - 1
-    a = np.repeat(np.arange(len(key)), later)
-    b = a + 1 + _local(later)
-    a, b = box[a], box[b]
-    ok = owner[a] != owner[b]
-    a, b = a[ok], b[ok]
-    ok = ((lo[a] <= hi[b]) & (lo[b] <= hi[a])).all(axis=1)
-    a, b = a[ok], b[ok]
-    # a pair found in several cells counts once
-    pair = np.unique(np.minimum(a, b) * len(lo) + np.maximum(a, b))
-    a, b = pair // len(lo), pair % len(lo)
-    reach = (spans.radius[a] + spans.radius[b]) * (1.0 + margin) + 1e-9 * (np.abs(hi).max() + 1.0)
-    ok = _segment_distance(spans.p[a], spans.q[a], spans.p[b], spans.q[b]) <= reach
-    return owner, a[ok], b[ok]
 
 
 def _colour(n: int, pairs: np.ndarray) -> np.ndarray:
@@ -273,7 +173,19 @@ def _colour(n: int, pairs: np.ndarray) -> np.ndarray:
     return np.asarray(col, np.int64)
 
 
-def union(tubes: Tubes, options: UnionOptions | None = None) -> trimesh.Trimesh:
+def _unique_pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(k, 2)`` distinct pairs ``(min, max)`` of ``a, b``, without self pairs."""
+    keep = a != b
+    lo, hi = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
+    if not len(lo):
+        return np.zeros((0, 2), np.int64)
+    key = np.unique(lo * (int(hi.max()) + 1) + hi)
+    return np.stack([key // (int(hi.max()) + 1), key % (int(hi.max()) + 1)], axis=1)
+
+
+def union(
+    tubes: Tubes, options: UnionOptions | None = None, *, progress: Callable[[float], None] | None = None
+) -> trimesh.Trimesh:
     """Union the tubes of one tree into one watertight, consistently oriented mesh.
 
     Parameters
@@ -281,6 +193,8 @@ def union(tubes: Tubes, options: UnionOptions | None = None) -> trimesh.Trimesh:
     tubes : Tubes
         Closed tubes from :func:`lsys3d.sweep.sweep`.
     options : UnionOptions, optional
+    progress : callable, optional
+        Called with the fraction of the boolean work done (0 to 1) as it goes.
 
     Returns
     -------
@@ -294,29 +208,137 @@ def union(tubes: Tubes, options: UnionOptions | None = None) -> trimesh.Trimesh:
     GeometryError
         No tubes, a tube manifold3d rejects, a failed boolean, or an empty
         result; the message says which part and manifold3d's status.
+    LimitError
+        More than ``options.max_pairs`` pairs of tube pieces may touch.
     """
     opt = UnionOptions() if options is None else options
     where = f"union of {len(tubes)} tubes"
     if not len(tubes):
         raise GeometryError("union: no tubes to union (empty skeleton?)")
+    bad = ~np.isfinite(tubes.points).all(axis=1)
+    if bad.any():
+        t = int(np.searchsorted(tubes.point_offsets, np.flatnonzero(bad)[0], side="right") - 1)
+        raise GeometryError(f"union: tube {t} (chain {int(tubes.chain[t])}) has a point that is not a finite number")
+    workers = opt.workers or batches.default_workers()
     if not opt.layers:
         parts = [_manifold(tubes.select([i]), f"union: tube {i} (chain {tubes.chain[i]})") for i in range(len(tubes))]
-        return _weld_float32(_to_trimesh(_batch_union(parts, where), where))
-    spans = _Spans(tubes)
-    owner, a, b = _span_pairs(tubes, opt.margin, spans)
-    busy = np.zeros(len(spans), bool)
+        result = parts[0] if len(parts) == 1 else manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add)
+        if result.status() != manifold3d.Error.NoError:
+            raise GeometryError(f"{where}: manifold3d reported {result.status().name}")
+        if result.is_empty() or result.num_tri() == 0:
+            raise GeometryError(f"{where}: manifold3d returned an empty mesh")
+        return _weld_float32(_drop_crumbs(_to_trimesh([booleans.part_of(result)], where)))
+    t0 = time.perf_counter()
+    tubes, pcs, a, b = _prepare(tubes, opt)
+    log.debug("union: %d pieces, %d touching pairs (%.2f s)", len(pcs), len(a), time.perf_counter() - t0)
+    busy = np.zeros(len(pcs), bool)
     busy[a] = True
     busy[b] = True
     if opt.local and len(a) and busy.mean() <= opt.local_max:
-        mesh = _local_union(tubes, spans, busy, a, b, where)
+        mesh = _local_union(tubes, pcs, busy, a, b, where, workers, progress)
         if mesh is not None:
-            return _weld_float32(mesh)
-    ta, tb = owner[a], owner[b]
-    pairs = np.unique(np.stack([np.minimum(ta, tb), np.maximum(ta, tb)], axis=1), axis=0)
+            return _weld_float32(_drop_crumbs(mesh))
+    ta, tb = pcs.tube[a], pcs.tube[b]
+    pairs = _unique_pairs(ta, tb)
     colour = _colour(len(tubes), pairs)
-    parts = [_manifold(tubes.select(colour == c), f"union: layer {c}") for c in range(int(colour.max()) + 1)]
-    log.debug("union: %d tubes in %d layers", len(tubes), len(parts))
-    return _weld_float32(_to_trimesh(_batch_union(parts, where), where))
+    weight = np.diff(tubes.face_offsets).astype(np.float64)
+    box = tubes.bounds()
+    jobs = batches.plan(weight, box.mean(axis=1), pairs[:, 0], pairs[:, 1], _job_target(weight.sum()))
+
+    def leaf(i: int) -> list[Part]:
+        items = jobs.leaves[i]
+        out = []
+        for c in np.unique(colour[items]).tolist():
+            sel = tubes.select(np.sort(items[colour[items] == c]))
+            out.append(_part(sel, sel.faces, np.arange(len(sel.faces))))
+        return out
+
+    roots, stats = batches.run(jobs, leaf, _namer(jobs, "layer"), _use(workers, weight.sum(), jobs), progress)
+    log.debug("union: %d tubes in %d jobs, %d workers", len(tubes), stats["jobs"], stats["workers"])
+    return _weld_float32(_drop_crumbs(_to_trimesh(roots, where)))
+
+
+def _prepare(tubes: Tubes, opt: UnionOptions):
+    """Cull what adds nothing, find what may touch, refine long straight spans; returns tubes, pieces, pairs."""
+    dup = duplicate_tubes(tubes)
+    if dup.any():
+        log.debug("union: %d tubes equal to another left out", int(dup.sum()))
+        tubes = tubes.select(~dup)
+    pcs = pieces(tubes)
+    a, b = touching(pcs, opt.margin, opt.max_pairs)
+    buried = buried_tubes(tubes, pcs, a, b)
+    if buried.any():
+        log.debug("union: %d tubes buried inside another left out", int(buried.sum()))
+        tubes = tubes.select(~buried)
+        pcs = pieces(tubes)
+        a, b = touching(pcs, opt.margin, opt.max_pairs)
+    if opt.local:
+        tube, ring, t = free_stretches(tubes, pcs, a, b, opt.margin)
+        if len(tube):
+            log.debug("union: %d rings inserted around touched stretches", len(tube))
+            tubes = tubes.insert_rings(tube, ring, t)
+            pcs = pieces(tubes)
+            a, b = touching(pcs, opt.margin, opt.max_pairs)
+    return tubes, pcs, a, b
+
+
+def _job_target(total: float) -> float:
+    """Triangles per job: about 16 jobs (for the workers and for progress), none too small to pay for itself.
+
+    The same for any number of workers: how the work is split decides the
+    result's bytes (manifold3d may triangulate a cut differently in another
+    grouping), the number of workers must not.
+    """
+    return max(total / 16, _JOB_TRIANGLES)
+
+
+def _use(workers: int, triangles: float, jobs: batches.Plan) -> int:
+    """Worker processes for a plan: all of them for big unions, none (this process) for small ones."""
+    if workers > 1 and triangles >= batches.POOL_MIN_TRIANGLES and len(jobs.weight) > 1:
+        return min(workers, len(jobs.weight))
+    return 1
+
+
+def _namer(jobs: batches.Plan, what: str) -> Callable[[int], str]:
+    def name(node: int) -> str:
+        if len(jobs.weight) == 1:
+            return f"union: {what} 0"
+        kind = "job" if node < len(jobs.leaves) else "merge"
+        return f"union: {kind} {node} of {len(jobs.weight)}"
+
+    return name
+
+
+def _drop_crumbs(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """Remove the closed, flat crumbs a boolean can leave where many tubes meet.
+
+    Where several tubes cross at almost one point, manifold3d may return, beside
+    the tree, a few separate pieces of 4-6 triangles that enclose no volume
+    (seen on the ``tree`` preset: 17 of them, areas below 1e-6 m^2).  A piece is
+    dropped when it is both tiny (area below 1e-6 of the whole) and flat (volume
+    below 1e-3 * area^1.5, where a thin tube's ratio is near 0.2 * sqrt(r/L)).
+    Real parts of a plant (a separate branch after an ``f`` move) are kept.
+    """
+    faces = np.asarray(mesh.faces)
+    label = batches.components(len(mesh.vertices), faces.ravel(), np.roll(faces, -1, axis=1).ravel())[faces[:, 0]]
+    piece = np.unique(label, return_inverse=True)[1].ravel()
+    if piece.max(initial=0) == 0:
+        return mesh
+    tri = np.asarray(mesh.vertices)[faces]
+    area = np.bincount(piece, 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1))
+    volume = np.abs(np.bincount(piece, np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0))
+    crumb = (area < 1e-6 * area.sum()) & (volume < 1e-3 * area**1.5)
+    if not crumb.any():
+        return mesh
+    keep = ~crumb[piece]
+    log.debug("union: dropped %d flat crumbs of %d triangles", int(crumb.sum()), int((~keep).sum()))
+    used = np.zeros(len(mesh.vertices), bool)
+    used[faces[keep]] = True
+    renumber = np.cumsum(used) - 1
+    attrs = mesh.face_attributes
+    return corner_mesh(
+        np.asarray(mesh.vertices)[used], renumber[faces[keep]], attrs["corner_normals"][keep], attrs["corner_uv"][keep]
+    )
 
 
 def _repair_corners(mesh: trimesh.Trimesh) -> None:
@@ -442,84 +464,60 @@ def _separate_float32(mesh: trimesh.Trimesh, rounds: int = 32) -> trimesh.Trimes
     return corner_mesh(points, np.asarray(mesh.faces), attrs["corner_normals"], attrs["corner_uv"])
 
 
-def _batch_union(parts: list[manifold3d.Manifold], where: str) -> manifold3d.Manifold:
-    result = parts[0] if len(parts) == 1 else manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add)
-    _check(result, where)
-    if result.is_empty() or result.num_tri() == 0:
-        raise GeometryError(f"{where}: manifold3d returned an empty mesh")
-    return _drop_slivers(result)
+def _local_union(
+    tubes: Tubes,
+    pcs,
+    busy: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    where: str,
+    workers: int,
+    progress: Callable[[float], None] | None,
+):
+    """Union only the runs of pieces that may touch another tube; stitch the free pieces back on.
 
-
-def _drop_slivers(manifold: manifold3d.Manifold) -> manifold3d.Manifold:
-    """Remove the closed, flat crumbs a boolean can leave where many tubes meet.
-
-    Where several tubes cross at almost one point, manifold3d may return, beside
-    the tree, a few separate pieces of 4-6 triangles that enclose no volume
-    (seen on the ``tree`` preset: 17 of them, areas below 1e-6 m^2).  A piece is
-    dropped when it is both tiny (area below 1e-6 of the whole) and flat (volume
-    below 1e-3 * area^1.5, where a thin tube's ratio is near 0.2 * sqrt(r/L)).
-    Real parts of a plant (a separate branch after an ``f`` move) are kept.
-    """
-    parts = manifold.decompose()
-    if len(parts) < 2:
-        return manifold
-    area = np.array([p.surface_area() for p in parts])
-    volume = np.abs([p.volume() for p in parts])
-    crumb = (area < 1e-6 * area.sum()) & (volume < 1e-3 * area**1.5)
-    if not crumb.any():
-        return manifold
-    log.debug(
-        "union: dropped %d flat crumbs of %d triangles",
-        crumb.sum(),
-        sum(parts[i].num_tri() for i in np.flatnonzero(crumb)),
-    )
-    return manifold3d.Manifold.compose([p for p, c in zip(parts, crumb, strict=True) if not c])
-
-
-def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b: np.ndarray, where: str):
-    """Union only the runs of spans that may touch another tube; stitch the free spans back on.
-
-    A *run* is a maximal stretch of busy spans of one tube.  Each run goes
-    into the boolean as a closed piece: where it ends at a free span it is
+    A *run* is a maximal stretch of busy pieces of one tube.  Each run goes
+    into the boolean as a closed piece: where it ends at a free piece it is
     closed by a temporary cap on that ring.  No other tube comes near such a
-    ring (the free span's capsule touches nothing), so manifold leaves the cap
-    as it was; it is removed from the result, and the free spans of the tube
+    ring (the free piece's capsule touches nothing), so manifold leaves the cap
+    as it was; it is removed from the result, and the free pieces of the tube
     (kept out of the boolean) are welded onto the ring.  Returns None when the
     result does not stitch exactly (the caller then unions whole tubes).
     """
     nt = len(tubes)
     rings, sides = tubes.rings, tubes.sides
-    nspan = rings - 1
-    span_off = _offsets(nspan)
-    # runs of busy spans
-    prev_busy = np.zeros(len(busy), bool)
-    prev_busy[1:] = busy[:-1]
-    starts = busy & ((spans.local == 0) | ~prev_busy)
-    run_of_span = np.cumsum(starts) - 1
+    # runs of busy pieces (pieces are numbered tube after tube, in ring order)
+    prev_same = np.zeros(len(busy), bool)
+    prev_same[1:] = (pcs.tube[1:] == pcs.tube[:-1]) & busy[:-1]
+    starts = busy & ~prev_same
+    run_of_piece = np.cumsum(starts) - 1
     run_start = np.flatnonzero(starts)
-    nxt_busy = np.zeros(len(busy), bool)
-    nxt_busy[:-1] = busy[1:]
-    ends = busy & ((spans.local == nspan[spans.tube] - 1) | ~nxt_busy)
-    run_end = np.flatnonzero(ends)
-    run_tube = spans.tube[run_start]
-    k0, k1 = spans.local[run_start], spans.local[run_end]
+    next_same = np.zeros(len(busy), bool)
+    next_same[:-1] = (pcs.tube[1:] == pcs.tube[:-1]) & busy[1:]
+    run_end = np.flatnonzero(busy & ~next_same)
+    run_tube = pcs.tube[run_start]
+    k0, k1 = pcs.first[run_start], pcs.last[run_end]  # first and last ring of each run
 
-    # every face of every tube: its span and whether it goes into the boolean
+    # every face of every tube: its span, its piece and whether it goes into the boolean
     fo = tubes.face_offsets
     nf = len(tubes.faces)
+    nspan = rings - 1
     face_tube = np.repeat(np.arange(nt), np.diff(fo))
     lf = np.arange(nf) - fo[face_tube]
     s2 = 2 * sides[face_tube]
     body_faces = s2 * nspan[face_tube]
     face_span_local = np.where(lf < body_faces, lf // s2, np.where(lf < body_faces + s2 // 2, 0, nspan[face_tube] - 1))
-    face_span = span_off[face_tube] + face_span_local
-    face_busy = busy[face_span]
+    del lf, s2, body_faces
+    face_piece = pcs.span_piece[_offsets(nspan)[face_tube] + face_span_local]
+    del face_span_local
+    face_busy = busy[face_piece]
 
-    # temporary caps where a run meets a free span: a fan from ring vertex 0
-    cut_tube = np.concatenate([run_tube[k0 > 0], run_tube[k1 < nspan[run_tube] - 1]])
-    cut_ring = np.concatenate([k0[k0 > 0], k1[k1 < nspan[run_tube] - 1] + 1])
-    cut_run = np.concatenate([np.flatnonzero(k0 > 0), np.flatnonzero(k1 < nspan[run_tube] - 1)])
-    cut_tip = np.concatenate([np.zeros((k0 > 0).sum(), bool), np.ones((k1 < nspan[run_tube] - 1).sum(), bool)])
+    # temporary caps where a run meets a free piece: a fan from ring vertex 0
+    open_base, open_tip = k0 > 0, k1 < rings[run_tube] - 1
+    cut_tube = np.concatenate([run_tube[open_base], run_tube[open_tip]])
+    cut_ring = np.concatenate([k0[open_base], k1[open_tip]])
+    cut_run = np.concatenate([np.flatnonzero(open_base), np.flatnonzero(open_tip)])
+    cut_tip = np.concatenate([np.zeros(open_base.sum(), bool), np.ones(open_tip.sum(), bool)])
     cap_faces, cap_run = [], []
     for s in np.unique(sides[cut_tube]).tolist() if len(cut_tube) else []:
         c = np.flatnonzero(sides[cut_tube] == s)
@@ -532,28 +530,52 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
     cap_faces = np.concatenate(cap_faces) if cap_faces else np.zeros((0, 3), np.int64)
     cap_run = np.concatenate(cap_run) if cap_run else np.zeros(0, np.int64)
 
-    # colour the runs; one Manifold per colour; union
-    ra, rb = run_of_span[a], run_of_span[b]
-    run_pairs = np.unique(np.stack([np.minimum(ra, rb), np.maximum(ra, rb)], axis=1), axis=0)
-    colour = _colour(len(run_start), run_pairs)
+    # the runs' triangles (ids >= nf mark temporary caps), grouped by run
     bf = np.flatnonzero(face_busy)
-    tri = np.concatenate([tubes.faces[bf], cap_faces])
-    tri_id = np.concatenate([bf, nf + np.arange(len(cap_faces))])  # ids >= nf mark temporary caps
-    tri_colour = colour[np.concatenate([run_of_span[face_span[bf]], cap_run])]
-    parts = []
-    for c in range(int(colour.max()) + 1):
-        sel = np.flatnonzero(tri_colour == c)
-        parts.append(_manifold_of(tubes, tri[sel], tri_id[sel], f"union: layer {c} of the junction runs"))
-    result = _batch_union(parts, where)
-    log.debug("union: %d of %d spans in %d runs, %d layers", busy.sum(), len(busy), len(run_start), len(parts))
+    tri_run = np.concatenate([run_of_piece[face_piece[bf]], cap_run])
+    by_run = np.argsort(tri_run, kind="stable")
+    tri_id = np.concatenate([bf, nf + np.arange(len(cap_faces))])[by_run]
+    tri_off = np.searchsorted(tri_run[by_run], np.arange(len(run_start) + 1))
+    del tri_run, by_run, bf
 
-    out = result.to_mesh64()
-    props = np.asarray(out.vert_properties)
-    otri = np.asarray(out.tri_verts, np.int64)
-    fid = np.asarray(out.face_id, np.int64)
-    if props.shape[1] != _NUM_PROP or len(fid) != len(otri):
-        raise GeometryError(f"{where}: manifold3d returned {props.shape[1]} properties, {len(fid)} face ids")
-    point_of, npts = _weld(len(props), out)
+    def faces_of(ids: np.ndarray) -> np.ndarray:
+        out = np.empty((len(ids), 3), np.int64)
+        tube_face = ids < nf
+        out[tube_face] = tubes.faces[ids[tube_face]]
+        out[~tube_face] = cap_faces[ids[~tube_face] - nf]
+        return out
+
+    # colour the runs; plan the jobs; union
+    run_pairs = _unique_pairs(run_of_piece[a], run_of_piece[b])
+    colour = _colour(len(run_start), run_pairs)
+    weight = np.diff(tri_off).astype(np.float64)
+    centre = 0.5 * (pcs.p[run_start] + pcs.q[run_end])
+    jobs = batches.plan(weight, centre, run_pairs[:, 0], run_pairs[:, 1], _job_target(weight.sum()))
+
+    def leaf(i: int) -> list[Part]:
+        items = jobs.leaves[i]
+        out = []
+        for c in np.unique(colour[items]).tolist():
+            runs = np.sort(items[colour[items] == c])
+            ids = np.concatenate([tri_id[tri_off[r] : tri_off[r + 1]] for r in runs.tolist()])
+            out.append(_part(tubes, faces_of(ids), ids))
+        return out
+
+    roots, stats = batches.run(jobs, leaf, _namer(jobs, "layer"), _use(workers, weight.sum(), jobs), progress)
+    log.debug(
+        "union: %d of %d pieces in %d runs (%d triangles, %d colours), %d jobs, %d workers, %.2f s boolean CPU",
+        busy.sum(),
+        len(busy),
+        len(run_start),
+        weight.sum(),
+        colour.max() + 1,
+        stats["jobs"],
+        stats["workers"],
+        stats["boolean_cpu"],
+    )
+
+    props, otri, fid, point_of, npts = _join(roots, where)
+    del roots
     temp = fid >= nf
     if temp.sum() != len(cap_faces):
         log.debug("union: a temporary cap was changed by the boolean; unioning whole tubes")
@@ -574,7 +596,7 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
     if found is None:
         log.debug("union: the rings of the temporary caps moved in the boolean; unioning whole tubes")
         return None
-    # free spans: their faces, their points (ring points on a cut map onto the seam)
+    # free pieces: their faces, their points (ring points on a cut map onto the seam)
     ff = np.flatnonzero(~face_busy)
     free_pts = tubes.wedge_point[tubes.faces[ff]]
     new_index = np.full(len(tubes.points), -1, np.int64)
@@ -594,11 +616,18 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
     return corner_mesh(vertices, faces, normals, uv)
 
 
-def _manifold_of(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, where: str) -> manifold3d.Manifold:
-    """One Manifold of the wedge-indexed triangles ``tri`` of ``tubes``, ``tri_id`` as face ids."""
+def _offsets(counts: np.ndarray) -> np.ndarray:
+    out = np.zeros(len(counts) + 1, np.int64)
+    np.cumsum(counts, out=out[1:])
+    return out
+
+
+def _part(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray) -> Part:
+    """The wedge-indexed triangles ``tri`` of ``tubes`` as one manifold3d mesh, ``tri_id`` as face ids."""
     used = np.zeros(len(tubes.wedge_point), bool)
     used[tri] = True
     wedges = np.flatnonzero(used)
+    del used
     remap = np.empty(len(tubes.wedge_point), np.int64)
     remap[wedges] = np.arange(len(wedges))
     w = len(wedges)
@@ -611,20 +640,30 @@ def _manifold_of(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, where: str) 
     rep[wp] = np.arange(w)
     merge_to = rep[wp]
     merge_from = np.flatnonzero(merge_to != np.arange(w))
-    mesh = manifold3d.Mesh64(
-        vert_properties=props,
-        tri_verts=remap[tri].astype(np.uint64),
-        merge_from_vert=merge_from.astype(np.uint64),
-        merge_to_vert=merge_to[merge_from].astype(np.uint64),
-        face_id=tri_id.astype(np.uint64),
-    )
-    return _check(manifold3d.Manifold(mesh), where)
+    return Part(props, remap[tri], merge_from, merge_to[merge_from], np.asarray(tri_id, np.int64))
 
 
-def _weld(nprops: int, mesh: manifold3d.Mesh):
-    """Point index of every property vertex of a manifold3d Mesh (merge vectors applied)."""
+def _join(parts: list[Part], where: str):
+    """The disjoint meshes side by side: properties, triangles, face ids, and the point of each property vertex."""
+    for part in parts:
+        if part.props.shape[1] != _NUM_PROP or len(part.face_id) != len(part.tri):
+            raise GeometryError(
+                f"{where}: manifold3d returned {part.props.shape[1]} properties, {len(part.face_id)} face ids"
+            )
+    shift = _offsets(np.array([len(p.props) for p in parts]))
+    props = np.concatenate([p.props for p in parts]) if len(parts) > 1 else parts[0].props
+    tri = np.concatenate([p.tri + s for p, s in zip(parts, shift, strict=False)])
+    fid = np.concatenate([p.face_id for p in parts])
+    merge_from = np.concatenate([p.merge_from + s for p, s in zip(parts, shift, strict=False)])
+    merge_to = np.concatenate([p.merge_to + s for p, s in zip(parts, shift, strict=False)])
+    point_of, npts = _weld(len(props), merge_from, merge_to)
+    return props, tri, fid, point_of, npts
+
+
+def _weld(nprops: int, merge_from: np.ndarray, merge_to: np.ndarray):
+    """Point index of every property vertex (merge vectors applied) and the number of points."""
     rep = np.arange(nprops)
-    rep[np.asarray(mesh.merge_from_vert, np.int64)] = np.asarray(mesh.merge_to_vert, np.int64)
+    rep[merge_from] = merge_to
     while (rep[rep] != rep).any():  # follow chains, should manifold ever write one
         rep = rep[rep]
     root = np.zeros(nprops, bool)
@@ -665,13 +704,8 @@ def _closed(faces: np.ndarray, nverts: int) -> bool:
     return bool((fwd[pos] == rev).all())
 
 
-def _to_trimesh(manifold: manifold3d.Manifold, where: str) -> trimesh.Trimesh:
-    mesh = manifold.to_mesh64()
-    props = np.asarray(mesh.vert_properties)
-    if props.shape[1] != _NUM_PROP:
-        raise GeometryError(f"{where}: expected {_NUM_PROP} vertex properties, manifold3d returned {props.shape[1]}")
-    tri = np.asarray(mesh.tri_verts, np.int64)
-    point_of, npts = _weld(len(props), mesh)
+def _to_trimesh(parts: list[Part], where: str) -> trimesh.Trimesh:
+    props, tri, _, point_of, npts = _join(parts, where)
     vertices = np.empty((npts, 3))
     vertices[point_of] = props[:, :3]
     return corner_mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:])
