@@ -455,7 +455,7 @@ def free_stretches(
         return empty
     L = length[me]
     u = (pcs.q[me] - pcs.p[me]) / L[:, None]
-    grow = pcs.radius[other] * (1.0 + margin) + 1e-9 * (L + pcs.radius[me])
+    grow = pcs.radius[other] * (1.0 + margin)
     # only the part of the other axis within reach of this axis' line matters: |w0 + f w1| <= reach, f in [0, 1]
     reach = pcs.radius[me] * (1.0 + margin) + grow
     r0 = pcs.p[other] - pcs.p[me]
@@ -475,11 +475,15 @@ def free_stretches(
     s0 = _dot(r0 + f0[:, None] * d, u)
     s1 = _dot(r0 + f1[:, None] * d, u)
     # widened by this piece's own radius too (the capsule of the untouched stretch ends in a half ball), and a
-    # little more than the touch test's own padding, so that the untouched stretch is found untouched
+    # little more than the touch test's own padding, so that the untouched stretch is found untouched (the same
+    # for every span, so that equal junctions get equal rings, see lsys3d.repeats)
     scale = float(np.abs(np.concatenate([pcs.lo, pcs.hi])).max()) + 1.0
     grow = 1.01 * (grow + pcs.radius[me] * (1.0 + margin)) + 1e-8 * scale
-    lo = np.clip(np.minimum(s0, s1) - grow, 0.0, L)
-    hi = np.clip(np.maximum(s0, s1) + grow, 0.0, L)
+    # outward to a grid of a power of two near a sixteenth of the radius, counted from the span's start: junctions
+    # that are equal up to where they sit on their spans get equal rings (lsys3d.repeats unions them once)
+    step = np.exp2(np.round(np.log2(pcs.radius[me] / 16.0)))
+    lo = np.clip(np.floor((np.minimum(s0, s1) - grow) / step) * step, 0.0, L)
+    hi = np.clip(np.ceil((np.maximum(s0, s1) + grow) / step) * step, 0.0, L)
     # merge the stretches of each span: sort by span, then start
     order = np.lexsort((lo, me))
     me, lo, hi, L = me[order], lo[order], hi[order], L[order]

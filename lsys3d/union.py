@@ -57,9 +57,10 @@ import manifold3d
 import numpy as np
 import trimesh
 
-from . import batches, booleans
+from . import batches, booleans, repeats
 from .booleans import BooleanError, Part
 from .errors import GeometryError
+from .rowhash import find_rows
 from .sweep import Tubes, corner_mesh
 from .touch import DEFAULT_MAX_PAIRS, buried_tubes, duplicate_tubes, free_stretches, pieces, touching
 
@@ -370,23 +371,21 @@ def _weld_float32(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     (:func:`_separate_float32`), and so are any left closer than readers weld.
     """
     _repair_corners(mesh)
-    v32 = np.asarray(mesh.vertices, np.float32)
-    unique, first, point = np.unique(v32, axis=0, return_index=True, return_inverse=True)
-    if len(unique) == len(v32):
+    v32 = np.asarray(mesh.vertices, np.float32) + np.float32(0.0)  # + 0.0: -0.0 and 0.0 are one position
+    owner = _first_equal_row(v32.view(np.int32))
+    first = owner == np.arange(len(v32))
+    if first.all():
         return _separate_float32(mesh)
-    point = point.ravel()
-    faces = point[np.asarray(mesh.faces)]
+    renumber = np.cumsum(first) - 1  # the points numbered in their first appearance
+    faces = renumber[owner][np.asarray(mesh.faces)]
     a, b, c = faces.T
     keep = (a != b) & (b != c) & (c != a)
-    order = np.argsort(first)  # number the points in their first appearance, as before
-    renumber = np.empty(len(order), np.int64)
-    renumber[order] = np.arange(len(order))
-    faces = renumber[faces[keep]]
+    faces = faces[keep]
     attrs = mesh.face_attributes
-    if not _closed(faces, len(unique)):
+    if not _closed(faces, int(first.sum())):
         return _separate_float32(mesh)
     normals, uv = attrs["corner_normals"][keep], attrs["corner_uv"][keep]
-    return _separate_float32(corner_mesh(unique[order].astype(np.float64), faces, normals, uv))
+    return _separate_float32(corner_mesh(v32[first].astype(np.float64), faces, normals, uv))
 
 
 def _first_equal_row(keys: np.ndarray) -> np.ndarray:
@@ -545,35 +544,51 @@ def _local_union(
         out[~tube_face] = cap_faces[ids[~tube_face] - nf]
         return out
 
-    # colour the runs; plan the jobs; union
+    # clusters of runs that touch; congruent clusters are unioned once
     run_pairs = _unique_pairs(run_of_piece[a], run_of_piece[b])
-    colour = _colour(len(run_start), run_pairs)
-    weight = np.diff(tri_off).astype(np.float64)
-    centre = 0.5 * (pcs.p[run_start] + pcs.q[run_end])
-    jobs = batches.plan(weight, centre, run_pairs[:, 0], run_pairs[:, 1], _job_target(weight.sum()))
+    label = batches.components(len(run_start), run_pairs[:, 0], run_pairs[:, 1])
+    by_label = np.argsort(label, kind="stable")
+    cluster_runs = np.split(by_label, np.flatnonzero(np.diff(label[by_label])) + 1)
+    clusters = repeats.find(tubes, cluster_runs, tri_id, tri_off, faces_of, nf)
+    is_rep = clusters.rep == np.arange(len(clusters))
+    todo = np.flatnonzero(np.repeat(is_rep, [len(c) for c in cluster_runs])[np.argsort(by_label)])  # their runs
+    index = np.full(len(run_start), -1, np.int64)
+    index[todo] = np.arange(len(todo))
+    todo_pairs = index[run_pairs]
+    todo_pairs = todo_pairs[(todo_pairs >= 0).all(axis=1)]
+    colour = _colour(len(todo), todo_pairs)
+    weight = np.diff(tri_off)[todo].astype(np.float64)
+    centre = 0.5 * (pcs.p[run_start[todo]] + pcs.q[run_end[todo]])
+    jobs = batches.plan(weight, centre, todo_pairs[:, 0], todo_pairs[:, 1], _job_target(weight.sum()))
 
     def leaf(i: int) -> list[Part]:
         items = jobs.leaves[i]
         out = []
         for c in np.unique(colour[items]).tolist():
-            runs = np.sort(items[colour[items] == c])
+            runs = todo[np.sort(items[colour[items] == c])]
             ids = np.concatenate([tri_id[tri_off[r] : tri_off[r + 1]] for r in runs.tolist()])
             out.append(_part(tubes, faces_of(ids), ids))
         return out
 
     roots, stats = batches.run(jobs, leaf, _namer(jobs, "layer"), _use(workers, weight.sum(), jobs), progress)
     log.debug(
-        "union: %d of %d pieces in %d runs (%d triangles, %d colours), %d jobs, %d workers, %.2f s boolean CPU",
+        "union: %d of %d pieces in %d runs, %d clusters (%d unioned, %d triangles, %d colours), %d jobs, "
+        "%d workers, %.2f s boolean CPU",
         busy.sum(),
         len(busy),
         len(run_start),
+        len(clusters),
+        is_rep.sum(),
         weight.sum(),
-        colour.max() + 1,
+        colour.max(initial=0) + 1,
         stats["jobs"],
         stats["workers"],
         stats["boolean_cpu"],
     )
-
+    if not is_rep.all():
+        done = _concat(roots)
+        roots = [done, *repeats.copies(clusters, tubes, done, nf, len(cap_faces))]
+        del done
     props, otri, fid, point_of, npts = _join(roots, where)
     del roots
     temp = fid >= nf
@@ -643,6 +658,20 @@ def _part(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray) -> Part:
     return Part(props, remap[tri], merge_from, merge_to[merge_from], np.asarray(tri_id, np.int64))
 
 
+def _concat(parts: list[Part]) -> Part:
+    """Meshes side by side as one :class:`Part` (indices shifted)."""
+    if len(parts) == 1:
+        return parts[0]
+    shift = _offsets(np.array([len(p.props) for p in parts]))
+    return Part(
+        np.concatenate([p.props for p in parts]),
+        np.concatenate([p.tri + k for p, k in zip(parts, shift, strict=False)]),
+        np.concatenate([p.merge_from + k for p, k in zip(parts, shift, strict=False)]),
+        np.concatenate([p.merge_to + k for p, k in zip(parts, shift, strict=False)]),
+        np.concatenate([p.face_id for p in parts]),
+    )
+
+
 def _join(parts: list[Part], where: str):
     """The disjoint meshes side by side: properties, triangles, face ids, and the point of each property vertex."""
     for part in parts:
@@ -650,14 +679,9 @@ def _join(parts: list[Part], where: str):
             raise GeometryError(
                 f"{where}: manifold3d returned {part.props.shape[1]} properties, {len(part.face_id)} face ids"
             )
-    shift = _offsets(np.array([len(p.props) for p in parts]))
-    props = np.concatenate([p.props for p in parts]) if len(parts) > 1 else parts[0].props
-    tri = np.concatenate([p.tri + s for p, s in zip(parts, shift, strict=False)])
-    fid = np.concatenate([p.face_id for p in parts])
-    merge_from = np.concatenate([p.merge_from + s for p, s in zip(parts, shift, strict=False)])
-    merge_to = np.concatenate([p.merge_to + s for p, s in zip(parts, shift, strict=False)])
-    point_of, npts = _weld(len(props), merge_from, merge_to)
-    return props, tri, fid, point_of, npts
+    whole = _concat(parts)
+    point_of, npts = _weld(len(whole.props), whole.merge_from, whole.merge_to)
+    return whole.props, whole.tri, whole.face_id, point_of, npts
 
 
 def _weld(nprops: int, merge_from: np.ndarray, merge_to: np.ndarray):
@@ -679,29 +703,22 @@ def _unit_rows(v: np.ndarray) -> np.ndarray:
 
 def _match_rows(have: np.ndarray, want: np.ndarray):
     """Index into ``have`` of every row of ``want`` (exact match), or None if any is missing or twice."""
-    void = np.dtype((np.void, have.dtype.itemsize * 3))
-    hk = np.ascontiguousarray(have).view(void).ravel()
-    wk = np.ascontiguousarray(want).view(void).ravel()
-    order = np.argsort(hk)
-    hs = hk[order]
-    if len(hs) > 1 and (hs[1:] == hs[:-1]).any():
+    found = find_rows(have, want)
+    if (found < 0).any() or len(np.unique(found)) != len(found):
         return None
-    pos = np.searchsorted(hs, wk)
-    pos = np.minimum(pos, len(hs) - 1)
-    if not (hs[pos] == wk).all() or len(np.unique(pos)) != len(pos):
-        return None
-    return order[pos]
+    return found
 
 
 def _closed(faces: np.ndarray, nverts: int) -> bool:
     """Every directed edge once, and its reverse once: closed and consistently oriented."""
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    fwd = np.sort(e[:, 0] * nverts + e[:, 1])
+    a, b = faces.ravel(), np.roll(faces, -1, axis=1).ravel()
+    fwd = a * nverts + b
+    fwd.sort()
     if len(fwd) > 1 and (fwd[1:] == fwd[:-1]).any():
         return False
-    rev = e[:, 1] * nverts + e[:, 0]
-    pos = np.minimum(np.searchsorted(fwd, rev), len(fwd) - 1)
-    return bool((fwd[pos] == rev).all())
+    rev = b * nverts + a
+    rev.sort()
+    return bool(np.array_equal(fwd, rev))
 
 
 def _to_trimesh(parts: list[Part], where: str) -> trimesh.Trimesh:
