@@ -178,6 +178,7 @@ class _Worker:
         )
         self.inbox: queue.Queue = queue.Queue()
         self.outbox = outbox
+        self.killed = False
         self.thread = threading.Thread(target=self._serve, daemon=True)
         self.thread.start()
 
@@ -196,6 +197,8 @@ class _Worker:
                 if reply[0] == "ok":
                     reply = ("ok", (Part(*reply[1][0]), *reply[1][1:]))
             except (OSError, EOFError, pickle.UnpicklingError):
+                if self.killed:
+                    return
                 reply = ("crash", self._last_words())
             self.outbox.put((node, where, reply))
             if reply[0] == "crash":
@@ -219,9 +222,11 @@ class _Worker:
         self.log.close()
 
     def kill(self) -> None:
+        self.killed = True
         self.proc.kill()
         self.inbox.put(None)
         self.proc.wait()
+        self.thread.join(timeout=10)
         self.log.close()
 
 

@@ -15,6 +15,7 @@ from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import LSystemError
 from .presets import DEFAULT_PRESET, describe, list_presets, load
 from .sweep import DEFAULT_MAX_TRIANGLES
+from .touch import DEFAULT_MAX_PAIRS
 from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions
 
 DEFAULT_OUTPUT = "tree.glb"
@@ -76,6 +77,19 @@ def _mesh_args(p: argparse.ArgumentParser):
         help=f"most tube triangles before the union (default {DEFAULT_MAX_TRIANGLES:,})",
     )
     p.add_argument(
+        "--max-union-pairs",
+        type=_at_least(1),
+        default=DEFAULT_MAX_PAIRS,
+        help=f"most pairs of tube pieces that may touch in the union (default {DEFAULT_MAX_PAIRS:,}; more is a crowd "
+        "of branches that would take minutes)",
+    )
+    p.add_argument(
+        "--workers",
+        type=_at_least(0),
+        default=0,
+        help="processes the union may use (default 0: one per core this process may run on; the result is the same)",
+    )
+    p.add_argument(
         "--turtle",
         metavar="KEY=VALUE",
         action="append",
@@ -112,6 +126,9 @@ def _generate_options(args):
     )
     if args.sides is not None:
         options = dataclasses.replace(options, sweep=dataclasses.replace(options.sweep, sides=args.sides))
+    if args.workers or args.max_union_pairs != DEFAULT_MAX_PAIRS:
+        union = dataclasses.replace(options.union_options, workers=args.workers, max_pairs=args.max_union_pairs)
+        options = dataclasses.replace(options, union_options=union)
     if args.bark_displacement:
         bark = dataclasses.replace(options.sweep, bark_displacement=args.bark_displacement)
         options = dataclasses.replace(options, sweep=bark)
@@ -164,7 +181,7 @@ def _pixels(text: str) -> tuple[int, int]:
 
 
 class _Progress:
-    """Stage names on stderr while attached to a terminal; silent when piped or with -q."""
+    """Stage names (and the union's percentage) on stderr while attached to a terminal; silent when piped or -q."""
 
     def __init__(self, enabled: bool):
         self.enabled = enabled
@@ -174,6 +191,8 @@ class _Progress:
             return
         if event == "start":
             sys.stderr.write(f"\rlsys3d: {stage}...\x1b[K")
+        elif event == "progress":  # `seconds` is the fraction done
+            sys.stderr.write(f"\rlsys3d: {stage} {seconds:.0%}\x1b[K")
         else:
             sys.stderr.write(f"\rlsys3d: {stage} {seconds:.2f} s\x1b[K")
         sys.stderr.flush()

@@ -99,7 +99,11 @@ def _version() -> str:
 
 
 def run_stage(name: str, fn: Callable, *args, progress: Callable[[str, str, float], None] | None = None, **kw):
-    """Call ``fn(*args, **kw)`` as stage ``name``: report it to ``progress`` and log its time."""
+    """Call ``fn(*args, **kw)`` as stage ``name``: report it to ``progress`` and log its time.
+
+    ``progress(name, "start", 0.0)`` comes first and ``progress(name, "done", seconds)`` last; a long stage
+    (the union) may report ``progress(name, "progress", fraction)`` between them, fraction in [0, 1].
+    """
     if progress:
         progress(name, "start", 0.0)
     t0 = time.perf_counter()
@@ -160,7 +164,8 @@ def generate(
         Defaults to ``GenerateOptions()``; keyword arguments ``union``,
         ``max_modules``, ``sides`` override single fields.
     progress : callable, optional
-        Called as ``progress(stage, "start" | "done", seconds)`` for each stage.
+        Called as ``progress(stage, "start" | "done", seconds)`` for each stage, and as
+        ``progress("union", "progress", fraction)`` while the union works (fraction from 0 to 1).
 
     Returns
     -------
@@ -200,7 +205,15 @@ def generate(
     if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
         bark = stage("union", lambda _: trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)), tubes)
     else:
-        merge = (lambda t: union(t, options.union_options)) if options.union else concatenate
+
+        def report(fraction: float) -> None:
+            progress("union", "progress", fraction)
+
+        def merge(t):
+            return union(t, options.union_options, progress=report if progress else None)
+
+        if not options.union:
+            merge = concatenate
         if options.bark_color_variation > 0:  # coloured in the union stage: the colours belong to its vertices
             plain = merge
             variation, frequency = options.bark_color_variation, options.bark_color_frequency

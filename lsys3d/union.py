@@ -60,7 +60,7 @@ import trimesh
 from . import batches, booleans, repeats
 from .booleans import BooleanError, Part
 from .errors import GeometryError
-from .rowhash import find_rows
+from .rowhash import find_rows, row_hash
 from .sweep import Tubes, corner_mesh
 from .touch import DEFAULT_MAX_PAIRS, buried_tubes, duplicate_tubes, free_stretches, pieces, touching
 
@@ -221,6 +221,8 @@ def union(
         t = int(np.searchsorted(tubes.point_offsets, np.flatnonzero(bad)[0], side="right") - 1)
         raise GeometryError(f"union: tube {t} (chain {int(tubes.chain[t])}) has a point that is not a finite number")
     workers = opt.workers or batches.default_workers()
+    progress = _Progress(progress)
+    progress(0.0)
     if not opt.layers:
         parts = [_manifold(tubes.select([i]), f"union: tube {i} (chain {tubes.chain[i]})") for i in range(len(tubes))]
         result = parts[0] if len(parts) == 1 else manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add)
@@ -228,17 +230,23 @@ def union(
             raise GeometryError(f"{where}: manifold3d reported {result.status().name}")
         if result.is_empty() or result.num_tri() == 0:
             raise GeometryError(f"{where}: manifold3d returned an empty mesh")
-        return _weld_float32(_drop_crumbs(_to_trimesh([booleans.part_of(result)], where)))
+        mesh = _weld_float32(_drop_crumbs(_to_trimesh([booleans.part_of(result)], where)))
+        progress(1.0)
+        return mesh
     t0 = time.perf_counter()
-    tubes, pcs, a, b = _prepare(tubes, opt)
+    tubes, pcs, a, b = _prepare(tubes, opt, progress)
     log.debug("union: %d pieces, %d touching pairs (%.2f s)", len(pcs), len(a), time.perf_counter() - t0)
+    progress(0.10)
     busy = np.zeros(len(pcs), bool)
     busy[a] = True
     busy[b] = True
     if opt.local and len(a) and busy.mean() <= opt.local_max:
         mesh = _local_union(tubes, pcs, busy, a, b, where, workers, progress)
         if mesh is not None:
-            return _weld_float32(_drop_crumbs(mesh))
+            progress(0.90)
+            mesh = _weld_float32(mesh)
+            progress(1.0)
+            return mesh
     ta, tb = pcs.tube[a], pcs.tube[b]
     pairs = _unique_pairs(ta, tb)
     colour = _colour(len(tubes), pairs)
@@ -254,12 +262,16 @@ def union(
             out.append(_part(sel, sel.faces, np.arange(len(sel.faces))))
         return out
 
-    roots, stats = batches.run(jobs, leaf, _namer(jobs, "layer"), _use(workers, weight.sum(), jobs), progress)
+    roots, stats = batches.run(jobs, leaf, _namer(jobs, "layer"), _use(workers, weight.sum(), jobs), progress.boolean)
     log.debug("union: %d tubes in %d jobs, %d workers", len(tubes), stats["jobs"], stats["workers"])
-    return _weld_float32(_drop_crumbs(_to_trimesh(roots, where)))
+    mesh = _to_trimesh(roots, where)
+    progress(0.85)
+    mesh = _weld_float32(_drop_crumbs(mesh))
+    progress(1.0)
+    return mesh
 
 
-def _prepare(tubes: Tubes, opt: UnionOptions):
+def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None]):
     """Cull what adds nothing, find what may touch, refine long straight spans; returns tubes, pieces, pairs."""
     dup = duplicate_tubes(tubes)
     if dup.any():
@@ -267,6 +279,7 @@ def _prepare(tubes: Tubes, opt: UnionOptions):
         tubes = tubes.select(~dup)
     pcs = pieces(tubes)
     a, b = touching(pcs, opt.margin, opt.max_pairs)
+    progress(0.04)
     buried = buried_tubes(tubes, pcs, a, b)
     if buried.any():
         log.debug("union: %d tubes buried inside another left out", int(buried.sum()))
@@ -278,9 +291,26 @@ def _prepare(tubes: Tubes, opt: UnionOptions):
         if len(tube):
             log.debug("union: %d rings inserted around touched stretches", len(tube))
             tubes = tubes.insert_rings(tube, ring, t)
+            progress(0.07)
             pcs = pieces(tubes)
             a, b = touching(pcs, opt.margin, opt.max_pairs)
     return tubes, pcs, a, b
+
+
+class _Progress:
+    """The union's progress as one fraction: preparing (to 15%), the boolean jobs (to 75%), stitching and welding."""
+
+    def __init__(self, report: Callable[[float], None] | None):
+        self.report = report
+        self.last = -1.0
+
+    def __call__(self, fraction: float) -> None:
+        if self.report and fraction >= self.last + 0.01:
+            self.last = fraction
+            self.report(min(fraction, 1.0))
+
+    def boolean(self, fraction: float) -> None:
+        self(0.15 + 0.60 * fraction)
 
 
 def _job_target(total: float) -> float:
@@ -310,29 +340,36 @@ def _namer(jobs: batches.Plan, what: str) -> Callable[[int], str]:
     return name
 
 
-def _drop_crumbs(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
-    """Remove the closed, flat crumbs a boolean can leave where many tubes meet.
+def _crumbs(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``(f,) bool``: the faces of the closed, flat crumbs a boolean can leave where many tubes meet.
 
     Where several tubes cross at almost one point, manifold3d may return, beside
     the tree, a few separate pieces of 4-6 triangles that enclose no volume
     (seen on the ``tree`` preset: 17 of them, areas below 1e-6 m^2).  A piece is
-    dropped when it is both tiny (area below 1e-6 of the whole) and flat (volume
+    a crumb when it is both tiny (area below 1e-6 of the whole) and flat (volume
     below 1e-3 * area^1.5, where a thin tube's ratio is near 0.2 * sqrt(r/L)).
     Real parts of a plant (a separate branch after an ``f`` move) are kept.
     """
-    faces = np.asarray(mesh.faces)
-    label = batches.components(len(mesh.vertices), faces.ravel(), np.roll(faces, -1, axis=1).ravel())[faces[:, 0]]
+    label = batches.components(len(vertices), faces.ravel(), np.roll(faces, -1, axis=1).ravel())[faces[:, 0]]
     piece = np.unique(label, return_inverse=True)[1].ravel()
     if piece.max(initial=0) == 0:
-        return mesh
-    tri = np.asarray(mesh.vertices)[faces]
+        return np.zeros(len(faces), bool)
+    tri = vertices[faces]
     area = np.bincount(piece, 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1))
     volume = np.abs(np.bincount(piece, np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0))
     crumb = (area < 1e-6 * area.sum()) & (volume < 1e-3 * area**1.5)
+    if crumb.any():
+        log.debug("union: dropped %d flat crumbs of %d triangles", int(crumb.sum()), int(crumb[piece].sum()))
+    return crumb[piece]
+
+
+def _drop_crumbs(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """The mesh without its crumbs (:func:`_crumbs`)."""
+    faces = np.asarray(mesh.faces)
+    crumb = _crumbs(np.asarray(mesh.vertices), faces)
     if not crumb.any():
         return mesh
-    keep = ~crumb[piece]
-    log.debug("union: dropped %d flat crumbs of %d triangles", int(crumb.sum()), int((~keep).sum()))
+    keep = ~crumb
     used = np.zeros(len(mesh.vertices), bool)
     used[faces[keep]] = True
     renumber = np.cumsum(used) - 1
@@ -392,15 +429,23 @@ def _first_equal_row(keys: np.ndarray) -> np.ndarray:
     """For each row of an integer array ``(n, 3)``, the index of the first row equal to it.
 
     What ``np.unique(keys, axis=0, return_index=True, return_inverse=True)``
-    gives, from one stable ``lexsort`` of the columns (several times faster).
+    gives, from one stable sort of a 64-bit hash of the rows (several times
+    faster); should two different rows share a hash, the rows are sorted
+    themselves.
 
     >>> _first_equal_row(np.array([[1, 2, 3], [0, 0, 0], [1, 2, 3], [0, 0, 0]])).tolist()
     [0, 1, 0, 1]
     """
-    order = np.lexsort(keys.T[::-1])  # stable: equal rows keep their order, the first comes first
+    h = row_hash(keys)
+    order = np.argsort(h, kind="stable")  # stable: equal rows keep their order, the first comes first
     ranked = keys[order]
+    same = (ranked[1:] == ranked[:-1]).all(axis=1)
+    if ((h[order][1:] == h[order][:-1]) & ~same).any():  # two rows share a hash: sort the rows
+        order = np.lexsort(keys.T[::-1])
+        ranked = keys[order]
+        same = (ranked[1:] == ranked[:-1]).all(axis=1)
     starts = np.ones(len(keys), bool)
-    starts[1:] = (ranked[1:] != ranked[:-1]).any(axis=1)
+    starts[1:] = ~same
     owner = np.empty(len(keys), np.int64)
     owner[order] = order[np.flatnonzero(starts)][np.cumsum(starts) - 1]
     return owner
@@ -471,7 +516,7 @@ def _local_union(
     b: np.ndarray,
     where: str,
     workers: int,
-    progress: Callable[[float], None] | None,
+    progress: _Progress,
 ):
     """Union only the runs of pieces that may touch another tube; stitch the free pieces back on.
 
@@ -550,6 +595,7 @@ def _local_union(
     by_label = np.argsort(label, kind="stable")
     cluster_runs = np.split(by_label, np.flatnonzero(np.diff(label[by_label])) + 1)
     clusters = repeats.find(tubes, cluster_runs, tri_id, tri_off, faces_of, nf)
+    progress(0.15)
     is_rep = clusters.rep == np.arange(len(clusters))
     todo = np.flatnonzero(np.repeat(is_rep, [len(c) for c in cluster_runs])[np.argsort(by_label)])  # their runs
     index = np.full(len(run_start), -1, np.int64)
@@ -570,7 +616,7 @@ def _local_union(
             out.append(_part(tubes, faces_of(ids), ids))
         return out
 
-    roots, stats = batches.run(jobs, leaf, _namer(jobs, "layer"), _use(workers, weight.sum(), jobs), progress)
+    roots, stats = batches.run(jobs, leaf, _namer(jobs, "layer"), _use(workers, weight.sum(), jobs), progress.boolean)
     log.debug(
         "union: %d of %d pieces in %d runs, %d clusters (%d unioned, %d triangles, %d colours), %d jobs, "
         "%d workers, %.2f s boolean CPU",
@@ -589,8 +635,14 @@ def _local_union(
         done = _concat(roots)
         roots = [done, *repeats.copies(clusters, tubes, done, nf, len(cap_faces))]
         del done
+    progress(0.80)
     props, otri, fid, point_of, npts = _join(roots, where)
     del roots
+    seam_pos = np.empty((npts, 3), np.float64)
+    seam_pos[point_of] = props[:, :3]
+    crumb = _crumbs(seam_pos, point_of[otri])
+    if crumb.any():
+        otri, fid = otri[~crumb], fid[~crumb]
     temp = fid >= nf
     if temp.sum() != len(cap_faces):
         log.debug("union: a temporary cap was changed by the boolean; unioning whole tubes")
@@ -605,8 +657,6 @@ def _local_union(
     if len(seam) != len(cut_points):
         log.debug("union: the temporary caps do not meet the boolean at their rings; unioning whole tubes")
         return None
-    seam_pos = np.empty((npts, 3), np.float64)
-    seam_pos[point_of] = props[:, :3]
     found = _match_rows(seam_pos[seam], tubes.points[cut_points])
     if found is None:
         log.debug("union: the rings of the temporary caps moved in the boolean; unioning whole tubes")
@@ -625,6 +675,10 @@ def _local_union(
     faces = np.concatenate([point_of[otri[keep]], new_index[free_pts]])
     normals = np.concatenate([_unit_rows(props[otri[keep], 3:6]), tubes.wedge_normal[tubes.faces[ff]]])
     uv = np.concatenate([props[otri[keep], 6:], tubes.wedge_uv[tubes.faces[ff]]])
+    if crumb.any():  # their vertices go too
+        used = np.zeros(len(vertices), bool)
+        used[faces] = True
+        vertices, faces = vertices[used], (np.cumsum(used) - 1)[faces]
     if not _closed(faces, len(vertices)):
         log.debug("union: the stitched mesh is not closed; unioning whole tubes")
         return None
