@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+import numba
 import numpy as np
 import trimesh
 
@@ -106,6 +107,7 @@ class SweepOptions:
     max_bend: float = 120.0
     merge_angle: float = 0.01
     merge_width: float = 1e-6
+    merge_deviation: float = 0.02
     bark_displacement: float = 0.0
     bark_frequency: float = 8.0
     bark_octaves: int = 3
@@ -120,6 +122,7 @@ class SweepOptions:
             "max_bend": 0 < self.max_bend < 180,
             "merge_angle": 0 <= self.merge_angle < 90,
             "merge_width": self.merge_width >= 0,
+            "merge_deviation": 0 <= self.merge_deviation <= 0.5,
             "bark_displacement": 0 <= self.bark_displacement <= 0.5,
             "bark_frequency": self.bark_frequency > 0,
             "bark_octaves": self.bark_octaves >= 1,
@@ -484,6 +487,16 @@ def sweep(
     w0 = np.maximum(skeleton.width_start[seg], opt.min_width)
     w1 = np.maximum(skeleton.width_end[seg], opt.min_width)
     k = len(seg)
+    if opt.merge_deviation > 0 and k > 1:
+        group = _merge_groups(chain, p0, p1, v0, v1, w0, w1, opt.merge_deviation, 1e-9 * (np.abs(p1).max() + 1.0))
+        if group[-1] + 1 < k:
+            first = np.flatnonzero(np.concatenate([[True], group[1:] != group[:-1]]))
+            last = np.append(first[1:] - 1, k - 1)
+            seg, chain, p0, p1, v0, v1 = seg[first], chain[first], p0[first], p1[last], v0[first], v1[last]
+            w0, w1 = w0[first], w1[last]
+            length = np.linalg.norm(p1 - p0, axis=1)
+            d = (p1 - p0) / length[:, None]
+            k = len(seg)
 
     # ---- joints between consecutive kept segments: split where a ring cannot follow
     same = chain[1:] == chain[:-1]
@@ -646,6 +659,66 @@ def sweep(
         rings[order_all],
         order_of_piece[order_all].astype(np.int32),
     )
+
+
+@numba.njit(cache=True, nogil=True)
+def _merge_groups(chain, p0, p1, v0, v1, w0, w1, deviation, gap):  # pragma: no cover - compiled
+    """Group of each segment: runs of one chain whose joints stay near the straight line (SweepOptions.merge_deviation).
+
+    Only segments shorter than the tube is wide take part.  A run grows from
+    its first segment while every joint it would swallow lies within
+    ``deviation`` times the run's smallest radius of the segment from the
+    run's start to its new end, the width there within as much of the linear
+    taper, and no gap opens between segments.  At most 64 segments a run, so
+    the checks stay linear in the number of segments.
+    """
+    k = len(chain)
+    group = np.empty(k, np.int64)
+    g = 0
+    i = 0
+    while i < k:
+        group[i] = g
+        j = i
+        rmin = 0.5 * min(w0[i], w1[i])
+        while j + 1 < k and chain[j + 1] == chain[i] and j + 1 - i < 64 and v1[i] - v0[i] < 2.0 * rmin:
+            n = j + 1
+            if v1[n] - v0[n] >= min(w0[n], w1[n]):
+                break
+            step = 0.0
+            for c in range(3):
+                step += (p0[n, c] - p1[j, c]) ** 2
+            if step > gap * gap:
+                break
+            r = min(rmin, 0.5 * min(w0[n], w1[n]))
+            tol = deviation * r
+            ax = p1[n, 0] - p0[i, 0]
+            ay = p1[n, 1] - p0[i, 1]
+            az = p1[n, 2] - p0[i, 2]
+            aa = ax * ax + ay * ay + az * az
+            span = v1[n] - v0[i]
+            ok = aa > 0.0 and span > 0.0
+            m = i
+            while ok and m < n:  # the joint between m and m + 1
+                qx = p1[m, 0] - p0[i, 0]
+                qy = p1[m, 1] - p0[i, 1]
+                qz = p1[m, 2] - p0[i, 2]
+                t = min(max((qx * ax + qy * ay + qz * az) / aa, 0.0), 1.0)
+                dx, dy, dz = qx - t * ax, qy - t * ay, qz - t * az
+                if dx * dx + dy * dy + dz * dz > tol * tol:
+                    ok = False
+                f = (v1[m] - v0[i]) / span
+                taper = w0[i] + f * (w1[n] - w0[i])
+                if abs(w1[m] - taper) > 2.0 * tol or abs(w0[m + 1] - taper) > 2.0 * tol:
+                    ok = False
+                m += 1
+            if not ok:
+                break
+            rmin = r
+            j = n
+            group[j] = g
+        g += 1
+        i = j + 1
+    return group
 
 
 def _check_finite(skeleton: Skeleton) -> None:
