@@ -48,7 +48,10 @@ properties, and the normals are renormalised on the way out.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import logging
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -69,6 +72,11 @@ __all__ = ["UnionOptions", "concatenate", "may_touch", "union"]
 log = logging.getLogger("lsys3d")
 
 _NUM_PROP = 8  # x y z, nx ny nz, u v
+try:  # glibc's malloc_trim, where there is one (Linux)
+    _LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6") if sys.platform.startswith("linux") else None
+    _LIBC.malloc_trim.argtypes = [ctypes.c_size_t] if _LIBC is not None else None
+except (OSError, AttributeError):  # pragma: no cover - not glibc
+    _LIBC = None
 _JOB_TRIANGLES = 60_000  # smallest job worth its own boolean (a few tenths of a second in manifold)
 
 
@@ -235,6 +243,7 @@ def union(
         return mesh
     t0 = time.perf_counter()
     tubes, pcs, a, b = _prepare(tubes, opt, progress)
+    _release_memory()
     log.debug("union: %d pieces, %d touching pairs (%.2f s)", len(pcs), len(a), time.perf_counter() - t0)
     progress(0.10)
     busy = np.zeros(len(pcs), bool)
@@ -311,6 +320,17 @@ class _Progress:
 
     def boolean(self, fraction: float) -> None:
         self(0.15 + 0.60 * fraction)
+
+
+def _release_memory() -> None:
+    """Hand the memory freed by the last stage back to the system (glibc keeps freed heap memory otherwise).
+
+    numpy's medium-sized arrays come from the C heap, and glibc returns freed
+    heap memory only from its top; after a stage of many temporaries the
+    process would keep hundreds of megabytes it no longer uses.
+    """
+    if _LIBC is not None:
+        _LIBC.malloc_trim(0)
 
 
 def _job_target(total: float) -> float:
@@ -419,10 +439,17 @@ def _weld_float32(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     keep = (a != b) & (b != c) & (c != a)
     faces = faces[keep]
     attrs = mesh.face_attributes
-    if not _closed(faces, int(first.sum())):
+    merged = np.zeros(int(first.sum()), bool)  # the points that several vertices became
+    merged[renumber[owner[~first]]] = True
+    if not _closed(faces, int(first.sum()), merged):
         return _separate_float32(mesh)
-    normals, uv = attrs["corner_normals"][keep], attrs["corner_uv"][keep]
-    return _separate_float32(corner_mesh(v32[first].astype(np.float64), faces, normals, uv))
+    # in place, one array at a time: the old ones go as soon as they are replaced
+    mesh.faces = faces
+    mesh.vertices = v32[first].astype(np.float64)
+    del faces, v32
+    for name in ("corner_normals", "corner_uv"):
+        attrs[name] = attrs[name][keep]
+    return _separate_float32(mesh)
 
 
 def _first_equal_row(keys: np.ndarray) -> np.ndarray:
@@ -463,7 +490,7 @@ def _separate_float32(mesh: trimesh.Trimesh, rounds: int = 32) -> trimesh.Trimes
     most on a plant metres tall; the faces do not change.  When no separation
     is found in ``rounds`` passes the mesh is returned as it was.
     """
-    v = np.asarray(mesh.vertices, np.float64)
+    v = np.array(mesh.vertices, np.float64)  # a copy: the mesh keeps its vertices unless a separation is found
     v32 = v.astype(np.float32)
     everything = np.arange(len(v32))
     direction = np.zeros(len(v32))
@@ -503,9 +530,9 @@ def _separate_float32(mesh: trimesh.Trimesh, rounds: int = 32) -> trimesh.Trimes
         return mesh
     moved = (v32 != v.astype(np.float32)).any(axis=1)
     log.debug("union: %d vertices moved to positions of their own", int(moved.sum()))
-    points = np.where(moved[:, None], v32.astype(np.float64), v)
-    attrs = mesh.face_attributes
-    return corner_mesh(points, np.asarray(mesh.faces), attrs["corner_normals"], attrs["corner_uv"])
+    v[moved] = v32[moved]
+    mesh.vertices = v
+    return mesh
 
 
 def _local_union(
@@ -631,18 +658,25 @@ def _local_union(
         stats["workers"],
         stats["boolean_cpu"],
     )
+    done = _concat(roots)
+    del roots
+    point_of, _ = _weld(len(done.props), done.merge_from, done.merge_to)
+    positions = np.empty((int(point_of.max(initial=-1)) + 1, 3))
+    positions[point_of] = done.props[:, :3]
+    crumb = _crumbs(positions, point_of[done.tri])  # before the copies: a representative's crumbs are its copies'
+    if crumb.any():
+        done = Part(done.props, done.tri[~crumb], done.merge_from, done.merge_to, done.face_id[~crumb])
+    del point_of, positions
+    roots = [done]
     if not is_rep.all():
-        done = _concat(roots)
-        roots = [done, *repeats.copies(clusters, tubes, done, nf, len(cap_faces))]
-        del done
+        roots.extend(repeats.copies(clusters, tubes, done, nf, len(cap_faces)))
+    del done, clusters
     progress(0.80)
     props, otri, fid, point_of, npts = _join(roots, where)
     del roots
+    _release_memory()
     seam_pos = np.empty((npts, 3), np.float64)
     seam_pos[point_of] = props[:, :3]
-    crumb = _crumbs(seam_pos, point_of[otri])
-    if crumb.any():
-        otri, fid = otri[~crumb], fid[~crumb]
     temp = fid >= nf
     if temp.sum() != len(cap_faces):
         log.debug("union: a temporary cap was changed by the boolean; unioning whole tubes")
@@ -661,26 +695,51 @@ def _local_union(
     if found is None:
         log.debug("union: the rings of the temporary caps moved in the boolean; unioning whole tubes")
         return None
-    # free pieces: their faces, their points (ring points on a cut map onto the seam)
-    ff = np.flatnonzero(~face_busy)
-    free_pts = tubes.wedge_point[tubes.faces[ff]]
-    new_index = np.full(len(tubes.points), -1, np.int64)
+    # the stitched mesh, written in place part by part (no full-size temporaries): first the boolean's output
+    kept = otri[keep]
+    del otri, fid
+    ff = np.flatnonzero(~face_busy)  # the free pieces' faces
+    del face_busy
+    nb = len(kept)
+    faces = np.empty((nb + len(ff), 3), np.int64)
+    np.take(point_of, kept, out=faces[:nb])
+    normals = np.empty((len(faces), 3, 3), np.float32)
+    uv = np.empty((len(faces), 3, 2), np.float32)
+    for lo in range(0, nb, 1 << 18):
+        corner = props[kept[lo : lo + (1 << 18)]]
+        normals[lo : lo + len(corner)] = _unit_rows(corner[..., 3:6])
+        uv[lo : lo + len(corner)] = corner[..., 6:]
+    del props, kept, corner, point_of, face_tube, face_piece
+    # then the free pieces: their points (ring points on a cut map onto the seam) and attributes
+    wedges = tubes.faces[ff]
+    del ff
+    np.take(tubes.wedge_normal, wedges, axis=0, out=normals[nb:])
+    np.take(tubes.wedge_uv, wedges, axis=0, out=uv[nb:])
+    free_pts = np.take(tubes.wedge_point, wedges)
+    del wedges
     used = np.zeros(len(tubes.points), bool)
     used[free_pts] = True
     used[cut_points] = False
     fresh = np.flatnonzero(used)
+    del used
+    new_index = np.full(len(tubes.points), -1, np.int64)
     new_index[fresh] = npts + np.arange(len(fresh))
     new_index[cut_points] = seam[found]
+    np.take(new_index, free_pts, out=faces[nb:])
+    del free_pts, new_index
     vertices = np.concatenate([seam_pos, tubes.points[fresh]])
-    faces = np.concatenate([point_of[otri[keep]], new_index[free_pts]])
-    normals = np.concatenate([_unit_rows(props[otri[keep], 3:6]), tubes.wedge_normal[tubes.faces[ff]]])
-    uv = np.concatenate([props[otri[keep], 6:], tubes.wedge_uv[tubes.faces[ff]]])
-    if crumb.any():  # their vertices go too
-        used = np.zeros(len(vertices), bool)
-        used[faces] = True
-        vertices, faces = vertices[used], (np.cumsum(used) - 1)[faces]
-    if not _closed(faces, len(vertices)):
-        log.debug("union: the stitched mesh is not closed; unioning whole tubes")
+    del seam_pos, fresh
+    near = np.zeros(len(vertices), bool)  # the seams: the rings where untouched pieces meet the boolean's output
+    near[seam] = True
+    used = np.zeros(len(vertices), bool)
+    used[faces] = True
+    if not used.all():  # the vertices of dropped crumbs, and property vertices manifold left unused
+        renumber = np.cumsum(used) - 1
+        for lo in range(0, len(faces), 1 << 20):  # in place, a slice at a time
+            faces[lo : lo + (1 << 20)] = renumber[faces[lo : lo + (1 << 20)]]
+        vertices, near = vertices[used], near[used]
+    if not _closed(faces, len(vertices), near):
+        log.debug("union: the stitched mesh is not closed at a seam; unioning whole tubes")
         return None
     return corner_mesh(vertices, faces, normals, uv)
 
@@ -713,21 +772,39 @@ def _part(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray) -> Part:
 
 
 def _concat(parts: list[Part]) -> Part:
-    """Meshes side by side as one :class:`Part` (indices shifted)."""
+    """Meshes side by side as one :class:`Part` (indices shifted).
+
+    The list is emptied as its meshes are copied, so that at most one of them
+    exists twice at any time.
+    """
     if len(parts) == 1:
-        return parts[0]
-    shift = _offsets(np.array([len(p.props) for p in parts]))
-    return Part(
-        np.concatenate([p.props for p in parts]),
-        np.concatenate([p.tri + k for p, k in zip(parts, shift, strict=False)]),
-        np.concatenate([p.merge_from + k for p, k in zip(parts, shift, strict=False)]),
-        np.concatenate([p.merge_to + k for p, k in zip(parts, shift, strict=False)]),
-        np.concatenate([p.face_id for p in parts]),
+        return parts.pop()
+    nv = np.array([len(p.props) for p in parts])
+    nt = np.array([len(p.tri) for p in parts])
+    nm = np.array([len(p.merge_from) for p in parts])
+    v_off, t_off, m_off = _offsets(nv), _offsets(nt), _offsets(nm)
+    out = Part(
+        np.empty((v_off[-1], parts[0].props.shape[1])),
+        np.empty((t_off[-1], 3), np.int64),
+        np.empty(m_off[-1], np.int64),
+        np.empty(m_off[-1], np.int64),
+        np.empty(t_off[-1], np.int64),
     )
+    for i in range(len(parts)):
+        p = parts[i]
+        parts[i] = None
+        out.props[v_off[i] : v_off[i + 1]] = p.props
+        out.tri[t_off[i] : t_off[i + 1]] = p.tri + v_off[i]
+        out.merge_from[m_off[i] : m_off[i + 1]] = p.merge_from + v_off[i]
+        out.merge_to[m_off[i] : m_off[i + 1]] = p.merge_to + v_off[i]
+        out.face_id[t_off[i] : t_off[i + 1]] = p.face_id
+        del p
+    parts.clear()
+    return out
 
 
 def _join(parts: list[Part], where: str):
-    """The disjoint meshes side by side: properties, triangles, face ids, and the point of each property vertex."""
+    """The disjoint meshes side by side (the list is emptied): properties, triangles, face ids, point of each vertex."""
     for part in parts:
         if part.props.shape[1] != _NUM_PROP or len(part.face_id) != len(part.tri):
             raise GeometryError(
@@ -763,9 +840,19 @@ def _match_rows(have: np.ndarray, want: np.ndarray):
     return found
 
 
-def _closed(faces: np.ndarray, nverts: int) -> bool:
-    """Every directed edge once, and its reverse once: closed and consistently oriented."""
+def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> bool:
+    """Every directed edge once, and its reverse once: closed and consistently oriented.
+
+    With ``near`` (a mask of vertices), only the edges with an end among them
+    are checked: the rest of the mesh is known to be closed (a boolean's output,
+    whole tube pieces) and only the seams where the parts were joined need it.
+    """
+    if near is not None:
+        faces = faces[near[faces].any(axis=1)]
     a, b = faces.ravel(), np.roll(faces, -1, axis=1).ravel()
+    if near is not None:
+        mine = near[a] | near[b]
+        a, b = a[mine], b[mine]
     fwd = a * nverts + b
     fwd.sort()
     if len(fwd) > 1 and (fwd[1:] == fwd[:-1]).any():
