@@ -3,19 +3,20 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import logging
-import re
 import sys
 import time
 
-from . import __version__
-from .derive import DEFAULT_MAX_MODULES, derive
-from .errors import LSystemError
+from .derive import derive
+from .errors import LSystemError, OptionsError, clip
+from .exchange.common import ExportOptions
+from .options import add_arguments, from_arguments
+from .pipeline import GenerateOptions
 from .presets import DEFAULT_PRESET, describe, list_presets, load
-from .sweep import DEFAULT_MAX_TRIANGLES
-from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions
+from .preview import PreviewOptions
+from .turtle import GRAMMAR_KEYS, TurtleOverrides
+from .version import __version__
 
 DEFAULT_OUTPUT = "tree.glb"
 DEFAULT_PICTURE = "tree.png"
@@ -41,7 +42,11 @@ def _at_least(lowest: int):
     return parse
 
 
-def _grammar_args(p: argparse.ArgumentParser, optional: bool = False):
+def _grammar_args(p: argparse.ArgumentParser, optional: bool = False, mesh: bool = True):
+    """The grammar, its iterations and seed, and the options of :class:`GenerateOptions` as flags.
+
+    ``mesh=False`` (``derive``) adds only the derivation's limit.
+    """
     if optional:
         p.add_argument(
             "grammar", nargs="?", default=DEFAULT_PRESET, help=f"grammar file or preset (default: {DEFAULT_PRESET})"
@@ -52,29 +57,10 @@ def _grammar_args(p: argparse.ArgumentParser, optional: bool = False):
         "-n", "--iterations", type=_at_least(0), default=None, help="number of generations (default: the grammar's)"
     )
     p.add_argument("--seed", type=_at_least(0), default=None, help="seed of stochastic rules (default: the grammar's)")
-    p.add_argument(
-        "--max-modules",
-        type=_at_least(1),
-        default=DEFAULT_MAX_MODULES,
-        help=f"size limit of derivation (default {DEFAULT_MAX_MODULES:,})",
-    )
-
-
-def _mesh_args(p: argparse.ArgumentParser):
-    p.add_argument("--sides", type=_at_least(3), default=None, help="vertices around the trunk's tubes (default 8)")
-    p.add_argument("--no-union", action="store_true", help="skip the union: the tube soup, a fast preview")
-    p.add_argument(
-        "--max-segments",
-        type=_at_least(1),
-        default=DEFAULT_MAX_SEGMENTS,
-        help=f"most segments the turtle draws (default {DEFAULT_MAX_SEGMENTS:,})",
-    )
-    p.add_argument(
-        "--max-triangles",
-        type=_at_least(1),
-        default=DEFAULT_MAX_TRIANGLES,
-        help=f"most tube triangles before the union (default {DEFAULT_MAX_TRIANGLES:,})",
-    )
+    if not mesh:
+        add_arguments(p, GenerateOptions, only={"max_modules"})
+        return
+    add_arguments(p, GenerateOptions)
     p.add_argument(
         "--turtle",
         metavar="KEY=VALUE",
@@ -82,60 +68,16 @@ def _mesh_args(p: argparse.ArgumentParser):
         type=_turtle_setting,
         default=[],
         help="override a [turtle] setting of the grammar, e.g. --turtle width_jitter=0.2 --turtle branch_drop=0.1 "
-        "(repeatable; the variation keys are angle_jitter, length_jitter, width_jitter, branch_roll, branch_drop, "
-        "jitter_distribution)",
-    )
-    p.add_argument(
-        "--bark-displacement",
-        type=_between(0.0, 0.5),
-        default=0.0,
-        metavar="F",
-        help="procedural bark: displace the tubes by noise up to this fraction of their radius (0..0.5; default 0)",
-    )
-    p.add_argument(
-        "--bark-color-variation",
-        type=_between(0.0, 1.0),
-        default=0.0,
-        metavar="F",
-        help="vary the bark colour by noise up to this fraction, as vertex colours (0..1; default 0)",
+        "(repeatable; the keys are those of the [turtle] table, see docs/turtle.md)",
     )
 
 
-def _generate_options(args):
-    from .pipeline import GenerateOptions
-
-    options = GenerateOptions(
-        union=not args.no_union,
-        max_modules=args.max_modules,
-        max_segments=args.max_segments,
-        max_tube_triangles=args.max_triangles,
-    )
-    if args.sides is not None:
-        options = dataclasses.replace(options, sweep=dataclasses.replace(options.sweep, sides=args.sides))
-    if args.bark_displacement:
-        bark = dataclasses.replace(options.sweep, bark_displacement=args.bark_displacement)
-        options = dataclasses.replace(options, sweep=bark)
-    if args.bark_color_variation:
-        options = dataclasses.replace(options, bark_color_variation=args.bark_color_variation)
+def _generate_options(args) -> GenerateOptions:
+    """The :class:`GenerateOptions` of the flags given (and ``--turtle`` settings)."""
+    options = from_arguments(GenerateOptions, args)
     if args.turtle:
-        options = dataclasses.replace(options, turtle=dict(args.turtle))
+        options = options.replace(turtle=dict(args.turtle))
     return options
-
-
-def _between(lowest: float, highest: float):
-    """An argparse type: a number in [lowest, highest] (anything else is a usage error, exit 2)."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number, not {text!r}") from None
-        if not lowest <= value <= highest:
-            raise argparse.ArgumentTypeError(f"must be between {lowest:g} and {highest:g}, not {text}")
-        return value
-
-    parse.__name__ = "number"
-    return parse
 
 
 def _turtle_setting(text: str) -> tuple[str, object]:
@@ -144,23 +86,19 @@ def _turtle_setting(text: str) -> tuple[str, object]:
 
     key, sep, value = text.partition("=")
     key = key.strip()
-    known = {f.name for f in dataclasses.fields(TurtleOptions)} - {"angle", "seed"}
-    if not sep or key not in known:
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE with KEY one of {', '.join(sorted(known))}, not {text!r}")
+    if not sep or key not in GRAMMAR_KEYS:
+        raise argparse.ArgumentTypeError(
+            f"expected KEY=VALUE with KEY one of {', '.join(sorted(GRAMMAR_KEYS))}, not {clip(repr(text))}"
+        )
     try:
         parsed = tomllib.loads(f"v = {value.strip()}")["v"]
     except tomllib.TOMLDecodeError:
         parsed = value.strip()
+    try:
+        TurtleOverrides({key: parsed})
+    except OptionsError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
     return key, parsed
-
-
-def _pixels(text: str) -> tuple[int, int]:
-    """``WxH`` (or one number for a square) as a (width, height) pair."""
-    m = re.fullmatch(r"\s*(\d+)\s*(?:[xX]\s*(\d+)\s*)?", text)
-    if not m or not all(1 <= int(v) <= 16384 for v in m.groups() if v):
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels (1..16384), e.g. 800x600, not {text!r}")
-    width = int(m.group(1))
-    return width, int(m.group(2) or width)
 
 
 class _Progress:
@@ -212,15 +150,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add("generate", help="grow a plant and write it as a mesh asset (.glb, .usdc, ...)")
     _grammar_args(p, optional=True)
-    _mesh_args(p)
     p.add_argument(
         "-o",
         "--output",
         default=DEFAULT_OUTPUT,
         help=f"output file; its suffix picks the format (default {DEFAULT_OUTPUT})",
     )
-    p.add_argument("--units", choices=("m", "cm"), default="m", help="length unit of a USD file (default m)")
-    p.add_argument("--up-axis", choices=("Y", "Z"), default="Y", help="up axis of a USD file (default Y)")
+    add_arguments(p, ExportOptions)
     leaves = p.add_mutually_exclusive_group()
     leaves.add_argument(
         "--instance-leaves", dest="instance_leaves", action="store_true", default=None, help="leaves as instances"
@@ -228,9 +164,6 @@ def build_parser() -> argparse.ArgumentParser:
     leaves.add_argument(
         "--merge-leaves", dest="instance_leaves", action="store_false", help="leaves as one merged mesh"
     )
-    p.add_argument("--skeleton-curves", action="store_true", help="also write the branch skeleton as curves")
-    p.add_argument("--hairline", action="store_true", help="SVG: lines one pixel wide instead of as wide as branches")
-    p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
     p.add_argument(
         "--variants",
         type=_at_least(1),
@@ -243,22 +176,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = add("preview", help="grow a plant and render a shaded picture of it (.png) with Blender")
     _grammar_args(p, optional=True)
-    _mesh_args(p)
     p.add_argument("-o", "--output", default=DEFAULT_PICTURE, help=f"the .png to write (default {DEFAULT_PICTURE})")
-    p.add_argument("--size", type=_pixels, default=(800, 800), metavar="WxH", help="image size (default 800x800)")
-    p.add_argument("--view", choices=("front", "side", "iso"), default="front", help="camera (default front)")
-    p.add_argument("--samples", type=int, default=16, help="Cycles samples per pixel (default 16, denoised)")
-    p.add_argument(
-        "--blender",
-        metavar="PATH",
-        default=None,
-        help="a blender executable or a Python that imports bpy (default: $LSYS3D_BLENDER, this Python, PATH)",
-    )
-    p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
+    add_arguments(p, PreviewOptions)
     p.set_defaults(func=cmd_preview)
 
     p = add("derive", help="print the derived module string")
-    _grammar_args(p)
+    _grammar_args(p, mesh=False)
     p.set_defaults(func=cmd_derive)
 
     p = add("stats", help="print counts and extents of the drawn plant")
@@ -270,7 +193,6 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FILE",
         help="also write the report with its recipe as a golden file, for 'lsys3d check'",
     )
-    _mesh_args(p)
     p.set_defaults(func=cmd_stats)
 
     p = add("check", help="regrow the assets of golden files and compare their counts")
@@ -286,7 +208,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def cmd_derive(args) -> int:
     grammar = load(args.grammar)
-    result = derive(grammar, args.iterations, args.seed, max_modules=args.max_modules)
+    options = from_arguments(GenerateOptions, args)
+    result = derive(grammar, args.iterations, args.seed, max_modules=options.limits.max_modules)
     out = sys.stdout
     out.write(str(result))
     out.write("\n")
@@ -294,22 +217,15 @@ def cmd_derive(args) -> int:
 
 
 def cmd_generate(args) -> int:
-    from .exchange import ExportOptions, check_output, export
+    from .exchange import check_output, export
     from .pipeline import generate, run_stage
 
-    export_options = ExportOptions(
-        units=args.units,
-        up_axis=args.up_axis,
-        instance_leaves=args.instance_leaves,
-        skeleton_curves=args.skeleton_curves,
-        no_clobber=args.no_clobber,
-        hairline=args.hairline,
-    )
+    export_options = from_arguments(ExportOptions, args).replace(instance_leaves=args.instance_leaves)
     path = check_output(args.output, export_options)  # before minutes of work, not after
     drawing = path.suffix.lower() == ".svg"
     options = _generate_options(args)
     if drawing:  # a line drawing of the skeleton: the union's minutes would be thrown away
-        options = dataclasses.replace(options, union=False)
+        options = options.with_flat(union=False)
     if args.variants > 1:
         return _generate_siblings(args, options, export_options)
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
@@ -360,7 +276,7 @@ def _generate_siblings(args, options, export_options) -> int:
             for path, tree in zip(paths, trees, strict=True):
                 bark = tree.bark
                 print(
-                    f"wrote {path}: seed {tree.provenance['seed']}, {len(bark.vertices):,} vertices, "
+                    f"wrote {path}: seed {tree.provenance.seed}, {len(bark.vertices):,} vertices, "
                     f"{len(bark.faces):,} faces, {tree.skeleton.n_leaves:,} leaves"
                 )
             print(f"{len(paths)} files in {time.perf_counter() - t0:.1f} s")
@@ -369,10 +285,9 @@ def _generate_siblings(args, options, export_options) -> int:
 
 def cmd_preview(args) -> int:
     from .pipeline import generate, run_stage
-    from .preview import PreviewOptions, check_preview, preview
+    from .preview import check_preview, preview
 
-    options = PreviewOptions(size=args.size, view=args.view, samples=args.samples, blender=args.blender)
-    options = dataclasses.replace(options, no_clobber=args.no_clobber)
+    options = from_arguments(PreviewOptions, args)
     check_preview(args.output, options)  # no Blender, no minutes of work
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()

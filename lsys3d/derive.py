@@ -31,6 +31,7 @@ from .errors import DerivationError, LimitError, clip
 from .expr import NOT_FINITE, EvalError
 from .grammar import Grammar, PatternModule, Production
 from .modules import ModuleString
+from .streams import rule_generator
 
 __all__ = ["DEFAULT_MAX_MODULES", "MAX_ITERATIONS", "derive", "generations", "predict_length"]
 
@@ -446,7 +447,7 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
             if pool.cumulative is None:
                 chosen.append((prod0, sel, env))
                 continue
-            rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, generation, code, pool.pool_id])))
+            rng = rule_generator(seed, generation, code, pool.pool_id)
             u = rng.random(len(sel)) * pool.cumulative[-1]
             pick = np.minimum(np.searchsorted(pool.cumulative, u, side="right"), len(pool.alternatives) - 1)
             for a, prod in enumerate(pool.alternatives):

@@ -15,6 +15,7 @@ __all__ = [
     "InterpretError",
     "LSystemError",
     "LimitError",
+    "OptionsError",
     "PreviewError",
 ]
 
@@ -60,6 +61,13 @@ class GrammarError(LSystemError, ValueError):
             if col is not None:
                 where += f":{col}"
         super().__init__(f"{where}: {message}")
+
+
+class OptionsError(LSystemError, ValueError):
+    """A setting out of its range or of the wrong type: ``Class.field: what`` (or ``--flag: what``).
+
+    Every options class (:mod:`lsys3d.options`) raises it, from one checker.
+    """
 
 
 class DerivationError(LSystemError, ArithmeticError):

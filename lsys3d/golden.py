@@ -30,7 +30,12 @@ from pathlib import Path
 
 from .errors import GoldenError, LSystemError
 from .exchange.atomic import write_bytes
+from .grammar import Grammar
+from .pipeline import GenerateOptions, draw, generate
+from .presets import list_presets, load_preset
+from .provenance import grammar_text
 from .stats import flatten, report
+from .tree import Tree
 
 __all__ = [
     "GOLDEN_FORMAT",
@@ -144,13 +149,8 @@ def _sha256(text: str) -> str:
 # ---------------------------------------------------------------- options <-> plain dicts
 
 
-def _defaults() -> dict:
-    from .pipeline import GenerateOptions
-
-    return GenerateOptions().plain()
-
-
 def _delta(values: dict, defaults: dict) -> dict:
+    """The entries of nested ``values`` that differ from ``defaults``."""
     out = {}
     for key, value in sorted(values.items()):
         default = defaults.get(key)
@@ -160,25 +160,6 @@ def _delta(values: dict, defaults: dict) -> dict:
         elif value != default:
             out[key] = value
     return out
-
-
-def _options(data: dict, cls, where: str):
-    """Rebuild a frozen options dataclass from the plain dict of its non-default fields."""
-    if not isinstance(data, dict):
-        raise GoldenError(f"{where}: options must be a table, not {type(data).__name__}")
-    fields = {f.name for f in dataclasses.fields(cls)}
-    defaults = cls()
-    kwargs = {}
-    for key, value in data.items():
-        if key not in fields:
-            raise GoldenError(f"{where}: unknown option {key!r} (known: {', '.join(sorted(fields))})")
-        default = getattr(defaults, key)
-        if dataclasses.is_dataclass(default):
-            value = _options(value, type(default), f"{where}.{key}")
-        elif isinstance(default, tuple):
-            value = tuple(value)
-        kwargs[key] = value
-    return cls(**kwargs)
 
 
 # ---------------------------------------------------------------- recipes
@@ -200,19 +181,15 @@ def recipe_for(
     bundled preset is named, a grammar file is referred to by its path relative
     to the golden file's folder, a grammar built in Python is stored as text.
     """
-    from .pipeline import GenerateOptions
-    from .presets import list_presets
-    from .tree import Tree
-
     if isinstance(grammar, Tree):
         prov = grammar.provenance
-        source, text = prov.get("grammar_source") or "", prov.get("grammar_text") or ""
-        iterations, seed, plain = prov["iterations"], prov["seed"], prov.get("options", {})
+        if prov is None:
+            raise GoldenError("recipe_for: the tree has no provenance (it was not grown by lsys3d.generate)")
+        source, text = prov.grammar_source, prov.grammar_text
+        iterations, seed, plain = prov.iterations, prov.seed, prov.options
     else:
-        from .pipeline import _grammar_as_text
-
         source = grammar.source or ""
-        text = grammar.text if grammar.text is not None else _grammar_as_text(grammar)
+        text = grammar.text if grammar.text is not None else grammar_text(grammar)
         iterations = grammar.iterations if iterations is None else iterations
         seed = grammar.seed if seed is None else seed
         plain = (options or GenerateOptions()).plain()
@@ -229,16 +206,13 @@ def recipe_for(
         iterations=int(iterations),
         seed=int(seed),
         mesh=bool(mesh),
-        options=_delta(plain, _defaults()),
+        options=_delta(plain, GenerateOptions().plain()),
         grammar_sha256=_sha256(text),
         **kind,
     )
 
 
 def _grammar(recipe: Recipe, folder: Path):
-    from .grammar import Grammar
-    from .presets import load_preset
-
     if recipe.preset is not None:
         return load_preset(recipe.preset)
     if recipe.file is not None:
@@ -252,9 +226,7 @@ def grow(recipe: Recipe, folder: str | os.PathLike = ".") -> dict:
 
 
 def _grow(recipe: Recipe, grammar) -> dict:
-    from .pipeline import GenerateOptions, draw, generate
-
-    options = _options(recipe.options, GenerateOptions, "options")
+    options = GenerateOptions.from_plain(recipe.options, "options")
     if recipe.mesh:
         tree = generate(grammar, recipe.iterations, recipe.seed, options=options)
         return report(tree.modules, tree.skeleton, tree)

@@ -18,22 +18,20 @@ facing ``+y``.  ``leaf_transforms`` has rotation columns left, up, heading,
 each scaled by the leaf size, and the leaf position as translation -- so a
 model of length 1 becomes a leaf one step long.
 
-Every mesh carries the ``corner_normals`` / ``corner_uv`` face attributes of
-:mod:`lsys3d.tree`: the normal is the face normal (leaves are flat), ``uv``
-maps the leaf's box onto [0, 1] x [0, 1].
+Every mesh is a :class:`~lsys3d.mesh.Mesh`: the corner normal is the face
+normal (leaves are flat), ``uv`` maps the leaf's box onto [0, 1] x [0, 1].
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import manifold3d
 import numpy as np
-import trimesh
 
 from .errors import GeometryError
+from .mesh import Mesh
 from .skeleton import Skeleton
-from .sweep import corner_mesh
 
 __all__ = ["Leaves", "default_leaf", "instance_leaves", "leaf_transforms", "leaves", "polygon_leaves"]
 
@@ -44,23 +42,29 @@ class Leaves:
 
     Attributes
     ----------
-    merged : trimesh.Trimesh or None
-        Polygon leaves plus every instance baked in place; None without leaves.
-    model : trimesh.Trimesh or None
+    merged : Mesh or None
+        Polygon leaves plus every instance baked in place: the fallback for
+        formats without instancing; None without leaves.
+    model : Mesh or None
         The leaf model the transforms place; None without leaf instances.
     transforms : (k, 4, 4) float64
         One transform per leaf instance (see :func:`leaf_transforms`).
-    polygons : trimesh.Trimesh or None
+    polygons : Mesh or None
         The ``{ . }`` polygons; None without polygons.
     """
 
-    merged: trimesh.Trimesh | None
-    model: trimesh.Trimesh | None
-    transforms: np.ndarray
-    polygons: trimesh.Trimesh | None
+    merged: Mesh | None = None
+    model: Mesh | None = None
+    transforms: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    polygons: Mesh | None = None
+
+    @property
+    def instanced(self) -> bool:
+        """Whether there are leaf instances (a model and at least one transform)."""
+        return self.model is not None and len(self.transforms) > 0
 
 
-def default_leaf(points: int = 7) -> trimesh.Trimesh:
+def default_leaf(points: int = 7) -> Mesh:
     """The built-in leaf: a pointed oval blade, length 1 along ``+z``, width 0.5 along ``x``.
 
     Parameters
@@ -70,7 +74,7 @@ def default_leaf(points: int = 7) -> trimesh.Trimesh:
 
     Returns
     -------
-    trimesh.Trimesh
+    Mesh
         ``4 * points`` triangles facing ``+y``, with corner normals and uv.
 
     Examples
@@ -103,7 +107,7 @@ def default_leaf(points: int = 7) -> trimesh.Trimesh:
     faces[back] = faces[back][:, ::-1]
     normals = np.broadcast_to(np.array([0.0, 1.0, 0.0], np.float32), (len(faces), 3, 3))
     uv = np.stack([verts[:, 0] / 0.5 + 0.5, verts[:, 2]], axis=1)[faces]
-    return corner_mesh(verts, faces, normals, uv)
+    return Mesh(verts, faces, normals, uv)
 
 
 def leaf_transforms(skeleton: Skeleton) -> np.ndarray:
@@ -123,7 +127,7 @@ def leaf_transforms(skeleton: Skeleton) -> np.ndarray:
     return out
 
 
-def instance_leaves(model: trimesh.Trimesh, transforms: np.ndarray) -> trimesh.Trimesh | None:
+def instance_leaves(model: Mesh, transforms: np.ndarray) -> Mesh | None:
     """Copies of ``model`` baked in place by each transform (None when there are none).
 
     Corner normals follow the rotation (inverse transpose, renormalised); uv
@@ -139,15 +143,7 @@ def instance_leaves(model: trimesh.Trimesh, transforms: np.ndarray) -> trimesh.T
     transforms, lin, det = transforms[ok], lin[ok], det[ok]
     if not len(transforms):
         return None
-    verts = np.asarray(model.vertices, np.float64)
-    faces = np.asarray(model.faces, np.int64)
-    attrs = model.face_attributes
-    normals = attrs.get("corner_normals")
-    if normals is None:
-        normals = np.repeat(np.asarray(model.face_normals)[:, None, :], 3, axis=1)
-    uv = attrs.get("corner_uv")
-    if uv is None:
-        uv = np.zeros((len(faces), 3, 2))
+    verts, faces, normals, uv = model.vertices, model.faces, model.normals, model.uv
     k, nv = len(transforms), len(verts)
     world = verts[None] @ lin.transpose(0, 2, 1) + transforms[:, None, :3, 3]
     inv = np.linalg.inv(lin)  # normals transform by the inverse transpose: n' = n @ inv
@@ -156,7 +152,7 @@ def instance_leaves(model: trimesh.Trimesh, transforms: np.ndarray) -> trimesh.T
     wfaces = faces[None] + (np.arange(k) * nv)[:, None, None]
     if (det < 0).any():  # a mirroring transform turns the winding around
         wfaces[det < 0] = wfaces[det < 0][:, :, ::-1]
-    return corner_mesh(
+    return Mesh(
         world.reshape(-1, 3),
         wfaces.reshape(-1, 3),
         wn.reshape(-1, 3, 3),
@@ -182,7 +178,7 @@ def _plane_frames(points: np.ndarray, offsets: np.ndarray):
     return normal, x, np.cross(normal, x), area2 * 0.5, poly
 
 
-def polygon_leaves(skeleton: Skeleton) -> trimesh.Trimesh | None:
+def polygon_leaves(skeleton: Skeleton) -> Mesh | None:
     """The ``{ . }`` polygons of a skeleton as one flat mesh (None when there are none).
 
     Each polygon is projected onto its best-fit plane (Newell normal) and
@@ -240,18 +236,20 @@ def polygon_leaves(skeleton: Skeleton) -> trimesh.Trimesh | None:
     used = np.unique(faces)
     remap = np.full(len(points), -1, np.int64)
     remap[used] = np.arange(len(used))
-    return corner_mesh(points[used], remap[faces], normals, uv[faces])
+    return Mesh(points[used], remap[faces], normals, uv[faces])
 
 
-def leaves(skeleton: Skeleton, model: trimesh.Trimesh | None = None) -> Leaves:
+def leaves(skeleton: Skeleton, model: Mesh | None = None) -> Leaves:
     """Every leaf of a skeleton: polygons, instances (model + transforms) and all merged.
 
     Parameters
     ----------
     skeleton : Skeleton
-    model : trimesh.Trimesh, optional
+    model : Mesh or trimesh.Trimesh, optional
         Leaf model in the convention of this module (default :func:`default_leaf`).
     """
+    if model is not None and not isinstance(model, Mesh):
+        model = Mesh.from_trimesh(model)
     polygons = polygon_leaves(skeleton)
     transforms = leaf_transforms(skeleton)
     leaf_model = None
@@ -260,15 +258,5 @@ def leaves(skeleton: Skeleton, model: trimesh.Trimesh | None = None) -> Leaves:
         leaf_model = default_leaf() if model is None else model
         baked = instance_leaves(leaf_model, transforms)
     parts = [m for m in (polygons, baked) if m is not None]
-    if not parts:
-        merged = None
-    elif len(parts) == 1:
-        merged = parts[0]
-    else:
-        merged = corner_mesh(
-            np.concatenate([polygons.vertices, baked.vertices]),
-            np.concatenate([polygons.faces, baked.faces + len(polygons.vertices)]),
-            np.concatenate([polygons.face_attributes["corner_normals"], baked.face_attributes["corner_normals"]]),
-            np.concatenate([polygons.face_attributes["corner_uv"], baked.face_attributes["corner_uv"]]),
-        )
+    merged = Mesh.concatenate(parts) if parts else None
     return Leaves(merged, leaf_model, transforms, polygons)

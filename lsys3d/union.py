@@ -51,10 +51,14 @@ from dataclasses import dataclass
 
 import manifold3d
 import numpy as np
-import trimesh
 
+from .arrays import first_equal_row as _first_equal_row
+from .arrays import local_index as _local
+from .arrays import offsets as _offsets
 from .errors import GeometryError
-from .sweep import Tubes, corner_mesh
+from .mesh import Mesh, face_normals
+from .options import Options, option
+from .sweep import Tubes
 
 __all__ = ["UnionOptions", "concatenate", "may_touch", "union"]
 
@@ -64,44 +68,32 @@ _NUM_PROP = 8  # x y z, nx ny nz, u v
 
 
 @dataclass(frozen=True)
-class UnionOptions:
-    """How tubes are unioned; every default lives here.
+class UnionOptions(Options):
+    """Whether and how tubes are unioned; every default, range and help is in its field.
 
-    Attributes
-    ----------
-    layers : bool
-        Group pairwise-disjoint tubes into layers before the boolean (fast).
-        False hands every tube to ``Manifold.batch_boolean`` separately
-        (manifold's own bounding-box grouping; slower, for comparison).
-    local : bool
-        Send only the spans that may touch another tube through the boolean
-        and stitch the rest of each tube back on (needs ``layers``).
-    local_max : float
-        Use the local path only while at most this fraction of the spans may
-        touch another tube (above it, stitching costs more than it saves).
-    margin : float
-        Relative padding of the touch test (fraction of the capsule radii),
-        so that tubes that only graze still count as touching.
+    ``layers`` groups pairwise-disjoint tubes into layers before the boolean
+    (fast); off, every tube goes to ``Manifold.batch_boolean`` separately
+    (manifold's own bounding-box grouping; slower, for comparison).
+    ``local`` sends only the spans that may touch another tube through the
+    boolean and stitches the rest of each tube back on (needs ``layers``),
+    while at most ``local_max`` of the spans may touch.
     """
 
-    layers: bool = True
-    local: bool = True
-    local_max: float = 0.75
-    margin: float = 0.01
+    enabled: bool = option(
+        True, name="union", help="the union of the tubes into one watertight mesh (off: the tube soup, a fast preview)"
+    )
+    layers: bool = option(True, help="group pairwise-disjoint tubes into layers before the boolean", cli=False)
+    local: bool = option(True, help="send only the spans that may touch through the boolean", cli=False)
+    local_max: float = option(
+        0.75, low=0, high=1, help="use the local path while at most this fraction of spans may touch", cli=False
+    )
+    margin: float = option(0.01, low=0, high=1, help="relative padding of the touch test", cli=False)
 
-    def __post_init__(self):
-        for name in ("margin", "local_max"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value <= 1):
-                raise ValueError(f"UnionOptions.{name}: value {value!r} is out of range [0, 1]")
 
-
-def concatenate(tubes: Tubes) -> trimesh.Trimesh:
+def concatenate(tubes: Tubes) -> Mesh:
     """All tubes as one tube-soup mesh (no boolean): the ``union=False`` bark.
 
-    Each tube stays a closed, welded component; tubes may overlap.  The mesh
-    has the ``corner_normals`` / ``corner_uv`` face attributes of
-    :mod:`lsys3d.tree`.
+    Each tube stays a closed, welded component; tubes may overlap.
     """
     return tubes.mesh()
 
@@ -151,18 +143,6 @@ class _Spans:
 
     def __len__(self) -> int:
         return len(self.tube)
-
-
-def _local(counts: np.ndarray) -> np.ndarray:
-    """``0..counts[i]-1`` for each ``i``, concatenated."""
-    starts = np.repeat(np.cumsum(counts) - counts, counts)
-    return np.arange(int(counts.sum())) - starts
-
-
-def _offsets(counts: np.ndarray) -> np.ndarray:
-    out = np.zeros(len(counts) + 1, np.int64)
-    np.cumsum(counts, out=out[1:])
-    return out
 
 
 def _segment_distance(p1, q1, p2, q2) -> np.ndarray:
@@ -273,7 +253,7 @@ def _colour(n: int, pairs: np.ndarray) -> np.ndarray:
     return np.asarray(col, np.int64)
 
 
-def union(tubes: Tubes, options: UnionOptions | None = None) -> trimesh.Trimesh:
+def union(tubes: Tubes, options: UnionOptions | None = None) -> Mesh:
     """Union the tubes of one tree into one watertight, consistently oriented mesh.
 
     Parameters
@@ -284,10 +264,9 @@ def union(tubes: Tubes, options: UnionOptions | None = None) -> trimesh.Trimesh:
 
     Returns
     -------
-    trimesh.Trimesh
-        Welded, watertight 2-manifold with outward faces and the
-        ``corner_normals`` (unit) / ``corner_uv`` face attributes of
-        :mod:`lsys3d.tree`.
+    Mesh
+        Welded, watertight 2-manifold with outward faces, unit corner normals
+        and corner uv (:mod:`lsys3d.mesh`).
 
     Raises
     ------
@@ -301,7 +280,7 @@ def union(tubes: Tubes, options: UnionOptions | None = None) -> trimesh.Trimesh:
         raise GeometryError("union: no tubes to union (empty skeleton?)")
     if not opt.layers:
         parts = [_manifold(tubes.select([i]), f"union: tube {i} (chain {tubes.chain[i]})") for i in range(len(tubes))]
-        return _weld_float32(_to_trimesh(_batch_union(parts, where), where))
+        return _weld_float32(_to_mesh(_batch_union(parts, where), where))
     spans = _Spans(tubes)
     owner, a, b = _span_pairs(tubes, opt.margin, spans)
     busy = np.zeros(len(spans), bool)
@@ -316,26 +295,26 @@ def union(tubes: Tubes, options: UnionOptions | None = None) -> trimesh.Trimesh:
     colour = _colour(len(tubes), pairs)
     parts = [_manifold(tubes.select(colour == c), f"union: layer {c}") for c in range(int(colour.max()) + 1)]
     log.debug("union: %d tubes in %d layers", len(tubes), len(parts))
-    return _weld_float32(_to_trimesh(_batch_union(parts, where), where))
+    return _weld_float32(_to_mesh(_batch_union(parts, where), where))
 
 
-def _repair_corners(mesh: trimesh.Trimesh) -> None:
-    """Give corners whose interpolated attributes manifold3d left non-finite the face normal and uv 0 (in place).
+def _repair_corners(mesh: Mesh) -> None:
+    """Give corners whose interpolated attributes manifold3d left non-finite the face normal and uv 0.
 
     Seen on degenerate input (hypothesis: 15 zero-width tubes 1e-12 apart) where
-    manifold3d interpolates properties over a zero-area triangle.
+    manifold3d interpolates properties over a zero-area triangle.  The union's
+    own fresh arrays are repaired in place.
     """
-    normals = mesh.face_attributes["corner_normals"]
+    normals = mesh.normals
     bad = ~np.isfinite(normals).all(axis=2) | (np.abs(normals).sum(axis=2) == 0)
     if bad.any():
-        fn = np.nan_to_num(np.asarray(mesh.face_normals, np.float32))
+        fn = np.nan_to_num(face_normals(mesh.vertices, mesh.faces).astype(np.float32))
         fn[np.abs(fn).sum(axis=1) == 0] = (0.0, 1.0, 0.0)
         normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad]
-    uv = mesh.face_attributes["corner_uv"]
-    uv[~np.isfinite(uv)] = 0.0
+    mesh.uv[~np.isfinite(mesh.uv)] = 0.0
 
 
-def _weld_float32(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+def _weld_float32(mesh: Mesh) -> Mesh:
     """Merge vertices that share a float32 position and drop the triangles that collapse, if it stays closed.
 
     Where tubes meet almost tangentially, manifold3d keeps distinct vertices a
@@ -360,32 +339,12 @@ def _weld_float32(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     renumber = np.empty(len(order), np.int64)
     renumber[order] = np.arange(len(order))
     faces = renumber[faces[keep]]
-    attrs = mesh.face_attributes
     if not _closed(faces, len(unique)):
         return _separate_float32(mesh)
-    normals, uv = attrs["corner_normals"][keep], attrs["corner_uv"][keep]
-    return _separate_float32(corner_mesh(unique[order].astype(np.float64), faces, normals, uv))
+    return _separate_float32(Mesh(unique[order].astype(np.float64), faces, mesh.normals[keep], mesh.uv[keep]))
 
 
-def _first_equal_row(keys: np.ndarray) -> np.ndarray:
-    """For each row of an integer array ``(n, 3)``, the index of the first row equal to it.
-
-    What ``np.unique(keys, axis=0, return_index=True, return_inverse=True)``
-    gives, from one stable ``lexsort`` of the columns (several times faster).
-
-    >>> _first_equal_row(np.array([[1, 2, 3], [0, 0, 0], [1, 2, 3], [0, 0, 0]])).tolist()
-    [0, 1, 0, 1]
-    """
-    order = np.lexsort(keys.T[::-1])  # stable: equal rows keep their order, the first comes first
-    ranked = keys[order]
-    starts = np.ones(len(keys), bool)
-    starts[1:] = (ranked[1:] != ranked[:-1]).any(axis=1)
-    owner = np.empty(len(keys), np.int64)
-    owner[order] = order[np.flatnonzero(starts)][np.cumsum(starts) - 1]
-    return owner
-
-
-def _separate_float32(mesh: trimesh.Trimesh, rounds: int = 32) -> trimesh.Trimesh:
+def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
     """Give distinct vertices distinct float32 positions, far enough apart that readers do not weld them.
 
     Where a weld would break the mesh (crossings of coplanar tubes), a vertex
@@ -438,8 +397,7 @@ def _separate_float32(mesh: trimesh.Trimesh, rounds: int = 32) -> trimesh.Trimes
     moved = (v32 != v.astype(np.float32)).any(axis=1)
     log.debug("union: %d vertices moved to positions of their own", int(moved.sum()))
     points = np.where(moved[:, None], v32.astype(np.float64), v)
-    attrs = mesh.face_attributes
-    return corner_mesh(points, np.asarray(mesh.faces), attrs["corner_normals"], attrs["corner_uv"])
+    return Mesh(points, mesh.faces, mesh.normals, mesh.uv)
 
 
 def _batch_union(parts: list[manifold3d.Manifold], where: str) -> manifold3d.Manifold:
@@ -591,7 +549,7 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
     if not _closed(faces, len(vertices)):
         log.debug("union: the stitched mesh is not closed; unioning whole tubes")
         return None
-    return corner_mesh(vertices, faces, normals, uv)
+    return Mesh(vertices, faces, normals, uv)
 
 
 def _manifold_of(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, where: str) -> manifold3d.Manifold:
@@ -665,7 +623,7 @@ def _closed(faces: np.ndarray, nverts: int) -> bool:
     return bool((fwd[pos] == rev).all())
 
 
-def _to_trimesh(manifold: manifold3d.Manifold, where: str) -> trimesh.Trimesh:
+def _to_mesh(manifold: manifold3d.Manifold, where: str) -> Mesh:
     mesh = manifold.to_mesh64()
     props = np.asarray(mesh.vert_properties)
     if props.shape[1] != _NUM_PROP:
@@ -674,4 +632,4 @@ def _to_trimesh(manifold: manifold3d.Manifold, where: str) -> trimesh.Trimesh:
     point_of, npts = _weld(len(props), mesh)
     vertices = np.empty((npts, 3))
     vertices[point_of] = props[:, :3]
-    return corner_mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:])
+    return Mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:])

@@ -42,6 +42,7 @@ from lsys3d import (
     LimitError,
     LSystemError,
     ModuleString,
+    OptionsError,
     TurtleOptions,
 )
 from lsys3d.cli import build_parser, main
@@ -127,8 +128,8 @@ def test_payloads_in_rules_axiom_and_defines_are_refused(tmp_path, place):
 @pytest.mark.parametrize(
     ("template", "fragment"),
     [
-        ("[turtle]\nstep = {value}\n", "'step' must be a finite number"),
-        ("[turtle]\ntropism = [{value}, 0, 0]\n", "'tropism' must be a list of three numbers"),
+        ("[turtle]\nstep = {value}\n", "step: must be a"),
+        ("[turtle]\ntropism = [{value}, 0, 0]\n", "tropism: must be a list of 3 numbers"),
         ("[turtle]\n{key} = 1\n", "unknown key"),
     ],
 )
@@ -397,7 +398,7 @@ CASES = [
     ("output-unwritable", api(lambda c: export_koch(c, locked_folder(c) / "tree.glb")), ExportError, "is not writable"),
     ("output-no-clobber", cli("generate", "--no-clobber", "-o", "{tmp}/t.glb", setup=old), ExportError, "file exists"),
     ("output-disk-full", api(disk_full), ExportError, "tree.glb: no space left on device"),
-    ("output-bad-options", api(bad_export_options), ExportError, "units must be one of"),
+    ("output-bad-options", api(bad_export_options), OptionsError, "ExportOptions.units: must be one of"),
 ]  # fmt: skip
 
 
@@ -461,8 +462,8 @@ def test_overflow_names_the_rule_parameter_and_module():
 # ---------------------------------------------------------------- limits: defaults, and each one can be raised
 def test_defaults_leave_every_preset_a_hundredfold_headroom():
     """How the defaults were chosen: at least 100x what the largest bundled preset needs at its own iterations."""
-    assert GenerateOptions().max_segments == DEFAULT_MAX_SEGMENTS
-    assert GenerateOptions().max_tube_triangles == DEFAULT_MAX_TRIANGLES
+    assert GenerateOptions().limits.max_segments == DEFAULT_MAX_SEGMENTS
+    assert GenerateOptions().limits.max_triangles == DEFAULT_MAX_TRIANGLES
     most = {"modules": 0, "segments": 0, "triangles": 0}
     for name in lsys3d.list_presets():
         g = lsys3d.load_preset(name)
@@ -495,7 +496,7 @@ def test_each_limit_can_be_raised(monkeypatch):
     with pytest.raises(LimitError, match="segments"):
         lsys3d.generate(koch, 2, union=False, max_segments=10)
     with pytest.raises(LimitError, match="tube triangles"):
-        lsys3d.generate(koch, 2, union=False, max_tube_triangles=10)
+        lsys3d.generate(koch, 2, union=False, max_triangles=10)
 
     deep = "(" * 80 + "1" + ")" * 80
     with pytest.raises(GrammarError, match="nested deeper than 64"):

@@ -8,6 +8,7 @@ import trimesh
 
 import lsys3d
 from lsys3d.leaves import Leaves, default_leaf, instance_leaves, leaf_transforms, leaves, polygon_leaves
+from lsys3d.mesh import Mesh
 from lsys3d.skeleton import Skeleton
 
 
@@ -46,8 +47,8 @@ def leafy_skeleton(polygons=(), instances=()) -> Skeleton:
 
 
 def attributes_ok(mesh: trimesh.Trimesh):
-    n = mesh.face_attributes["corner_normals"]
-    uv = mesh.face_attributes["corner_uv"]
+    n = mesh.normals
+    uv = mesh.uv
     assert n.shape == (len(mesh.faces), 3, 3) and n.dtype == np.float32
     assert uv.shape == (len(mesh.faces), 3, 2) and uv.dtype == np.float32
     np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-6)
@@ -99,7 +100,7 @@ def test_instances_follow_the_turtle_frame():
     # its front faces the turtle's up
     np.testing.assert_allclose(baked.face_normals, np.tile([0, 0, 1.0], (len(baked.faces), 1)), atol=1e-12)
     attributes_ok(baked)
-    np.testing.assert_array_equal(baked.face_attributes["corner_uv"], model.face_attributes["corner_uv"])
+    np.testing.assert_array_equal(baked.uv, model.uv)
 
 
 def test_mirroring_transform_keeps_fronts_and_normals_together():
@@ -118,9 +119,9 @@ def test_user_leaf_model():
     square = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], [[0, 2, 1], [0, 3, 2]], process=False)
     sk = leafy_skeleton(instances=[([0, 0, 0], [0, 1, 0], [1, 0, 0], 1.0)] * 3)
     got = leaves(sk, model=square)
-    assert got.model is square
+    assert isinstance(got.model, Mesh) and np.array_equal(got.model.faces, square.faces)
     assert len(got.merged.faces) == 6
-    n = got.merged.face_attributes["corner_normals"]
+    n = got.merged.normals
     np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0)
 
 
@@ -134,7 +135,7 @@ def test_square_polygon():
     assert m.area == pytest.approx(1.0)
     np.testing.assert_allclose(m.face_normals, [[0, 0, 1]] * 2)
     attributes_ok(m)
-    uv = m.face_attributes["corner_uv"].reshape(-1, 2)
+    uv = m.uv.reshape(-1, 2)
     assert uv.min() == 0 and uv.max() == 1
 
 

@@ -82,14 +82,15 @@ def check_union(tubes: Tubes, mesh):
     # welded by manifold's topology (two sheets that only touch may keep two vertices
     # at one place), and no vertex left unused
     assert len(np.unique(mesh.faces)) == len(mesh.vertices)
-    n = mesh.face_attributes["corner_normals"]
-    uv = mesh.face_attributes["corner_uv"]
+    n = mesh.normals
+    uv = mesh.uv
     assert n.shape == (len(mesh.faces), 3, 3) and n.dtype == np.float32
     assert uv.shape == (len(mesh.faces), 3, 2) and uv.dtype == np.float32
     np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-5)
     assert uv[:, :, 0].min() >= -1e-6 and uv[:, :, 0].max() <= 1 + 1e-6
     # smooth normals still point out of their faces (slivers have no normal to compare)
-    big = mesh.area_faces > 1e-9 * mesh.scale**2
+    scale = np.linalg.norm(np.ptp(mesh.vertices, axis=0))
+    big = mesh.face_areas > 1e-9 * scale**2
     facing = np.einsum("fcj,fj->fc", n[big], mesh.face_normals[big])
     assert np.mean(facing > 0) > 0.97
 
@@ -208,8 +209,8 @@ def test_concatenate_keeps_every_tube():
     assert len(soup.vertices) == len(tubes.points)
     assert soup.is_watertight and soup.is_winding_consistent
     assert soup.volume == pytest.approx(tubes.volumes().sum())
-    assert soup.face_attributes["corner_normals"].shape == (len(soup.faces), 3, 3)
-    assert soup.face_attributes["corner_uv"].dtype == np.float32
+    assert soup.normals.shape == (len(soup.faces), 3, 3)
+    assert soup.uv.dtype == np.float32
 
 
 # ---------------------------------------------------------------- touch test
@@ -299,16 +300,9 @@ def test_presets_union(name):
 
 def _face_touching_boxes(gap: float):
     """Two closed boxes in one mesh, the second starting ``gap`` beyond the first's x = 1 face."""
-    import trimesh
+    from lsys3d.mesh import Mesh
 
-    from lsys3d.sweep import corner_mesh
-
-    a = trimesh.creation.box(bounds=[[0, 0, 0], [1, 1, 1]])
-    b = trimesh.creation.box(bounds=[[1 + gap, 0, 0], [2, 1, 1]])
-    points = np.concatenate([a.vertices, b.vertices])
-    faces = np.concatenate([a.faces, b.faces + len(a.vertices)])
-    normals = np.repeat(np.concatenate([a.face_normals, b.face_normals])[:, None, :], 3, axis=1).astype(np.float32)
-    return corner_mesh(points, faces, normals, np.zeros((len(faces), 3, 2), np.float32))
+    return Mesh.concatenate([Mesh.box((0, 0, 0), (1, 1, 1)), Mesh.box((1 + gap, 0, 0), (2, 1, 1))])
 
 
 @pytest.mark.parametrize("gap", [1e-9, 0.0])
@@ -320,7 +314,7 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
 
     weld = sys.modules["lsys3d.union"]._weld_float32
     mesh = _face_touching_boxes(gap)
-    out = weld(mesh.copy())
+    out = weld(mesh)
     v32 = np.asarray(out.vertices, np.float32)
     assert len(out.vertices) == 16 and np.array_equal(out.faces, mesh.faces)
     assert len(np.unique(v32, axis=0)) == 16
@@ -330,4 +324,4 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
     welded = trimesh.Trimesh(v32.astype(np.float64), out.faces, process=False)
     welded.merge_vertices()
     assert len(welded.vertices) == 16 and welded.is_watertight
-    assert weld(_face_touching_boxes(1e-3).copy()).vertices.tolist() == _face_touching_boxes(1e-3).vertices.tolist()
+    assert weld(_face_touching_boxes(1e-3)).vertices.tolist() == _face_touching_boxes(1e-3).vertices.tolist()

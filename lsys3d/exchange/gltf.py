@@ -2,8 +2,8 @@
 
 Layout of the file::
 
-    scene 0 (extras: provenance)
-      node "tree"
+    scene 0 "<asset name>" (extras: the lsys3d metadata: provenance and counts)
+      node "<asset name>"
         node "bark"      mesh "bark"      material "bark"
         node "leaf"      mesh "leaf"      material "leaf"   (all leaves merged; or the leaf model
                                                              with EXT_mesh_gpu_instancing)
@@ -28,9 +28,11 @@ from urllib.parse import quote
 import numpy as np
 
 from ..errors import ExportError
-from ..tree import Material, Tree
+from ..materials import Material
+from ..tree import Tree
+from ..version import __version__
 from .atomic import atomic_path, check_target, write_bytes, write_chunks
-from .common import ExportOptions, MeshArrays, decompose_transforms, gather_mesh, provenance_json
+from .common import ExportOptions, MeshArrays, decompose_transforms, gather_mesh, metadata_json
 
 __all__ = ["write_glb", "write_gltf"]
 
@@ -157,7 +159,7 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         )
     eye = np.eye(3)
     buf = _Buffer()
-    meshes, nodes, materials = [], [{"name": "tree", "children": []}], []
+    meshes, nodes, materials = [], [{"name": tree.name, "children": []}], []
     extensions_used = []
 
     def add_node(name: str, primitives: list[dict], extensions: dict | None = None):
@@ -179,11 +181,12 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
             material = replace(material, base_color=(1.0, 1.0, 1.0, material.base_color[3]))
         add_node("bark", [_primitive(buf, bark, material_index(material))])
 
-    instanced = bool(options.instance_leaves) and tree.leaf_model is not None and len(tree.leaf_transforms) > 0
+    leaves = tree.leaves
+    instanced = bool(options.instance_leaves) and leaves.instanced
     if instanced:
         leaf_mat = material_index(tree.leaf_material)
-        model = gather_mesh(tree.leaf_model, eye, f"{where}: leaf_model")
-        translation, quaternion, scale = decompose_transforms(tree.leaf_transforms, where)
+        model = gather_mesh(leaves.model, eye, f"{where}: leaf_model")
+        translation, quaternion, scale = decompose_transforms(leaves.transforms, where)
         attributes = {
             "TRANSLATION": buf.accessor(translation.astype(np.float32), target=None),
             "ROTATION": buf.accessor(quaternion.astype(np.float32), target=None),
@@ -191,15 +194,15 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         }
         add_node("leaf", [_primitive(buf, model, leaf_mat)], {INSTANCING: {"attributes": attributes}})
         extensions_used.append(INSTANCING)
-        if tree.polygon_leaves is not None and len(tree.polygon_leaves.faces):
-            polygons = gather_mesh(tree.polygon_leaves, eye, f"{where}: polygon_leaves")
+        if leaves.polygons is not None and len(leaves.polygons.faces):
+            polygons = gather_mesh(leaves.polygons, eye, f"{where}: polygon_leaves")
             add_node("leaf_polygons", [_primitive(buf, polygons, leaf_mat)])
     else:
         # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
-        merged = tree.leaves if tree.leaves is not None else tree.polygon_leaves
+        merged = leaves.merged if leaves.merged is not None else leaves.polygons
         if merged is not None and len(merged.faces):
-            leaves = gather_mesh(merged, eye, f"{where}: leaves")
-            add_node("leaf", [_primitive(buf, leaves, material_index(tree.leaf_material))])
+            arrays = gather_mesh(merged, eye, f"{where}: leaves")
+            add_node("leaf", [_primitive(buf, arrays, material_index(tree.leaf_material))])
 
     if options.skeleton_curves:
         lines = _skeleton_lines(tree)
@@ -212,17 +215,15 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
             }
             add_node("skeleton", [primitive])
 
-    provenance = provenance_json(tree.provenance, where)
-    from .. import __version__
-
+    metadata = metadata_json(tree, where)
     doc = {"asset": {"version": "2.0", "generator": f"lsys3d {__version__}"}}
-    if provenance:
-        doc["asset"]["extras"] = provenance
+    if metadata:
+        doc["asset"]["extras"] = metadata
     if extensions_used:
         doc["extensionsUsed"] = extensions_used
-    scene = {"name": "tree", "nodes": [0]}
-    if provenance:
-        scene["extras"] = provenance
+    scene = {"name": tree.name, "nodes": [0]}
+    if metadata:
+        scene["extras"] = metadata
     doc.update(scene=0, scenes=[scene], nodes=nodes)
     # glTF arrays may not be empty: leave out what a tree without geometry lacks
     for key, value in (("meshes", meshes), ("materials", materials), ("accessors", buf.accessors)):

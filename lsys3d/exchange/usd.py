@@ -1,8 +1,9 @@
 """OpenUSD writer (``.usda``, ``.usdc``, ``.usd``, ``.usdz``) with usd-core's ``pxr``.
 
-The stage::
+The stage (``<asset>`` is the asset's name as an identifier: ``bush``, ``abop_1_24a``)::
 
-    /Tree                       Xform, kind = component, defaultPrim; customData lsys3d provenance
+    /<asset>                    Xform, kind = component, defaultPrim, assetInfo:name = the grammar's name;
+                                customData lsys3d: the metadata block (provenance and counts)
         Geom                    Xform
             bark                Mesh (subdivisionScheme none, faceVarying normals, indexed primvars:st;
                                 vertex primvars:displayColor with bark colour variation)
@@ -19,7 +20,7 @@ The parts have the same names as in glTF (``bark``, ``leaf``, ``leaf_polygons``,
 ``upAxis`` and ``metersPerUnit`` follow :class:`~lsys3d.exchange.ExportOptions`;
 the geometry is turned and scaled to match, so every DCC sees the tree upright
 at its true size.  Siblings (the same grammar grown with several seeds) go into
-one stage as the variants of the variant set ``seed`` on ``/Tree``, each
+one stage as the variants of the variant set ``seed`` on the root prim, each
 holding the whole layout above (:func:`build_variant_stage`).  Points are numbered in the order faces first use them,
 which keeps the crate file's integer compression fast.
 """
@@ -37,18 +38,24 @@ import numpy as np
 from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
 
 from ..errors import ExportError
-from ..tree import Material, Tree
+from ..materials import Material
+from ..tree import Tree
+from ..version import __version__
 from .atomic import atomic_path
-from .common import ExportOptions, MeshArrays, decompose_transforms, file_frame, frame_transforms, gather_mesh
-from .common import provenance_json as _provenance_json
+from .common import (
+    ExportOptions,
+    MeshArrays,
+    decompose_transforms,
+    file_frame,
+    frame_transforms,
+    gather_mesh,
+    metadata_json,
+)
 
-__all__ = ["ROOT", "VARIANT_SET", "build_stage", "build_variant_stage", "write_usd", "write_usd_variants", "write_usdz"]
+__all__ = ["VARIANT_SET", "build_stage", "build_variant_stage", "write_usd", "write_usd_variants", "write_usdz"]
 
-ROOT = "/Tree"
 VARIANT_SET = "seed"
 """The variant set of a stage of siblings (:func:`build_variant_stage`)."""
-GEOM = f"{ROOT}/Geom"
-LOOKS = f"{ROOT}/Looks"
 
 
 def _extent(points: np.ndarray) -> Vt.Vec3fArray:
@@ -56,15 +63,15 @@ def _extent(points: np.ndarray) -> Vt.Vec3fArray:
     return Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))])
 
 
-def _material(stage: Usd.Stage, name: str, m: Material, vertex_colors: bool = False) -> UsdShade.Material:
-    material = UsdShade.Material.Define(stage, f"{LOOKS}/{name}")
-    shader = UsdShade.Shader.Define(stage, f"{LOOKS}/{name}/PreviewSurface")
+def _material(stage: Usd.Stage, looks: str, name: str, m: Material, vertex_colors: bool = False) -> UsdShade.Material:
+    material = UsdShade.Material.Define(stage, f"{looks}/{name}")
+    shader = UsdShade.Shader.Define(stage, f"{looks}/{name}/PreviewSurface")
     shader.CreateIdAttr("UsdPreviewSurface")
     r, g, b, a = (float(c) for c in m.base_color)
     diffuse = shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f)
     if vertex_colors:
         # the mesh's displayColor primvar is the colour; the base colour is the fallback where it is missing
-        reader = UsdShade.Shader.Define(stage, f"{LOOKS}/{name}/displayColor")
+        reader = UsdShade.Shader.Define(stage, f"{looks}/{name}/displayColor")
         reader.CreateIdAttr("UsdPrimvarReader_float3")
         reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("displayColor")
         reader.CreateInput("fallback", Sdf.ValueTypeNames.Float3).Set(Gf.Vec3f(r, g, b))
@@ -130,10 +137,11 @@ def _skeleton(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray) -> Non
 def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, material, where: str) -> None:
     instancer = UsdGeom.PointInstancer.Define(stage, path)
     UsdGeom.Scope.Define(stage, f"{path}/Prototypes")
-    model = gather_mesh(tree.leaf_model, np.eye(3), f"{where}: leaf_model")
+    model = gather_mesh(tree.leaves.model, np.eye(3), f"{where}: leaf_model")
     proto = _mesh(stage, f"{path}/Prototypes/leaf_model", model, material, tree.leaf_material.double_sided)
     instancer.CreatePrototypesRel().SetTargets([proto.GetPath()])
-    translation, quaternion, scale = decompose_transforms(frame_transforms(tree.leaf_transforms, frame), where)
+    transforms = frame_transforms(tree.leaves.transforms, frame)
+    translation, quaternion, scale = decompose_transforms(transforms, where)
     k = len(translation)
     instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(np.zeros(k, np.int32)))
     instancer.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(translation.astype(np.float32)))
@@ -159,7 +167,7 @@ def _names(materials: list[Material]) -> list[str]:
 
 def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> Usd.Stage:
     """Build the tree's stage in memory (see the module docstring for its layout)."""
-    stage, prim = _new_stage(options)
+    stage, prim = _new_stage(options, tree.identifier)
     _author_tree(stage, prim, tree, options, where)
     return stage
 
@@ -167,18 +175,19 @@ def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> U
 def build_variant_stage(
     trees: Sequence[Tree], names: Sequence[str], options: ExportOptions, where: str = "<stage>"
 ) -> Usd.Stage:
-    """One stage whose ``/Tree`` holds every tree as a variant of the variant set ``seed``.
+    """One stage whose root prim holds every tree as a variant of the variant set ``seed``.
 
-    Variant ``names[i]`` holds all that :func:`build_stage` authors under
-    ``/Tree`` for ``trees[i]`` (parts, materials, provenance); the selection
-    is the first variant.  A layout artist switches siblings in place.
+    Variant ``names[i]`` holds all that :func:`build_stage` authors under the
+    root for ``trees[i]`` (parts, materials, metadata); the selection is the
+    first variant.  The root prim is named after the first tree.  A layout
+    artist switches siblings in place.
     """
     if not trees or len(trees) != len(names):
         raise ExportError(f"{where}: variants need one name per tree, and at least one tree")
     bad = [n for n in names if not Tf.IsValidIdentifier(n)]
     if bad or len(set(names)) != len(names):
         raise ExportError(f"{where}: variant names must be distinct identifiers, not {list(names)!r}")
-    stage, prim = _new_stage(options)
+    stage, prim = _new_stage(options, trees[0].identifier)
     variants = prim.GetVariantSets().AddVariantSet(VARIANT_SET)
     for name, tree in zip(names, trees, strict=True):
         variants.AddVariant(name)
@@ -189,12 +198,12 @@ def build_variant_stage(
     return stage
 
 
-def _new_stage(options: ExportOptions) -> tuple[Usd.Stage, Usd.Prim]:
-    """An in-memory stage with its axis, units and the ``/Tree`` component (the default prim)."""
+def _new_stage(options: ExportOptions, name: str) -> tuple[Usd.Stage, Usd.Prim]:
+    """An in-memory stage with its axis, units and the root component ``/<name>`` (the default prim)."""
     stage = Usd.Stage.CreateInMemory()
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z if options.up_axis == "Z" else UsdGeom.Tokens.y)
     UsdGeom.SetStageMetersPerUnit(stage, options.meters_per_unit)
-    root = UsdGeom.Xform.Define(stage, ROOT)
+    root = UsdGeom.Xform.Define(stage, f"/{name}")
     prim = root.GetPrim()
     stage.SetDefaultPrim(prim)
     Usd.ModelAPI(prim).SetKind(Kind.Tokens.component)
@@ -202,43 +211,43 @@ def _new_stage(options: ExportOptions) -> tuple[Usd.Stage, Usd.Prim]:
 
 
 def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOptions, where: str) -> None:
-    """Author the tree under ``/Tree`` at the stage's edit target: provenance, parts, materials."""
-    from .. import __version__
-
+    """Author the tree under the root prim at the stage's edit target: metadata, parts, materials."""
     frame = file_frame(options)
-    provenance = _provenance_json(tree.provenance, where)
-    name = provenance.get("name") if isinstance(provenance.get("name"), str) else None
-    Usd.ModelAPI(prim).SetAssetName(name or "tree")
+    root = prim.GetPath().pathString
+    geom, looks = f"{root}/Geom", f"{root}/Looks"
+    metadata = metadata_json(tree, where)
+    Usd.ModelAPI(prim).SetAssetName(tree.name)
     prim.SetCustomDataByKey(
-        "lsys3d", {"generator": f"lsys3d {__version__}", "provenance": json.dumps(provenance, sort_keys=True)}
+        "lsys3d", {"generator": f"lsys3d {__version__}", "provenance": json.dumps(metadata, sort_keys=True)}
     )
-    UsdGeom.Xform.Define(stage, GEOM)
-    UsdGeom.Scope.Define(stage, LOOKS)
+    UsdGeom.Xform.Define(stage, geom)
+    UsdGeom.Scope.Define(stage, looks)
     bark_name, leaf_name = _names([tree.bark_material, tree.leaf_material])
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
         bark = gather_mesh(tree.bark, frame, f"{where}: bark")
-        bark_material = _material(stage, bark_name, tree.bark_material, vertex_colors=bark.colors is not None)
-        _mesh(stage, f"{GEOM}/bark", bark, bark_material, tree.bark_material.double_sided)
+        bark_material = _material(stage, looks, bark_name, tree.bark_material, vertex_colors=bark.colors is not None)
+        _mesh(stage, f"{geom}/bark", bark, bark_material, tree.bark_material.double_sided)
 
-    instanced = options.instance_leaves is not False and tree.leaf_model is not None and len(tree.leaf_transforms) > 0
-    has_polygons = tree.polygon_leaves is not None and len(tree.polygon_leaves.faces) > 0
+    leaves = tree.leaves
+    instanced = options.instance_leaves is not False and leaves.instanced
+    has_polygons = leaves.polygons is not None and len(leaves.polygons.faces) > 0
     # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
-    merged = tree.leaves if tree.leaves is not None else tree.polygon_leaves
+    merged = leaves.merged if leaves.merged is not None else leaves.polygons
     has_merged = merged is not None and len(merged.faces) > 0
     if instanced or has_merged:
-        leaf_material = _material(stage, leaf_name, tree.leaf_material)
+        leaf_material = _material(stage, looks, leaf_name, tree.leaf_material)
         double = tree.leaf_material.double_sided
         if instanced:
-            _leaf_instancer(stage, f"{GEOM}/leaf", tree, frame, leaf_material, where)
+            _leaf_instancer(stage, f"{geom}/leaf", tree, frame, leaf_material, where)
             if has_polygons:
-                polygons = gather_mesh(tree.polygon_leaves, frame, f"{where}: polygon_leaves")
-                _mesh(stage, f"{GEOM}/leaf_polygons", polygons, leaf_material, double)
+                polygons = gather_mesh(leaves.polygons, frame, f"{where}: polygon_leaves")
+                _mesh(stage, f"{geom}/leaf_polygons", polygons, leaf_material, double)
         else:
-            leaves = gather_mesh(merged, frame, f"{where}: leaves")
-            _mesh(stage, f"{GEOM}/leaf", leaves, leaf_material, double)
+            arrays = gather_mesh(merged, frame, f"{where}: leaves")
+            _mesh(stage, f"{geom}/leaf", arrays, leaf_material, double)
 
     if options.skeleton_curves:
-        _skeleton(stage, f"{GEOM}/skeleton", tree, frame)
+        _skeleton(stage, f"{geom}/skeleton", tree, frame)
 
 
 def _export_layer(layer: Sdf.Layer, tmp: Path, path: Path) -> None:
