@@ -13,19 +13,10 @@ Prints modules per second for lsys3d and for two baselines:
 from __future__ import annotations
 
 import argparse
-import time
+
+from timing import best_of
 
 import lsys3d
-
-
-def best_of(fn, repeat=3):
-    best = float("inf")
-    result = None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        result = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, result
 
 
 def translate_rewriter(axiom: str, rules: dict[str, str], n: int) -> str:

@@ -97,6 +97,69 @@ class Skeleton:
     def __len__(self) -> int:
         return int(self.start.shape[0])
 
+    @classmethod
+    def from_segments(
+        cls,
+        start,
+        end,
+        width_start=0.1,
+        width_end=None,
+        parent=None,
+        order=None,
+        *,
+        left_hint=(0.31, 0.52, 0.79),
+        **leaves,
+    ) -> Skeleton:
+        """A skeleton from bare segments (tests, benchmarks, skeletons made outside the turtle).
+
+        Parameters
+        ----------
+        start, end : (n, 3) array_like
+        width_start, width_end : float or (n,) array_like
+            Diameters; ``width_end`` defaults to ``width_start``.
+        parent : (n,) array_like, optional
+            Default: a single chain, ``parent[s] = s - 1``.
+        order : (n,) array_like, optional
+            Default: all 0.
+        left_hint : 3 floats
+            The turtle frames follow the segment directions: heading along the
+            segment, left perpendicular to it and to this hint.
+        **leaves
+            Polygon and leaf-instance fields (``polygon_points``, ``leaf_position``...).
+
+        Examples
+        --------
+        >>> sk = Skeleton.from_segments([[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [0, 2, 0]], 0.2)
+        >>> len(sk), sk.parent.tolist(), len(sk.chains)
+        (2, [-1, 0], 1)
+        """
+        start = np.asarray(start, np.float64).reshape(-1, 3)
+        end = np.asarray(end, np.float64).reshape(-1, 3)
+        n = len(start)
+        w0 = np.broadcast_to(np.asarray(width_start, np.float64), (n,)).copy()
+        w1 = w0.copy() if width_end is None else np.broadcast_to(np.asarray(width_end, np.float64), (n,)).copy()
+        parent = np.arange(n, dtype=np.int64) - 1 if parent is None else np.asarray(parent, np.int64)
+        order = np.zeros(n, np.int32) if order is None else np.asarray(order, np.int32)
+        h = end - start
+        norm = np.linalg.norm(h, axis=1, keepdims=True)
+        h = np.where(norm > 0, h / np.where(norm > 0, norm, 1.0), [[0.0, 1.0, 0.0]])
+        left = np.cross(np.asarray(left_hint, np.float64), h)
+        left /= np.maximum(np.linalg.norm(left, axis=1, keepdims=True), 1e-300)
+        return cls(
+            start=start,
+            end=end,
+            width_start=w0,
+            width_end=w1,
+            heading=h,
+            left=left,
+            up=np.cross(h, left),
+            parent=parent,
+            order=order,
+            material=np.zeros(n, np.int32),
+            module=np.arange(n, dtype=np.int64),
+            **leaves,
+        )
+
     @property
     def n_polygons(self) -> int:
         return len(self.polygon_offsets) - 1

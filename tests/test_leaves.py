@@ -19,29 +19,17 @@ def leafy_skeleton(polygons=(), instances=()) -> Skeleton:
     pos = np.array([i[0] for i in instances], float).reshape(-1, 3)
     head = np.array([i[1] for i in instances], float).reshape(-1, 3)
     left = np.array([i[2] for i in instances], float).reshape(-1, 3)
-    size = np.array([i[3] for i in instances], float)
-    z3 = np.zeros((0, 3))
-    z = np.zeros(0)
-    return Skeleton(
-        start=z3,
-        end=z3,
-        width_start=z,
-        width_end=z,
-        heading=z3,
-        left=z3,
-        up=z3,
-        parent=np.zeros(0, np.int64),
-        order=np.zeros(0, np.int32),
-        material=np.zeros(0, np.int32),
-        module=np.zeros(0, np.int64),
-        polygon_points=np.concatenate(pts) if pts else z3,
+    return Skeleton.from_segments(
+        np.zeros((0, 3)),
+        np.zeros((0, 3)),
+        polygon_points=np.concatenate(pts) if pts else np.zeros((0, 3)),
         polygon_offsets=offsets,
         polygon_material=np.zeros(len(pts), np.int32),
         leaf_position=pos,
         leaf_heading=head,
         leaf_left=left,
         leaf_up=np.cross(head, left),
-        leaf_size=size,
+        leaf_size=np.array([i[3] for i in instances], float),
         leaf_material=np.zeros(len(pos), np.int32),
     )
 

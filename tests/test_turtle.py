@@ -515,3 +515,24 @@ def test_docs_table_and_example():
     assert blocks
     for block in blocks:
         exec(compile(block, "docs/turtle.md", "exec"), {})
+
+
+def test_a_new_symbol_is_one_table_row():
+    """What the dialects need first -- cpfg's colour symbols and Houdini's opposite pitch -- are rows, not code."""
+    from dataclasses import replace
+
+    from lsys3d.turtle.commands import Command
+
+    colours = (
+        Command(";", "next colour", Op.MATERIAL, "i", 1, "Set the colour index to `i`; without `i` add 1.", sign=+1),
+        # cpfg's ',' (the grammar notation reserves ',' until the dialect readers map it), here '?'
+        Command("?", "previous colour", Op.MATERIAL, "i", 1, "Without `i` take 1 from the colour index.", sign=-1),
+    )
+    table = tuple(replace(c, sign=-c.sign) if c.symbol in "&^" else c for c in COMMANDS) + colours
+    g = Grammar(axiom="F;F;F?F??F;(7)F&F", angle=90)
+    sk = interpret(derive(g, 0), g, commands=table)
+    assert sk.material.tolist() == [0, 1, 2, 1, 0, 7, 7]  # '?' stops at 0
+    default = interpret(derive(g, 0), g)
+    assert default.material.tolist() == [0] * 7  # ';' and '?' mean nothing in lsys3d's own dialect
+    # '&' with the opposite sign pitches up instead of down
+    assert sk.end[-1, 2] - sk.start[-1, 2] == pytest.approx(1.0) and default.end[-1, 2] - default.start[-1, 2] == -1.0

@@ -77,7 +77,9 @@ class Command:
         For rotations: the axis turned about.
     sign : int
         For rotations: +1 turns the first axis of the pair toward the second
-        (H toward L, H toward U, L toward U), -1 the other way.
+        (H toward L, H toward U, L toward U), -1 the other way.  For the
+        material without an argument: the step of the index (+1 next, -1
+        previous; the index never goes below 0).
     """
 
     symbol: str
@@ -116,7 +118,7 @@ COMMANDS: tuple[Command, ...] = (
     Command(
         "!", "width", Op.WIDTH, "w", 1, "Set the branch diameter to `w`; without `w` multiply it by `width_scale`."
     ),
-    Command("'", "material", Op.MATERIAL, "i", 1, "Set the material index to `i`; without `i` add 1 to it."),
+    Command("'", "material", Op.MATERIAL, "i", 1, "Set the material index to `i`; without `i` add 1 to it.", sign=+1),
     Command('"', "step length", Op.LENGTH, "s", 1, "Multiply the step length by `s` (default `length_scale`)."),
     Command("{", "begin polygon", Op.POLYGON_BEGIN, "", 0, "Start a leaf polygon; moves inside add vertices."),
     Command(".", "polygon vertex", Op.POLYGON_VERTEX, "", 0, "Add the current position to the open polygon."),
@@ -154,11 +156,14 @@ class SymbolTable:
         return self.commands[code]
 
 
-def symbol_table(alphabet: str, draw: str = "F", move: str = "f", leaf: str = "~") -> SymbolTable:
-    """Compile :data:`COMMANDS` for the symbols of ``alphabet`` (``alphabet[code]`` is the symbol of id ``code``).
+def symbol_table(
+    alphabet: str, draw: str = "F", move: str = "f", leaf: str = "~", commands: tuple[Command, ...] = COMMANDS
+) -> SymbolTable:
+    """Compile a command table for the symbols of ``alphabet`` (``alphabet[code]`` is the symbol of id ``code``).
 
     ``draw``, ``move`` and ``leaf`` are the symbols the ``[turtle]`` table gives
-    those commands.
+    those commands; ``commands`` is the vocabulary (:data:`COMMANDS`, or a
+    dialect's own table built from rows of the same kind).
 
     >>> from lsys3d.modules import ASCII_ALPHABET
     >>> p = symbol_table(ASCII_ALPHABET, draw="FG")
@@ -170,11 +175,12 @@ def symbol_table(alphabet: str, draw: str = "F", move: str = "f", leaf: str = "~
     axis = np.zeros(n, np.int8)
     sign = np.ones(n, np.float64)
     max_args = np.zeros(n, np.int64)
-    commands: list[Command | None] = [None] * n
+    per_code: list[Command | None] = [None] * n
     code_of = {ch: i for i, ch in enumerate(alphabet) if ch != "\0"}
-    rows = [(c.symbol, c) for c in COMMANDS if c.op not in RENAMEABLE.values()]
+    renamed = {c.op: c for c in commands if c.op in RENAMEABLE.values()}
+    rows = [(c.symbol, c) for c in commands if c.op not in RENAMEABLE.values()]
     for symbols, o in ((draw, Op.FORWARD), (move, Op.MOVE), (leaf, Op.LEAF)):
-        rows += [(ch, _BY_OP[o]) for ch in symbols]
+        rows += [(ch, renamed.get(o, _BY_OP[o])) for ch in symbols]
     for symbol, c in rows:
         code = code_of.get(symbol)
         if code is None:
@@ -183,8 +189,8 @@ def symbol_table(alphabet: str, draw: str = "F", move: str = "f", leaf: str = "~
         axis[code] = c.axis
         sign[code] = c.sign
         max_args[code] = c.max_args
-        commands[code] = c
-    return SymbolTable(op, axis, sign, max_args, tuple(commands))
+        per_code[code] = c
+    return SymbolTable(op, axis, sign, max_args, tuple(per_code))
 
 
 def commands_markdown() -> str:

@@ -63,7 +63,7 @@ from ..modules import ModuleString
 from ..skeleton import Skeleton
 from ..streams import Stream, generator
 from . import kernel
-from .commands import Op, SymbolTable, symbol_table
+from .commands import COMMANDS, Command, Op, SymbolTable, symbol_table
 from .options import TurtleOptions
 
 __all__ = ["DEFAULT_MAX_SEGMENTS", "interpret", "unit_jitter"]
@@ -122,6 +122,7 @@ def interpret(
     seed: int | None = None,
     *,
     max_segments: int = DEFAULT_MAX_SEGMENTS,
+    commands: tuple[Command, ...] = COMMANDS,
 ) -> Skeleton:
     """Draw a module string with the 3D turtle.
 
@@ -136,6 +137,8 @@ def interpret(
         options); the options' (grammar's) seed if None.
     max_segments : int
         Refuse (before drawing) a string with more drawing modules than this.
+    commands : tuple of Command
+        The vocabulary (default :data:`~lsys3d.turtle.commands.COMMANDS`).
 
     Returns
     -------
@@ -172,7 +175,7 @@ def interpret(
         seed = options.seed
     t0 = time.perf_counter()
     m = len(modules)
-    table = symbol_table(modules.alphabet, options.draw, options.move, options.leaf)
+    table = symbol_table(modules.alphabet, options.draw, options.move, options.leaf, commands)
     program = _program(table)
     arrays = kernel.Modules(modules.symbols, modules.arity, modules.offsets, modules.params)
     counts, max_depth, bad, why = kernel.survey(program, arrays)

@@ -390,7 +390,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
                     return 8, i, n_seg, n_pts, n_poly, n_leaf, dropped
                 material = round(arg)
             else:
-                material += 1
+                material = max(0, material + int(program.sign[sym]))
         elif code == _LENGTH:
             step = step * (arg if has_arg else length_scale)
             if not (step >= 0.0 and math.isfinite(step)):
