@@ -64,6 +64,9 @@ class Skeleton:
     polygon_offsets : (p + 1,) int64
         Points of polygon ``i`` are ``polygon_points[polygon_offsets[i]:polygon_offsets[i+1]]``.
     polygon_material : (p,) int32
+    polygon_segment : (p,) int64 or None
+        The segment the polygon grows from (the last segment drawn in its
+        branch when ``{`` opened it), -1 for none; None when unknown.
 
     Leaf instances (``k``, placed by the leaf symbol):
 
@@ -71,6 +74,8 @@ class Skeleton:
     leaf_size : (k,) float64
         Scale of the leaf model (the step length in force).
     leaf_material : (k,) int32
+    leaf_segment : (k,) int64 or None
+        The segment (twig) the leaf grows from, -1 for none; None when unknown.
     """
 
     start: np.ndarray
@@ -93,6 +98,8 @@ class Skeleton:
     leaf_up: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     leaf_size: np.ndarray = field(default_factory=lambda: np.zeros(0))
     leaf_material: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    polygon_segment: np.ndarray | None = None
+    leaf_segment: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.start.shape[0])
@@ -237,13 +244,13 @@ class Skeleton:
 
     def save_npz(self, path) -> None:
         """Write every array to a NumPy ``.npz`` file."""
-        arrays = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        arrays = {k: getattr(self, k) for k in self.__dataclass_fields__ if getattr(self, k) is not None}
         np.savez(path, **arrays)
 
     @classmethod
     def load_npz(cls, path) -> Skeleton:
         with np.load(path) as data:
-            return cls(**{k: data[k] for k in cls.__dataclass_fields__})
+            return cls(**{k: data[k] for k in cls.__dataclass_fields__ if k in data})
 
     def polylines(self) -> list[np.ndarray]:
         """Each chain as a polyline of points ``(segments + 1, 3)``."""

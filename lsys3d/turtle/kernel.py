@@ -44,8 +44,8 @@ SegmentArrays = namedtuple(
     "SegmentArrays",
     ["start", "end", "heading", "left", "up", "width_start", "width_end", "parent", "module", "order", "material"],
 )
-PolygonArrays = namedtuple("PolygonArrays", ["points", "offsets", "material"])
-LeafArrays = namedtuple("LeafArrays", ["position", "heading", "left", "up", "size", "material"])
+PolygonArrays = namedtuple("PolygonArrays", ["points", "offsets", "material", "segment"])
+LeafArrays = namedtuple("LeafArrays", ["position", "heading", "left", "up", "size", "material", "segment"])
 
 # numba sees the enums as plain integers
 _NONE = int(Op.NONE)
@@ -240,6 +240,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
     poly_open = -1  # module that opened the polygon
     poly_start = 0
     poly_mat = 0
+    poly_seg = -1
 
     m = symbols.shape[0]
     for i in range(m):
@@ -401,6 +402,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
             poly_open = i
             poly_start = n_pts
             poly_mat = material
+            poly_seg = last
         elif code == _POLYGON_VERTEX:
             if poly_open >= 0:
                 n_pts = _add_vertex(poly.points, n_pts, poly_start, px, py, pz)
@@ -421,6 +423,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
                 n_poly += 1
                 poly.offsets[n_poly] = n_pts
                 poly.material[n_poly - 1] = poly_mat
+                poly.segment[n_poly - 1] = poly_seg
             else:
                 n_pts = poly_start
                 dropped += 1
@@ -434,6 +437,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
             _put(leaf.up, n_leaf, ux, uy, uz)
             leaf.size[n_leaf] = size
             leaf.material[n_leaf] = material
+            leaf.segment[n_leaf] = last
             n_leaf += 1
     if poly_open >= 0:
         return 4, poly_open, n_seg, n_pts, n_poly, n_leaf, dropped
