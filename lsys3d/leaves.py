@@ -24,12 +24,14 @@ normal (leaves are flat), ``uv`` maps the leaf's box onto [0, 1] x [0, 1].
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import manifold3d
 import numpy as np
 
 from .errors import GeometryError
+from .hierarchy import Hierarchy
 from .mesh import Mesh
 from .skeleton import Skeleton
 
@@ -51,12 +53,17 @@ class Leaves:
         One transform per leaf instance (see :func:`leaf_transforms`).
     polygons : Mesh or None
         The ``{ . }`` polygons; None without polygons.
+    instance_attributes : dict of str to (k,) or (k, 3) float32
+        Per-instance attributes (the hierarchy and wind attributes of
+        :mod:`lsys3d.attributes`; empty unless asked for).  The merged and
+        polygon meshes carry the same attributes per vertex.
     """
 
     merged: Mesh | None = None
     model: Mesh | None = None
     transforms: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
     polygons: Mesh | None = None
+    instance_attributes: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def instanced(self) -> bool:
@@ -127,12 +134,13 @@ def leaf_transforms(skeleton: Skeleton) -> np.ndarray:
     return out
 
 
-def instance_leaves(model: Mesh, transforms: np.ndarray) -> Mesh | None:
+def instance_leaves(model: Mesh, transforms: np.ndarray, attributes: Mapping | None = None) -> Mesh | None:
     """Copies of ``model`` baked in place by each transform (None when there are none).
 
     Corner normals follow the rotation (inverse transpose, renormalised); uv
     are copied.  Transforms with a zero scale give degenerate copies, which
-    are dropped.
+    are dropped.  ``attributes`` (per transform) become per-vertex attributes
+    of the copies.
     """
     transforms = np.asarray(transforms, np.float64)
     if transforms.ndim != 3 or transforms.shape[1:] != (4, 4):
@@ -152,11 +160,13 @@ def instance_leaves(model: Mesh, transforms: np.ndarray) -> Mesh | None:
     wfaces = faces[None] + (np.arange(k) * nv)[:, None, None]
     if (det < 0).any():  # a mirroring transform turns the winding around
         wfaces[det < 0] = wfaces[det < 0][:, :, ::-1]
+    per_vertex = {name: np.repeat(np.asarray(a)[ok], nv, axis=0) for name, a in (attributes or {}).items()}
     return Mesh(
         world.reshape(-1, 3),
         wfaces.reshape(-1, 3),
         wn.reshape(-1, 3, 3),
         np.broadcast_to(np.asarray(uv), (k, *np.shape(uv))).reshape(-1, 3, 2),
+        attributes=per_vertex,
     )
 
 
@@ -178,13 +188,14 @@ def _plane_frames(points: np.ndarray, offsets: np.ndarray):
     return normal, x, np.cross(normal, x), area2 * 0.5, poly
 
 
-def polygon_leaves(skeleton: Skeleton) -> Mesh | None:
+def polygon_leaves(skeleton: Skeleton, attributes: Mapping | None = None) -> Mesh | None:
     """The ``{ . }`` polygons of a skeleton as one flat mesh (None when there are none).
 
     Each polygon is projected onto its best-fit plane (Newell normal) and
     triangulated (ear clipping by manifold3d, so concave outlines are fine);
     polygons of zero area are dropped.  Vertices are shared within a polygon,
-    not between polygons.
+    not between polygons.  ``attributes`` (per polygon) become per-vertex
+    attributes.
     """
     offsets = np.asarray(skeleton.polygon_offsets, np.int64)
     points = np.asarray(skeleton.polygon_points, np.float64)
@@ -192,8 +203,8 @@ def polygon_leaves(skeleton: Skeleton) -> Mesh | None:
     keep = counts >= 3
     if not keep.any():
         return None
+    sel = np.flatnonzero(keep)  # the skeleton's polygon of each kept one
     if not keep.all():
-        sel = np.flatnonzero(keep)
         idx = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in sel])
         points, counts = points[idx], counts[sel]
         offsets = np.concatenate([[0], np.cumsum(counts)])
@@ -236,10 +247,13 @@ def polygon_leaves(skeleton: Skeleton) -> Mesh | None:
     used = np.unique(faces)
     remap = np.full(len(points), -1, np.int64)
     remap[used] = np.arange(len(used))
-    return Mesh(points[used], remap[faces], normals, uv[faces])
+    per_vertex = {name: np.asarray(a)[sel[poly[used]]] for name, a in (attributes or {}).items()}
+    return Mesh(points[used], remap[faces], normals, uv[faces], attributes=per_vertex)
 
 
-def leaves(skeleton: Skeleton, model: Mesh | None = None) -> Leaves:
+def leaves(
+    skeleton: Skeleton, model: Mesh | None = None, hierarchy: Hierarchy | None = None, attributes=None
+) -> Leaves:
     """Every leaf of a skeleton: polygons, instances (model + transforms) and all merged.
 
     Parameters
@@ -247,16 +261,45 @@ def leaves(skeleton: Skeleton, model: Mesh | None = None) -> Leaves:
     skeleton : Skeleton
     model : Mesh or trimesh.Trimesh, optional
         Leaf model in the convention of this module (default :func:`default_leaf`).
+    hierarchy : Hierarchy, optional
+        The skeleton's branch hierarchy: when given, every leaf carries the
+        attributes of the branch it grows from (:mod:`lsys3d.attributes`), per
+        instance and per vertex.
+    attributes : sequence of str, optional
+        Which attributes (default: all of :data:`lsys3d.attributes.ATTRIBUTES`).
     """
     if model is not None and not isinstance(model, Mesh):
         model = Mesh.from_trimesh(model)
-    polygons = polygon_leaves(skeleton)
+    instance_attrs = polygon_attrs = {}
+    if hierarchy is not None:
+        k = len(skeleton.leaf_position)
+        instance_attrs = _grown_from(hierarchy, skeleton.leaf_segment, k, skeleton.leaf_position, attributes)
+        firsts = skeleton.polygon_points[skeleton.polygon_offsets[:-1]] if skeleton.n_polygons else np.zeros((0, 3))
+        polygon_attrs = _grown_from(hierarchy, skeleton.polygon_segment, skeleton.n_polygons, firsts, attributes)
+    polygons = polygon_leaves(skeleton, polygon_attrs)
     transforms = leaf_transforms(skeleton)
     leaf_model = None
     baked = None
     if len(transforms):
         leaf_model = default_leaf() if model is None else model
-        baked = instance_leaves(leaf_model, transforms)
+        baked = instance_leaves(leaf_model, transforms, instance_attrs)
     parts = [m for m in (polygons, baked) if m is not None]
     merged = Mesh.concatenate(parts) if parts else None
-    return Leaves(merged, leaf_model, transforms, polygons)
+    return Leaves(merged, leaf_model, transforms, polygons, instance_attrs)
+
+
+def _grown_from(h: Hierarchy, segment, count: int, where: np.ndarray, keys=None) -> dict:
+    """The attributes of ``count`` leaves growing from ``segment`` (at its end); no branch: pivot at ``where``."""
+    from .attributes import KEYS, branch_values
+
+    keys = KEYS if keys is None else keys
+
+    if segment is None or len(segment) != count:
+        segment = np.full(count, -1, np.int64)
+    segment = np.asarray(segment, np.int64)
+    has = segment >= 0
+    s = np.where(has, segment, 0)
+    branch = np.where(has, h.branch_of[s] if len(h.branch_of) else -1, -1)
+    t = np.where(has, h.t_end[s] if len(h.t_end) else 0.0, 0.0)
+    values = branch_values(h, branch, t, fallback_pivot=where)
+    return {key: values[key] for key in keys}

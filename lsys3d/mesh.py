@@ -19,11 +19,17 @@ duplicated vertex:
     Where present it is the surface colour in place of the material's base
     colour: glTF ``COLOR_0`` with a white base colour factor, USD
     ``primvars:displayColor`` read by the material.
+``attributes`` : mapping of name to (v,) or (v, 3) float32
+    Per-vertex data the writers carry as they are: the hierarchy and wind
+    attributes of :mod:`lsys3d.attributes` (glTF ``_BRANCH_ID``..., USD
+    ``primvars:branch_id``...).  Empty by default.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 
 import numpy as np
 
@@ -42,6 +48,7 @@ class Mesh:
     normals : (f, 3, 3) float32
     uv : (f, 3, 2) float32
     colors : (v, 3) float32 or None
+    attributes : dict of str to (v,) or (v, 3) float32
 
     Examples
     --------
@@ -55,6 +62,7 @@ class Mesh:
     normals: np.ndarray
     uv: np.ndarray
     colors: np.ndarray | None = None
+    attributes: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self):
         v = np.asarray(self.vertices, np.float64).reshape(-1, 3)
@@ -70,6 +78,15 @@ class Mesh:
             if c.shape != (len(v), 3):
                 raise ValueError(f"Mesh.colors has shape {c.shape}, expected ({len(v)}, 3)")
             object.__setattr__(self, "colors", c)
+        attributes = {}
+        for name, values in dict(self.attributes).items():
+            a = np.ascontiguousarray(values, np.float32)
+            if a.shape[:1] != (len(v),) or a.ndim > 2:
+                raise ValueError(
+                    f"Mesh.attributes[{name!r}] has shape {a.shape}, expected ({len(v)},) or ({len(v)}, k)"
+                )
+            attributes[name] = a
+        object.__setattr__(self, "attributes", MappingProxyType(attributes))
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -108,12 +125,14 @@ class Mesh:
         colors = None
         if all(m.colors is not None for m in meshes):
             colors = np.concatenate([m.colors for m in meshes])
+        shared = set.intersection(*(set(m.attributes) for m in meshes))
         return cls(
             np.concatenate([m.vertices for m in meshes]),
             np.concatenate([m.faces + s for m, s in zip(meshes, shift, strict=True)]),
             np.concatenate([m.normals for m in meshes]),
             np.concatenate([m.uv for m in meshes]),
             colors,
+            {k: np.concatenate([m.attributes[k] for m in meshes]) for k in sorted(shared)},
         )
 
     @classmethod
@@ -139,6 +158,10 @@ class Mesh:
     def with_colors(self, colors) -> Mesh:
         """A copy with vertex colours (arrays are shared, not copied)."""
         return replace(self, colors=colors)
+
+    def with_attributes(self, attributes: Mapping[str, np.ndarray]) -> Mesh:
+        """A copy with these per-vertex attributes added (arrays are shared, not copied)."""
+        return replace(self, attributes={**self.attributes, **attributes})
 
     # ---------------------------------------------------------------- measures
     @property

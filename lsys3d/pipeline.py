@@ -3,7 +3,7 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> color -> leaves
+    derive -> interpret -> sweep -> union -> color -> attributes -> leaves
 """
 
 from __future__ import annotations
@@ -14,9 +14,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from . import bark as bark_stage
+from .attributes import AttributeOptions, with_attributes
 from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import GeometryError
 from .grammar import Grammar
+from .hierarchy import hierarchy
 from .leaves import leaves as build_leaves
 from .materials import BARK
 from .mesh import Mesh
@@ -34,7 +36,7 @@ __all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage
 
 log = logging.getLogger("lsys3d")
 
-STAGES = ("derive", "interpret", "sweep", "union", "color", "leaves")
+STAGES = ("derive", "interpret", "sweep", "union", "color", "attributes", "leaves")
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
 
@@ -70,6 +72,8 @@ class GenerateOptions(Options):
         Whether (``union=False``: the tube soup, a fast preview) and how the tubes are unioned.
     color : BarkColorOptions
         Bark colour variation written as vertex colours after the union.
+    attributes : AttributeOptions
+        Hierarchy and wind attributes on the bark's vertices and the leaves (off by default).
 
     Every field below these has a flat name (``sides``, ``union``,
     ``max_modules``, ``bark_color_variation``...) for :meth:`from_flat`,
@@ -81,6 +85,7 @@ class GenerateOptions(Options):
     sweep: SweepOptions = option(factory=SweepOptions, help="tubes")
     union: UnionOptions = option(factory=UnionOptions, help="the union")
     color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
+    attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
@@ -195,7 +200,11 @@ def generate(
     else:
         bark = stage("union", concatenate, tubes)
     bark = stage("color", bark_stage.color, bark, options.color, BARK.base_color, seed)
-    leaves = stage("leaves", build_leaves, skeleton)
+    branches = hierarchy(skeleton, seed) if options.attributes.enabled else None
+    if branches is not None:
+        bulge = options.sweep.bark_displacement
+        bark = stage("attributes", with_attributes, bark, skeleton, branches, options.attributes, bulge)
+    leaves = stage("leaves", build_leaves, skeleton, hierarchy=branches, attributes=options.attributes.keys)
     counts = StageCounts(
         modules=len(modules),
         segments=len(skeleton),
@@ -211,4 +220,5 @@ def generate(
         counts=counts,
         unioned=options.union.enabled,
         modules=modules,
+        hierarchy=branches,
     )

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
+from .hierarchy import Hierarchy
 from .leaves import Leaves
 from .materials import BARK, LEAF, Material
 from .mesh import Mesh
@@ -57,6 +58,9 @@ class Tree:
     modules : ModuleString or None
         The derived string the turtle read (None for trees built by hand).
     bark_material, leaf_material : Material
+    hierarchy : Hierarchy or None
+        The branch hierarchy, when the tree carries hierarchy and wind
+        attributes (the writers write its per-branch table).
     """
 
     bark: Mesh
@@ -68,6 +72,7 @@ class Tree:
     modules: ModuleString | None = None
     bark_material: Material = BARK
     leaf_material: Material = LEAF
+    hierarchy: Hierarchy | None = None
 
     @property
     def name(self) -> str:

@@ -9,6 +9,7 @@ import math
 import pytest
 
 import lsys3d
+from lsys3d.attributes import AttributeOptions
 from lsys3d.bark import BarkColorOptions
 from lsys3d.cli import build_parser, main
 from lsys3d.errors import OptionsError
@@ -20,7 +21,16 @@ from lsys3d.sweep import SweepOptions
 from lsys3d.turtle import TurtleOptions, TurtleOverrides
 from lsys3d.union import UnionOptions
 
-CLASSES = [Limits, SweepOptions, UnionOptions, BarkColorOptions, TurtleOptions, ExportOptions, PreviewOptions]
+CLASSES = [
+    Limits,
+    SweepOptions,
+    UnionOptions,
+    BarkColorOptions,
+    AttributeOptions,
+    TurtleOptions,
+    ExportOptions,
+    PreviewOptions,
+]
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda c: c.__name__)
@@ -36,7 +46,7 @@ def test_every_field_is_declared_with_its_spec(cls):
 
 def test_generate_options_nest_one_class_per_stage():
     names = {f.name: f.type for f in dataclasses.fields(GenerateOptions)}
-    assert list(names) == ["limits", "turtle", "sweep", "union", "color"]
+    assert list(names) == ["limits", "turtle", "sweep", "union", "color", "attributes"]
     flat = flat_fields(GenerateOptions)
     assert flat["sides"] == ("sweep", "sides") and flat["union"] == ("union", "enabled")
     assert flat["max_modules"] == ("limits", "max_modules") and flat["bark_color_variation"] == ("color", "variation")
@@ -95,7 +105,7 @@ def test_cli_flags_come_from_the_fields():
     add_arguments(parser, GenerateOptions)
     flags = {a.option_strings[0] for a in parser._actions if a.option_strings and a.dest.startswith("opt__")}
     expected = set()
-    for cls in (Limits, SweepOptions, UnionOptions, BarkColorOptions):
+    for cls in (Limits, SweepOptions, UnionOptions, BarkColorOptions, AttributeOptions):
         for f in dataclasses.fields(cls):
             spec = spec_of(f)
             if spec.cli:

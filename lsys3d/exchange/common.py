@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..attributes import ATTRIBUTES
 from ..errors import ExportError
 from ..mesh import Mesh
 from ..options import Options, option
@@ -30,6 +31,9 @@ log = logging.getLogger("lsys3d")
 
 UNITS = {"m": 1.0, "cm": 0.01}
 UP_AXES = ("Y", "Z")
+
+POINT_ATTRIBUTES = frozenset(a.key for a in ATTRIBUTES if a.point)
+"""Attributes that are positions: carried into the file's frame with the vertices."""
 
 # Y up -> Z up: a +90 degree turn about X, so +Y (the trunk) goes to +Z and +Z to -Y.
 _Y_TO_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -92,6 +96,9 @@ class MeshArrays:
         Split vertex of each face corner.
     colors, split_colors : (v, 3) / (s, 3) float32 or None
         Linear RGB vertex colours (:attr:`lsys3d.mesh.Mesh.colors`), per point and per split vertex.
+    attributes, split_attributes : dict of str to (v, ...) / (s, ...) float32
+        The mesh's per-vertex attributes (:attr:`lsys3d.mesh.Mesh.attributes`), points among them
+        (:data:`lsys3d.attributes.ATTRIBUTES`) in the file's frame, per point and per split vertex.
     """
 
     points: np.ndarray
@@ -104,6 +111,8 @@ class MeshArrays:
     split_index: np.ndarray
     colors: np.ndarray | None = None
     split_colors: np.ndarray | None = None
+    attributes: dict = field(default_factory=dict)
+    split_attributes: dict = field(default_factory=dict)
 
 
 def _unit_normals(normals: np.ndarray, faces: np.ndarray, vertices: np.ndarray) -> np.ndarray:
@@ -179,6 +188,9 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
     if not np.isfinite(uv).all():
         raise ExportError(f"{where}: the uv hold a NaN or infinite value")
     colors = mesh.colors
+    attributes = dict(mesh.attributes)
+    if not all(np.isfinite(a).all() for a in attributes.values()):
+        raise ExportError(f"{where}: a vertex attribute holds a NaN or infinite value")
     if colors is not None and not (np.isfinite(colors).all() and (colors >= 0).all()):
         raise ExportError(f"{where}: the vertex colours hold a negative, NaN or infinite value")
 
@@ -190,6 +202,7 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
         vertices = vertices[old_of_new]
         if colors is not None:
             colors = colors[old_of_new]
+        attributes = {k: a[old_of_new] for k, a in attributes.items()}
     identity = np.array_equal(frame, np.eye(3))
     points = (vertices if identity else vertices @ frame.T).astype(np.float32)
 
@@ -200,7 +213,14 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
     normals = np.ascontiguousarray(normals, dtype=np.float32)  # _split views the rows as bytes
     normals += np.float32(0.0)  # -0.0 -> 0.0, so corners that compare equal are equal bit for bit
 
-    split_index, split_points, split_normals, split_uv, split_colors = _split(points, corner_v, normals, uv, colors)
+    if not identity:  # positions among the attributes go into the file's frame like the vertices
+        attributes = {
+            k: (a @ frame.T).astype(np.float32) if k in POINT_ATTRIBUTES else a for k, a in attributes.items()
+        }
+    split_index, split_points, split_normals, split_uv, split_colors, vertex_of_split = _split(
+        points, corner_v, normals, uv, colors
+    )
+    split_attributes = {k: a if vertex_of_split is None else a[vertex_of_split] for k, a in attributes.items()}
     return MeshArrays(
         points=points,
         faces=corner_v.astype(np.int32).reshape(-1, 3),
@@ -212,6 +232,8 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
         split_index=split_index,
         colors=colors,
         split_colors=split_colors,
+        attributes=attributes,
+        split_attributes=split_attributes,
     )
 
 
@@ -260,7 +282,7 @@ def _split(points, corner_v, normals, uv, colors=None):
     split_colors = None
     if colors is not None:  # a colour belongs to the point: split vertices copy their point's
         split_colors = colors if vertex_of_split is None else colors[vertex_of_split]
-    return split_index, split_points, split_normals, split_uv, split_colors
+    return split_index, split_points, split_normals, split_uv, split_colors, vertex_of_split
 
 
 def _unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -27,6 +27,7 @@ from urllib.parse import quote
 
 import numpy as np
 
+from ..attributes import branch_table, gltf_attributes
 from ..errors import ExportError
 from ..materials import Material
 from ..tree import Tree
@@ -112,6 +113,8 @@ def _primitive(buf: _Buffer, arrays: MeshArrays, material: int) -> dict:
         attributes["TEXCOORD_0"] = buf.accessor(uv)
     if arrays.split_colors is not None:  # multiplies the base colour factor, which is white then
         attributes["COLOR_0"] = buf.accessor(arrays.split_colors)
+    for name, values in gltf_attributes(arrays.split_attributes).items():  # hierarchy and wind
+        attributes[name] = buf.accessor(values)
     index = _indices(arrays.split_index, len(arrays.split_points))
     return {
         "attributes": attributes,
@@ -192,6 +195,8 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
             "ROTATION": buf.accessor(quaternion.astype(np.float32), target=None),
             "SCALE": buf.accessor(scale.astype(np.float32), target=None),
         }
+        for name, values in gltf_attributes(leaves.instance_attributes).items():  # the branch each leaf grows from
+            attributes[name] = buf.accessor(values, target=None)
         add_node("leaf", [_primitive(buf, model, leaf_mat)], {INSTANCING: {"attributes": attributes}})
         extensions_used.append(INSTANCING)
         if leaves.polygons is not None and len(leaves.polygons.faces):
@@ -203,6 +208,13 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         if merged is not None and len(merged.faces):
             arrays = gather_mesh(merged, eye, f"{where}: leaves")
             add_node("leaf", [_primitive(buf, arrays, material_index(tree.leaf_material))])
+
+    if tree.hierarchy is not None and len(tree.hierarchy):
+        # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.attributes)
+        table = {"count": len(tree.hierarchy)}
+        for key, values in branch_table(tree.hierarchy).items():
+            table[key] = buf.accessor(np.ascontiguousarray(values, np.float32), target=None)
+        nodes[0]["extras"] = {"lsys3d_branches": table}
 
     if options.skeleton_curves:
         lines = _skeleton_lines(tree)

@@ -37,12 +37,14 @@ from pathlib import Path
 import numpy as np
 from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
 
+from ..attributes import ATTRIBUTES, branch_table
 from ..errors import ExportError
 from ..materials import Material
 from ..tree import Tree
 from ..version import __version__
 from .atomic import atomic_path
 from .common import (
+    POINT_ATTRIBUTES,
     ExportOptions,
     MeshArrays,
     decompose_transforms,
@@ -103,12 +105,44 @@ def _mesh(stage: Usd.Stage, path: str, arrays: MeshArrays, material: UsdShade.Ma
         st.SetIndices(Vt.IntArray.FromNumpy(arrays.split_index.astype(np.int32)))
     if arrays.colors is not None:
         mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.vertex).Set(Vt.Vec3fArray.FromNumpy(arrays.colors))
+    _attribute_primvars(UsdGeom.PrimvarsAPI(mesh), arrays.attributes)
     mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
     mesh.CreateExtentAttr(_extent(arrays.points))
     if double_sided:
         mesh.CreateDoubleSidedAttr(True)
     UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(material)
     return mesh
+
+
+def _attribute_primvars(primvars: UsdGeom.PrimvarsAPI, values: dict) -> None:
+    """The hierarchy and wind attributes as ``vertex`` primvars (one value per point, or per instance)."""
+    for a in ATTRIBUTES:
+        if a.key not in values:
+            continue
+        data = np.ascontiguousarray(values[a.key], np.float32)
+        if a.width == 3:
+            kind, array = Sdf.ValueTypeNames.Point3fArray, Vt.Vec3fArray.FromNumpy(data)
+        else:
+            kind, array = Sdf.ValueTypeNames.FloatArray, Vt.FloatArray.FromNumpy(data)
+        primvars.CreatePrimvar(a.usd, kind, UsdGeom.Tokens.vertex).Set(array)
+
+
+def _branch_table(prim: Usd.Prim, tree: Tree, frame: np.ndarray) -> None:
+    """The per-branch attributes, a row per branch indexed by ``branch_id``: constant primvars ``branches:<key>``."""
+    primvars = UsdGeom.PrimvarsAPI(prim)
+    table = branch_table(tree.hierarchy)
+    for a in ATTRIBUTES:
+        if a.key not in table:
+            continue
+        data = np.asarray(table[a.key], np.float64)
+        if a.point:
+            data = data @ frame.T
+        data = np.ascontiguousarray(data, np.float32)
+        if a.width == 3:
+            kind, array = Sdf.ValueTypeNames.Point3fArray, Vt.Vec3fArray.FromNumpy(data)
+        else:
+            kind, array = Sdf.ValueTypeNames.FloatArray, Vt.FloatArray.FromNumpy(data)
+        primvars.CreatePrimvar(f"branches:{a.usd}", kind, UsdGeom.Tokens.constant).Set(array)
 
 
 def _skeleton(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray) -> None:
@@ -148,6 +182,11 @@ def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, 
     # Gf.Quath is stored imaginary-first, so (x, y, z, w) rows are its memory layout
     instancer.CreateOrientationsAttr(Vt.QuathArray.FromNumpy(quaternion.astype(np.float16)))
     instancer.CreateScalesAttr(Vt.Vec3fArray.FromNumpy(scale.astype(np.float32)))
+    per_instance = {
+        k: (np.asarray(v, np.float64) @ frame.T).astype(np.float32) if k in POINT_ATTRIBUTES else v
+        for k, v in tree.leaves.instance_attributes.items()
+    }
+    _attribute_primvars(UsdGeom.PrimvarsAPI(instancer), per_instance)
     extent = instancer.ComputeExtentAtTime(Usd.TimeCode.Default(), Usd.TimeCode.Default())
     instancer.CreateExtentAttr(extent)
 
@@ -245,6 +284,9 @@ def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOp
         else:
             arrays = gather_mesh(merged, frame, f"{where}: leaves")
             _mesh(stage, f"{geom}/leaf", arrays, leaf_material, double)
+
+    if tree.hierarchy is not None and len(tree.hierarchy):
+        _branch_table(prim, tree, frame)
 
     if options.skeleton_curves:
         _skeleton(stage, f"{geom}/skeleton", tree, frame)
