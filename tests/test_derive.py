@@ -380,3 +380,75 @@ def test_module_string_equality_and_slices():
     assert a == ModuleString.from_symbols("F[+F]")
     assert a != ModuleString.from_symbols("F[-F]")
     assert str(a[1:4]) == "[+F"
+
+
+def textbook_context(s: str, i: int, left: str, right: list[str], ignore: str) -> bool:
+    """Does module ``i`` of ``s`` have these contexts?  The walk of ABOP section 1.8, one module at a time."""
+    match, stack = {}, []
+    for k, c in enumerate(s):
+        if c == "[":
+            stack.append(k)
+        elif c == "]" and stack:
+            match[k] = stack.pop()
+            match[match[k]] = k
+    j = i - 1
+    for want in reversed(left):
+        while j >= 0 and (s[j] in "[]" or s[j] in ignore):
+            j = match[j] - 1 if s[j] == "]" else j - 1
+        if j < 0 or s[j] != want:
+            return False
+        j -= 1
+    j = i + 1
+    for want in right:
+        if want == "[":
+            while j < len(s) and s[j] in ignore:
+                j += 1
+            if j >= len(s) or s[j] != "[":
+                return False
+        elif want == "]":
+            while j < len(s) and s[j] != "]":
+                j = match[j] + 1 if s[j] == "[" else j + 1
+            if j >= len(s):
+                return False
+        else:
+            while j < len(s) and (s[j] == "[" or s[j] in ignore):
+                j = match[j] + 1 if s[j] == "[" else j + 1
+            if j >= len(s) or s[j] != want:  # a ']' ends the branch: no right context
+                return False
+        j += 1
+    return True
+
+
+RIGHT_PIECES = st.sampled_from(["A", "B", "F", "]", "[A]", "[F]", "[", "["])
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    bracketed(24),
+    st.text("AB", max_size=2),
+    st.sampled_from("ABF"),
+    st.lists(RIGHT_PIECES, max_size=3).map("".join),
+    st.text("+-F", max_size=2),
+)
+def test_context_matching_agrees_with_the_textbook_walk(axiom, left, pred, right, ignore):
+    right = right + "]" * (right.count("[") - right.count("]"))  # a right context may not leave '[' open
+    rule = (f"{left} < " if left else "") + pred + (f" > {right}" if right else "") + " -> X"
+    try:
+        g = Grammar(axiom=axiom or "A", rules=[rule], ignore=ignore)
+    except lsys3d.GrammarError:
+        return
+    s = axiom or "A"
+    pattern = [m.symbol for m in g.productions[0].right]
+    expected = "".join(
+        "X" if c == pred and textbook_context(s, i, left, pattern, ignore) else c for i, c in enumerate(s)
+    )
+    assert str(derive(g, 1)) == expected
+
+
+def test_context_in_long_strings_costs_the_pattern_not_the_string():
+    """Each module's context walk is a table lookup: a predecessor in the ignore set, or ']' as right context,
+    used to walk the whole string for every module (quadratic: minutes at 131,072 modules)."""
+    ignored = Grammar(axiom="B[A]", rules=["B < A -> AA", "A -> A"], ignore="A")
+    branch_end = Grammar(axiom="[A]", rules=["A > ] -> AA"])
+    for g in (ignored, branch_end):
+        assert len(derive(g, 20)) == 2**20 + len(g.axiom) - 1
