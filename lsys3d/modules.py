@@ -15,6 +15,7 @@ A string of ``m`` modules is stored as arrays, never as Python objects per modul
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -85,28 +86,47 @@ class ModuleString:
         code = ord(symbol) if ord(symbol) < 128 else self.alphabet.find(symbol)
         return int(np.count_nonzero(self.symbols == code)) if code >= 0 else 0
 
-    def symbol_text(self) -> str:
-        """The symbols alone, without parameters."""
-        raw = self.symbols.tobytes().decode("latin-1")
+    def symbol_text(self, start: int = 0, stop: int | None = None) -> str:
+        """The symbols alone, without parameters (of modules ``start`` to ``stop``)."""
+        raw = self.symbols[start:stop].tobytes().decode("latin-1")
         if self.alphabet is ASCII_ALPHABET or self.alphabet[128:] == ASCII_ALPHABET[128:]:
             return raw
         return raw.translate({i: self.alphabet[i] for i in range(128, 256)})
 
+    def iter_text(self, chunk: int = 1 << 16) -> Iterator[str]:
+        """The text of :meth:`__str__` in pieces of ``chunk`` modules, to write a long string without holding it.
+
+        Each distinct parameter value of a piece is formatted once.
+
+        >>> s = ModuleString.from_symbols("F+F")
+        >>> list(s.iter_text(chunk=2))
+        ['F+', 'F']
+        """
+        if chunk < 1:
+            raise ValueError(f"chunk must be at least 1, not {chunk}")
+        m = len(self)
+        offsets = self.offsets if len(self.params) else None
+        for a in range(0, m, chunk):
+            b = min(a + chunk, m)
+            text = self.symbol_text(a, b)
+            if offsets is None or offsets[a] == offsets[b]:
+                yield text
+                continue
+            values, inverse = np.unique(self.params[offsets[a] : offsets[b]], return_inverse=True)
+            names = [format_number(x) for x in values.tolist()]
+            words = [names[k] for k in inverse.reshape(-1).tolist()]
+            local = (offsets[a : b + 1] - offsets[a]).tolist()
+            pieces = []
+            last = 0
+            for i in np.flatnonzero(self.arity[a:b]).tolist():
+                pieces.append(text[last : i + 1])
+                pieces.append("(" + ",".join(words[local[i] : local[i + 1]]) + ")")
+                last = i + 1
+            pieces.append(text[last:])
+            yield "".join(pieces)
+
     def __str__(self) -> str:
-        text = self.symbol_text()
-        if not len(self.params):
-            return text
-        pieces = []
-        has = np.flatnonzero(self.arity)
-        values = [format_number(x) for x in self.params.tolist()]
-        off = self.offsets
-        last = 0
-        for i in has.tolist():
-            pieces.append(text[last : i + 1])
-            pieces.append("(" + ",".join(values[off[i] : off[i + 1]]) + ")")
-            last = i + 1
-        pieces.append(text[last:])
-        return "".join(pieces)
+        return "".join(self.iter_text())
 
     def __repr__(self) -> str:
         s = str(self) if len(self) <= 60 else str(self[:60]) + "..."
