@@ -33,7 +33,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from ..errors import ExportError
+from ..errors import ExportError, printable
 from ..tree import Material, Tree
 from .atomic import write_bytes
 from .common import UNITS, ExportOptions, provenance_json
@@ -171,6 +171,8 @@ def svg_text(tree: Tree, options: ExportOptions | None = None, where: str = "svg
     margin = MARGIN * size + 0.5 * (float(widths.max()) if len(skeleton) else 0.0)
     x0, y0 = lo - margin
     w, h = hi - lo + 2 * margin
+    if not np.isfinite([x0, y0, w, h]).all():
+        raise ExportError(f"{where}: the drawing is too large: its extent with the widths overflows")
     px_w, px_h = (DISPLAY_PIXELS, DISPLAY_PIXELS * h / w) if w >= h else (DISPLAY_PIXELS * w / h, DISPLAY_PIXELS)
 
     title = tree.provenance.get("grammar_name") or "lsys3d"
@@ -179,7 +181,7 @@ def svg_text(tree: Tree, options: ExportOptions | None = None, where: str = "svg
         '<?xml version="1.0" encoding="UTF-8"?>',
         f'<svg xmlns="http://www.w3.org/2000/svg" version="1.1" viewBox="{num.one(x0)} {num.one(y0)} '
         f'{num.one(w)} {num.one(h)}" width="{round(px_w)}" height="{round(px_h)}">',
-        f"<title>{escape(str(title))}</title>",
+        f"<title>{escape(printable(title))}</title>",  # XML 1.0 allows no control characters
         f"<metadata>{escape(metadata)}</metadata>",
         f'<rect x="{num.one(x0)}" y="{num.one(y0)}" width="{num.one(w)}" height="{num.one(h)}" fill="white"/>',
     ]
