@@ -67,7 +67,7 @@ import numpy as np
 from .errors import GrammarError, InterpretError, LimitError, clip
 from .grammar import Grammar, _key_line
 from .modules import ModuleString
-from .skeleton import Skeleton
+from .skeleton import MAX_COORDINATE, Skeleton
 
 __all__ = ["COMMANDS", "DEFAULT_MAX_SEGMENTS", "Command", "TurtleOptions", "commands_markdown", "interpret"]
 
@@ -391,11 +391,13 @@ _MESSAGES = {
     2: "a polygon is already open (polygons do not nest)",
     3: "no polygon is open ('}' without '{')",
     4: "polygon never closed (no matching '}')",
-    5: "the turtle's position became infinite or NaN",
-    6: "the width must be a finite number >= 0",
+    5: f"the turtle's position left the drawable range of +-{MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE); "
+    "check the step length (F's parameter, step, length_scale, length_jitter)",
+    6: f"the width must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
     7: "the step length must be a finite number >= 0",
     8: "the material index must be >= 0",
-    9: "the leaf size must be a finite number >= 0",
+    9: f"the leaf size must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
+    10: f"the width with width_jitter is more than {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
 }
 
 
@@ -543,6 +545,7 @@ def _kernel(
     width_scale = config[4]
     length_scale = config[5]
     elasticity = config[6]
+    far = config[7]  # MAX_COORDINATE
     tx, ty, tz = tropism[0], tropism[1], tropism[2]
     bend = elasticity != 0.0 and (tx != 0.0 or ty != 0.0 or tz != 0.0)
     jitter_angle = angle_noise.shape[0] > 0
@@ -605,7 +608,7 @@ def _kernel(
             qx = px + hx * length
             qy = py + hy * length
             qz = pz + hz * length
-            if not math.isfinite(qx + qy + qz):
+            if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):  # NaN fails too
                 return 5, i, n_seg, n_pts, n_poly, n_leaf, dropped
             if poly_open >= 0:
                 n_pts = _add_vertex(poly_points, n_pts, poly_start, qx, qy, qz)
@@ -618,6 +621,8 @@ def _kernel(
                 _put(seg_l, s_, lx, ly, lz)
                 _put(seg_u, s_, ux, uy, uz)
                 drawn = width * width_factor[i] if jitter_width else width
+                if not drawn <= far:
+                    return 10, i, n_seg, n_pts, n_poly, n_leaf, dropped
                 width_start[s_] = drawn
                 width_end[s_] = drawn
                 if anchor >= 0:
@@ -707,7 +712,7 @@ def _kernel(
             anchor = stack_i[depth, 2]
         elif code == _WIDTH:
             width = arg if has_arg else width * width_scale
-            if not (width >= 0.0 and math.isfinite(width)):
+            if not (0.0 <= width <= far):
                 return 6, i, n_seg, n_pts, n_poly, n_leaf, dropped
             if last >= 0 and depth_of[last] == depth:
                 width_end[last] = width
@@ -753,7 +758,7 @@ def _kernel(
                 dropped += 1
         elif code == _LEAF:
             size = arg if has_arg else step
-            if not (size >= 0.0 and math.isfinite(size)):
+            if not (0.0 <= size <= far):
                 return 9, i, n_seg, n_pts, n_poly, n_leaf, dropped
             _put(leaf_p, n_leaf, px, py, pz)
             _put(leaf_h, n_leaf, hx, hy, hz)
@@ -947,6 +952,7 @@ def interpret(
             options.width_scale,
             options.length_scale,
             options.elasticity,
+            MAX_COORDINATE,
         ]
     )
     noise, factor, width_factor, roll, drop = _jitter(m, options, seed)

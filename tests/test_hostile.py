@@ -366,7 +366,7 @@ CASES = [
     ("nan-parameter", grow('axiom = "A(1e308)"\nrules = ["A(x) -> A(x*10 - x*10)"]\n'), DerivationError, "NaN"),
     ("overflow-exp", grow('axiom = "A(1000)"\nrules = ["A(x) -> A(exp(x))"]\n'), DerivationError, "exp(x)"),
     ("domain-sqrt", grow('axiom = "A(-1)"\nrules = ["A(x) -> A(sqrt(x))"]\n'), DerivationError, "square root"),
-    ("turtle-position-overflow", grow('axiom = "F(1e308)F(1e308)"\n'), InterpretError, "became infinite"),
+    ("turtle-position-overflow", grow('axiom = "F(1e308)F(1e308)"\n'), InterpretError, "left the drawable range"),
     ("turtle-step-overflow", grow('axiom = "\\"(1e300)\\"(1e300)F"\n'), InterpretError, "step length"),
     ("turtle-nan-parameter", api(turtle_nan), InterpretError, "not a finite number"),
     ("start-nan-parameter", api(start_nan), DerivationError, "start string: module A(nan)"),
