@@ -3,16 +3,22 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import logging
+import math
+import os
 import re
+import signal
 import sys
+import threading
 import time
+import warnings
 
 from . import __version__
 from .derive import DEFAULT_MAX_MODULES, derive
-from .errors import LSystemError
+from .errors import LSystemError, clip, printable
 from .presets import DEFAULT_PRESET, describe, list_presets, load
 from .sweep import DEFAULT_MAX_TRIANGLES
 from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions
@@ -32,9 +38,9 @@ def _at_least(lowest: int):
         try:
             value = int(text.replace("_", ""))
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a whole number, not {text!r}") from None
+            raise argparse.ArgumentTypeError(f"expected a whole number, not {clip(repr(text))}") from None
         if value < lowest:
-            raise argparse.ArgumentTypeError(f"must be at least {lowest}, not {value}")
+            raise argparse.ArgumentTypeError(f"must be at least {lowest}, not {clip(str(value))}")
         return value
 
     parse.__name__ = "whole number"  # argparse names the type in its messages
@@ -138,6 +144,20 @@ def _between(lowest: float, highest: float):
     return parse
 
 
+def _tolerance(text: str) -> float:
+    """An argparse type: a finite number >= 0 (``-1`` or ``nan`` would make every comparison fail or pass)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, not {clip(repr(text))}") from None
+    if not 0 <= value < math.inf:
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, not {clip(text)}")
+    return value
+
+
+_tolerance.__name__ = "number"
+
+
 def _turtle_setting(text: str) -> tuple[str, object]:
     """``KEY=VALUE`` with a TOML value (``0.2``, ``"normal"``, ``[0, -1, 0]``); a bare word is a string."""
     import tomllib
@@ -146,7 +166,9 @@ def _turtle_setting(text: str) -> tuple[str, object]:
     key = key.strip()
     known = {f.name for f in dataclasses.fields(TurtleOptions)} - {"angle", "seed"}
     if not sep or key not in known:
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE with KEY one of {', '.join(sorted(known))}, not {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"expected KEY=VALUE with KEY one of {', '.join(sorted(known))}, not {clip(repr(text))}"
+        )
     try:
         parsed = tomllib.loads(f"v = {value.strip()}")["v"]
     except tomllib.TOMLDecodeError:
@@ -158,7 +180,9 @@ def _pixels(text: str) -> tuple[int, int]:
     """``WxH`` (or one number for a square) as a (width, height) pair."""
     m = re.fullmatch(r"\s*(\d+)\s*(?:[xX]\s*(\d+)\s*)?", text)
     if not m or not all(1 <= int(v) <= 16384 for v in m.groups() if v):
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels (1..16384), e.g. 800x600, not {text!r}")
+        raise argparse.ArgumentTypeError(
+            f"expected WIDTHxHEIGHT in pixels (1..16384), e.g. 800x600, not {clip(repr(text))}"
+        )
     width = int(m.group(1))
     return width, int(m.group(2) or width)
 
@@ -188,7 +212,7 @@ class _Parser(argparse.ArgumentParser):
     """Usage errors in one line, like every other error (subcommand parsers inherit the class)."""
 
     def error(self, message: str):
-        self.exit(EXIT_USAGE, f"lsys3d: error: {message} (see '{self.prog} --help')\n")
+        self.exit(EXIT_USAGE, printable(f"lsys3d: error: {_one_line(message)} (see '{self.prog} --help')") + "\n")
 
 
 def _output_flags(p: argparse.ArgumentParser, default) -> None:
@@ -276,7 +300,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("check", help="regrow the assets of golden files and compare their counts")
     p.add_argument("golden", nargs="+", metavar="GOLDEN.json", help="golden files written by 'stats --golden'")
     p.add_argument("--update", action="store_true", help="rewrite the golden files that changed, and say what changed")
-    p.add_argument("--rtol", type=float, default=None, help="relative tolerance of floating values (default 1e-6)")
+    p.add_argument(
+        "--rtol",
+        type=_tolerance,
+        default=None,
+        help="relative tolerance of floating values (default 1e-6)",
+    )
     p.set_defaults(func=cmd_check)
 
     p = add("presets", help="list the bundled presets")
@@ -288,7 +317,8 @@ def cmd_derive(args) -> int:
     grammar = load(args.grammar)
     result = derive(grammar, args.iterations, args.seed, max_modules=args.max_modules)
     out = sys.stdout
-    out.write(str(result))
+    for piece in result.iter_text():  # never the whole text at once: it can be gigabytes
+        out.write(piece)
     out.write("\n")
     return 0
 
@@ -321,10 +351,10 @@ def cmd_generate(args) -> int:
         progress.clear()
     if not args.quiet and drawing:
         segments, leaves = len(tree.skeleton), tree.skeleton.n_leaves
-        print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
+        _print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
     elif not args.quiet:
         bark, leaves = tree.bark, tree.skeleton.n_leaves
-        print(
+        _print(
             f"wrote {path}: {len(bark.vertices):,} vertices, {len(bark.faces):,} faces, {leaves:,} leaves "
             f"({time.perf_counter() - t0:.1f} s)"
         )
@@ -352,18 +382,18 @@ def _generate_siblings(args, options, export_options) -> int:
         progress.clear()
     if not args.quiet:
         if len(paths) == 1:
-            print(
+            _print(
                 f"wrote {paths[0]}: {len(trees)} variants seed_{first} .. seed_{first + len(trees) - 1} of the "
                 f"variant set 'seed' ({time.perf_counter() - t0:.1f} s)"
             )
         else:
             for path, tree in zip(paths, trees, strict=True):
                 bark = tree.bark
-                print(
+                _print(
                     f"wrote {path}: seed {tree.provenance['seed']}, {len(bark.vertices):,} vertices, "
                     f"{len(bark.faces):,} faces, {tree.skeleton.n_leaves:,} leaves"
                 )
-            print(f"{len(paths)} files in {time.perf_counter() - t0:.1f} s")
+            _print(f"{len(paths)} files in {time.perf_counter() - t0:.1f} s")
     return 0
 
 
@@ -385,7 +415,7 @@ def cmd_preview(args) -> int:
         progress.clear()
     if not args.quiet:
         width, height = options.size
-        print(f"wrote {path}: {width}x{height}, {options.view} view ({time.perf_counter() - t0:.1f} s)")
+        _print(f"wrote {path}: {width}x{height}, {options.view} view ({time.perf_counter() - t0:.1f} s)")
     return 0
 
 
@@ -417,7 +447,7 @@ def cmd_stats(args) -> int:
         recipe = recipe_for(grammar, n, seed, options, mesh=args.mesh, golden_path=args.golden)
         write_golden(args.golden, recipe, result)
     if args.json:
-        print(json.dumps(result, sort_keys=True))
+        _print(json.dumps(result, sort_keys=True))
     else:
         print_table(flatten(result))
     return 0
@@ -430,7 +460,7 @@ def print_table(stats: dict) -> None:
             value = f"{value:.6g}"
         elif isinstance(value, list):
             value = "  ".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in value)
-        print(f"{key:<{width}}  {value}")
+        _print(f"{key:<{width}}  {value}")
 
 
 def cmd_check(args) -> int:
@@ -442,27 +472,27 @@ def cmd_check(args) -> int:
             result = check(path, update=args.update, rtol=RTOL if args.rtol is None else args.rtol)
         except LSystemError as exc:  # one bad file does not stop the others
             failed += 1
-            print(f"lsys3d: error: {exc}", file=sys.stderr)
+            _print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
             continue
         for warning in result.warnings:
-            print(f"{path}: warning: {warning}")
+            _print(f"{path}: warning: {warning}")
         if result.updated:
             what = ", ".join(d.key for d in result.differences) or "only the versions that produced it"
-            print(f"updated {path} ({result.recipe.describe()}): {what}")
+            _print(f"updated {path} ({result.recipe.describe()}): {what}")
             if result.differences:
-                print(format_differences(result.differences))
+                _print(format_differences(result.differences))
         elif result.ok:
             within = sum(not d.failed for d in result.differences)
             extra = f" ({within} within tolerance)" if within else ""
             if not args.quiet:
-                print(f"ok      {path} ({result.recipe.describe()}){extra}")
+                _print(f"ok      {path} ({result.recipe.describe()}){extra}")
         else:
             failed += 1
             n = sum(d.failed for d in result.differences)
-            print(f"FAILED  {path} ({result.recipe.describe()}): {n} difference{'s' if n > 1 else ''}")
-            print(format_differences(result.differences))
+            _print(f"FAILED  {path} ({result.recipe.describe()}): {n} difference{'s' if n > 1 else ''}")
+            _print(format_differences(result.differences))
     if failed:
-        print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
+        _print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
         return EXIT_USER_ERROR
     return 0
 
@@ -471,8 +501,52 @@ def cmd_presets(args) -> int:
     names = list_presets()
     width = max(map(len, names))
     for name in names:
-        print(f"{name:<{width}}  {describe(name)}")
+        _print(f"{name:<{width}}  {describe(name)}")
     return 0
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the program is so that every cleanup (``finally``, temporary files) runs,
+    exactly as for Ctrl-C (SIGINT, Python's KeyboardInterrupt)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _signals_interrupt():
+    """SIGTERM and SIGHUP end the command like Ctrl-C, with its cleanup (a signal left ignored stays ignored).
+
+    Only the first one interrupts: a second one while the first unwinds would cut its cleanup short.
+    """
+    if threading.current_thread() is not threading.main_thread():  # only the main thread may set handlers
+        yield
+        return
+    raised = []
+
+    def interrupt(signum, frame):
+        if not raised:
+            raised.append(signum)
+            raise Interrupted(signum)
+
+    previous = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is not signal.SIG_IGN:
+            previous[signum] = signal.signal(signum, interrupt)
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """A Python warning (numpy's RuntimeWarning...) as one log line, not the three of ``warnings``' default."""
+    logging.getLogger("lsys3d").warning(
+        "warning: %s (%s, %s:%d)", _one_line(str(message)), category.__name__, os.path.basename(filename), lineno
+    )
 
 
 def main(argv=None) -> int:
@@ -480,25 +554,36 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     level = logging.INFO if args.verbose else logging.ERROR if args.quiet else logging.WARNING
     logging.basicConfig(format="lsys3d: %(message)s", level=level)
-    try:
-        return args.func(args)
-    except LSystemError as exc:
-        print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
-        return EXIT_USER_ERROR
-    except MemoryError:
-        print(
-            "lsys3d: error: out of memory; use fewer iterations, or lower --max-modules, --max-segments or "
-            "--max-triangles",
-            file=sys.stderr,
-        )
-        return EXIT_USER_ERROR
-    except KeyboardInterrupt:
-        print("lsys3d: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except BrokenPipeError:
-        return 0
+    with _signals_interrupt(), warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        try:
+            return args.func(args)
+        except LSystemError as exc:
+            _print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
+            return EXIT_USER_ERROR
+        except MemoryError:
+            _print(
+                "lsys3d: error: out of memory; use fewer iterations, or lower --max-modules, --max-segments or "
+                "--max-triangles",
+                file=sys.stderr,
+            )
+            return EXIT_USER_ERROR
+        except Interrupted as exc:
+            _print(f"lsys3d: interrupted ({signal.Signals(exc.signum).name})", file=sys.stderr)
+            return 128 + exc.signum
+        except KeyboardInterrupt:
+            _print("lsys3d: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except BrokenPipeError:
+            return 0
 
 
 def _one_line(message: str) -> str:
     """An error message on one line, even when it quotes a rule written over several (TOML multi-line strings)."""
     return " ".join(part.strip() for part in message.splitlines() if part.strip())
+
+
+def _print(*values, file=None) -> None:
+    """``print`` for every line the command writes: whatever it echoes from the user (a file name, a preset, a
+    golden file's keys) is escaped, so it cannot drive the terminal or fail to encode."""
+    print(*(printable(str(v)) for v in values), file=file)
