@@ -532,8 +532,10 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
                 sel = sel[keep]
                 if not len(sel):
                     continue
-            for c, name in enumerate(prod0.predecessor.formals):
-                env[name] = params[offsets[sel] + c]
+            if prod0.predecessor.formals:
+                base = offsets[sel]
+                for c, name in enumerate(prod0.predecessor.formals):
+                    env[name] = params[base + c]
             if pool.condition is not None:
                 try:
                     ok = pool.condition.evaluate(env, len(sel)) != 0
@@ -551,10 +553,12 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
             rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, generation, code, pool.pool_id])))
             u = rng.random(len(sel)) * pool.cumulative[-1]
             pick = np.minimum(np.searchsorted(pool.cumulative, u, side="right"), len(pool.alternatives) - 1)
-            for a, prod in enumerate(pool.alternatives):
-                take = pick == a
-                if take.any():
-                    chosen.append((prod, sel[take], {k: v[take] for k, v in env.items()}))
+            # group the modules by the alternative they drew: one sort, not one pass per alternative
+            order = np.argsort(pick, kind="stable")  # stable: each group keeps the modules in string order
+            bounds = np.concatenate([[0], np.cumsum(np.bincount(pick, minlength=len(pool.alternatives)))])
+            for a in np.flatnonzero(np.diff(bounds)).tolist():
+                take = order[bounds[a] : bounds[a + 1]]
+                chosen.append((pool.alternatives[a], sel[take], {k: v[take] for k, v in env.items()}))
 
     out_len = np.ones(m, dtype=np.int64)
     out_arity = ms.arity.astype(np.int64)
@@ -582,8 +586,9 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
     for prod, idx, env in chosen:
         n = len(idx)
         p = 0
+        first_module, first_param = mod_off[idx], par_off[idx]
         for j, smod in enumerate(prod.successor):
-            pos = mod_off[idx] + j
+            pos = first_module + j
             new_sym[pos] = plan.code[smod.symbol]
             new_arity[pos] = len(smod.args)
             for expr in smod.args:
@@ -592,7 +597,7 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
                 except EvalError as exc:
                     what = f"parameter '{clip(expr.text)}' of {smod.symbol}"
                     raise _fail(prod, what, exc, ms, idx, generation) from None
-                new_params[par_off[idx] + p] = values
+                new_params[first_param + p] = values
                 p += 1
     # Overflow (A(x) -> A(x*1e300)) or NaN: one pass over the whole generation.  The sum is
     # finite exactly when every parameter is, unless finite values overflow it; only then (and
