@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import ExportError, printable
 from ..tree import Material, Tree
 from .atomic import write_bytes
-from .common import UNITS, ExportOptions, provenance_json
+from .common import UNITS, ExportOptions, provenance_json, to_float32
 
 __all__ = ["DISPLAY_PIXELS", "drawing_plane", "svg_text", "write_svg"]
 
@@ -171,9 +171,8 @@ def svg_text(tree: Tree, options: ExportOptions | None = None, where: str = "svg
     margin = MARGIN * size + 0.5 * (float(widths.max()) if len(skeleton) else 0.0)
     x0, y0 = lo - margin
     w, h = hi - lo + 2 * margin
-    if not np.isfinite([x0, y0, w, h]).all():
-        raise ExportError(f"{where}: the drawing is too large: its extent with the widths overflows")
-    px_w, px_h = (DISPLAY_PIXELS, DISPLAY_PIXELS * h / w) if w >= h else (DISPLAY_PIXELS * w / h, DISPLAY_PIXELS)
+    to_float32([x0, y0, w, h], "the drawing's extent (with the branch widths)", where)  # what viewers draw with
+    px_w, px_h = (DISPLAY_PIXELS, DISPLAY_PIXELS * (h / w)) if w >= h else (DISPLAY_PIXELS * (w / h), DISPLAY_PIXELS)
 
     title = tree.provenance.get("grammar_name") or "lsys3d"
     metadata = _json_text(provenance_json(tree.provenance, where))
