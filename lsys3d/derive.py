@@ -208,7 +208,7 @@ def generations(
     n = _check_iterations(grammar, iterations)
     seed = grammar.seed if seed is None else seed
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise DerivationError(f"seed must be a whole number >= 0, not {seed!r}")
+        raise DerivationError(f"seed must be a whole number >= 0, not {clip(repr(seed))}")
     plan = _Plan(grammar)
     current = grammar.axiom_modules if start is None else start
     if current.alphabet != plan.alphabet and current.alphabet[128:] != plan.alphabet[128:]:
@@ -232,10 +232,10 @@ def generations(
 def _check_iterations(grammar: Grammar, iterations) -> int:
     n = grammar.iterations if iterations is None else iterations
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
-        raise DerivationError(f"{grammar.source}: iterations must be a whole number >= 0, not {n!r}")
+        raise DerivationError(f"{grammar.source}: iterations must be a whole number >= 0, not {clip(repr(n))}")
     if n > MAX_ITERATIONS:
         raise LimitError(
-            f"{grammar.source}: {n:,} iterations, more than the limit of {MAX_ITERATIONS:,} "
+            f"{grammar.source}: {clip(f'{n:,}')} iterations, more than the limit of {MAX_ITERATIONS:,} "
             "(lsys3d.derive.MAX_ITERATIONS)"
         )
     return int(n)

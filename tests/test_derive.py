@@ -469,3 +469,10 @@ def test_one_generation_is_alive_at_a_time():
         tracemalloc.stop()
     assert str(held[:1]) == "A(200)" and len(held) == 4096
     assert peak < 20 * size  # two generations and the step's temporaries (7x), not 188 generations (196x)
+
+
+def test_an_unbalanced_start_string_ends_context_walks():
+    """A start string from Python may leave a bracket unmatched: the walk ends there (it used to loop forever)."""
+    g = Grammar(axiom="A", rules=["A > B -> X", "B < A -> Y"])
+    for text, expected in (("[AB", "[XB"), ("AB]A", "XB]A"), ("]A[B", "]A[B"), ("A[", "A[")):
+        assert str(derive(g, 1, start=ModuleString.from_symbols(text))) == expected, text

@@ -479,7 +479,7 @@ def test_defaults_leave_every_preset_a_hundredfold_headroom():
         skeleton = interpret(modules, g)
         tubes = sweep(skeleton)
         most = {
-            "modules": max(most["modules"], len(modules)),
+            "modules": max(most["modules"], len(modules) + derive_module.PARAMETER_COST * len(modules.params)),
             "segments": max(most["segments"], len(skeleton)),
             "triangles": max(most["triangles"], len(tubes.faces)),
         }
@@ -975,6 +975,8 @@ def test_bad_tolerances_are_usage_errors(capsys, argv):
         ("preset", "tree3d\x00", "'preset' must be a preset's name"),
         ("preset", "../../etc/passwd", "no bundled preset named '../../etc/passwd'"),
         ("file", "plant\x00.toml", "'file' must be a file name"),
+        ("text", 5, "'text' must be the grammar's text"),
+        ("iterations", 10**400, "more than the limit of 10,000"),
         ("options", [], "'options' must be a table of options"),
         ("options", {"sweep": {"sides": 2}}, "recipe options: SweepOptions.sides"),
         ("options", {"colour": 1}, "recipe options: unknown option 'colour'"),
@@ -983,7 +985,7 @@ def test_bad_tolerances_are_usage_errors(capsys, argv):
 )
 def test_golden_recipe_fields_are_checked(tmp_path, capsys, field, value, fragment):
     recipe = {"iterations": 1, "seed": 0, "mesh": False, field: value}
-    if field != "file":
+    if field not in ("file", "text"):
         recipe.setdefault("preset", "koch")
     path = tmp_path / "g.json"
     path.write_text(json.dumps({"lsys3d_golden": 1, "recipe": recipe, "report": {}}))
