@@ -96,7 +96,8 @@ class ModuleString:
     def iter_text(self, chunk: int = 1 << 16) -> Iterator[str]:
         """The text of :meth:`__str__` in pieces of ``chunk`` modules, to write a long string without holding it.
 
-        Each distinct parameter value of a piece is formatted once.
+        Each distinct parameter value of a piece is formatted once; the piece is then assembled from tokens
+        (``F(``, ``1.5,``, ``2)``) gathered by numpy, with no Python loop over modules.
 
         >>> s = ModuleString.from_symbols("F+F")
         >>> list(s.iter_text(chunk=2))
@@ -105,25 +106,34 @@ class ModuleString:
         if chunk < 1:
             raise ValueError(f"chunk must be at least 1, not {chunk}")
         m = len(self)
-        offsets = self.offsets if len(self.params) else None
+        if not len(self.params):
+            for a in range(0, m, chunk):
+                yield self.symbol_text(a, min(a + chunk, m))
+            return
+        offsets = self.offsets
+        # the token of each symbol code without and with parameters: "F", "F("
+        opening = np.array([c for c in self.alphabet] + [c + "(" for c in self.alphabet], dtype=object)
         for a in range(0, m, chunk):
             b = min(a + chunk, m)
-            text = self.symbol_text(a, b)
-            if offsets is None or offsets[a] == offsets[b]:
-                yield text
+            p0, p1 = int(offsets[a]), int(offsets[b])
+            symbols = self.symbols[a:b].astype(np.intp) + 256 * (self.arity[a:b] > 0)
+            if p0 == p1:
+                yield "".join(opening[symbols].tolist())
                 continue
-            values, inverse = np.unique(self.params[offsets[a] : offsets[b]], return_inverse=True)
+            values, inverse = np.unique(self.params[p0:p1], return_inverse=True)
             names = [format_number(x) for x in values.tolist()]
-            words = [names[k] for k in inverse.reshape(-1).tolist()]
-            local = (offsets[a : b + 1] - offsets[a]).tolist()
-            pieces = []
-            last = 0
-            for i in np.flatnonzero(self.arity[a:b]).tolist():
-                pieces.append(text[last : i + 1])
-                pieces.append("(" + ",".join(words[local[i] : local[i + 1]]) + ")")
-                last = i + 1
-            pieces.append(text[last:])
-            yield "".join(pieces)
+            # each distinct value followed by "," and by ")"; a module's last parameter takes the ")"
+            endings = np.array([n + "," for n in names] + [n + ")" for n in names], dtype=object)
+            local = offsets[a : b + 1] - p0
+            last = np.zeros(p1 - p0, np.intp)
+            last[local[1:][self.arity[a:b] > 0] - 1] = len(names)
+            tokens = np.empty(b - a + p1 - p0, dtype=object)
+            at = np.arange(b - a) + local[:-1]  # each module's symbol, then its parameters
+            tokens[at] = opening[symbols]
+            rest = np.ones(len(tokens), bool)
+            rest[at] = False
+            tokens[rest] = endings[inverse.reshape(-1) + last]
+            yield "".join(tokens.tolist())
 
     def __str__(self) -> str:
         return "".join(self.iter_text())

@@ -476,3 +476,26 @@ def test_an_unbalanced_start_string_ends_context_walks():
     g = Grammar(axiom="A", rules=["A > B -> X", "B < A -> Y"])
     for text, expected in (("[AB", "[XB"), ("AB]A", "XB]A"), ("]A[B", "]A[B"), ("A[", "A[")):
         assert str(derive(g, 1, start=ModuleString.from_symbols(text))) == expected, text
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from("AF+[]é"),
+            st.lists(st.sampled_from([0.0, -0.0, 1.0, 1.5, -2.25, 1e-9, 8 / 7, 1e300, -7e-7]), max_size=3),
+        ),
+        max_size=40,
+    ),
+    st.integers(1, 9),
+)
+def test_text_pieces_equal_the_text_of_each_module(modules, chunk):
+    alphabet = ModuleString.from_symbols("").alphabet[:128] + "é" + "\0" * 127
+    ms = ModuleString(
+        np.array([ord(c) if c != "é" else 128 for c, _ in modules], np.uint8),
+        np.array([len(args) for _, args in modules], np.uint8),
+        np.array([x for _, args in modules for x in args], np.float64),
+        alphabet,
+    )
+    expected = "".join(ms.module_text(i) for i in range(len(ms)))
+    assert "".join(ms.iter_text(chunk)) == str(ms) == expected
