@@ -1010,6 +1010,14 @@ def test_lone_surrogates_are_refused_where_they_enter():
         Grammar(axiom="F", name="ab\udcff")
 
 
+def test_a_long_file_name_gets_a_shorter_temporary_name(tmp_path):
+    """A 251-byte name is valid; its temporary name (16 bytes longer) would not be, so its stem is cut."""
+    for suffix in (".glb", ".usdc", ".usdz"):
+        target = tmp_path / ("t" * (251 - len(suffix)) + suffix)
+        assert lsys3d.export(lsys3d.generate("koch", 1, union=False), target) == target
+    assert leftovers(tmp_path) == [] and len(list(tmp_path.iterdir())) == 3
+
+
 def test_echoed_paths_are_escaped(tmp_path, capsys):
     """A file name with an escape sequence (or undecodable bytes) is printed escaped, never raw."""
     name = tmp_path / "tree\x1b[2J\udcff.glb"

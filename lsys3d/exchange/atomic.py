@@ -80,8 +80,8 @@ def _temp_name(path: Path, suffix: str | None = None) -> Path:
     suffix = path.suffix if suffix is None else suffix
     tail = f".{secrets.token_hex(4)}.tmp{suffix}"
     stem = path.stem
-    room = NAME_MAX - 1 - len(os.fsencode(tail))
-    while len(os.fsencode(stem)) > room:
+    room = NAME_MAX - 16 - 1 - len(os.fsencode(tail))  # 16 to spare: USD makes its own temporary name from ours
+    while stem and len(os.fsencode(stem)) > room:
         stem = stem[: len(stem) - max(1, (len(os.fsencode(stem)) - room) // 4)]
     return path.with_name(f".{stem}{tail}")
 
