@@ -3,13 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
+import math
+import os
+import signal
 import sys
+import threading
 import time
+import warnings
 
 from .derive import derive
-from .errors import LSystemError, OptionsError, clip
+from .errors import LSystemError, OptionsError, clip, printable
 from .exchange.common import ExportOptions
 from .options import add_arguments, from_arguments
 from .pipeline import GenerateOptions
@@ -33,9 +39,9 @@ def _at_least(lowest: int):
         try:
             value = int(text.replace("_", ""))
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a whole number, not {text!r}") from None
+            raise argparse.ArgumentTypeError(f"expected a whole number, not {clip(repr(text))}") from None
         if value < lowest:
-            raise argparse.ArgumentTypeError(f"must be at least {lowest}, not {value}")
+            raise argparse.ArgumentTypeError(f"must be at least {lowest}, not {clip(str(value))}")
         return value
 
     parse.__name__ = "whole number"  # argparse names the type in its messages
@@ -78,6 +84,20 @@ def _generate_options(args) -> GenerateOptions:
     if args.turtle:
         options = options.replace(turtle=dict(args.turtle))
     return options
+
+
+def _tolerance(text: str) -> float:
+    """An argparse type: a finite number >= 0 (``-1`` or ``nan`` would make every comparison fail or pass)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, not {clip(repr(text))}") from None
+    if not 0 <= value < math.inf:
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, not {clip(text)}")
+    return value
+
+
+_tolerance.__name__ = "number"
 
 
 def _turtle_setting(text: str) -> tuple[str, object]:
@@ -126,7 +146,7 @@ class _Parser(argparse.ArgumentParser):
     """Usage errors in one line, like every other error (subcommand parsers inherit the class)."""
 
     def error(self, message: str):
-        self.exit(EXIT_USAGE, f"lsys3d: error: {message} (see '{self.prog} --help')\n")
+        self.exit(EXIT_USAGE, printable(f"lsys3d: error: {_one_line(message)} (see '{self.prog} --help')") + "\n")
 
 
 def _output_flags(p: argparse.ArgumentParser, default) -> None:
@@ -198,7 +218,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("check", help="regrow the assets of golden files and compare their counts")
     p.add_argument("golden", nargs="+", metavar="GOLDEN.json", help="golden files written by 'stats --golden'")
     p.add_argument("--update", action="store_true", help="rewrite the golden files that changed, and say what changed")
-    p.add_argument("--rtol", type=float, default=None, help="relative tolerance of floating values (default 1e-6)")
+    p.add_argument(
+        "--rtol",
+        type=_tolerance,
+        default=None,
+        help="relative tolerance of floating values (default 1e-6)",
+    )
     p.set_defaults(func=cmd_check)
 
     p = add("presets", help="list the bundled presets")
@@ -211,7 +236,8 @@ def cmd_derive(args) -> int:
     options = from_arguments(GenerateOptions, args)
     result = derive(grammar, args.iterations, args.seed, max_modules=options.limits.max_modules)
     out = sys.stdout
-    out.write(str(result))
+    for piece in result.iter_text():  # never the whole text at once: it can be gigabytes
+        out.write(piece)
     out.write("\n")
     return 0
 
@@ -237,10 +263,10 @@ def cmd_generate(args) -> int:
         progress.clear()
     if not args.quiet and drawing:
         segments, leaves = len(tree.skeleton), tree.skeleton.n_leaves
-        print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
+        _print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
     elif not args.quiet:
         bark, leaves = tree.bark, tree.skeleton.n_leaves
-        print(
+        _print(
             f"wrote {path}: {len(bark.vertices):,} vertices, {len(bark.faces):,} faces, {leaves:,} leaves "
             f"({time.perf_counter() - t0:.1f} s)"
         )
@@ -268,18 +294,18 @@ def _generate_siblings(args, options, export_options) -> int:
         progress.clear()
     if not args.quiet:
         if len(paths) == 1:
-            print(
+            _print(
                 f"wrote {paths[0]}: {len(trees)} variants seed_{first} .. seed_{first + len(trees) - 1} of the "
                 f"variant set 'seed' ({time.perf_counter() - t0:.1f} s)"
             )
         else:
             for path, tree in zip(paths, trees, strict=True):
                 bark = tree.bark
-                print(
+                _print(
                     f"wrote {path}: seed {tree.provenance.seed}, {len(bark.vertices):,} vertices, "
                     f"{len(bark.faces):,} faces, {tree.skeleton.n_leaves:,} leaves"
                 )
-            print(f"{len(paths)} files in {time.perf_counter() - t0:.1f} s")
+            _print(f"{len(paths)} files in {time.perf_counter() - t0:.1f} s")
     return 0
 
 
@@ -300,7 +326,7 @@ def cmd_preview(args) -> int:
         progress.clear()
     if not args.quiet:
         width, height = options.size
-        print(f"wrote {path}: {width}x{height}, {options.view} view ({time.perf_counter() - t0:.1f} s)")
+        _print(f"wrote {path}: {width}x{height}, {options.view} view ({time.perf_counter() - t0:.1f} s)")
     return 0
 
 
@@ -332,7 +358,7 @@ def cmd_stats(args) -> int:
         recipe = recipe_for(grammar, n, seed, options, mesh=args.mesh, golden_path=args.golden)
         write_golden(args.golden, recipe, result)
     if args.json:
-        print(json.dumps(result, sort_keys=True))
+        _print(json.dumps(result, sort_keys=True))
     else:
         print_table(flatten(result))
     return 0
@@ -345,7 +371,7 @@ def print_table(stats: dict) -> None:
             value = f"{value:.6g}"
         elif isinstance(value, list):
             value = "  ".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in value)
-        print(f"{key:<{width}}  {value}")
+        _print(f"{key:<{width}}  {value}")
 
 
 def cmd_check(args) -> int:
@@ -357,27 +383,27 @@ def cmd_check(args) -> int:
             result = check(path, update=args.update, rtol=RTOL if args.rtol is None else args.rtol)
         except LSystemError as exc:  # one bad file does not stop the others
             failed += 1
-            print(f"lsys3d: error: {exc}", file=sys.stderr)
+            _print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
             continue
         for warning in result.warnings:
-            print(f"{path}: warning: {warning}")
+            _print(f"{path}: warning: {warning}")
         if result.updated:
             what = ", ".join(d.key for d in result.differences) or "only the versions that produced it"
-            print(f"updated {path} ({result.recipe.describe()}): {what}")
+            _print(f"updated {path} ({result.recipe.describe()}): {what}")
             if result.differences:
-                print(format_differences(result.differences))
+                _print(format_differences(result.differences))
         elif result.ok:
             within = sum(not d.failed for d in result.differences)
             extra = f" ({within} within tolerance)" if within else ""
             if not args.quiet:
-                print(f"ok      {path} ({result.recipe.describe()}){extra}")
+                _print(f"ok      {path} ({result.recipe.describe()}){extra}")
         else:
             failed += 1
             n = sum(d.failed for d in result.differences)
-            print(f"FAILED  {path} ({result.recipe.describe()}): {n} difference{'s' if n > 1 else ''}")
-            print(format_differences(result.differences))
+            _print(f"FAILED  {path} ({result.recipe.describe()}): {n} difference{'s' if n > 1 else ''}")
+            _print(format_differences(result.differences))
     if failed:
-        print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
+        _print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
         return EXIT_USER_ERROR
     return 0
 
@@ -386,8 +412,52 @@ def cmd_presets(args) -> int:
     names = list_presets()
     width = max(map(len, names))
     for name in names:
-        print(f"{name:<{width}}  {describe(name)}")
+        _print(f"{name:<{width}}  {describe(name)}")
     return 0
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the program is so that every cleanup (``finally``, temporary files) runs,
+    exactly as for Ctrl-C (SIGINT, Python's KeyboardInterrupt)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _signals_interrupt():
+    """SIGTERM and SIGHUP end the command like Ctrl-C, with its cleanup (a signal left ignored stays ignored).
+
+    Only the first one interrupts: a second one while the first unwinds would cut its cleanup short.
+    """
+    if threading.current_thread() is not threading.main_thread():  # only the main thread may set handlers
+        yield
+        return
+    raised = []
+
+    def interrupt(signum, frame):
+        if not raised:
+            raised.append(signum)
+            raise Interrupted(signum)
+
+    previous = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is not signal.SIG_IGN:
+            previous[signum] = signal.signal(signum, interrupt)
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """A Python warning (numpy's RuntimeWarning...) as one log line, not the three of ``warnings``' default."""
+    logging.getLogger("lsys3d").warning(
+        "warning: %s (%s, %s:%d)", _one_line(str(message)), category.__name__, os.path.basename(filename), lineno
+    )
 
 
 def main(argv=None) -> int:
@@ -395,25 +465,36 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     level = logging.INFO if args.verbose else logging.ERROR if args.quiet else logging.WARNING
     logging.basicConfig(format="lsys3d: %(message)s", level=level)
-    try:
-        return args.func(args)
-    except LSystemError as exc:
-        print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
-        return EXIT_USER_ERROR
-    except MemoryError:
-        print(
-            "lsys3d: error: out of memory; use fewer iterations, or lower --max-modules, --max-segments or "
-            "--max-triangles",
-            file=sys.stderr,
-        )
-        return EXIT_USER_ERROR
-    except KeyboardInterrupt:
-        print("lsys3d: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except BrokenPipeError:
-        return 0
+    with _signals_interrupt(), warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        try:
+            return args.func(args)
+        except LSystemError as exc:
+            _print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
+            return EXIT_USER_ERROR
+        except MemoryError:
+            _print(
+                "lsys3d: error: out of memory; use fewer iterations, or lower --max-modules, --max-segments or "
+                "--max-triangles",
+                file=sys.stderr,
+            )
+            return EXIT_USER_ERROR
+        except Interrupted as exc:
+            _print(f"lsys3d: interrupted ({signal.Signals(exc.signum).name})", file=sys.stderr)
+            return 128 + exc.signum
+        except KeyboardInterrupt:
+            _print("lsys3d: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except BrokenPipeError:
+            return 0
 
 
 def _one_line(message: str) -> str:
     """An error message on one line, even when it quotes a rule written over several (TOML multi-line strings)."""
     return " ".join(part.strip() for part in message.splitlines() if part.strip())
+
+
+def _print(*values, file=None) -> None:
+    """``print`` for every line the command writes: whatever it echoes from the user (a file name, a preset, a
+    golden file's keys) is escaped, so it cannot drive the terminal or fail to encode."""
+    print(*(printable(str(v)) for v in values), file=file)

@@ -13,7 +13,15 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["Chains", "Skeleton"]
+__all__ = ["MAX_COORDINATE", "Chains", "Skeleton"]
+
+MAX_COORDINATE = 1e9
+"""Largest distance from the origin along any axis, and largest width or leaf size, a skeleton may hold.
+
+A million kilometres: far beyond any plant, and far inside what the mesh stages compute with (the sweep squares
+lengths, the union welds on a 1e-8 grid of 64-bit integers, the files store 32-bit floats).  The turtle refuses
+to go past it, naming the module; the sweep refuses a skeleton built some other way that does.
+"""
 
 
 @dataclass(frozen=True)

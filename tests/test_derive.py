@@ -380,3 +380,122 @@ def test_module_string_equality_and_slices():
     assert a == ModuleString.from_symbols("F[+F]")
     assert a != ModuleString.from_symbols("F[-F]")
     assert str(a[1:4]) == "[+F"
+
+
+def textbook_context(s: str, i: int, left: str, right: list[str], ignore: str) -> bool:
+    """Does module ``i`` of ``s`` have these contexts?  The walk of ABOP section 1.8, one module at a time."""
+    match, stack = {}, []
+    for k, c in enumerate(s):
+        if c == "[":
+            stack.append(k)
+        elif c == "]" and stack:
+            match[k] = stack.pop()
+            match[match[k]] = k
+    j = i - 1
+    for want in reversed(left):
+        while j >= 0 and (s[j] in "[]" or s[j] in ignore):
+            j = match[j] - 1 if s[j] == "]" else j - 1
+        if j < 0 or s[j] != want:
+            return False
+        j -= 1
+    j = i + 1
+    for want in right:
+        if want == "[":
+            while j < len(s) and s[j] in ignore:
+                j += 1
+            if j >= len(s) or s[j] != "[":
+                return False
+        elif want == "]":
+            while j < len(s) and s[j] != "]":
+                j = match[j] + 1 if s[j] == "[" else j + 1
+            if j >= len(s):
+                return False
+        else:
+            while j < len(s) and (s[j] == "[" or s[j] in ignore):
+                j = match[j] + 1 if s[j] == "[" else j + 1
+            if j >= len(s) or s[j] != want:  # a ']' ends the branch: no right context
+                return False
+        j += 1
+    return True
+
+
+RIGHT_PIECES = st.sampled_from(["A", "B", "F", "]", "[A]", "[F]", "[", "["])
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    bracketed(24),
+    st.text("AB", max_size=2),
+    st.sampled_from("ABF"),
+    st.lists(RIGHT_PIECES, max_size=3).map("".join),
+    st.text("+-F", max_size=2),
+)
+def test_context_matching_agrees_with_the_textbook_walk(axiom, left, pred, right, ignore):
+    right = right + "]" * (right.count("[") - right.count("]"))  # a right context may not leave '[' open
+    rule = (f"{left} < " if left else "") + pred + (f" > {right}" if right else "") + " -> X"
+    try:
+        g = Grammar(axiom=axiom or "A", rules=[rule], ignore=ignore)
+    except lsys3d.GrammarError:
+        return
+    s = axiom or "A"
+    pattern = [m.symbol for m in g.productions[0].right]
+    expected = "".join(
+        "X" if c == pred and textbook_context(s, i, left, pattern, ignore) else c for i, c in enumerate(s)
+    )
+    assert str(derive(g, 1)) == expected
+
+
+def test_context_in_long_strings_costs_the_pattern_not_the_string():
+    """Each module's context walk is a table lookup: a predecessor in the ignore set, or ']' as right context,
+    used to walk the whole string for every module (quadratic: minutes at 131,072 modules)."""
+    ignored = Grammar(axiom="B[A]", rules=["B < A -> AA", "A -> A"], ignore="A")
+    branch_end = Grammar(axiom="[A]", rules=["A > ] -> AA"])
+    for g in (ignored, branch_end):
+        assert len(derive(g, 20)) == 2**20 + len(g.axiom) - 1
+
+
+def test_one_generation_is_alive_at_a_time():
+    """derive() used to keep every generation (a grammar holding 131k modules for 183 generations took 22.9 GB)."""
+    import tracemalloc
+
+    g = Grammar(axiom="A(0)", rules=["A(x) : x < 12 -> A(x + 1)A(x + 1)", "A(x) : x >= 12 -> A(x + 1)"])
+    one = derive(g, 12)
+    size = one.symbols.nbytes + one.arity.nbytes + one.params.nbytes + one.offsets.nbytes
+    tracemalloc.start()
+    try:
+        held = derive(g, 200)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert str(held[:1]) == "A(200)" and len(held) == 4096
+    assert peak < 20 * size  # two generations and the step's temporaries (7x), not 188 generations (196x)
+
+
+def test_an_unbalanced_start_string_ends_context_walks():
+    """A start string from Python may leave a bracket unmatched: the walk ends there (it used to loop forever)."""
+    g = Grammar(axiom="A", rules=["A > B -> X", "B < A -> Y"])
+    for text, expected in (("[AB", "[XB"), ("AB]A", "XB]A"), ("]A[B", "]A[B"), ("A[", "A[")):
+        assert str(derive(g, 1, start=ModuleString.from_symbols(text))) == expected, text
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from("AF+[]é"),
+            st.lists(st.sampled_from([0.0, -0.0, 1.0, 1.5, -2.25, 1e-9, 8 / 7, 1e300, -7e-7]), max_size=3),
+        ),
+        max_size=40,
+    ),
+    st.integers(1, 9),
+)
+def test_text_pieces_equal_the_text_of_each_module(modules, chunk):
+    alphabet = ModuleString.from_symbols("").alphabet[:128] + "é" + "\0" * 127
+    ms = ModuleString(
+        np.array([ord(c) if c != "é" else 128 for c, _ in modules], np.uint8),
+        np.array([len(args) for _, args in modules], np.uint8),
+        np.array([x for _, args in modules for x in args], np.float64),
+        alphabet,
+    )
+    expected = "".join(ms.module_text(i) for i in range(len(ms)))
+    assert "".join(ms.iter_text(chunk)) == str(ms) == expected

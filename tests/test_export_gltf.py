@@ -364,11 +364,11 @@ def test_failing_usd_writer_keeps_the_old_file(tree, tmp_path, monkeypatch):
     target = tmp_path / "tree.usdc"
     target.write_bytes(b"good old asset")
 
-    def export_layer(layer, tmp, path):
+    def export_crate(stage, tmp, path):
         tmp.write_bytes(b"half a crate")
         raise OSError(errno.EIO, "Input/output error")
 
-    monkeypatch.setattr(usd, "_export_layer", export_layer)
+    monkeypatch.setattr(usd, "_export_crate", export_crate)
     with pytest.raises(ExportError, match=re.escape(f"{target}: input/output error")):
         export(tree, target)
     assert target.read_bytes() == b"good old asset"

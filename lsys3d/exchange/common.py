@@ -25,6 +25,7 @@ __all__ = [
     "frame_transforms",
     "gather_mesh",
     "metadata_json",
+    "to_float32",
 ]
 
 log = logging.getLogger("lsys3d")
@@ -113,6 +114,21 @@ class MeshArrays:
     split_colors: np.ndarray | None = None
     attributes: dict = field(default_factory=dict)
     split_attributes: dict = field(default_factory=dict)
+
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def to_float32(values, what: str, where: str) -> np.ndarray:
+    """``values`` as float32, the precision of the files, refusing what float32 cannot hold (an overflow to inf)."""
+    values = np.asarray(values, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        ok = bool((np.abs(values) <= FLOAT32_MAX).all())
+    if not ok:
+        raise ExportError(
+            f"{where}: {what} holds a value that is not a number or beyond the 32-bit float range (3.4e38)"
+        )
+    return values.astype(np.float32)
 
 
 def _unit_normals(normals: np.ndarray, faces: np.ndarray, vertices: np.ndarray) -> np.ndarray:
@@ -204,7 +220,7 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
             colors = colors[old_of_new]
         attributes = {k: a[old_of_new] for k, a in attributes.items()}
     identity = np.array_equal(frame, np.eye(3))
-    points = (vertices if identity else vertices @ frame.T).astype(np.float32)
+    points = to_float32(vertices if identity else vertices @ frame.T, "the vertices", where)
 
     if not identity:
         rotation = (frame / np.cbrt(np.linalg.det(frame))).astype(np.float32)

@@ -33,7 +33,7 @@ from ..materials import Material
 from ..tree import Tree
 from ..version import __version__
 from .atomic import atomic_path, check_target, write_bytes, write_chunks
-from .common import ExportOptions, MeshArrays, decompose_transforms, gather_mesh, metadata_json
+from .common import ExportOptions, MeshArrays, decompose_transforms, gather_mesh, metadata_json, to_float32
 
 __all__ = ["write_glb", "write_gltf"]
 
@@ -144,7 +144,7 @@ def _skeleton_lines(tree: Tree) -> tuple[np.ndarray, np.ndarray] | None:
     lines = tree.skeleton.polylines() if len(tree.skeleton) else []
     if not lines:
         return None
-    points = np.concatenate(lines).astype(np.float32)
+    points = to_float32(np.concatenate(lines), "the skeleton", "skeleton")
     sizes = np.array([len(p) for p in lines])
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     # segment i of a chain joins point i and i + 1; no segment across chains
@@ -191,9 +191,9 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         model = gather_mesh(leaves.model, eye, f"{where}: leaf_model")
         translation, quaternion, scale = decompose_transforms(leaves.transforms, where)
         attributes = {
-            "TRANSLATION": buf.accessor(translation.astype(np.float32), target=None),
+            "TRANSLATION": buf.accessor(to_float32(translation, "leaf positions", where), target=None),
             "ROTATION": buf.accessor(quaternion.astype(np.float32), target=None),
-            "SCALE": buf.accessor(scale.astype(np.float32), target=None),
+            "SCALE": buf.accessor(to_float32(scale, "leaf sizes", where), target=None),
         }
         for name, values in gltf_attributes(leaves.instance_attributes).items():  # the branch each leaf grows from
             attributes[name] = buf.accessor(values, target=None)

@@ -27,10 +27,11 @@ which keeps the crate file's integer compression fast.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
-import tempfile
-import time
+import struct
+import zlib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -42,7 +43,7 @@ from ..errors import ExportError
 from ..materials import Material
 from ..tree import Tree
 from ..version import __version__
-from .atomic import atomic_path
+from .atomic import atomic_path, check_target, scratch_path, write_bytes, write_failure
 from .common import (
     POINT_ATTRIBUTES,
     ExportOptions,
@@ -52,9 +53,18 @@ from .common import (
     frame_transforms,
     gather_mesh,
     metadata_json,
+    to_float32,
 )
 
-__all__ = ["VARIANT_SET", "build_stage", "build_variant_stage", "write_usd", "write_usd_variants", "write_usdz"]
+__all__ = [
+    "VARIANT_SET",
+    "build_stage",
+    "build_variant_stage",
+    "usdz_chunks",
+    "write_usd",
+    "write_usd_variants",
+    "write_usdz",
+]
 
 VARIANT_SET = "seed"
 """The variant set of a stage of siblings (:func:`build_variant_stage`)."""
@@ -159,8 +169,8 @@ def _skeleton(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray) -> Non
     curves = UsdGeom.BasisCurves.Define(stage, path)
     curves.CreateTypeAttr(UsdGeom.Tokens.linear)
     curves.CreateCurveVertexCountsAttr(Vt.IntArray.FromNumpy((np.diff(ch.offsets) + 1).astype(np.int32)))
-    pts = Vt.Vec3fArray.FromNumpy(points.astype(np.float32))
-    w = Vt.FloatArray.FromNumpy(widths.astype(np.float32))
+    pts = Vt.Vec3fArray.FromNumpy(to_float32(points, "the skeleton", path))
+    w = Vt.FloatArray.FromNumpy(to_float32(widths, "the skeleton's widths", path))
     curves.CreatePointsAttr(pts)
     curves.CreateWidthsAttr(w)
     curves.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
@@ -178,10 +188,10 @@ def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, 
     translation, quaternion, scale = decompose_transforms(transforms, where)
     k = len(translation)
     instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(np.zeros(k, np.int32)))
-    instancer.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(translation.astype(np.float32)))
+    instancer.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(to_float32(translation, "leaf positions", where)))
     # Gf.Quath is stored imaginary-first, so (x, y, z, w) rows are its memory layout
     instancer.CreateOrientationsAttr(Vt.QuathArray.FromNumpy(quaternion.astype(np.float16)))
-    instancer.CreateScalesAttr(Vt.Vec3fArray.FromNumpy(scale.astype(np.float32)))
+    instancer.CreateScalesAttr(Vt.Vec3fArray.FromNumpy(to_float32(scale, "leaf sizes", where)))
     per_instance = {
         k: (np.asarray(v, np.float64) @ frame.T).astype(np.float32) if k in POINT_ATTRIBUTES else v
         for k, v in tree.leaves.instance_attributes.items()
@@ -292,15 +302,6 @@ def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOp
         _skeleton(stage, f"{geom}/skeleton", tree, frame)
 
 
-def _export_layer(layer: Sdf.Layer, tmp: Path, path: Path) -> None:
-    try:
-        ok = layer.Export(str(tmp))
-    except Tf.ErrorException as exc:
-        raise ExportError(f"{path}: {str(exc).strip().splitlines()[-1]}") from None
-    if not ok:
-        raise ExportError(f"{path}: USD could not write the file")
-
-
 def write_usd(tree: Tree, path: Path, options: ExportOptions) -> Path:
     """Write ``tree`` as ``.usda`` (text), ``.usdc`` (crate) or ``.usd`` (crate)."""
     return _write_layer(build_stage(tree, options, str(path)), path, options)
@@ -314,30 +315,121 @@ def write_usd_variants(trees: Sequence[Tree], names: Sequence[str], path: Path, 
     return _write_layer(stage, path, options)
 
 
-def _write_layer(stage: Usd.Stage, path: Path, options: ExportOptions) -> Path:
-    with atomic_path(path, options.no_clobber) as tmp:
-        _export_layer(stage.GetRootLayer(), tmp, path)
-    return path
-
-
 def write_usdz(tree: Tree, path: Path, options: ExportOptions) -> Path:
     """Write ``tree`` as a ``.usdz`` package holding one ``.usdc`` layer (no external files)."""
     return _write_package(build_stage(tree, options, str(path)), path, options)
 
 
-def _write_package(stage: Usd.Stage, path: Path, options: ExportOptions) -> Path:
-    inner = f"{Tf.MakeValidIdentifier(path.stem)}.usdc"
-    with atomic_path(path, options.no_clobber) as tmp, tempfile.TemporaryDirectory(prefix="lsys3d-") as folder:
-        layer_path = Path(folder) / inner
-        _export_layer(stage.GetRootLayer(), layer_path, path)
-        # the zip entry's date is the file's modification time, in local time: pin it to the
-        # earliest date a zip can hold so the package's bytes depend on nothing but the tree
-        stamp = time.mktime((1980, 1, 1, 0, 0, 0, 0, 0, -1))
-        os.utime(layer_path, (stamp, stamp))
-        try:
-            writer = Sdf.ZipFileWriter.CreateNew(str(tmp))
-            writer.AddFile(str(layer_path), inner)
-            writer.Save()
-        except Tf.ErrorException as exc:
-            raise ExportError(f"{path}: {str(exc).strip().splitlines()[-1]}") from None
+def _write_layer(stage: Usd.Stage, path: Path, options: ExportOptions) -> Path:
+    if path.suffix.lower() == ".usda":  # text: built in memory, written by lsys3d (every OS error checked)
+        return write_bytes(path, [stage.GetRootLayer().ExportToString().encode("utf-8")], options.no_clobber)
+    with atomic_path(path, options.no_clobber) as tmp:
+        _export_crate(stage, tmp, path)
     return path
+
+
+def _write_package(stage: Usd.Stage, path: Path, options: ExportOptions) -> Path:
+    """A ``.usdz``: USD writes the crate beside the target, lsys3d packs it (:func:`usdz_chunks`) and writes that."""
+    check_target(path, options.no_clobber)
+    inner = f"{Tf.MakeValidIdentifier(path.stem)}.usdc"
+    with scratch_path(path, ".usdc") as crate:
+        _export_crate(stage, crate, path)
+        data = crate.read_bytes()
+    return write_bytes(path, usdz_chunks([(inner, data)], str(path)), options.no_clobber)
+
+
+def _export_crate(stage: Usd.Stage, tmp: Path, path: Path) -> None:
+    """Let USD write the stage's crate file at ``tmp`` and check that it is whole.
+
+    USD writes with its own I/O and does not report the operating system's reason: on a full disk or past
+    ``ulimit -f`` it fails with an internal message, or (inside a package) not at all.  So the file is checked
+    (the crate's table of contents must lie inside it), and on failure the file system is asked why
+    (:func:`~lsys3d.exchange.atomic.write_failure`).
+    """
+    layer = stage.GetRootLayer()
+    try:
+        ok = layer.Export(str(tmp))
+        usd_message = "USD could not write the file"
+    except Tf.ErrorException as exc:
+        ok = False
+        usd_message = f"USD could not write the file: {str(exc).strip().splitlines()[-1].strip()}"
+    if ok and _whole_crate(tmp):
+        return
+    reason = write_failure(tmp, max(_size_of(tmp) + (1 << 20), _authored_bytes(stage)))
+    raise ExportError(f"{path}: {reason or usd_message}")
+
+
+def _size_of(path: Path) -> int:
+    try:
+        return path.stat().st_size
+    except OSError:
+        return 0
+
+
+def _whole_crate(path: Path) -> bool:
+    """Is ``path`` a crate file whose table of contents lies inside it (not cut short by a full disk)?"""
+    try:
+        with path.open("rb") as f:
+            head = f.read(24)
+            size = os.fstat(f.fileno()).st_size
+    except OSError:
+        return False
+    if len(head) < 24 or head[:8] != b"PXR-USDC":
+        return False
+    (toc,) = struct.unpack_from("<q", head, 16)
+    return toc >= 24 and toc + 8 <= size
+
+
+def _authored_bytes(stage: Usd.Stage) -> int:
+    """About how many bytes the stage's arrays take: what a crate file of it needs on disk."""
+    total = 0
+    for prim in stage.TraverseAll():
+        for attr in prim.GetAttributes():
+            value = attr.Get()
+            if hasattr(value, "__len__") and not isinstance(value, str):
+                with contextlib.suppress(TypeError, ValueError):
+                    total += np.asarray(value).nbytes
+    return total
+
+
+# ---------------------------------------------------------------- usdz packaging
+_ZIP_DATE_1980_01_01 = (0 << 9) | (1 << 5) | 1  # DOS date: the earliest a zip can hold, so bytes never vary
+_PADDING_ID = 0x1986  # the extra field USD's own zip writer pads with
+
+
+def usdz_chunks(files: Sequence[tuple[str, bytes]], where: str = "usdz") -> list[memoryview]:
+    """A ``.usdz`` package of ``files`` (name, data), the first one its default layer, as chunks of bytes.
+
+    The layout of the USDZ specification, the one USD's own writer produces: a zip archive whose entries are
+    stored (not compressed), each entry's data starting on a multiple of 64 bytes (padded with an extra
+    field in the local header), every date 1980-01-01 00:00.  Built in memory so that writing it is one
+    checked, atomic write like any other file.
+
+    >>> chunks = usdz_chunks([("tree.usdc", b"PXR-USDC" + bytes(16))])
+    >>> import io, zipfile
+    >>> data = b"".join(chunks)
+    >>> zipfile.ZipFile(io.BytesIO(data)).read("tree.usdc")[:8], data.index(b"PXR-USDC") % 64
+    (b'PXR-USDC', 0)
+    """
+    local: list[memoryview] = []
+    central: list[bytes] = []
+    offset = 0
+    for name, data in files:
+        raw_name = name.encode("utf-8")
+        pad = -(offset + 30 + len(raw_name)) % 64
+        if 0 < pad < 4:  # an extra field is at least its 4-byte header
+            pad += 64
+        extra = struct.pack("<HH", _PADDING_ID, pad - 4) + bytes(pad - 4) if pad else b""
+        crc = zlib.crc32(data)
+        size = len(data)
+        if offset + 30 + len(raw_name) + len(extra) + size >= 1 << 32:
+            raise ExportError(f"{where}: the package would be over the 4 GiB a .usdz (zip without zip64) can hold")
+        fields = (0, 0, 0, _ZIP_DATE_1980_01_01, crc, size, size, len(raw_name), len(extra))
+        header = struct.pack("<IHHHHHIIIHH", 0x04034B50, 10, *fields) + raw_name + extra
+        central.append(struct.pack("<IHHHHHHIIIHHHHHII", 0x02014B50, 0, 10, *fields, 0, 0, 0, 0, offset))
+        central[-1] += raw_name + extra
+        local += [memoryview(header), memoryview(data)]
+        offset += len(header) + size
+    directory = b"".join(central)
+    end = struct.pack("<IHHHHIIH", 0x06054B50, 0, 0, len(files), len(files), len(directory), offset, 0)
+    return [*local, memoryview(directory + end)]

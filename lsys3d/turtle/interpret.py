@@ -60,7 +60,7 @@ import numpy as np
 from ..errors import InterpretError, LimitError
 from ..grammar import Grammar
 from ..modules import ModuleString
-from ..skeleton import Skeleton
+from ..skeleton import MAX_COORDINATE, Skeleton
 from ..streams import Stream, generator
 from . import kernel
 from .commands import COMMANDS, Command, Op, SymbolTable, symbol_table
@@ -205,6 +205,7 @@ def interpret(
         tx,
         ty,
         tz,
+        MAX_COORDINATE,
     )
     variation = _variation(m, options, seed, table, modules.symbols)
 
