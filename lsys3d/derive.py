@@ -32,7 +32,7 @@ from .expr import NOT_FINITE, EvalError
 from .grammar import Grammar, PatternModule, Production
 from .modules import ModuleString
 
-__all__ = ["DEFAULT_MAX_MODULES", "MAX_ITERATIONS", "derive", "generations", "predict_length"]
+__all__ = ["DEFAULT_MAX_MODULES", "MAX_ITERATIONS", "derive", "generations", "predict_counts", "predict_length"]
 
 log = logging.getLogger("lsys3d")
 
@@ -121,6 +121,44 @@ def predict_length(grammar: Grammar, iterations: int | None = None) -> int | Non
         return None
     n = grammar.iterations if iterations is None else iterations
     return _d0l_lengths(plan, n)[1]
+
+
+def predict_counts(grammar: Grammar, iterations: int | None = None) -> dict[str, int] | None:
+    """How many modules of each symbol ``iterations`` steps make, or None when it depends on the derivation.
+
+    Known for the same grammars as :func:`predict_length`.  The count vector
+    is multiplied by the growth (Parikh) matrix once per step, in floating
+    point: exact while a count stays below 2**53, and saturating at 2**62
+    (far beyond any limit), so it costs next to nothing for any size.
+
+    >>> from lsys3d import Grammar
+    >>> predict_counts(Grammar(axiom="X", rules=["X -> F[+X]F[-X]+X", "F -> FF"]), 2)
+    {'+': 8, '-': 4, 'F': 10, 'X': 9, '[': 8, ']': 8}
+    """
+    plan = _Plan(grammar)
+    if not plan.predictable:
+        return None
+    n = _check_iterations(grammar, iterations)
+    succ = _successor_keys(plan)
+    axiom = _axiom_keys(plan)
+    keys = sorted(set(axiom) | set(succ) | {t for s in succ.values() for t in s})
+    index = {k: i for i, k in enumerate(keys)}
+    growth = np.zeros((len(keys), len(keys)))
+    for k in keys:
+        for t in succ.get(k, [k]):  # a module without a rule stays itself
+            growth[index[k], index[t]] += 1
+    counts = np.zeros(len(keys))
+    for k in axiom:
+        counts[index[k]] += 1
+    cap = float(1 << 62)
+    for _ in range(n):
+        counts = np.minimum(counts @ growth, cap)
+    out: dict[str, int] = {}
+    for (code, _arity), count in zip(keys, counts.tolist(), strict=True):
+        if count:
+            symbol = plan.alphabet[code]
+            out[symbol] = out.get(symbol, 0) + int(count)
+    return dict(sorted(out.items()))
 
 
 def derive(
@@ -230,8 +268,8 @@ def _check_size(total: int, max_modules: int, grammar: Grammar, generation: int)
 
 
 # ---------------------------------------------------------------- D0L engine
-def _d0l_lengths(plan: _Plan, n: int):
-    """Module counts per (symbol, arity) after each step, and the final total (Python ints).
+def _successor_keys(plan: _Plan) -> dict[tuple[int, int], list[tuple[int, int]]]:
+    """The (symbol code, arity) of each successor module, per (symbol code, arity) with a rule.
 
     Needs ``plan.predictable``: the first pool of each symbol and arity is the
     one that rewrites every such module.
@@ -242,8 +280,22 @@ def _d0l_lengths(plan: _Plan, n: int):
             key = (code, pool.arity)
             if key not in succ:
                 succ[key] = [(plan.code[m.symbol], len(m.args)) for m in pool.alternatives[0].successor]
+    return succ
+
+
+def _axiom_keys(plan: _Plan) -> list[tuple[int, int]]:
     ms = plan.grammar.axiom_modules
-    axiom = list(zip(ms.symbols.tolist(), ms.arity.tolist(), strict=True))
+    return list(zip(ms.symbols.tolist(), ms.arity.tolist(), strict=True))
+
+
+def _d0l_lengths(plan: _Plan, n: int):
+    """Module counts per (symbol, arity) after each step, and the final total (Python ints).
+
+    Needs ``plan.predictable``: the first pool of each symbol and arity is the
+    one that rewrites every such module.
+    """
+    succ = _successor_keys(plan)
+    axiom = _axiom_keys(plan)
     lengths = {c: 1 for c in set(axiom) | set(succ) | {t for s in succ.values() for t in s}}
     history = [lengths]
     for _ in range(n):
