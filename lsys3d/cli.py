@@ -101,6 +101,141 @@ def _mesh_args(p: argparse.ArgumentParser):
     )
 
 
+def _generate_args(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``generate`` (but ``--variants``); batch jobs name their options the same way."""
+    _grammar_args(p, optional=True)
+    _mesh_args(p)
+    p.add_argument(
+        "-o",
+        "--output",
+        default=DEFAULT_OUTPUT,
+        help=f"output file; its suffix picks the format (default {DEFAULT_OUTPUT})",
+    )
+    p.add_argument("--units", choices=("m", "cm"), default="m", help="length unit of a USD file (default m)")
+    p.add_argument("--up-axis", choices=("Y", "Z"), default="Y", help="up axis of a USD file (default Y)")
+    leaves = p.add_mutually_exclusive_group()
+    leaves.add_argument(
+        "--instance-leaves", dest="instance_leaves", action="store_true", default=None, help="leaves as instances"
+    )
+    leaves.add_argument(
+        "--merge-leaves", dest="instance_leaves", action="store_false", help="leaves as one merged mesh"
+    )
+    p.add_argument("--skeleton-curves", action="store_true", help="also write the branch skeleton as curves")
+    p.add_argument("--hairline", action="store_true", help="SVG: lines one pixel wide instead of as wide as branches")
+    p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
+
+
+def _export_options(args):
+    from .exchange import ExportOptions
+
+    return ExportOptions(
+        units=args.units,
+        up_axis=args.up_axis,
+        instance_leaves=args.instance_leaves,
+        skeleton_curves=args.skeleton_curves,
+        no_clobber=args.no_clobber,
+        hairline=args.hairline,
+    )
+
+
+#: generate's options a batch job may not set: the batch decides the files, the seeds and the output.
+_NOT_JOB_OPTIONS = frozenset({"output", "seed", "no-clobber", "variants", "quiet", "verbose", "help"})
+
+
+class OptionNameError(ValueError):
+    """An option of :func:`options_from_names` that is unknown or has a bad value; ``key`` names it."""
+
+    def __init__(self, key: str | None, message: str):
+        self.key = key
+        super().__init__(message)
+
+
+def options_from_names(names: dict) -> tuple[int | None, object, object]:
+    """generate's options given by their CLI names, as ``(iterations, GenerateOptions, ExportOptions)``.
+
+    ``names`` maps long option names without the dashes to TOML values:
+    ``{"sides": 6, "no-union": True, "iterations": 4, "turtle": {"width_jitter": 0.2}}``.
+    A switch takes ``true`` (``false`` leaves it off), a repeatable option
+    (``turtle``) a list of ``KEY=VALUE`` strings or a table.  The values go
+    through the very parser of ``lsys3d generate``, so every check and default
+    is the command's own.  Used by the jobs files of :mod:`lsys3d.jobs`.
+
+    Raises
+    ------
+    OptionNameError
+        An unknown name or a bad value; ``key`` is the name at fault (None
+        when argparse does not say).
+
+    Examples
+    --------
+    >>> n, options, export = options_from_names({"sides": 6, "iterations": 3, "up-axis": "Z"})
+    >>> n, options.sweep.sides, export.up_axis
+    (3, 6, 'Z')
+    """
+    parser = _Parser(prog="options", add_help=False)
+    _generate_args(parser)
+    parser.raise_errors = True
+    flags = {}  # long name -> takes a value
+    for action in parser._actions:
+        for option in action.option_strings:
+            if option.startswith("--") and option[2:] not in _NOT_JOB_OPTIONS:
+                flags[option[2:]] = action.nargs != 0
+    argv = ["grammar"]
+    for key, value in names.items():
+        name = str(key).replace("_", "-")
+        if name not in flags:
+            raise OptionNameError(key, f"unknown option {key!r} (known: {', '.join(sorted(flags))})")
+        takes_value = flags[name]
+        if isinstance(value, bool):
+            if takes_value:
+                raise OptionNameError(key, f"{key}: expected a value, not {str(value).lower()}")
+            argv += [f"--{name}"] if value else []
+        elif not takes_value:
+            raise OptionNameError(key, f"{key}: a switch takes true or false, not {value!r}")
+        elif isinstance(value, dict):
+            if name != "turtle":
+                raise OptionNameError(key, f"{key}: expected a value, not a table")
+            for k, v in value.items():
+                argv += [f"--{name}", f"{k}={_toml_value(v)}"]
+        elif isinstance(value, list):
+            if name != "turtle":
+                raise OptionNameError(key, f"{key}: expected one value, not a list")
+            for item in value:
+                argv += [f"--{name}", str(item)]
+        else:
+            argv += [f"--{name}", repr(value) if isinstance(value, float) else str(value)]
+    try:
+        args = parser.parse_args(argv)
+    except _UsageError as exc:
+        m = re.match(r"argument (?:-\w/)?--([\w-]+)(?:/[-\w]+)?: (.*)", str(exc))
+        if m:
+            key = next((k for k in names if str(k).replace("_", "-") == m.group(1)), m.group(1))
+            raise OptionNameError(key, f"{key}: {m.group(2)}") from None
+        raise OptionNameError(None, str(exc)) from None
+    try:
+        export_options = _export_options(args)
+        options = _generate_options(args)
+    except (ValueError, LSystemError) as exc:
+        raise OptionNameError(None, str(exc)) from None
+    try:  # the values too, not only the keys: a job should not fail on a setting known to be wrong
+        TurtleOptions(**options.turtle)
+    except LSystemError as exc:
+        key = next((k for k in names if str(k) == "turtle"), "turtle")
+        raise OptionNameError(key, f"{key}: {getattr(exc, 'reason', exc)}") from None
+    return args.iterations, options, export_options
+
+
+def _toml_value(value) -> str:
+    """A TOML literal of a plain value (what ``--turtle KEY=VALUE`` parses)."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return repr(value)
+
+
 def _generate_options(args):
     from .pipeline import GenerateOptions
 
@@ -184,10 +319,18 @@ class _Progress:
             sys.stderr.flush()
 
 
+class _UsageError(Exception):
+    pass
+
+
 class _Parser(argparse.ArgumentParser):
     """Usage errors in one line, like every other error (subcommand parsers inherit the class)."""
 
+    raise_errors = False  # True: raise _UsageError instead of exiting (options_from_names)
+
     def error(self, message: str):
+        if self.raise_errors:
+            raise _UsageError(message)
         self.exit(EXIT_USAGE, f"lsys3d: error: {message} (see '{self.prog} --help')\n")
 
 
@@ -211,26 +354,7 @@ def build_parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, parents=[common], **kw)
 
     p = add("generate", help="grow a plant and write it as a mesh asset (.glb, .usdc, ...)")
-    _grammar_args(p, optional=True)
-    _mesh_args(p)
-    p.add_argument(
-        "-o",
-        "--output",
-        default=DEFAULT_OUTPUT,
-        help=f"output file; its suffix picks the format (default {DEFAULT_OUTPUT})",
-    )
-    p.add_argument("--units", choices=("m", "cm"), default="m", help="length unit of a USD file (default m)")
-    p.add_argument("--up-axis", choices=("Y", "Z"), default="Y", help="up axis of a USD file (default Y)")
-    leaves = p.add_mutually_exclusive_group()
-    leaves.add_argument(
-        "--instance-leaves", dest="instance_leaves", action="store_true", default=None, help="leaves as instances"
-    )
-    leaves.add_argument(
-        "--merge-leaves", dest="instance_leaves", action="store_false", help="leaves as one merged mesh"
-    )
-    p.add_argument("--skeleton-curves", action="store_true", help="also write the branch skeleton as curves")
-    p.add_argument("--hairline", action="store_true", help="SVG: lines one pixel wide instead of as wide as branches")
-    p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
+    _generate_args(p)
     p.add_argument(
         "--variants",
         type=_at_least(1),
@@ -294,17 +418,10 @@ def cmd_derive(args) -> int:
 
 
 def cmd_generate(args) -> int:
-    from .exchange import ExportOptions, check_output, export
+    from .exchange import check_output, export
     from .pipeline import generate, run_stage
 
-    export_options = ExportOptions(
-        units=args.units,
-        up_axis=args.up_axis,
-        instance_leaves=args.instance_leaves,
-        skeleton_curves=args.skeleton_curves,
-        no_clobber=args.no_clobber,
-        hairline=args.hairline,
-    )
+    export_options = _export_options(args)
     path = check_output(args.output, export_options)  # before minutes of work, not after
     drawing = path.suffix.lower() == ".svg"
     options = _generate_options(args)
