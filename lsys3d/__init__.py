@@ -10,10 +10,13 @@ from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, version
 
+from .batch import batch
 from .derive import DEFAULT_MAX_MODULES, derive, generations, predict_length
 from .errors import (
+    BatchError,
     DerivationError,
     ExportError,
+    ForestError,
     GeometryError,
     GrammarError,
     InterpretError,
@@ -42,9 +45,11 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree
 __all__ = [
     "DEFAULT_MAX_MODULES",
     "DEFAULT_PRESET",
+    "BatchError",
     "DerivationError",
     "ExportError",
     "ExportOptions",
+    "ForestError",
     "GenerateOptions",
     "GeometryError",
     "Grammar",
@@ -61,6 +66,7 @@ __all__ = [
     "TurtleOptions",
     "UnionOptions",
     "__version__",
+    "batch",
     "derive",
     "export",
     "generate",
