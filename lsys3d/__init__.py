@@ -25,6 +25,7 @@ from .errors import (
     PreviewError,
 )
 from .exchange import ExportOptions, export
+from .forest import ForestOptions, forest
 from .grammar import Grammar
 from .modules import ModuleString
 from .pipeline import GenerateOptions, generate
@@ -50,6 +51,7 @@ __all__ = [
     "ExportError",
     "ExportOptions",
     "ForestError",
+    "ForestOptions",
     "GenerateOptions",
     "GeometryError",
     "Grammar",
@@ -69,6 +71,7 @@ __all__ = [
     "batch",
     "derive",
     "export",
+    "forest",
     "generate",
     "generations",
     "interpret",

@@ -308,6 +308,38 @@ def _size(text: str) -> int:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _area(text: str) -> tuple[float, float]:
+    """``WxD`` in metres (or one number for a square)."""
+    m = re.fullmatch(r"\s*([0-9.eE+]+)\s*(?:[xX]\s*([0-9.eE+]+)\s*)?", text)
+    try:
+        values = [float(v) for v in m.groups() if v] if m else []
+    except ValueError:
+        values = []
+    if not values or not all(0 < v < 1e9 for v in values):
+        raise argparse.ArgumentTypeError(f"expected WIDTHxDEPTH in metres, e.g. 100x80, not {text!r}")
+    return values[0], values[-1]
+
+
+def _bounds(positive: bool):
+    """An argparse type: ``LO,HI`` (or one number for both), finite, LO <= HI (> 0 when ``positive``)."""
+
+    def parse(text: str) -> tuple[float, float]:
+        parts = text.split(",")
+        try:
+            values = [float(v) for v in parts]
+        except ValueError:
+            values = []
+        if len(values) not in (1, 2) or not all(abs(v) < 1e9 for v in values):
+            raise argparse.ArgumentTypeError(f"expected LO,HI (two numbers) or one number, not {text!r}")
+        lo, hi = values[0], values[-1]
+        if lo > hi or (positive and lo <= 0):
+            raise argparse.ArgumentTypeError(f"expected LO <= HI{' and both > 0' if positive else ''}, not {text!r}")
+        return lo, hi
+
+    parse.__name__ = "bounds"
+    return parse
+
+
 def _pixels(text: str) -> tuple[int, int]:
     """``WxH`` (or one number for a square) as a (width, height) pair."""
     m = re.fullmatch(r"\s*(\d+)\s*(?:[xX]\s*(\d+)\s*)?", text)
@@ -445,6 +477,50 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-library", action="store_true", help="do not write OUTDIR/library.usda")
     p.add_argument("--dry-run", action="store_true", help="list the jobs, whether each would run, its predicted size")
     p.set_defaults(func=cmd_batch)
+
+    from .forest import ForestOptions
+
+    forest = ForestOptions()
+    p = add("forest", help="scatter a library's assets over an area: USD PointInstancer or one .glb with instancing")
+    p.add_argument("library", metavar="LIBRARY", help="a library.usda written by 'lsys3d batch' (or its folder)")
+    p.add_argument(
+        "-o", "--output", default="forest.usdc", help="the forest: .usdc, .usda, .usd or .glb (default forest.usdc)"
+    )
+    p.add_argument(
+        "--area",
+        type=_area,
+        default=forest.area,
+        metavar="WxD",
+        help="width x depth in metres, centred on the origin (default {:g}x{:g})".format(*forest.area),
+    )
+    p.add_argument("--count", type=_at_least(1), default=forest.count, help=f"instances (default {forest.count})")
+    p.add_argument("--seed", type=_at_least(0), default=forest.seed, help=f"seed (default {forest.seed})")
+    p.add_argument(
+        "--scale",
+        type=_bounds(positive=True),
+        default=forest.scale,
+        metavar="LO,HI",
+        help="scale of each instance, drawn in LO..HI (default {:g},{:g})".format(*forest.scale),
+    )
+    p.add_argument(
+        "--yaw",
+        type=_bounds(positive=False),
+        default=forest.yaw,
+        metavar="LO,HI",
+        help="turn about the up axis in degrees, drawn in LO..HI (default {:g},{:g})".format(*forest.yaw),
+    )
+    p.add_argument(
+        "--spacing",
+        type=_between(0.0, 100.0),
+        default=forest.spacing,
+        metavar="F",
+        help=f"trunks at least F times the sum of two crown radii apart (default {forest.spacing:g}: crowns touch)",
+    )
+    p.add_argument(
+        "--species", action="append", default=[], help="scatter only this species (repeatable; default: all)"
+    )
+    p.add_argument("--no-clobber", action="store_true", help="refuse to overwrite an existing file")
+    p.set_defaults(func=cmd_forest)
 
     p = add("presets", help="list the bundled presets")
     p.set_defaults(func=cmd_presets)
@@ -724,6 +800,29 @@ def _print_plan(the) -> int:
             )
         print(f"{job.id:<{width}}  {' '.join(job.paths)}  {what}")
     print(f"{len(the.jobs)} jobs: {len(the.to_run)} to run, {len(the.skipped)} done")
+    return 0
+
+
+def cmd_forest(args) -> int:
+    from .forest import ForestOptions, forest
+
+    options = ForestOptions(
+        area=args.area,
+        count=args.count,
+        seed=args.seed,
+        scale=args.scale,
+        yaw=args.yaw,
+        spacing=args.spacing,
+        species=tuple(args.species),
+        no_clobber=args.no_clobber,
+    )
+    t0 = time.perf_counter()
+    path = forest(args.library, args.output, options)
+    if not args.quiet:
+        width, depth = options.area
+        print(
+            f"wrote {path}: {options.count:,} instances on {width:g} x {depth:g} m ({time.perf_counter() - t0:.1f} s)"
+        )
     return 0
 
 
