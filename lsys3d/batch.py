@@ -225,37 +225,49 @@ def _export_key(job: Job) -> dict:
     return {"formats": list(job.formats), "options": dict(sorted(options.items()))}
 
 
-def read_manifests(outdir: str | os.PathLike) -> dict[str, dict]:
+def read_manifests(outdir: str | os.PathLike, keep: Callable[[dict], dict] | None = None) -> dict[str, dict]:
     """The last line of every job id in the folder's manifests (``manifest.jsonl``, ``manifest-I-of-N.jsonl``).
 
     Lines are ordered by their ``run.finished`` time, then by file and line;
     a line that does not parse (a write cut short) is skipped with a warning.
+    ``keep``, when given, makes each line kept smaller (what a caller needs
+    of it), so a large library's manifests are read in little memory.
     """
     outdir = Path(outdir)
-    found = []
+    latest: dict[str, tuple[tuple, dict]] = {}
     for path in sorted(outdir.glob("manifest*.jsonl")):
         if not re.fullmatch(r"manifest(-\d+-of-\d+)?\.jsonl", path.name):
             continue
         try:
-            text = path.read_text(encoding="utf-8", errors="replace")
+            with open(path, encoding="utf-8", errors="replace") as f:
+                for number, raw in enumerate(f, 1):
+                    if not raw.strip():
+                        continue
+                    try:
+                        line = json.loads(raw)
+                        if not isinstance(line, dict) or line.get("lsys3d_manifest") != MANIFEST_FORMAT:
+                            raise ValueError("not a manifest line")
+                    except ValueError:
+                        log.warning("%s:%d: not a manifest line, skipped", path, number)
+                        continue
+                    job_id = line.get("id")
+                    if not isinstance(job_id, str):
+                        continue
+                    order = (str((line.get("run") or {}).get("finished") or ""), path.name, number)
+                    if job_id not in latest or latest[job_id][0] <= order:
+                        latest[job_id] = (order, keep(line) if keep else line)
         except OSError as exc:
             raise BatchError(f"cannot read the manifest: {exc.strerror or exc}", str(path)) from None
-        for number, raw in enumerate(text.splitlines(), 1):
-            if not raw.strip():
-                continue
-            try:
-                line = json.loads(raw)
-                if not isinstance(line, dict) or line.get("lsys3d_manifest") != MANIFEST_FORMAT:
-                    raise ValueError("not a manifest line")
-                finished = str((line.get("run") or {}).get("finished") or "")
-                found.append((finished, path.name, number, line))
-            except ValueError:
-                log.warning("%s:%d: not a manifest line, skipped", path, number)
-    latest: dict[str, dict] = {}
-    for *_, line in sorted(found, key=lambda item: item[:3]):
-        if isinstance(line.get("id"), str):
-            latest[line["id"]] = line
-    return latest
+    return {job_id: line for job_id, (_, line) in latest.items()}
+
+
+def _for_resume(line: dict) -> dict:
+    return {k: line[k] for k in ("export", "files", "recipe", "run", "status") if k in line}
+
+
+def _for_library(line: dict) -> dict:
+    bbox = (line.get("counts") or {}).get("bbox")
+    return {"counts": {"bbox": bbox}, "crown_radius": line.get("crown_radius"), **_for_resume(line)}
 
 
 def _is_done(line: dict | None, recipe: dict | None, export: dict, outdir: Path) -> bool:
@@ -304,19 +316,44 @@ class _ManifestWriter:
 # ---------------------------------------------------------------- memory
 
 
+def _read_int(path: str) -> int | None:
+    try:
+        with open(path) as f:
+            text = f.read().strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() else None
+
+
 def available_memory() -> int:
-    """Bytes of memory available to new work now (Linux ``MemAvailable``; else all physical memory)."""
+    """Bytes of memory available to new work now.
+
+    Linux: ``MemAvailable``, or less when this process's control group (v2 or
+    v1, as in a container or a farm's job slot) allows less; elsewhere all
+    physical memory.
+    """
+    found = None
     try:
         with open("/proc/meminfo") as f:
             for line in f:
                 if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
+                    found = int(line.split()[1]) * 1024
+                    break
     except OSError:
         pass
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):  # pragma: no cover - no sysconf
-        return 1 << 34
+    if found is None:
+        try:
+            found = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        except (ValueError, OSError, AttributeError):  # pragma: no cover - no sysconf
+            found = 1 << 34
+    for limit, usage in (
+        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+        ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
+    ):
+        most, used = _read_int(limit), _read_int(usage)
+        if most is not None and used is not None and most < 1 << 60:
+            found = min(found, max(most - used, 0))
+    return found
 
 
 def parse_bytes(text: str) -> int:
@@ -444,7 +481,7 @@ class Plan:
             if key not in shared:
                 shared[key] = _recipe(job, grammar, outdir)
             self.recipes[job.id] = {**shared[key], "seed": job.seed}
-        previous = read_manifests(outdir) if outdir.is_dir() else {}
+        previous = read_manifests(outdir, keep=_for_resume) if outdir.is_dir() else {}
         self.to_run: list[Job] = []
         self.skipped: list[str] = []
         for job in jobs:
@@ -663,7 +700,7 @@ def _write_library(outdir: Path, jobs: Sequence[Job], result: BatchResult) -> No
     if not usd_jobs:
         log.info("no job writes USD: no %s", LIBRARY)
         return
-    lines = read_manifests(outdir)
+    lines = read_manifests(outdir, keep=_for_library)
     variants = []
     for job in usd_jobs:
         line = lines.get(job.id)

@@ -53,8 +53,8 @@ __all__ = [
     "shard",
 ]
 
-MAX_JOBS = 1_000_000
-"""Most jobs one jobs file may make (counted before the list is built)."""
+MAX_JOBS = 100_000
+"""Most jobs one jobs file may make (counted before the list is built); split a larger library into several."""
 
 MAX_JOBS_FILE_BYTES = 4 << 20
 """Largest jobs file read."""

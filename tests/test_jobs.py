@@ -187,7 +187,7 @@ def test_option_errors_name_the_option(names, key, fragment):
             ":7:11",
             "the USD files of one library share them",
         ),
-        ('[[jobs]]\ngrammar = "koch"\nformats = ["svg"]\nseeds = "0-2000000"\n', ":4:9", "more than 1,000,000 jobs"),
+        ('[[jobs]]\ngrammar = "koch"\nformats = ["svg"]\nseeds = "0-200000"\n', ":4:9", "more than 100,000 jobs"),
     ],
 )
 def test_jobs_file_errors_point_at_the_value(tmp_path, text, where, fragment):
