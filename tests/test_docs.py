@@ -37,3 +37,16 @@ def test_python_examples_run(path, tmp_path, monkeypatch):
 def test_toml_examples_parse(text):
     g = lsys3d.Grammar.from_text(text)
     assert len(lsys3d.derive(g)) > 0
+
+
+@pytest.mark.parametrize("text", [b for b in blocks("toml") if "[[jobs]]" in b.values[0]])
+def test_jobs_file_examples_parse(text, tmp_path):
+    """A jobs file in the docs reads (the grammar files it names exist beside it, as one would have them)."""
+    from lsys3d.jobs import read_jobs
+
+    for name in re.findall(r'"([\w/]+\.toml)"', text):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text('axiom = "F"\nrules = ["F -> F[+F]F"]\n')
+    path = tmp_path / "jobs.toml"
+    path.write_text(text)
+    assert read_jobs(path)
