@@ -335,6 +335,9 @@ def forest(library: str | os.PathLike, output: str | os.PathLike, options: Fores
         from .exchange.forest import write_forest_usd
 
         prototypes = [(v.name, folder / v.usd, v.bbox_min, v.bbox_max) for v in variants]
+        missing = next((p for p in prototypes if not p[1].is_file()), None)
+        if missing is not None:
+            raise ForestError(f"{lib.path}: asset {missing[0]}'s file {str(missing[1])!r} is missing")
         path = write_forest_usd(output, prototypes, placed, provenance, lib.options, options)
     import logging
 

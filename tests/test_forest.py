@@ -231,6 +231,14 @@ def test_forest_errors(library, tmp_path):
     assert (tmp_path / "f.usdc").read_text() == "keep"
 
 
+def test_a_missing_asset_file_is_an_error(tmp_path):
+    variant = LibraryVariant("oak", 0, "oak_s0.usdc", None, 1.0, (0, 0, 0), (1, 1, 1))
+    library = write_library(tmp_path / "library.usda", [variant], ExportOptions())
+    with pytest.raises(ForestError, match=r"asset oak_s0's file '.*oak_s0\.usdc' is missing"):
+        forest(library, tmp_path / "forest.usdc")
+    assert not (tmp_path / "forest.usdc").exists()
+
+
 def test_glb_forest_needs_glb_assets(tmp_path):
     tree = lsys3d.generate("tree3d", 2, 0, sides=4)
     lsys3d.export(tree, tmp_path / "oak_s0.usdc")
