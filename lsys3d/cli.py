@@ -17,6 +17,7 @@ import warnings
 from .derive import derive
 from .errors import LSystemError, OptionsError, clip, printable
 from .exchange.common import ExportOptions
+from .forest import ForestOptions
 from .options import add_arguments, from_arguments
 from .pipeline import GenerateOptions
 from .presets import DEFAULT_PRESET, describe, list_presets, load
@@ -119,6 +120,24 @@ def _turtle_setting(text: str) -> tuple[str, object]:
     except OptionsError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return key, parsed
+
+
+def _shard(text: str) -> tuple[int, int]:
+    from .jobs import parse_shard
+
+    try:
+        return parse_shard(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _size(text: str) -> int:
+    from .batch import parse_bytes
+
+    try:
+        return parse_bytes(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 class _Progress:
@@ -225,6 +244,41 @@ def build_parser() -> argparse.ArgumentParser:
         help="relative tolerance of floating values (default 1e-6)",
     )
     p.set_defaults(func=cmd_check)
+
+    p = add("batch", help="grow every job of a jobs file into a folder, with a manifest and library.usda")
+    p.add_argument("jobs", metavar="JOBS.toml", help="the jobs file (see docs/batch.md)")
+    p.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="the folder of the assets (made if missing)")
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=os.environ.get("DASK_SCHEDULER_ADDRESS") or None,
+        help="run on the Dask cluster of this scheduler, e.g. tcp://10.0.0.5:8786 (default: $DASK_SCHEDULER_ADDRESS, "
+        "else processes on this machine)",
+    )
+    p.add_argument(
+        "--shard", type=_shard, metavar="I/N", help="run only the I-th of N slices of the jobs (1 <= I <= N)"
+    )
+    p.add_argument("--workers", type=_at_least(1), metavar="N", help="local worker processes (default: one per core)")
+    p.add_argument(
+        "--memory",
+        type=_size,
+        metavar="SIZE",
+        help="memory the local workers may use in all, e.g. 8G (default: what is available at the start)",
+    )
+    p.add_argument("--no-library", action="store_true", help="do not write OUTDIR/library.usda")
+    p.add_argument("--dry-run", action="store_true", help="list the jobs, whether each would run, its predicted size")
+    p.set_defaults(func=cmd_batch)
+
+    p = add("forest", help="scatter a library's assets over an area: USD PointInstancer or one .glb with instancing")
+    p.add_argument("library", metavar="LIBRARY", help="a library.usda written by 'lsys3d batch' (or its folder)")
+    p.add_argument(
+        "-o", "--output", default="forest.usdc", help="the forest: .usdc, .usda, .usd or .glb (default forest.usdc)"
+    )
+    add_arguments(p, ForestOptions)
+    p.add_argument(
+        "--species", action="append", default=[], help="scatter only this species (repeatable; default: all)"
+    )
+    p.set_defaults(func=cmd_forest)
 
     p = add("presets", help="list the bundled presets")
     p.set_defaults(func=cmd_presets)
@@ -405,6 +459,120 @@ def cmd_check(args) -> int:
     if failed:
         _print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
         return EXIT_USER_ERROR
+    return 0
+
+
+class _BatchProgress:
+    """A batch's progress bar on stderr while attached to a terminal; failures are always printed, one line each."""
+
+    WIDTH = 24
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.t0 = time.perf_counter()
+        self.shown = False
+
+    def __call__(self, event) -> None:
+        if event.kind == "failed":
+            self.clear()
+            print(f"lsys3d: {event.job_id} failed: {_one_line(event.error or '')}", file=sys.stderr)
+        if not self.enabled:
+            return
+        finished = event.done + event.failed
+        remaining = event.total - event.skipped - finished
+        elapsed = time.perf_counter() - self.t0
+        eta = f", ETA {_duration(elapsed / finished * remaining)}" if finished and remaining else ""
+        filled = round(self.WIDTH * (finished + event.skipped) / max(event.total, 1))
+        bar = "#" * filled + "." * (self.WIDTH - filled)
+        skipped = f", {event.skipped} skipped" if event.skipped else ""
+        failed = f", {event.failed} failed" if event.failed else ""
+        sys.stderr.write(f"\rlsys3d batch [{bar}] {finished + event.skipped}/{event.total}{failed}{skipped}{eta}\x1b[K")
+        sys.stderr.flush()
+        self.shown = True
+
+    def clear(self) -> None:
+        if self.enabled and self.shown:
+            sys.stderr.write("\r\x1b[K")
+            sys.stderr.flush()
+            self.shown = False
+
+
+def _duration(seconds: float) -> str:
+    seconds = round(seconds)
+    if seconds < 60:
+        return f"{seconds}s"
+    if seconds < 3600:
+        return f"{seconds // 60}m{seconds % 60:02d}s"
+    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m"
+
+
+def cmd_batch(args) -> int:
+    from .batch import batch, plan
+
+    the = plan(args.jobs, args.output, args.shard)
+    if args.dry_run:
+        return _print_plan(the)
+    bar = _BatchProgress(sys.stderr.isatty() and not args.quiet)
+    t0 = time.perf_counter()
+    try:
+        result = batch(
+            the,
+            args.output,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            memory=args.memory,
+            library=not args.no_library,
+            progress=bar,
+        )
+    finally:
+        bar.clear()
+    total = len(result.done) + len(result.skipped) + len(result.failed)
+    if not args.quiet:
+        print(
+            f"{total} jobs: {len(result.done)} done, {len(result.skipped)} skipped, {len(result.failed)} failed "
+            f"({time.perf_counter() - t0:.1f} s); manifest {result.manifest}"
+        )
+        if result.library:
+            print(f"library {result.library}: {result.library_variants} assets")
+    if result.failed:
+        shown = ", ".join(result.failed[:10]) + (
+            f" and {len(result.failed) - 10} more" if len(result.failed) > 10 else ""
+        )
+        print(f"lsys3d: error: {len(result.failed)} of {total} jobs failed: {shown}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    return 0
+
+
+def _print_plan(the) -> int:
+    skipped = set(the.skipped)
+    width = max((len(job.id) for job in the.jobs), default=2)
+    for job in the.jobs:
+        if job.id in skipped:
+            what = "done, skip"
+        elif job.grammar_error:
+            what = f"fails: {_one_line(job.grammar_error)}"
+        else:
+            size = the.size_of(job)
+            what = (
+                f"run  {size.modules:,} modules, {size.segments:,} segments, ~{size.tube_triangles:,} tube "
+                f"triangles, ~{size.bytes / 1e6:,.0f} MB"
+            )
+        print(f"{job.id:<{width}}  {' '.join(job.paths)}  {what}")
+    print(f"{len(the.jobs)} jobs: {len(the.to_run)} to run, {len(the.skipped)} done")
+    return 0
+
+
+def cmd_forest(args) -> int:
+    from .forest import forest
+
+    options = from_arguments(ForestOptions, args).replace(species=tuple(args.species))
+    t0 = time.perf_counter()
+    path = forest(args.library, args.output, options)
+    if not args.quiet:
+        width, depth = options.area
+        _print(
+            f"wrote {path}: {options.count:,} instances on {width:g} x {depth:g} m ({time.perf_counter() - t0:.1f} s)"
+        )
     return 0
 
 

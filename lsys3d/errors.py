@@ -9,8 +9,10 @@ from __future__ import annotations
 import re
 
 __all__ = [
+    "BatchError",
     "DerivationError",
     "ExportError",
+    "ForestError",
     "GeometryError",
     "GoldenError",
     "GrammarError",
@@ -138,3 +140,36 @@ class PreviewError(LSystemError):
 
 class GoldenError(LSystemError):
     """A golden file that cannot be read or used (the message names the file)."""
+
+
+class BatchError(LSystemError, ValueError):
+    """A jobs file that cannot be read, or a batch that cannot run: the message starts ``file:line:col:``.
+
+    Jobs that fail (a grammar that does not parse, a limit hit, a lost worker)
+    are not errors of the batch: they are recorded in its manifest.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong.
+    source : str
+        The jobs file (or the output folder).
+    line, col : int
+        1-based position of the offending value, when known.
+    """
+
+    def __init__(self, message: str, source: str = "<jobs>", line: int | None = None, col: int | None = None):
+        self.reason = message
+        self.source = source
+        self.line = line
+        self.col = col
+        where = source
+        if line is not None:
+            where += f":{line}"
+            if col is not None:
+                where += f":{col}"
+        super().__init__(f"{where}: {message}")
+
+
+class ForestError(LSystemError):
+    """A library that cannot be read or a forest that cannot be scattered (the message names the file)."""

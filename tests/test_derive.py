@@ -15,6 +15,7 @@ from invariants import balanced
 
 import lsys3d
 from lsys3d import DerivationError, Grammar, LimitError, derive, generations, load_preset, predict_length
+from lsys3d.derive import predict_counts
 from lsys3d.modules import ModuleString, format_number
 
 
@@ -87,6 +88,23 @@ def test_d0l_lengths_equal_the_parikh_count(name):
         assert [result.count(s) for s in symbols] == list(parikh)
         assert lsys3d.predict_length(g, n) == len(result)
         parikh = parikh.dot(growth)
+
+
+@pytest.mark.parametrize("name", [p for p in lsys3d.list_presets() if predict_length(load_preset(p)) is not None])
+def test_predicted_symbol_counts_are_the_derived_counts(name):
+    g = load_preset(name)
+    for n in range(min(g.iterations, 6) + 1):
+        result = derive(g, n)
+        counts = predict_counts(g, n)
+        assert all(counts[s] == result.count(s) for s in counts)
+        assert sum(counts.values()) == len(result) == predict_length(g, n)
+
+
+def test_predicted_counts_saturate_and_refuse_what_they_cannot_know():
+    assert predict_counts(Grammar(axiom="A", rules=["A -> AB", "B -> A"]), 10) == {"A": 89, "B": 55}
+    assert predict_counts(Grammar(axiom="A", rules=["A -> AA"]), 5000) == {"A": 2**53}  # float64: capped where inexact
+    assert predict_counts(load_preset("koch-stochastic")) is None
+    assert predict_counts(load_preset("context-1.31a")) is None
 
 
 def test_both_engines_agree_on_d0l_grammars():

@@ -35,7 +35,7 @@ from ..version import __version__
 from .atomic import atomic_path, check_target, write_bytes, write_chunks
 from .common import ExportOptions, MeshArrays, decompose_transforms, gather_mesh, metadata_json, to_float32
 
-__all__ = ["write_glb", "write_gltf"]
+__all__ = ["check_options", "write_glb", "write_gltf"]
 
 FLOAT, UNSIGNED_SHORT, UNSIGNED_INT = 5126, 5123, 5125
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
@@ -153,13 +153,18 @@ def _skeleton_lines(tree: Tree) -> tuple[np.ndarray, np.ndarray] | None:
     return points, pairs
 
 
-def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer]:
-    """Gather ``tree`` into a glTF JSON document and its binary buffer (not yet serialised)."""
+def check_options(options: ExportOptions, where: str) -> None:
+    """Refuse options glTF cannot honour: it is always metres and Y up."""
     if options.units != "m" or options.up_axis != "Y":
         raise ExportError(
             f"{where}: glTF is always metres and Y up; units={options.units!r} and "
             f"up_axis={options.up_axis!r} apply to USD (.usda/.usdc/.usdz) only"
         )
+
+
+def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer]:
+    """Gather ``tree`` into a glTF JSON document and its binary buffer (not yet serialised)."""
+    check_options(options, where)
     eye = np.eye(3)
     buf = _Buffer()
     meshes, nodes, materials = [], [{"name": tree.name, "children": []}], []
