@@ -36,6 +36,7 @@ __all__ = [
     "SEAM_TOLERANCE",
     "Attribute",
     "AttributeOptions",
+    "attributes_markdown",
     "bark_attributes",
     "branch_table",
     "branch_values",
@@ -299,23 +300,28 @@ def bark_attributes(points: np.ndarray, skeleton: Skeleton, h: Hierarchy, keys=K
     return {k: values[k] for k in keys}
 
 
-def with_attributes(
-    bark: Mesh, skeleton: Skeleton, h: Hierarchy, options: AttributeOptions, bulge: float = 0.0
-) -> Mesh:
-    """The attributes stage: ``bark`` with the attributes of its vertices that ``options`` asks for.
+def with_attributes(bark: Mesh, skeleton: Skeleton, h: Hierarchy, keys=KEYS, bulge: float = 0.0) -> Mesh:
+    """The attributes stage: ``bark`` with the attributes ``keys`` of its vertices (:data:`KEYS` by default).
 
     Examples
     --------
     >>> import lsys3d
     >>> from lsys3d.hierarchy import hierarchy
     >>> tree = lsys3d.generate("abop-1.24a", iterations=1, sides=4)
-    >>> full = with_attributes(tree.bark, tree.skeleton, hierarchy(tree.skeleton), AttributeOptions("full"))
+    >>> full = with_attributes(tree.bark, tree.skeleton, hierarchy(tree.skeleton))
     >>> sorted(full.attributes) == sorted(KEYS), full.attributes["pivot"].shape == (len(full.vertices), 3)
     (True, True)
-    >>> compact = with_attributes(tree.bark, tree.skeleton, hierarchy(tree.skeleton), AttributeOptions("compact"))
+    >>> compact = with_attributes(tree.bark, tree.skeleton, hierarchy(tree.skeleton), AttributeOptions("compact").keys)
     >>> sorted(compact.attributes)
     ['branch_id', 'branch_t']
     """
-    if not len(bark.vertices) or not options.enabled:
+    if not len(bark.vertices) or not keys:
         return bark
-    return bark.with_attributes(bark_attributes(bark.vertices, skeleton, h, options.keys, bulge))
+    return bark.with_attributes(bark_attributes(bark.vertices, skeleton, h, keys, bulge))
+
+
+def attributes_markdown() -> str:
+    """The attribute table of ``docs/engines.md`` (the tests check the page holds it)."""
+    rows = ["| name (USD `primvars:<name>`) | per | meaning |", "|---|---|---|"]
+    rows += [f"| `{a.usd}` | {'branch' if a.per_branch else 'vertex'} | {a.description} |" for a in ATTRIBUTES]
+    return "\n".join(rows) + "\n"

@@ -163,6 +163,10 @@ class Mesh:
         """A copy with these per-vertex attributes added (arrays are shared, not copied)."""
         return replace(self, attributes={**self.attributes, **attributes})
 
+    def keeping(self, keys) -> Mesh:
+        """A copy with only the attributes ``keys`` (of those it has)."""
+        return replace(self, attributes={k: a for k, a in self.attributes.items() if k in keys})
+
     # ---------------------------------------------------------------- measures
     @property
     def is_empty(self) -> bool:

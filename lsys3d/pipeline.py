@@ -3,7 +3,7 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> color -> attributes -> leaves
+    derive -> interpret -> sweep -> union -> color -> attributes -> leaves -> rig
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from . import bark as bark_stage
-from .attributes import AttributeOptions, with_attributes
+from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
 from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import GeometryError
 from .grammar import Grammar
@@ -26,6 +26,7 @@ from .modules import ModuleString
 from .options import Options, option
 from .presets import load
 from .provenance import Provenance
+from .rig import SKIN_KEYS, RigOptions, bind, build_rig
 from .skeleton import Skeleton
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
@@ -36,7 +37,7 @@ __all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage
 
 log = logging.getLogger("lsys3d")
 
-STAGES = ("derive", "interpret", "sweep", "union", "color", "attributes", "leaves")
+STAGES = ("derive", "interpret", "sweep", "union", "color", "attributes", "leaves", "rig")
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
 
@@ -74,6 +75,8 @@ class GenerateOptions(Options):
         Bark colour variation written as vertex colours after the union.
     attributes : AttributeOptions
         Hierarchy and wind attributes on the bark's vertices and the leaves (off by default).
+    rig : RigOptions
+        Joints along the branches and the skin that binds bark and leaves to them (off by default).
 
     Every field below these has a flat name (``sides``, ``union``,
     ``max_modules``, ``bark_color_variation``...) for :meth:`from_flat`,
@@ -86,6 +89,7 @@ class GenerateOptions(Options):
     union: UnionOptions = option(factory=UnionOptions, help="the union")
     color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
     attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
+    rig: RigOptions = option(factory=RigOptions, help="the rig")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
@@ -200,11 +204,20 @@ def generate(
     else:
         bark = stage("union", concatenate, tubes)
     bark = stage("color", bark_stage.color, bark, options.color, BARK.base_color, seed)
-    branches = hierarchy(skeleton, seed) if options.attributes.enabled else None
+    wanted = options.attributes.keys
+    # the rig binds by branch and t, so it needs those two whatever the attributes' layout
+    keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
+    branches = hierarchy(skeleton, seed) if keys else None
     if branches is not None:
         bulge = options.sweep.bark_displacement
-        bark = stage("attributes", with_attributes, bark, skeleton, branches, options.attributes, bulge)
-    leaves = stage("leaves", build_leaves, skeleton, hierarchy=branches, attributes=options.attributes.keys)
+        bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
+    leaves = stage("leaves", build_leaves, skeleton, hierarchy=branches, attributes=keys)
+    rig = None
+    if options.rig.enabled:
+        rig = build_rig(branches, skeleton, options.rig)
+        bark, leaves = stage("rig", bind, bark, leaves, rig, branches)
+        if keys != wanted:  # the rig's own use of them: not the user's attributes
+            bark, leaves = _keep(bark, leaves, wanted + SKIN_KEYS)
     counts = StageCounts(
         modules=len(modules),
         segments=len(skeleton),
@@ -220,5 +233,16 @@ def generate(
         counts=counts,
         unioned=options.union.enabled,
         modules=modules,
-        hierarchy=branches,
+        hierarchy=branches if options.attributes.enabled else None,
+        rig=rig,
     )
+
+
+def _keep(bark: Mesh, leaves, keys):
+    """``bark`` and ``leaves`` with only the attributes ``keys``."""
+    from dataclasses import replace
+
+    merged = leaves.merged.keeping(keys) if leaves.merged is not None else None
+    polygons = leaves.polygons.keeping(keys) if leaves.polygons is not None else None
+    instance = {k: a for k, a in leaves.instance_attributes.items() if k in keys}
+    return bark.keeping(keys), replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance)

@@ -17,6 +17,7 @@ from .materials import BARK, LEAF, Material
 from .mesh import Mesh
 from .modules import ModuleString
 from .provenance import DEFAULT_NAME, Provenance, asset_identifier
+from .rig import Rig
 from .skeleton import Skeleton
 
 __all__ = ["BARK", "LEAF", "Material", "StageCounts", "Tree"]
@@ -61,6 +62,9 @@ class Tree:
     hierarchy : Hierarchy or None
         The branch hierarchy, when the tree carries hierarchy and wind
         attributes (the writers write its per-branch table).
+    rig : Rig or None
+        The joints, when the tree is rigged; the bark and the merged leaves
+        then carry their skins (:data:`lsys3d.rig.SKIN_KEYS`).
     """
 
     bark: Mesh
@@ -73,6 +77,7 @@ class Tree:
     bark_material: Material = BARK
     leaf_material: Material = LEAF
     hierarchy: Hierarchy | None = None
+    rig: Rig | None = None
 
     @property
     def name(self) -> str:

@@ -173,3 +173,10 @@ def test_presets_with_attributes_pass_the_judges(name, tmp_path):
     assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0
     usd = export(tree, tmp_path / f"{name}.usdc")
     assert validators.usd_problems(usd) == []
+
+
+def test_the_docs_table_is_the_attribute_table():
+    from lsys3d.attributes import attributes_markdown
+
+    text = (validators.REPO / "docs" / "engines.md").read_text(encoding="utf-8")
+    assert attributes_markdown() in text

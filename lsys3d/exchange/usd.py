@@ -36,11 +36,12 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
+from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, UsdShade, UsdSkel, Vt
 
 from ..attributes import ATTRIBUTES, branch_table
 from ..errors import ExportError
 from ..materials import Material
+from ..rig import INFLUENCES
 from ..tree import Tree
 from ..version import __version__
 from .atomic import atomic_path, check_target, scratch_path, write_bytes, write_failure
@@ -216,7 +217,7 @@ def _names(materials: list[Material]) -> list[str]:
 
 def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> Usd.Stage:
     """Build the tree's stage in memory (see the module docstring for its layout)."""
-    stage, prim = _new_stage(options, tree.identifier)
+    stage, prim = _new_stage(options, tree.identifier, tree.rig is not None)
     _author_tree(stage, prim, tree, options, where)
     return stage
 
@@ -236,7 +237,7 @@ def build_variant_stage(
     bad = [n for n in names if not Tf.IsValidIdentifier(n)]
     if bad or len(set(names)) != len(names):
         raise ExportError(f"{where}: variant names must be distinct identifiers, not {list(names)!r}")
-    stage, prim = _new_stage(options, trees[0].identifier)
+    stage, prim = _new_stage(options, trees[0].identifier, any(t.rig is not None for t in trees))
     variants = prim.GetVariantSets().AddVariantSet(VARIANT_SET)
     for name, tree in zip(names, trees, strict=True):
         variants.AddVariant(name)
@@ -247,12 +248,15 @@ def build_variant_stage(
     return stage
 
 
-def _new_stage(options: ExportOptions, name: str) -> tuple[Usd.Stage, Usd.Prim]:
-    """An in-memory stage with its axis, units and the root component ``/<name>`` (the default prim)."""
+def _new_stage(options: ExportOptions, name: str, rigged: bool = False) -> tuple[Usd.Stage, Usd.Prim]:
+    """An in-memory stage with its axis, units and the root component ``/<name>`` (the default prim).
+
+    A rigged tree's root is a ``SkelRoot``, so its skeleton and skinned meshes are one skeletal asset.
+    """
     stage = Usd.Stage.CreateInMemory()
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z if options.up_axis == "Z" else UsdGeom.Tokens.y)
     UsdGeom.SetStageMetersPerUnit(stage, options.meters_per_unit)
-    root = UsdGeom.Xform.Define(stage, f"/{name}")
+    root = (UsdSkel.Root if rigged else UsdGeom.Xform).Define(stage, f"/{name}")
     prim = root.GetPrim()
     stage.SetDefaultPrim(prim)
     Usd.ModelAPI(prim).SetKind(Kind.Tokens.component)
@@ -272,13 +276,15 @@ def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOp
     UsdGeom.Xform.Define(stage, geom)
     UsdGeom.Scope.Define(stage, looks)
     bark_name, leaf_name = _names([tree.bark_material, tree.leaf_material])
+    skeleton = _rig(stage, f"{root}/Rig", tree, frame, where) if tree.rig is not None else None
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
         bark = gather_mesh(tree.bark, frame, f"{where}: bark")
         bark_material = _material(stage, looks, bark_name, tree.bark_material, vertex_colors=bark.colors is not None)
-        _mesh(stage, f"{geom}/bark", bark, bark_material, tree.bark_material.double_sided)
+        mesh = _mesh(stage, f"{geom}/bark", bark, bark_material, tree.bark_material.double_sided)
+        _bind(mesh, bark, skeleton)
 
     leaves = tree.leaves
-    instanced = options.instance_leaves is not False and leaves.instanced
+    instanced = options.instance_leaves is not False and leaves.instanced and skeleton is None  # skinned: merged
     has_polygons = leaves.polygons is not None and len(leaves.polygons.faces) > 0
     # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
     merged = leaves.merged if leaves.merged is not None else leaves.polygons
@@ -293,13 +299,49 @@ def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOp
                 _mesh(stage, f"{geom}/leaf_polygons", polygons, leaf_material, double)
         else:
             arrays = gather_mesh(merged, frame, f"{where}: leaves")
-            _mesh(stage, f"{geom}/leaf", arrays, leaf_material, double)
+            _bind(_mesh(stage, f"{geom}/leaf", arrays, leaf_material, double), arrays, skeleton)
 
     if tree.hierarchy is not None and len(tree.hierarchy):
         _branch_table(prim, tree, frame)
 
     if options.skeleton_curves:
         _skeleton(stage, f"{geom}/skeleton", tree, frame)
+
+
+def _rig(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, where: str) -> UsdSkel.Skeleton:
+    """The tree's joints as a ``Skeleton``: joint paths, bind (world) and rest (local) transforms, in the file frame."""
+    rig = tree.rig
+    names = []
+    for i, name in enumerate(rig.names):  # parents come first, so their paths are known
+        up = int(rig.parent[i])
+        names.append(name if up < 0 else f"{names[up]}/{name}")
+    world = to_float32(rig.position @ frame.T, "joint positions", where).astype(np.float64)
+    local = world.copy()
+    has = rig.parent >= 0
+    local[has] -= world[rig.parent[has]]
+
+    def translations(points):
+        return Vt.Matrix4dArray([Gf.Matrix4d(1.0).SetTranslate(Gf.Vec3d(*map(float, p))) for p in points])
+
+    skeleton = UsdSkel.Skeleton.Define(stage, path)
+    skeleton.CreateJointsAttr(Vt.TokenArray(names))
+    skeleton.CreateJointNamesAttr(Vt.TokenArray(list(rig.names)))
+    skeleton.CreateBindTransformsAttr(translations(world))
+    skeleton.CreateRestTransformsAttr(translations(local))
+    return skeleton
+
+
+def _bind(mesh: UsdGeom.Mesh, arrays: MeshArrays, skeleton: UsdSkel.Skeleton | None) -> None:
+    """Bind a mesh to the skeleton with its skin (4 joints a point; nothing without a rig or a skin)."""
+    if skeleton is None or "skin_joints" not in arrays.attributes:
+        return
+    binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
+    binding.CreateSkeletonRel().SetTargets([skeleton.GetPath()])
+    joints = np.ascontiguousarray(arrays.attributes["skin_joints"], np.int32).reshape(-1)
+    weights = np.ascontiguousarray(arrays.attributes["skin_weights"], np.float32).reshape(-1)
+    binding.CreateJointIndicesPrimvar(False, INFLUENCES).Set(Vt.IntArray.FromNumpy(joints))
+    binding.CreateJointWeightsPrimvar(False, INFLUENCES).Set(Vt.FloatArray.FromNumpy(weights))
+    binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
 
 
 def write_usd(tree: Tree, path: Path, options: ExportOptions) -> Path:
