@@ -43,7 +43,19 @@ MAX_PARAMETERS = 32
 _RESERVED = set("(),:=")
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z_0-9]*\Z")
 _SURROGATE = re.compile("[\ud800-\udfff]")
-_KEYS = {"name", "description", "axiom", "rules", "iterations", "angle", "seed", "ignore", "defines", "turtle"}
+_KEYS = {
+    "name",
+    "description",
+    "axiom",
+    "rules",
+    "iterations",
+    "angle",
+    "seed",
+    "ignore",
+    "defines",
+    "turtle",
+    "materials",
+}
 
 # maps an offset in a piece of text to (line, col); line None when unknown
 Where = Callable[[int], tuple[int | None, int | None]]
@@ -126,6 +138,7 @@ class Grammar:
     ignore: str = ""
     defines: Mapping[str, float] = field(default_factory=dict)
     turtle: Mapping[str, object] = field(default_factory=dict)
+    materials: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
     # parsed, filled in by __post_init__
@@ -138,7 +151,7 @@ class Grammar:
         if isinstance(self.rules, str):
             raise GrammarError("'rules' must be a list of rule strings, not one string", self.source)
         set_ = object.__setattr__
-        for key in ("defines", "turtle"):
+        for key in ("defines", "turtle", "materials"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         if not isinstance(self.rules, (list, tuple)):
@@ -154,6 +167,7 @@ class Grammar:
             MappingProxyType(_check_defines(dict(self.defines), self.source, self._where.get("defines"))),
         )
         set_(self, "turtle", MappingProxyType(dict(self.turtle)))
+        set_(self, "materials", MappingProxyType(dict(self.materials)))
         self._check_scalars()
         where_axiom = self._where.get("axiom") or _api_where("axiom")
         if not self.axiom.strip():
@@ -226,7 +240,7 @@ class Grammar:
             )
         if "axiom" not in data:
             raise GrammarError("missing 'axiom' (the start string, e.g. axiom = \"F\")", source, 1, 1)
-        for key, kind in (("rules", list), ("defines", dict), ("turtle", dict)):
+        for key, kind in (("rules", list), ("defines", dict), ("turtle", dict), ("materials", dict)):
             if key in data and not isinstance(data[key], kind):
                 line = _key_line(text, key)
                 raise GrammarError(
@@ -282,6 +296,7 @@ class Grammar:
                 "ignore",
                 "defines",
                 "turtle",
+                "materials",
                 "source",
                 "text",
             )
@@ -348,6 +363,22 @@ def _toml_error(exc: tomllib.TOMLDecodeError, source: str) -> GrammarError:
     m = re.search(r"\(at end of document\)", msg)
     reason = msg[: m.start()].strip() if m else msg
     return GrammarError(f"TOML syntax error: {reason} (at end of file)", source)
+
+
+def table_key_line(text: str, table: str, key: str) -> int | None:
+    """Line of ``key`` inside the TOML table ``[table]`` (or of the table itself), for error positions."""
+    start = _key_line(text, table)
+    if start is None:
+        return None
+    lines = text.splitlines()
+    pattern = re.compile(rf"^[ \t]*[\"']?{re.escape(key)}[\"']?[ \t]*=")
+    for number in range(start + 1, len(lines) + 1):
+        line = lines[number - 1]
+        if re.match(r"^[ \t]*\[", line):
+            break
+        if pattern.match(line):
+            return number
+    return start
 
 
 def _key_line(text: str, key: str) -> int | None:

@@ -3,7 +3,7 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> color -> attributes -> leaves -> rig
+    derive -> interpret -> sweep -> union -> color -> materials -> attributes -> leaves -> rig
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from .errors import GeometryError
 from .grammar import Grammar
 from .hierarchy import hierarchy
 from .leaves import leaves as build_leaves
-from .materials import BARK
+from .materials import material_table, with_face_materials
 from .mesh import Mesh
 from .modules import ModuleString
 from .options import Options, option
@@ -37,7 +37,7 @@ __all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage
 
 log = logging.getLogger("lsys3d")
 
-STAGES = ("derive", "interpret", "sweep", "union", "color", "attributes", "leaves", "rig")
+STAGES = ("derive", "interpret", "sweep", "union", "color", "materials", "attributes", "leaves", "rig")
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
 
@@ -185,6 +185,8 @@ def generate(
     def stage(name, fn, *args, **kw):
         return run_stage(name, fn, *args, progress=progress, **kw)
 
+    table = material_table(grammar)  # a bad [materials] table fails before the work
+
     modules, skeleton = draw(grammar, n, seed, options, progress=progress)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
@@ -203,13 +205,15 @@ def generate(
         bark = stage("union", union, tubes, options.union)
     else:
         bark = stage("union", concatenate, tubes)
-    bark = stage("color", bark_stage.color, bark, options.color, BARK.base_color, seed)
+    bark = stage("color", bark_stage.color, bark, options.color, table.bark.base_color, seed)
     wanted = options.attributes.keys
     # the rig binds by branch and t, so it needs those two whatever the attributes' layout
     keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
-    branches = hierarchy(skeleton, seed) if keys else None
-    if branches is not None:
-        bulge = options.sweep.bark_displacement
+    branches = hierarchy(skeleton, seed) if keys or table else None
+    bulge = options.sweep.bark_displacement
+    if table and len(tubes):
+        bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
+    if keys:
         bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
     leaves = stage("leaves", build_leaves, skeleton, hierarchy=branches, attributes=keys)
     rig = None
@@ -235,6 +239,7 @@ def generate(
         modules=modules,
         hierarchy=branches if options.attributes.enabled else None,
         rig=rig,
+        materials=table,
     )
 
 

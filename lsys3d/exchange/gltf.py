@@ -124,7 +124,8 @@ def quantized_weights(weights: np.ndarray) -> np.ndarray:
     return q.astype(np.uint8)
 
 
-def _primitive(buf: _Buffer, arrays: MeshArrays, material: int, joints: int | None = None) -> dict:
+def _vertex_attributes(buf: _Buffer, arrays: MeshArrays, joints: int | None = None) -> dict:
+    """The accessors of a gathered mesh's split vertices, shared by all its primitives."""
     attributes = {
         "POSITION": buf.accessor(arrays.split_points, bounds=True),
         "NORMAL": buf.accessor(arrays.split_normals),
@@ -143,13 +144,22 @@ def _primitive(buf: _Buffer, arrays: MeshArrays, material: int, joints: int | No
         attributes["WEIGHTS_0"] = buf.accessor(
             quantized_weights(arrays.split_attributes["skin_weights"]), normalized=True
         )
-    index = _indices(arrays.split_index, len(arrays.split_points))
-    return {
-        "attributes": attributes,
-        "indices": buf.accessor(index, ELEMENT_ARRAY_BUFFER),
-        "material": material,
-        "mode": TRIANGLES,
-    }
+    return attributes
+
+
+def _primitives(buf: _Buffer, arrays: MeshArrays, groups, joints: int | None = None) -> list[dict]:
+    """One primitive per ``(material index, faces)`` group (faces None: all), sharing the vertex accessors."""
+    attributes = _vertex_attributes(buf, arrays, joints)
+    index = _indices(arrays.split_index, len(arrays.split_points)).reshape(-1, 3)
+    return [
+        {
+            "attributes": attributes,
+            "indices": buf.accessor((index if faces is None else index[faces]).reshape(-1), ELEMENT_ARRAY_BUFFER),
+            "material": material,
+            "mode": TRIANGLES,
+        }
+        for material, faces in groups
+    ]
 
 
 def _material(m: Material) -> dict:
@@ -214,43 +224,66 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         else:
             nodes[0]["children"].append(len(nodes) - 1)
 
+    made: dict[Material, int] = {}
+
     def material_index(m: Material) -> int:
-        materials.append(_material(m))
-        return len(materials) - 1
+        if m not in made:
+            materials.append(_material(m))
+            made[m] = len(materials) - 1
+        return made[m]
+
+    table = tree.materials
+
+    def groups(face_material, material_of, white: bool = False) -> list[tuple[int, np.ndarray | None]]:
+        """(glTF material, faces) of each material index the faces use; one group of all faces without a table."""
+
+        def index_of(m: Material) -> int:  # vertex colours: the colour is COLOR_0, glTF multiplies it by the factor
+            return material_index(replace(m, base_color=(1.0, 1.0, 1.0, m.base_color[3])) if white else m)
+
+        if not table or face_material is None:
+            return [(index_of(material_of(-1)), None)]
+        return [
+            (index_of(material_of(i)), np.flatnonzero(face_material == i)) for i in np.unique(face_material).tolist()
+        ]
 
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
         bark = gather_mesh(tree.bark, eye, f"{where}: bark")
-        material = tree.bark_material
-        if bark.split_colors is not None:  # COLOR_0 is the colour; glTF multiplies it by the factor
-            material = replace(material, base_color=(1.0, 1.0, 1.0, material.base_color[3]))
-        add_node("bark", [_primitive(buf, bark, material_index(material), joints)], skinned=rig is not None)
+        bark_groups = groups(tree.bark.face_material, table.for_bark, white=bark.split_colors is not None)
+        add_node("bark", _primitives(buf, bark, bark_groups, joints), skinned=rig is not None)
 
     leaves = tree.leaves
     instanced = bool(options.instance_leaves) and leaves.instanced and rig is None  # skinned leaves are merged
     if instanced:
-        leaf_mat = material_index(tree.leaf_material)
         model = gather_mesh(leaves.model, eye, f"{where}: leaf_model")
         translation, quaternion, scale = decompose_transforms(leaves.transforms, where)
-        attributes = {
-            "TRANSLATION": buf.accessor(to_float32(translation, "leaf positions", where), target=None),
-            "ROTATION": buf.accessor(quaternion.astype(np.float32), target=None),
-            "SCALE": buf.accessor(to_float32(scale, "leaf sizes", where), target=None),
-        }
-        for name, values in gltf_attributes(leaves.instance_attributes).items():  # the branch each leaf grows from
-            attributes[name] = buf.accessor(values, target=None)
-        add_node("leaf", [_primitive(buf, model, leaf_mat)], {INSTANCING: {"attributes": attributes}})
+        k = len(translation)
+        per_leaf = np.asarray(tree.skeleton.leaf_material, np.int64) if table else np.zeros(0, np.int64)
+        if len(per_leaf) != k:
+            per_leaf = np.zeros(k, np.int64)
+        extra = gltf_attributes(leaves.instance_attributes)  # the branch each leaf grows from
+        for n, i in enumerate(np.unique(per_leaf).tolist()):  # one instanced node per leaf material
+            sel = np.flatnonzero(per_leaf == i) if n or len(np.unique(per_leaf)) > 1 else slice(None)
+            attributes = {
+                "TRANSLATION": buf.accessor(to_float32(translation[sel], "leaf positions", where), target=None),
+                "ROTATION": buf.accessor(quaternion[sel].astype(np.float32), target=None),
+                "SCALE": buf.accessor(to_float32(scale[sel], "leaf sizes", where), target=None),
+            }
+            for name, values in extra.items():
+                attributes[name] = buf.accessor(np.ascontiguousarray(values[sel]), target=None)
+            primitives = _primitives(buf, model, [(material_index(table.for_leaf(i)), None)])
+            add_node("leaf" if n == 0 else f"leaf_{i}", primitives, {INSTANCING: {"attributes": attributes}})
         extensions_used.append(INSTANCING)
         if leaves.polygons is not None and len(leaves.polygons.faces):
             polygons = gather_mesh(leaves.polygons, eye, f"{where}: polygon_leaves")
-            add_node("leaf_polygons", [_primitive(buf, polygons, leaf_mat)])
+            add_node("leaf_polygons", _primitives(buf, polygons, groups(leaves.polygons.face_material, table.for_leaf)))
     else:
         # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
         merged = leaves.merged if leaves.merged is not None else leaves.polygons
         if merged is not None and len(merged.faces):
             arrays = gather_mesh(merged, eye, f"{where}: leaves")
             skinned = rig is not None and "skin_joints" in merged.attributes
-            primitive = _primitive(buf, arrays, material_index(tree.leaf_material), joints if skinned else None)
-            add_node("leaf", [primitive], skinned=skinned)
+            leaf_groups = groups(merged.face_material, table.for_leaf)
+            add_node("leaf", _primitives(buf, arrays, leaf_groups, joints if skinned else None), skinned=skinned)
 
     if tree.hierarchy is not None and len(tree.hierarchy):
         # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.attributes)

@@ -33,6 +33,7 @@ import os
 import struct
 import zlib
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -97,6 +98,43 @@ def _material(stage: Usd.Stage, looks: str, name: str, m: Material, vertex_color
         shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(a)
     material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
     return material
+
+
+class _Looks:
+    """The stage's materials under ``Looks``, each authored once however many meshes use it (names kept distinct)."""
+
+    def __init__(self, stage: Usd.Stage, path: str):
+        self.stage, self.path = stage, path
+        self.made: dict[tuple[Material, bool], UsdShade.Material] = {}
+        self.names: set[str] = set()
+
+    def get(self, m: Material, vertex_colors: bool = False) -> UsdShade.Material:
+        key = (replace(m, double_sided=False), vertex_colors)  # in USD sidedness belongs to the mesh
+        if key not in self.made:
+            name = base = Tf.MakeValidIdentifier(m.name or "material")
+            i = 1
+            while name in self.names:
+                i += 1
+                name = f"{base}_{i}"
+            self.names.add(name)
+            self.made[key] = _material(self.stage, self.path, name, m, vertex_colors)
+        return self.made[key]
+
+
+def _subsets(mesh: UsdGeom.Mesh, face_material: np.ndarray | None, material_of, looks: _Looks, colors: bool) -> None:
+    """One ``GeomSubset`` (family ``materialBind``) per material index of the faces, each bound to its material."""
+    if face_material is None:
+        return
+    indices = np.unique(face_material)
+    if len(indices) < 2 and material_of(int(indices[0])) == material_of(-1):
+        return  # one material, the mesh's own
+    for index in indices.tolist():
+        faces = np.flatnonzero(face_material == index).astype(np.int32)
+        subset = UsdGeom.Subset.CreateGeomSubset(
+            mesh, f"material_{index}", UsdGeom.Tokens.face, Vt.IntArray.FromNumpy(faces), "materialBind"
+        )
+        UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(looks.get(material_of(index), colors))
+    UsdGeom.Subset.SetFamilyType(mesh, "materialBind", UsdGeom.Tokens.partition)
 
 
 def _mesh(stage: Usd.Stage, path: str, arrays: MeshArrays, material: UsdShade.Material, double_sided: bool):
@@ -179,16 +217,25 @@ def _skeleton(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray) -> Non
     curves.CreateExtentAttr(UsdGeom.Curves.ComputeExtent(pts, w))
 
 
-def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, material, where: str) -> None:
+def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, looks: _Looks, where: str) -> None:
+    """Leaves as a ``PointInstancer``: one prototype of the leaf model per leaf material used."""
     instancer = UsdGeom.PointInstancer.Define(stage, path)
     UsdGeom.Scope.Define(stage, f"{path}/Prototypes")
     model = gather_mesh(tree.leaves.model, np.eye(3), f"{where}: leaf_model")
-    proto = _mesh(stage, f"{path}/Prototypes/leaf_model", model, material, tree.leaf_material.double_sided)
-    instancer.CreatePrototypesRel().SetTargets([proto.GetPath()])
+    k = len(tree.leaves.transforms)
+    index = np.asarray(tree.skeleton.leaf_material, np.int64) if tree.materials else np.zeros(0, np.int64)
+    if len(index) != k:
+        index = np.zeros(k, np.int64)
+    used, proto_index = np.unique(index, return_inverse=True)
+    prototypes = []
+    for n, i in enumerate(used.tolist()):
+        m = tree.materials.for_leaf(i)
+        name = "leaf_model" if n == 0 else f"leaf_model_{i}"
+        prototypes.append(_mesh(stage, f"{path}/Prototypes/{name}", model, looks.get(m), m.double_sided).GetPath())
+    instancer.CreatePrototypesRel().SetTargets(prototypes)
     transforms = frame_transforms(tree.leaves.transforms, frame)
     translation, quaternion, scale = decompose_transforms(transforms, where)
-    k = len(translation)
-    instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(np.zeros(k, np.int32)))
+    instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(proto_index.reshape(-1).astype(np.int32)))
     instancer.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(to_float32(translation, "leaf positions", where)))
     # Gf.Quath is stored imaginary-first, so (x, y, z, w) rows are its memory layout
     instancer.CreateOrientationsAttr(Vt.QuathArray.FromNumpy(quaternion.astype(np.float16)))
@@ -200,19 +247,6 @@ def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, 
     _attribute_primvars(UsdGeom.PrimvarsAPI(instancer), per_instance)
     extent = instancer.ComputeExtentAtTime(Usd.TimeCode.Default(), Usd.TimeCode.Default())
     instancer.CreateExtentAttr(extent)
-
-
-def _names(materials: list[Material]) -> list[str]:
-    """Valid, distinct prim names for the materials."""
-    out = []
-    for m in materials:
-        name = Tf.MakeValidIdentifier(m.name or "material")
-        base, i = name, 1
-        while name in out:
-            i += 1
-            name = f"{base}_{i}"
-        out.append(name)
-    return out
 
 
 def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> Usd.Stage:
@@ -275,12 +309,15 @@ def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOp
     )
     UsdGeom.Xform.Define(stage, geom)
     UsdGeom.Scope.Define(stage, looks)
-    bark_name, leaf_name = _names([tree.bark_material, tree.leaf_material])
+    shading = _Looks(stage, looks)
+    table = tree.materials
     skeleton = _rig(stage, f"{root}/Rig", tree, frame, where) if tree.rig is not None else None
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
         bark = gather_mesh(tree.bark, frame, f"{where}: bark")
-        bark_material = _material(stage, looks, bark_name, tree.bark_material, vertex_colors=bark.colors is not None)
-        mesh = _mesh(stage, f"{geom}/bark", bark, bark_material, tree.bark_material.double_sided)
+        colors = bark.colors is not None
+        mesh = _mesh(stage, f"{geom}/bark", bark, shading.get(table.bark, colors), table.bark.double_sided)
+        if table:
+            _subsets(mesh, tree.bark.face_material, table.for_bark, shading, colors)
         _bind(mesh, bark, skeleton)
 
     leaves = tree.leaves
@@ -289,17 +326,20 @@ def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOp
     # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
     merged = leaves.merged if leaves.merged is not None else leaves.polygons
     has_merged = merged is not None and len(merged.faces) > 0
-    if instanced or has_merged:
-        leaf_material = _material(stage, looks, leaf_name, tree.leaf_material)
-        double = tree.leaf_material.double_sided
-        if instanced:
-            _leaf_instancer(stage, f"{geom}/leaf", tree, frame, leaf_material, where)
-            if has_polygons:
-                polygons = gather_mesh(leaves.polygons, frame, f"{where}: polygon_leaves")
-                _mesh(stage, f"{geom}/leaf_polygons", polygons, leaf_material, double)
-        else:
-            arrays = gather_mesh(merged, frame, f"{where}: leaves")
-            _bind(_mesh(stage, f"{geom}/leaf", arrays, leaf_material, double), arrays, skeleton)
+    leaf_default = table.for_leaf(-1)
+    if instanced:
+        _leaf_instancer(stage, f"{geom}/leaf", tree, frame, shading, where)
+        if has_polygons:
+            polygons = gather_mesh(leaves.polygons, frame, f"{where}: polygon_leaves")
+            mesh = _mesh(stage, f"{geom}/leaf_polygons", polygons, shading.get(leaf_default), True)
+            if table:
+                _subsets(mesh, leaves.polygons.face_material, table.for_leaf, shading, False)
+    elif has_merged:
+        arrays = gather_mesh(merged, frame, f"{where}: leaves")
+        mesh = _mesh(stage, f"{geom}/leaf", arrays, shading.get(leaf_default), True)
+        if table:
+            _subsets(mesh, merged.face_material, table.for_leaf, shading, False)
+        _bind(mesh, arrays, skeleton)
 
     if tree.hierarchy is not None and len(tree.hierarchy):
         _branch_table(prim, tree, frame)
