@@ -4,6 +4,9 @@
 # Pictures, rendered by Blender from .venv-bpy:
 #   make preview   a picture of the default tree, tree.png
 #   make gallery   regenerate docs/gallery.md and docs/gallery/
+# For developers:
+#   make lint      ruff check and ruff format --check (make format fixes what it can)
+#   make bench     every benchmark in benchmarks/ (prints ratios against baselines measured in the same run)
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -14,12 +17,14 @@ BPY_VENV := .venv-bpy
 BPY_STAMP := $(BPY_VENV)/.installed
 BPY_VERSION := 5.0.1
 
-.PHONY: demo preview gallery test lint format validators clean
+.PHONY: demo preview gallery test lint format bench validators clean
 
+# pip's and the build backend's chatter (setuptools notes on editable installs) goes to a log,
+# shown only when the install fails, so a new user's first screen is the tree, not warnings.
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test]'
+	$(BIN)/pip install --quiet --upgrade pip > $(VENV)/install.log 2>&1 || { cat $(VENV)/install.log; exit 1; }
+	$(BIN)/pip install --quiet -e '.[test]' >> $(VENV)/install.log 2>&1 || { cat $(VENV)/install.log; exit 1; }
 	touch $(STAMP)
 
 # The Khronos glTF-Validator, pinned in package.json / package-lock.json.
@@ -28,7 +33,7 @@ node_modules/.package-lock.json: package.json package-lock.json
 
 $(BPY_STAMP):
 	$(BPY_PYTHON) -m venv $(BPY_VENV)
-	$(BPY_VENV)/bin/pip install --quiet bpy==$(BPY_VERSION)
+	$(BPY_VENV)/bin/pip install --quiet bpy==$(BPY_VERSION) > $(BPY_VENV)/install.log 2>&1 || { cat $(BPY_VENV)/install.log; exit 1; }
 	$(BPY_VENV)/bin/python -c "import bpy" || { echo "bpy does not import: install the X11/GL libraries it links (see README)"; exit 1; }
 	touch $(BPY_STAMP)
 
@@ -43,10 +48,15 @@ preview: $(STAMP) $(BPY_STAMP)
 gallery: $(STAMP) $(BPY_STAMP)
 	LSYS3D_BLENDER=$(BPY_VENV)/bin/python $(BIN)/python docs/make_gallery.py
 
-test: $(STAMP) validators
+lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+
+test: lint validators
 	$(BIN)/pytest
+
+bench: $(STAMP)
+	for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
 
 format: $(STAMP)
 	$(BIN)/ruff check --fix .

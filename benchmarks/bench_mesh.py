@@ -20,11 +20,11 @@ above ``--naive-cap`` segments.  Numbers are best of ``--repeat`` runs.
 from __future__ import annotations
 
 import argparse
-import time
 
 import manifold3d
 import numpy as np
 import trimesh
+from timing import best_of
 
 from lsys3d.skeleton import Skeleton
 from lsys3d.sweep import SweepOptions, sweep
@@ -76,29 +76,8 @@ def random_tree(n: int, seed: int = 0) -> Skeleton:
                 cd = _rotate(d[None], _perp(d[None], rng), np.radians(rng.uniform(30, 65, 1)))[0]
                 queue.append((q, cd, widths[i + 1] * 0.65, step * 0.8, o + 1, par))
             p = q
-    return skeleton_from(np.array(start), np.array(end), np.array(w0), np.array(w1), np.array(parent), np.array(order))
-
-
-def skeleton_from(start, end, w0, w1, parent, order) -> Skeleton:
-    """A Skeleton with turtle frames derived from the segment directions."""
-    n = len(start)
-    h = end - start
-    h = h / np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-300)
-    left = np.cross([0.3, 0.5, 0.81], h)
-    left /= np.linalg.norm(left, axis=1, keepdims=True)
-    return Skeleton(
-        start=start,
-        end=end,
-        width_start=w0,
-        width_end=w1,
-        heading=h,
-        left=left,
-        up=np.cross(h, left),
-        parent=parent.astype(np.int64),
-        order=order.astype(np.int32),
-        material=np.zeros(n, np.int32),
-        module=np.arange(n),
-    )
+    # the left hint of the counts measured before Skeleton.from_segments existed
+    return Skeleton.from_segments(start, end, w0, w1, parent, order, left_hint=(0.3, 0.5, 0.81))
 
 
 def naive(sk: Skeleton, sides: int = 8) -> trimesh.Trimesh:
@@ -114,15 +93,6 @@ def batch(tubes) -> manifold3d.Manifold:
     result = manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add)
     result.num_tri()
     return result
-
-
-def best_of(fn, repeat):
-    best, result = float("inf"), None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        result = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, result
 
 
 def main(argv=None):

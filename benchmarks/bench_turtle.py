@@ -12,6 +12,7 @@ import math
 import time
 
 import numpy as np
+from timing import best_of
 
 from lsys3d import derive, load_preset
 from lsys3d.turtle import TurtleOptions, interpret
@@ -77,15 +78,6 @@ def python_turtle(text: str, angle_deg: float, heading_deg: float = 90.0, step: 
         elif ch == "]":
             pos, hx, hy, hz, lx, ly, lz, ux, uy, uz, last = stack.pop()
     return np.array(starts), np.array(ends), np.array(parents)
-
-
-def best_of(fn, repeat: int) -> tuple[float, object]:
-    best, result = math.inf, None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        result = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, result
 
 
 def main(argv=None) -> None:

@@ -49,7 +49,7 @@ PICTURES_MADE = {
     "fork_bark": (FORK, GenerateOptions(sweep=BARK), "bark_displacement = 0.5 (bark_frequency 5, bark_octaves 4)"),
     "fork_color": (
         FORK,
-        GenerateOptions(sweep=BARK, bark_color_variation=1.0, bark_color_frequency=8.0),
+        GenerateOptions(sweep=BARK).with_flat(bark_color_variation=1.0, bark_color_frequency=8.0),
         "and bark_color_variation = 1 (bark_color_frequency 8)",
     ),
 }

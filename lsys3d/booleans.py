@@ -3,7 +3,7 @@
 This file imports numpy and manifold3d only, so that it also runs as a
 script: ``python booleans.py`` is a union worker that reads jobs from its
 standard input and writes results to its standard output, pickled, until the
-input ends (:mod:`lsys3d.batches` starts and feeds the workers).  A worker
+input ends (:mod:`lsys3d.union_jobs` starts and feeds the workers).  A worker
 needs no part of lsys3d, so it starts in a fraction of a second, and nothing
 of the caller's ``__main__`` is run again in it.
 

@@ -18,22 +18,22 @@ facing ``+y``.  ``leaf_transforms`` has rotation columns left, up, heading,
 each scaled by the leaf size, and the leaf position as translation -- so a
 model of length 1 becomes a leaf one step long.
 
-Every mesh carries the ``corner_normals`` / ``corner_uv`` face attributes of
-:mod:`lsys3d.tree`: the normal is the face normal (leaves are flat), ``uv``
-maps the leaf's box onto [0, 1] x [0, 1].
+Every mesh is a :class:`~lsys3d.mesh.Mesh`: the corner normal is the face
+normal (leaves are flat), ``uv`` maps the leaf's box onto [0, 1] x [0, 1].
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import manifold3d
 import numpy as np
-import trimesh
 
 from .errors import GeometryError
+from .hierarchy import Hierarchy
+from .mesh import Mesh
 from .skeleton import Skeleton
-from .sweep import corner_mesh
 
 __all__ = ["Leaves", "default_leaf", "instance_leaves", "leaf_transforms", "leaves", "polygon_leaves"]
 
@@ -44,23 +44,34 @@ class Leaves:
 
     Attributes
     ----------
-    merged : trimesh.Trimesh or None
-        Polygon leaves plus every instance baked in place; None without leaves.
-    model : trimesh.Trimesh or None
+    merged : Mesh or None
+        Polygon leaves plus every instance baked in place: the fallback for
+        formats without instancing; None without leaves.
+    model : Mesh or None
         The leaf model the transforms place; None without leaf instances.
     transforms : (k, 4, 4) float64
         One transform per leaf instance (see :func:`leaf_transforms`).
-    polygons : trimesh.Trimesh or None
+    polygons : Mesh or None
         The ``{ . }`` polygons; None without polygons.
+    instance_attributes : dict of str to (k,) or (k, 3) float32
+        Per-instance attributes (the hierarchy and wind attributes of
+        :mod:`lsys3d.attributes`; empty unless asked for).  The merged and
+        polygon meshes carry the same attributes per vertex.
     """
 
-    merged: trimesh.Trimesh | None
-    model: trimesh.Trimesh | None
-    transforms: np.ndarray
-    polygons: trimesh.Trimesh | None
+    merged: Mesh | None = None
+    model: Mesh | None = None
+    transforms: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    polygons: Mesh | None = None
+    instance_attributes: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def instanced(self) -> bool:
+        """Whether there are leaf instances (a model and at least one transform)."""
+        return self.model is not None and len(self.transforms) > 0
 
 
-def default_leaf(points: int = 7) -> trimesh.Trimesh:
+def default_leaf(points: int = 7) -> Mesh:
     """The built-in leaf: a pointed oval blade, length 1 along ``+z``, width 0.5 along ``x``.
 
     Parameters
@@ -70,7 +81,7 @@ def default_leaf(points: int = 7) -> trimesh.Trimesh:
 
     Returns
     -------
-    trimesh.Trimesh
+    Mesh
         ``4 * points`` triangles facing ``+y``, with corner normals and uv.
 
     Examples
@@ -103,7 +114,7 @@ def default_leaf(points: int = 7) -> trimesh.Trimesh:
     faces[back] = faces[back][:, ::-1]
     normals = np.broadcast_to(np.array([0.0, 1.0, 0.0], np.float32), (len(faces), 3, 3))
     uv = np.stack([verts[:, 0] / 0.5 + 0.5, verts[:, 2]], axis=1)[faces]
-    return corner_mesh(verts, faces, normals, uv)
+    return Mesh(verts, faces, normals, uv)
 
 
 def leaf_transforms(skeleton: Skeleton) -> np.ndarray:
@@ -123,12 +134,15 @@ def leaf_transforms(skeleton: Skeleton) -> np.ndarray:
     return out
 
 
-def instance_leaves(model: trimesh.Trimesh, transforms: np.ndarray) -> trimesh.Trimesh | None:
+def instance_leaves(
+    model: Mesh, transforms: np.ndarray, attributes: Mapping | None = None, material: np.ndarray | None = None
+) -> Mesh | None:
     """Copies of ``model`` baked in place by each transform (None when there are none).
 
     Corner normals follow the rotation (inverse transpose, renormalised); uv
     are copied.  Transforms with a zero scale give degenerate copies, which
-    are dropped.
+    are dropped.  ``attributes`` (per transform) become per-vertex attributes
+    of the copies, ``material`` (per transform) their faces' material index.
     """
     transforms = np.asarray(transforms, np.float64)
     if transforms.ndim != 3 or transforms.shape[1:] != (4, 4):
@@ -139,15 +153,7 @@ def instance_leaves(model: trimesh.Trimesh, transforms: np.ndarray) -> trimesh.T
     transforms, lin, det = transforms[ok], lin[ok], det[ok]
     if not len(transforms):
         return None
-    verts = np.asarray(model.vertices, np.float64)
-    faces = np.asarray(model.faces, np.int64)
-    attrs = model.face_attributes
-    normals = attrs.get("corner_normals")
-    if normals is None:
-        normals = np.repeat(np.asarray(model.face_normals)[:, None, :], 3, axis=1)
-    uv = attrs.get("corner_uv")
-    if uv is None:
-        uv = np.zeros((len(faces), 3, 2))
+    verts, faces, normals, uv = model.vertices, model.faces, model.normals, model.uv
     k, nv = len(transforms), len(verts)
     world = verts[None] @ lin.transpose(0, 2, 1) + transforms[:, None, :3, 3]
     inv = np.linalg.inv(lin)  # normals transform by the inverse transpose: n' = n @ inv
@@ -156,11 +162,15 @@ def instance_leaves(model: trimesh.Trimesh, transforms: np.ndarray) -> trimesh.T
     wfaces = faces[None] + (np.arange(k) * nv)[:, None, None]
     if (det < 0).any():  # a mirroring transform turns the winding around
         wfaces[det < 0] = wfaces[det < 0][:, :, ::-1]
-    return corner_mesh(
+    per_vertex = {name: np.repeat(np.asarray(a)[ok], nv, axis=0) for name, a in (attributes or {}).items()}
+    per_face = None if material is None else np.repeat(np.asarray(material)[ok], len(faces))
+    return Mesh(
         world.reshape(-1, 3),
         wfaces.reshape(-1, 3),
         wn.reshape(-1, 3, 3),
         np.broadcast_to(np.asarray(uv), (k, *np.shape(uv))).reshape(-1, 3, 2),
+        attributes=per_vertex,
+        face_material=per_face,
     )
 
 
@@ -182,13 +192,14 @@ def _plane_frames(points: np.ndarray, offsets: np.ndarray):
     return normal, x, np.cross(normal, x), area2 * 0.5, poly
 
 
-def polygon_leaves(skeleton: Skeleton) -> trimesh.Trimesh | None:
+def polygon_leaves(skeleton: Skeleton, attributes: Mapping | None = None) -> Mesh | None:
     """The ``{ . }`` polygons of a skeleton as one flat mesh (None when there are none).
 
     Each polygon is projected onto its best-fit plane (Newell normal) and
     triangulated (ear clipping by manifold3d, so concave outlines are fine);
     polygons of zero area are dropped.  Vertices are shared within a polygon,
-    not between polygons.
+    not between polygons.  ``attributes`` (per polygon) become per-vertex
+    attributes.
     """
     offsets = np.asarray(skeleton.polygon_offsets, np.int64)
     points = np.asarray(skeleton.polygon_points, np.float64)
@@ -196,8 +207,8 @@ def polygon_leaves(skeleton: Skeleton) -> trimesh.Trimesh | None:
     keep = counts >= 3
     if not keep.any():
         return None
+    sel = np.flatnonzero(keep)  # the skeleton's polygon of each kept one
     if not keep.all():
-        sel = np.flatnonzero(keep)
         idx = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in sel])
         points, counts = points[idx], counts[sel]
         offsets = np.concatenate([[0], np.cumsum(counts)])
@@ -240,35 +251,60 @@ def polygon_leaves(skeleton: Skeleton) -> trimesh.Trimesh | None:
     used = np.unique(faces)
     remap = np.full(len(points), -1, np.int64)
     remap[used] = np.arange(len(used))
-    return corner_mesh(points[used], remap[faces], normals, uv[faces])
+    per_vertex = {name: np.asarray(a)[sel[poly[used]]] for name, a in (attributes or {}).items()}
+    material = np.asarray(skeleton.polygon_material)[sel[fpoly]] if len(skeleton.polygon_material) else None
+    return Mesh(points[used], remap[faces], normals, uv[faces], attributes=per_vertex, face_material=material)
 
 
-def leaves(skeleton: Skeleton, model: trimesh.Trimesh | None = None) -> Leaves:
+def leaves(
+    skeleton: Skeleton, model: Mesh | None = None, hierarchy: Hierarchy | None = None, attributes=None
+) -> Leaves:
     """Every leaf of a skeleton: polygons, instances (model + transforms) and all merged.
 
     Parameters
     ----------
     skeleton : Skeleton
-    model : trimesh.Trimesh, optional
+    model : Mesh or trimesh.Trimesh, optional
         Leaf model in the convention of this module (default :func:`default_leaf`).
+    hierarchy : Hierarchy, optional
+        The skeleton's branch hierarchy: when given, every leaf carries the
+        attributes of the branch it grows from (:mod:`lsys3d.attributes`), per
+        instance and per vertex.
+    attributes : sequence of str, optional
+        Which attributes (default: all of :data:`lsys3d.attributes.ATTRIBUTES`).
     """
-    polygons = polygon_leaves(skeleton)
+    if model is not None and not isinstance(model, Mesh):
+        model = Mesh.from_trimesh(model)
+    instance_attrs = polygon_attrs = {}
+    if hierarchy is not None:
+        k = len(skeleton.leaf_position)
+        instance_attrs = _grown_from(hierarchy, skeleton.leaf_segment, k, skeleton.leaf_position, attributes)
+        firsts = skeleton.polygon_points[skeleton.polygon_offsets[:-1]] if skeleton.n_polygons else np.zeros((0, 3))
+        polygon_attrs = _grown_from(hierarchy, skeleton.polygon_segment, skeleton.n_polygons, firsts, attributes)
+    polygons = polygon_leaves(skeleton, polygon_attrs)
     transforms = leaf_transforms(skeleton)
     leaf_model = None
     baked = None
     if len(transforms):
         leaf_model = default_leaf() if model is None else model
-        baked = instance_leaves(leaf_model, transforms)
+        baked = instance_leaves(leaf_model, transforms, instance_attrs, skeleton.leaf_material)
     parts = [m for m in (polygons, baked) if m is not None]
-    if not parts:
-        merged = None
-    elif len(parts) == 1:
-        merged = parts[0]
-    else:
-        merged = corner_mesh(
-            np.concatenate([polygons.vertices, baked.vertices]),
-            np.concatenate([polygons.faces, baked.faces + len(polygons.vertices)]),
-            np.concatenate([polygons.face_attributes["corner_normals"], baked.face_attributes["corner_normals"]]),
-            np.concatenate([polygons.face_attributes["corner_uv"], baked.face_attributes["corner_uv"]]),
-        )
-    return Leaves(merged, leaf_model, transforms, polygons)
+    merged = Mesh.concatenate(parts) if parts else None
+    return Leaves(merged, leaf_model, transforms, polygons, instance_attrs)
+
+
+def _grown_from(h: Hierarchy, segment, count: int, where: np.ndarray, keys=None) -> dict:
+    """The attributes of ``count`` leaves growing from ``segment`` (at its end); no branch: pivot at ``where``."""
+    from .attributes import KEYS, branch_values
+
+    keys = KEYS if keys is None else keys
+
+    if segment is None or len(segment) != count:
+        segment = np.full(count, -1, np.int64)
+    segment = np.asarray(segment, np.int64)
+    has = segment >= 0
+    s = np.where(has, segment, 0)
+    branch = np.where(has, h.branch_of[s] if len(h.branch_of) else -1, -1)
+    t = np.where(has, h.t_end[s] if len(h.t_end) else 0.0, 0.0)
+    values = branch_values(h, branch, t, fallback_pivot=where)
+    return {key: values[key] for key in keys}

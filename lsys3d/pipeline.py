@@ -1,101 +1,101 @@
 """The main job: grammar -> :class:`~lsys3d.tree.Tree`, running every stage in order.
 
 Each stage is a call into its own module; this one only sequences them, times
-them and records the provenance that lets an exported asset be regenerated.
+them and records the provenance that lets an exported asset be regenerated::
+
+    derive -> interpret -> sweep -> union -> color -> materials -> attributes -> leaves -> rig
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import dataclass, field
+from functools import partial
 
-import numpy as np
-import trimesh
-
-from .bark import with_bark_colors
+from . import bark as bark_stage
+from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
 from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import GeometryError
 from .grammar import Grammar
+from .hierarchy import hierarchy
 from .leaves import leaves as build_leaves
+from .materials import material_table, with_face_materials
+from .mesh import Mesh
 from .modules import ModuleString
+from .options import Options, option
 from .presets import load
+from .provenance import Provenance
+from .rig import SKIN_KEYS, RigOptions, bind, build_rig
 from .skeleton import Skeleton
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
-from .tree import BARK, Tree
-from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, interpret
+from .tree import StageCounts, Tree
+from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret
 from .union import UnionOptions, concatenate, union
 
-__all__ = ["STAGES", "GenerateOptions", "draw", "generate", "run_stage"]
+__all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage"]
 
 log = logging.getLogger("lsys3d")
 
-STAGES = ("derive", "interpret", "sweep", "union", "leaves")
+STAGES = ("derive", "interpret", "sweep", "union", "color", "materials", "attributes", "leaves", "rig")
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
 
 @dataclass(frozen=True)
-class GenerateOptions:
-    """Everything :func:`generate` needs besides the grammar; defaults in one place.
+class Limits(Options):
+    """The size limits of the stages: each is checked before the memory is taken."""
+
+    max_modules: int = option(
+        DEFAULT_MAX_MODULES, low=1, help="size limit of derivation, in modules (predicted before allocating)"
+    )
+    max_segments: int = option(DEFAULT_MAX_SEGMENTS, low=1, help="most segments the turtle draws")
+    max_triangles: int = option(
+        DEFAULT_MAX_TRIANGLES, low=1, help="most tube triangles before the union (counted before the sweep allocates)"
+    )
+
+
+@dataclass(frozen=True)
+class GenerateOptions(Options):
+    """Everything :func:`generate` needs besides the grammar, its iterations and seed: one options class per stage.
 
     Attributes
     ----------
-    union : bool
-        Merge the tubes into one watertight mesh (False: the tube soup, a fast preview).
-    max_modules : int
-        Derivation size limit.
-    max_segments : int
-        Most segments the turtle draws.
-    max_tube_triangles : int
-        Most triangles the sweep builds (checked before the tubes are allocated).
-    sweep : SweepOptions
-        Tube sides, minimum width, bend splitting...
-    union_options : UnionOptions
-        How the manifold union is organised.
-    turtle : dict
+    limits : Limits
+        Module, segment and tube-triangle limits.
+    turtle : TurtleOverrides
         Settings that override the grammar's ``[turtle]`` table, e.g.
         ``{"width_jitter": 0.2, "branch_drop": 0.1}`` (any
-        :class:`~lsys3d.turtle.TurtleOptions` field but ``angle`` and ``seed``).
-    bark_color_variation : float
-        Bark colour variation in [0, 1] written as vertex colours after the
-        union (:func:`lsys3d.bark.bark_colors`; 0: off, no colours).
-    bark_color_frequency : float
-        Colour features per metre of that pattern.
+        :class:`~lsys3d.turtle.TurtleOptions` field but ``angle`` and ``seed``);
+        a dict is accepted and checked.
+    sweep : SweepOptions
+        Tube sides, minimum width, bend splitting, bark displacement...
+    union : UnionOptions
+        Whether (``union=False``: the tube soup, a fast preview) and how the tubes are unioned.
+    color : BarkColorOptions
+        Bark colour variation written as vertex colours after the union.
+    attributes : AttributeOptions
+        Hierarchy and wind attributes on the bark's vertices and the leaves (off by default).
+    rig : RigOptions
+        Joints along the branches and the skin that binds bark and leaves to them (off by default).
+
+    Every field below these has a flat name (``sides``, ``union``,
+    ``max_modules``, ``bark_color_variation``...) for :meth:`from_flat`,
+    :func:`generate`'s keywords and the CLI's flags.
     """
 
-    union: bool = True
-    max_modules: int = DEFAULT_MAX_MODULES
-    max_segments: int = DEFAULT_MAX_SEGMENTS
-    max_tube_triangles: int = DEFAULT_MAX_TRIANGLES
-    sweep: SweepOptions = field(default_factory=SweepOptions)
-    union_options: UnionOptions = field(default_factory=UnionOptions)
-    turtle: dict = field(default_factory=dict)
-    bark_color_variation: float = 0.0
-    bark_color_frequency: float = 2.0
+    limits: Limits = option(factory=Limits, help="size limits")
+    turtle: TurtleOverrides = field(default_factory=TurtleOverrides)
+    sweep: SweepOptions = option(factory=SweepOptions, help="tubes")
+    union: UnionOptions = option(factory=UnionOptions, help="the union")
+    color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
+    attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
+    rig: RigOptions = option(factory=RigOptions, help="the rig")
 
     def __post_init__(self):
-        known = {f.name for f in fields(TurtleOptions)} - {"angle", "seed"}
-        unknown = sorted(set(self.turtle) - known)
-        if unknown:
-            raise ValueError(
-                f"GenerateOptions.turtle: unknown setting {unknown[0]!r} (known: {', '.join(sorted(known))})"
-            )
-        if not 0 <= self.bark_color_variation <= 1:
-            raise ValueError(f"GenerateOptions.bark_color_variation: {self.bark_color_variation!r} is not in [0, 1]")
-        if not self.bark_color_frequency > 0:
-            raise ValueError(f"GenerateOptions.bark_color_frequency: {self.bark_color_frequency!r} is not > 0")
-
-    def plain(self) -> dict:
-        """The options as JSON-ready nested dicts with sorted keys (tuples as lists): provenance, golden recipes."""
-        return _plain(asdict(self))
-
-
-def _version() -> str:
-    from . import __version__
-
-    return __version__
+        if not isinstance(self.turtle, TurtleOverrides):
+            object.__setattr__(self, "turtle", TurtleOverrides(self.turtle))
+        super().__post_init__()
 
 
 def run_stage(name: str, fn: Callable, *args, progress: Callable[[str, str, float], None] | None = None, **kw):
@@ -135,10 +135,11 @@ def draw(
     (8, 4)
     """
     options = options or GenerateOptions()
-    modules = run_stage("derive", derive, grammar, iterations, seed, max_modules=options.max_modules, progress=progress)
-    turtle = TurtleOptions.from_grammar(grammar, **options.turtle) if options.turtle else grammar
+    limits = options.limits
+    modules = run_stage("derive", derive, grammar, iterations, seed, max_modules=limits.max_modules, progress=progress)
+    turtle = TurtleOptions.from_grammar(grammar, options.turtle) if options.turtle else grammar
     skeleton = run_stage(
-        "interpret", interpret, modules, turtle, seed=seed, max_segments=options.max_segments, progress=progress
+        "interpret", interpret, modules, turtle, seed=seed, max_segments=limits.max_segments, progress=progress
     )
     return modules, skeleton
 
@@ -152,7 +153,7 @@ def generate(
     progress: Callable[[str, str, float], None] | None = None,
     **overrides,
 ) -> Tree:
-    """Grow a plant: derive, interpret, sweep, union and build the leaves.
+    """Grow a plant: derive, interpret, sweep, union, colour and build the leaves.
 
     Parameters
     ----------
@@ -161,11 +162,13 @@ def generate(
     iterations, seed : int, optional
         Override the grammar's own.
     options : GenerateOptions, optional
-        Defaults to ``GenerateOptions()``; keyword arguments ``union``,
-        ``max_modules``, ``sides`` override single fields.
+        Defaults to ``GenerateOptions()``.
     progress : callable, optional
         Called as ``progress(stage, "start" | "done", seconds)`` for each stage, and as
         ``progress("union", "progress", fraction)`` while the union works (fraction from 0 to 1).
+    **overrides
+        Single options by their flat names, over ``options``: ``sides=5``,
+        ``union=False``, ``max_modules=10**6``... (:meth:`GenerateOptions.from_flat`).
 
     Returns
     -------
@@ -174,14 +177,12 @@ def generate(
     Examples
     --------
     >>> tree = generate("abop-1.24a", iterations=2, sides=5)
-    >>> tree.bark.is_watertight, tree.provenance["iterations"]
-    (True, 2)
+    >>> tree.bark.is_watertight, tree.provenance.iterations, tree.name
+    (True, 2, 'abop-1.24a')
     """
     options = options or GenerateOptions()
-    if "sides" in overrides:
-        options = replace(options, sweep=replace(options.sweep, sides=overrides.pop("sides")))
     if overrides:
-        options = replace(options, **overrides)
+        options = options.with_flat(**overrides)
     if not isinstance(grammar, Grammar):
         grammar = load(grammar)
     n = grammar.iterations if iterations is None else iterations
@@ -190,93 +191,73 @@ def generate(
     def stage(name, fn, *args, **kw):
         return run_stage(name, fn, *args, progress=progress, **kw)
 
+    table = material_table(grammar)  # a bad [materials] table fails before the work
+
     modules, skeleton = draw(grammar, n, seed, options, progress=progress)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
             f"{grammar.name or grammar.source}: nothing to mesh: the {len(modules):,} modules after {n} "
             "iterations draw no segment and no leaf (segments are drawn by F, or the [turtle] table's draw symbols)"
         )
-    tubes = stage("sweep", sweep, skeleton, options.sweep, max_triangles=options.max_tube_triangles, seed=seed)
+    tubes = stage("sweep", sweep, skeleton, options.sweep, max_triangles=options.limits.max_triangles, seed=seed)
     if len(tubes) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
             f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter than "
             f"min_length ({options.sweep.min_length:g}) and there is no leaf"
         )
     if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
-        bark = stage("union", lambda _: trimesh.Trimesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)), tubes)
-    else:
+        bark = stage("union", Mesh.empty)
+    elif options.union.enabled:
 
         def report(fraction: float) -> None:
             progress("union", "progress", fraction)
 
-        def merge(t):
-            return union(t, options.union_options, progress=report if progress else None)
-
-        if not options.union:
-            merge = concatenate
-        if options.bark_color_variation > 0:  # coloured in the union stage: the colours belong to its vertices
-            plain = merge
-            variation, frequency = options.bark_color_variation, options.bark_color_frequency
-
-            def merge(t):
-                return with_bark_colors(plain(t), BARK.base_color, variation, frequency, seed)
-
-        bark = stage("union", merge, tubes)
-    leaves = stage("leaves", build_leaves, skeleton)
-    counts = {
-        "modules": len(modules),
-        "segments": len(skeleton),
-        "tubes": len(tubes.sides),
-        "tube_vertices": len(tubes.points),
-        "tube_faces": len(tubes.faces),
-    }
-    provenance = {
-        "generator": f"lsys3d {_version()}",
-        "lsys3d_version": _version(),
-        "grammar_name": grammar.name,
-        "grammar_source": grammar.source,
-        "grammar_text": grammar.text if grammar.text is not None else _grammar_as_text(grammar),
-        "iterations": int(n),
-        "seed": int(seed),
-        "options": options.plain(),
-        "counts": counts,
-    }
+        bark = stage("union", partial(union, progress=report if progress else None), tubes, options.union)
+    else:
+        bark = stage("union", concatenate, tubes)
+    bark = stage("color", bark_stage.color, bark, options.color, table.bark.base_color, seed)
+    wanted = options.attributes.keys
+    # the rig binds by branch and t, so it needs those two whatever the attributes' layout
+    keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
+    branches = hierarchy(skeleton, seed) if keys or table else None
+    bulge = options.sweep.bark_displacement
+    if table and len(tubes):
+        bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
+    if keys:
+        bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
+    leaves = stage("leaves", build_leaves, skeleton, hierarchy=branches, attributes=keys)
+    rig = None
+    if options.rig.enabled:
+        rig = build_rig(branches, skeleton, options.rig)
+        bark, leaves = stage("rig", bind, bark, leaves, rig, branches)
+        if keys != wanted:  # the rig's own use of them: not the user's attributes
+            bark, leaves = _keep(bark, leaves, wanted + SKIN_KEYS)
+    counts = StageCounts(
+        modules=len(modules),
+        segments=len(skeleton),
+        tubes=len(tubes.sides),
+        tube_vertices=len(tubes.points),
+        tube_faces=len(tubes.faces),
+    )
     return Tree(
         bark=bark,
         skeleton=skeleton,
-        provenance=provenance,
-        leaves=leaves.merged,
-        leaf_model=leaves.model,
-        leaf_transforms=leaves.transforms,
-        polygon_leaves=leaves.polygons,
-        unioned=options.union,
+        leaves=leaves,
+        provenance=Provenance.of(grammar, n, seed, options),
+        counts=counts,
+        unioned=options.union.enabled,
         modules=modules,
+        hierarchy=branches if options.attributes.enabled else None,
+        rig=rig,
+        materials=table,
     )
 
 
-def _plain(value):
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in sorted(value.items())}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
+def _keep(bark: Mesh, leaves, keys):
+    """``bark`` and ``leaves`` with only the attributes ``keys``."""
+    from dataclasses import replace
 
-
-def _grammar_as_text(grammar: Grammar) -> str:
-    """A TOML rendering of a grammar built from Python (for provenance)."""
-    lines = [f"axiom = {json.dumps(grammar.axiom)}"]
-    for key in ("name", "description", "ignore"):
-        if getattr(grammar, key):
-            lines.append(f"{key} = {json.dumps(getattr(grammar, key))}")
-    lines.append(f"iterations = {grammar.iterations}")
-    lines.append(f"angle = {grammar.angle!r}")
-    lines.append(f"seed = {grammar.seed}")
-    if grammar.defines:
-        lines.append("defines = { " + ", ".join(f"{k} = {v!r}" for k, v in grammar.defines.items()) + " }")
-    lines.append("rules = [" + ", ".join(json.dumps(r) for r in grammar.rules) + "]")
-    if grammar.turtle:
-        lines.append("[turtle]")
-        lines.extend(f"{k} = {json.dumps(v)}" for k, v in grammar.turtle.items())
-    return "\n".join(lines) + "\n"
+    merged = leaves.merged.keeping(keys) if leaves.merged is not None else None
+    polygons = leaves.polygons.keeping(keys) if leaves.polygons is not None else None
+    instance = {k: a for k, a in leaves.instance_attributes.items() if k in keys}
+    return bark.keeping(keys), replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance)

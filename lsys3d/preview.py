@@ -33,11 +33,11 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
 
 from .errors import PreviewError
 from .exchange import export
 from .exchange.atomic import atomic_path, check_target
+from .options import Options, option
 from .tree import Tree
 
 __all__ = ["ENV_BLENDER", "INSTALL_HINT", "VIEWS", "PreviewOptions", "blender_command", "check_preview", "preview"]
@@ -60,63 +60,33 @@ _STDERR_LINES = 6
 
 
 @dataclass(frozen=True)
-class PreviewOptions:
-    """How :func:`preview` renders a tree.
+class PreviewOptions(Options):
+    """How :func:`preview` renders a tree; every default, range and help is in its field.
 
-    Parameters
-    ----------
-    size : (int, int)
-        Width and height of the image in pixels.
-    view : {"front", "side", "iso"}
-        Where the camera stands (see :data:`VIEWS`); it is fitted to the
-        tree's vertices for that view.
-    samples : int
-        Cycles samples per pixel; the denoiser cleans up the rest.
-    denoise : bool
-        Run Blender's OpenImageDenoise on the render.
-    background : (float, float, float)
-        sRGB colour of the background, each in [0, 1].
-    margin : float
-        Fraction of the frame left free around the tree, in [0, 0.5).
-    blender : str or None
-        A ``blender`` executable or a Python that imports ``bpy``; None
-        searches (see the module's documentation).
-    threads : int
-        CPU threads Cycles uses; 0 uses every core.
-    timeout : float or None
-        Seconds before Blender is stopped and :class:`PreviewError` raised.
-    no_clobber : bool
-        Refuse to overwrite an existing file.
+    The camera of ``view`` (see :data:`VIEWS`) is fitted to the tree's
+    vertices; Cycles renders ``samples`` per pixel and the denoiser cleans up
+    the rest.  ``blender`` None searches (see the module's documentation).
     """
 
-    size: tuple[int, int] = (800, 800)
-    view: Literal["front", "side", "iso"] = "front"
-    samples: int = 16
-    denoise: bool = True
-    background: tuple[float, float, float] = (0.96, 0.96, 0.95)
-    margin: float = 0.06
-    blender: str | None = None
-    threads: int = 0
-    timeout: float | None = 600.0
-    no_clobber: bool = False
-
-    def __post_init__(self):
-        size = tuple(self.size)
-        if len(size) != 2 or not all(isinstance(v, int) and 1 <= v <= 16384 for v in size):
-            raise PreviewError(f"PreviewOptions: size must be two whole numbers of pixels in 1..16384, not {self.size}")
-        object.__setattr__(self, "size", size)
-        if self.view not in VIEWS:
-            raise PreviewError(f"PreviewOptions: view must be one of {', '.join(VIEWS)}, not {self.view!r}")
-        if not isinstance(self.samples, int) or self.samples < 1:
-            raise PreviewError(f"PreviewOptions: samples must be a whole number >= 1, not {self.samples!r}")
-        background = tuple(float(c) for c in self.background)
-        if len(background) != 3 or not all(0.0 <= c <= 1.0 for c in background):
-            raise PreviewError(f"PreviewOptions: background must be three numbers in [0, 1], not {self.background}")
-        object.__setattr__(self, "background", background)
-        if not 0.0 <= self.margin < 0.5:
-            raise PreviewError(f"PreviewOptions: margin must be in [0, 0.5), not {self.margin!r}")
-        if not isinstance(self.threads, int) or self.threads < 0:
-            raise PreviewError(f"PreviewOptions: threads must be a whole number >= 0, not {self.threads!r}")
+    size: tuple[int, int] = option((800, 800), low=1, high=16384, metavar="WxH", help="image size in pixels")
+    view: str = option("front", choices=VIEWS, help="where the camera stands")
+    samples: int = option(16, low=1, high=65536, help="Cycles samples per pixel (denoised)")
+    denoise: bool = option(True, help="run Blender's OpenImageDenoise on the render", cli=False)
+    background: tuple[float, float, float] = option(
+        (0.96, 0.96, 0.95), low=0, high=1, help="sRGB colour of the background", cli=False
+    )
+    margin: float = option(0.06, low=0, high=0.5, high_open=True, help="fraction of the frame left free", cli=False)
+    blender: str | None = option(
+        None,
+        kind=str,
+        metavar="PATH",
+        help="a blender executable or a Python that imports bpy (default: $LSYS3D_BLENDER, this Python, PATH)",
+    )
+    threads: int = option(0, low=0, high=4096, help="CPU threads Cycles uses (0: every core)", cli=False)
+    timeout: float | None = option(
+        600.0, kind=float, optional=True, low=0, low_open=True, help="seconds before Blender is stopped", cli=False
+    )
+    no_clobber: bool = option(False, help="refuse to overwrite an existing file")
 
 
 def _is_python(executable: str) -> bool:
@@ -253,7 +223,7 @@ def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None 
     path, blender = check_preview(path, options)
     if not isinstance(tree, Tree):
         raise PreviewError(f"{path}: expected a lsys3d Tree, got {type(tree).__name__}")
-    if len(tree.bark.faces) == 0 and (tree.leaves is None or len(tree.leaves.faces) == 0):
+    if len(tree.bark.faces) == 0 and (tree.leaves.merged is None or len(tree.leaves.merged.faces) == 0):
         raise PreviewError(f"{path}: the tree has no bark and no leaves to draw")
     width, height = options.size
     t0 = time.perf_counter()

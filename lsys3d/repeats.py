@@ -25,25 +25,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from .arrays import find_rows, row_hash
+from .arrays import local_index as _local_counts
+from .arrays import offsets as _offsets
 from .booleans import Part
-from .rowhash import find_rows, row_hash
 
 __all__ = ["Clusters", "copies", "find"]
 
 _KEY = 1e-6  # relative size of the grid that buckets candidate clusters
 _POINTS = 1e-7  # relative tolerance of congruent points (and 1/100 of a float32 step at the coordinates' size)
 _SHADING = 1e-5  # tolerance of congruent normals (unit) and u (0..1), and of the per-run v offset (metres)
-
-
-def _local_counts(counts: np.ndarray) -> np.ndarray:
-    counts = np.asarray(counts, np.int64)
-    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-
-
-def _offsets(counts: np.ndarray) -> np.ndarray:
-    out = np.zeros(len(counts) + 1, np.int64)
-    np.cumsum(counts, out=out[1:])
-    return out
 
 
 class Clusters:

@@ -13,7 +13,15 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["Chains", "Skeleton"]
+__all__ = ["MAX_COORDINATE", "Chains", "Skeleton"]
+
+MAX_COORDINATE = 1e9
+"""Largest distance from the origin along any axis, and largest width or leaf size, a skeleton may hold.
+
+A million kilometres: far beyond any plant, and far inside what the mesh stages compute with (the sweep squares
+lengths, the union welds on a 1e-8 grid of 64-bit integers, the files store 32-bit floats).  The turtle refuses
+to go past it, naming the module; the sweep refuses a skeleton built some other way that does.
+"""
 
 
 @dataclass(frozen=True)
@@ -64,6 +72,9 @@ class Skeleton:
     polygon_offsets : (p + 1,) int64
         Points of polygon ``i`` are ``polygon_points[polygon_offsets[i]:polygon_offsets[i+1]]``.
     polygon_material : (p,) int32
+    polygon_segment : (p,) int64 or None
+        The segment the polygon grows from (the last segment drawn in its
+        branch when ``{`` opened it), -1 for none; None when unknown.
 
     Leaf instances (``k``, placed by the leaf symbol):
 
@@ -71,6 +82,8 @@ class Skeleton:
     leaf_size : (k,) float64
         Scale of the leaf model (the step length in force).
     leaf_material : (k,) int32
+    leaf_segment : (k,) int64 or None
+        The segment (twig) the leaf grows from, -1 for none; None when unknown.
     """
 
     start: np.ndarray
@@ -93,9 +106,74 @@ class Skeleton:
     leaf_up: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     leaf_size: np.ndarray = field(default_factory=lambda: np.zeros(0))
     leaf_material: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    polygon_segment: np.ndarray | None = None
+    leaf_segment: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.start.shape[0])
+
+    @classmethod
+    def from_segments(
+        cls,
+        start,
+        end,
+        width_start=0.1,
+        width_end=None,
+        parent=None,
+        order=None,
+        *,
+        left_hint=(0.31, 0.52, 0.79),
+        **leaves,
+    ) -> Skeleton:
+        """A skeleton from bare segments (tests, benchmarks, skeletons made outside the turtle).
+
+        Parameters
+        ----------
+        start, end : (n, 3) array_like
+        width_start, width_end : float or (n,) array_like
+            Diameters; ``width_end`` defaults to ``width_start``.
+        parent : (n,) array_like, optional
+            Default: a single chain, ``parent[s] = s - 1``.
+        order : (n,) array_like, optional
+            Default: all 0.
+        left_hint : 3 floats
+            The turtle frames follow the segment directions: heading along the
+            segment, left perpendicular to it and to this hint.
+        **leaves
+            Polygon and leaf-instance fields (``polygon_points``, ``leaf_position``...).
+
+        Examples
+        --------
+        >>> sk = Skeleton.from_segments([[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [0, 2, 0]], 0.2)
+        >>> len(sk), sk.parent.tolist(), len(sk.chains)
+        (2, [-1, 0], 1)
+        """
+        start = np.asarray(start, np.float64).reshape(-1, 3)
+        end = np.asarray(end, np.float64).reshape(-1, 3)
+        n = len(start)
+        w0 = np.broadcast_to(np.asarray(width_start, np.float64), (n,)).copy()
+        w1 = w0.copy() if width_end is None else np.broadcast_to(np.asarray(width_end, np.float64), (n,)).copy()
+        parent = np.arange(n, dtype=np.int64) - 1 if parent is None else np.asarray(parent, np.int64)
+        order = np.zeros(n, np.int32) if order is None else np.asarray(order, np.int32)
+        h = end - start
+        norm = np.linalg.norm(h, axis=1, keepdims=True)
+        h = np.where(norm > 0, h / np.where(norm > 0, norm, 1.0), [[0.0, 1.0, 0.0]])
+        left = np.cross(np.asarray(left_hint, np.float64), h)
+        left /= np.maximum(np.linalg.norm(left, axis=1, keepdims=True), 1e-300)
+        return cls(
+            start=start,
+            end=end,
+            width_start=w0,
+            width_end=w1,
+            heading=h,
+            left=left,
+            up=np.cross(h, left),
+            parent=parent,
+            order=order,
+            material=np.zeros(n, np.int32),
+            module=np.arange(n, dtype=np.int64),
+            **leaves,
+        )
 
     @property
     def n_polygons(self) -> int:
@@ -174,13 +252,13 @@ class Skeleton:
 
     def save_npz(self, path) -> None:
         """Write every array to a NumPy ``.npz`` file."""
-        arrays = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        arrays = {k: getattr(self, k) for k in self.__dataclass_fields__ if getattr(self, k) is not None}
         np.savez(path, **arrays)
 
     @classmethod
     def load_npz(cls, path) -> Skeleton:
         with np.load(path) as data:
-            return cls(**{k: data[k] for k in cls.__dataclass_fields__})
+            return cls(**{k: data[k] for k in cls.__dataclass_fields__ if k in data})
 
     def polylines(self) -> list[np.ndarray]:
         """Each chain as a polyline of points ``(segments + 1, 3)``."""

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import batches
+from .arrays import components as _labels
 from .modules import ModuleString
 from .skeleton import Skeleton
+from .version import __version__
 
 __all__ = ["REPORT_FORMAT", "components", "flatten", "mesh_stats", "report", "skeleton_stats", "versions"]
 
@@ -74,7 +75,7 @@ def components(faces: np.ndarray, n_vertices: int) -> int:
     faces = np.asarray(faces, dtype=np.int64)
     if len(faces) == 0:
         return 0
-    label = batches.components(n_vertices, faces.ravel(), np.roll(faces, -1, axis=1).ravel())
+    label = _labels(n_vertices, faces.ravel(), np.roll(faces, -1, axis=1).ravel())
     return len(np.unique(label[faces[:, 0]]))
 
 
@@ -92,8 +93,8 @@ def mesh_stats(tree) -> dict:
         merged), ``unioned``.
     """
     bark = tree.bark
-    counts = tree.provenance.get("counts", {})
-    leaves = tree.leaves if tree.leaves is not None else tree.polygon_leaves
+    counts = tree.counts
+    leaves = tree.leaves.merged if tree.leaves.merged is not None else tree.leaves.polygons
     has_bark = len(bark.faces) > 0
     stats = {
         "vertices": len(bark.vertices),
@@ -103,9 +104,9 @@ def mesh_stats(tree) -> dict:
         "watertight": bool(bark.is_watertight) if has_bark else False,
         "winding_consistent": bool(bark.is_winding_consistent) if has_bark else False,
         "components": components(bark.faces, len(bark.vertices)),
-        "tubes": int(counts.get("tubes", 0)),
-        "tube_vertices": int(counts.get("tube_vertices", 0)),
-        "tube_faces": int(counts.get("tube_faces", 0)),
+        "tubes": counts.tubes,
+        "tube_vertices": counts.tube_vertices,
+        "tube_faces": counts.tube_faces,
         "leaf_vertices": len(leaves.vertices) if leaves is not None else 0,
         "leaf_faces": len(leaves.faces) if leaves is not None else 0,
         "unioned": bool(tree.unioned),
@@ -116,8 +117,6 @@ def mesh_stats(tree) -> dict:
 def versions() -> dict:
     """Versions of lsys3d and of the libraries whose arithmetic shapes the counts."""
     from importlib.metadata import PackageNotFoundError, version
-
-    from . import __version__
 
     found = {"lsys3d": __version__}
     for name in ("manifold3d", "numba", "numpy", "trimesh"):
@@ -191,10 +190,10 @@ def report(modules: ModuleString, skeleton: Skeleton, tree=None) -> dict:
         bark_keys = ("area", "components", "faces", "unioned", "vertices", "volume", "watertight", "winding_consistent")
         out["bark"] = {k: m[k] for k in bark_keys}
         out["leaves"] = {"faces": m["leaf_faces"], "vertices": m["leaf_vertices"]}
-        points = [np.asarray(tree.bark.vertices).reshape(-1, 3)]
-        leaves = tree.leaves if tree.leaves is not None else tree.polygon_leaves
+        points = [tree.bark.vertices]
+        leaves = tree.leaves.merged if tree.leaves.merged is not None else tree.leaves.polygons
         if leaves is not None:
-            points.append(np.asarray(leaves.vertices).reshape(-1, 3))
+            points.append(leaves.vertices)
         points = np.concatenate(points)
         lo, hi = (points.min(axis=0), points.max(axis=0)) if len(points) else (np.zeros(3), np.zeros(3))
         out["bbox"] = {"max": [float(x) for x in hi], "min": [float(x) for x in lo]}

@@ -37,61 +37,40 @@ attributes) read the same arrays.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numba
 import numpy as np
-import trimesh
 
+from .arrays import dot, gather, local_index, offsets, unit
 from .bark import bark_noise
 from .errors import GeometryError, LimitError
-from .skeleton import Skeleton
+from .mesh import Mesh
+from .options import Options, option
+from .skeleton import MAX_COORDINATE, Skeleton
+from .streams import Stream
 
-__all__ = ["BARK_NOISE_STREAM", "DEFAULT_MAX_TRIANGLES", "SweepOptions", "Tubes", "sweep"]
-
-BARK_NOISE_STREAM = 6
-"""The bark displacement's noise has seed ``(seed, BARK_NOISE_STREAM)``: unrelated to the turtle's streams."""
+__all__ = ["DEFAULT_MAX_TRIANGLES", "SweepOptions", "Tubes", "sweep"]
 
 DEFAULT_MAX_TRIANGLES = 10_000_000
 """Most tube triangles :func:`sweep` builds (about 50 bytes a triangle in the tubes, more in the union)."""
 
 
 @dataclass(frozen=True)
-class SweepOptions:
-    """How chains become tubes; every default lives here.
+class SweepOptions(Options):
+    """How chains become tubes; every default, range and help is in its field.
 
-    Attributes
-    ----------
-    sides : int
-        Vertices per ring of the trunk (branch order 0); at least 3.
-    sides_step : int
-        Sides dropped per branch order: a chain of order ``k`` gets
-        ``max(min_sides, sides - k * sides_step)`` sides (0: all the same).
-    min_sides : int
-        Fewest sides of any tube; at least 3.
-    min_width : float
-        Smallest tube diameter; thinner (or zero) widths are clamped to it.
-    min_length : float
-        Segments shorter than this are dropped (zero-length segments).
-    max_bend : float
-        Degrees: a chain that turns more than this at a joint is split there.
-    merge_angle : float
-        Degrees: a joint that turns less than this, with a width that tapers
-        linearly through it, gets no ring (it would add no shape).
-    merge_width : float
-        Relative tolerance of "tapers linearly" for ``merge_angle``.
-    bark_displacement : float
-        Procedural bark: every ring vertex moves along its radial direction
-        by ``bark_displacement * r * n(p)``, a fraction of the local tube
-        radius ``r`` (0: off; at most 0.5, so no tube gets thinner than half
-        its radius and thin twigs survive).  ``n`` (:func:`lsys3d.bark.bark_noise`,
-        fBm with its contrast raised) lies in [-1, 1] and is evaluated at the
-        undisplaced world position, so tubes that meet at a junction carry
-        the same bark pattern.
-    bark_frequency : float
-        Bark features per unit length (metre) of the noise's first octave.
-    bark_octaves : int
-        Octaves of the bark noise (each twice the frequency, half the amplitude).
+    ``sides_step`` drops sides per branch order: a chain of order ``k`` gets
+    ``max(min_sides, sides - k * sides_step)`` sides.  A joint that turns less
+    than ``merge_angle`` with a width that tapers linearly through it (within
+    ``merge_width``) gets no ring.  ``bark_displacement`` moves every ring
+    vertex along its radial direction by ``bark_displacement * r * n(p)``, a
+    fraction of the local tube radius ``r``; ``n``
+    (:func:`lsys3d.bark.bark_noise`, fBm with its contrast raised) lies in
+    [-1, 1] and is evaluated at the undisplaced world position, so tubes that
+    meet at a junction carry the same bark pattern.  Runs of segments shorter
+    than the tube is wide merge into one ring span while the merged axis stays
+    within ``merge_deviation`` of the radius of every joint it skips.
 
     Examples
     --------
@@ -99,42 +78,29 @@ class SweepOptions:
     [6, 5, 4, 4]
     """
 
-    sides: int = 8
-    sides_step: int = 0
-    min_sides: int = 3
-    min_width: float = 1e-3
-    min_length: float = 1e-9
-    max_bend: float = 120.0
-    merge_angle: float = 0.01
-    merge_width: float = 1e-6
-    merge_deviation: float = 0.02
-    bark_displacement: float = 0.0
-    bark_frequency: float = 8.0
-    bark_octaves: int = 3
-
-    def __post_init__(self):
-        checks = {
-            "sides": self.sides >= 3,
-            "sides_step": self.sides_step >= 0,
-            "min_sides": self.min_sides >= 3,
-            "min_width": self.min_width > 0,
-            "min_length": self.min_length >= 0,
-            "max_bend": 0 < self.max_bend < 180,
-            "merge_angle": 0 <= self.merge_angle < 90,
-            "merge_width": self.merge_width >= 0,
-            "merge_deviation": 0 <= self.merge_deviation <= 0.5,
-            "bark_displacement": 0 <= self.bark_displacement <= 0.5,
-            "bark_frequency": self.bark_frequency > 0,
-            "bark_octaves": self.bark_octaves >= 1,
-        }
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ValueError(f"SweepOptions.{f.name}: expected a finite number, got {value!r}")
-            if f.type == "int" and value != int(value):
-                raise ValueError(f"SweepOptions.{f.name}: expected an integer, got {value!r}")
-            if not checks[f.name]:
-                raise ValueError(f"SweepOptions.{f.name}: value {value!r} is out of range")
+    sides: int = option(8, low=3, high=1024, help="vertices around the trunk's tubes (branch order 0)")
+    sides_step: int = option(0, low=0, high=1024, help="sides dropped per branch order (0: all the same)")
+    min_sides: int = option(3, low=3, high=1024, help="fewest sides of any tube")
+    min_width: float = option(1e-3, low=0, low_open=True, help="smallest tube diameter; thinner widths are clamped")
+    min_length: float = option(1e-9, low=0, help="segments shorter than this are dropped", cli=False)
+    max_bend: float = option(
+        120.0, low=0, high=180, low_open=True, high_open=True, help="degrees: a chain turning more is split there"
+    )
+    merge_angle: float = option(
+        0.01, low=0, high=90, high_open=True, help="degrees: a straighter joint with a linear taper gets no ring"
+    )
+    merge_width: float = option(1e-6, low=0, help="relative tolerance of the linear taper of merge_angle", cli=False)
+    merge_deviation: float = option(
+        0.02,
+        low=0,
+        high=0.5,
+        help="steps shorter than the tube is wide merge while within this fraction of its radius (0: off)",
+    )
+    bark_displacement: float = option(
+        0.0, low=0, high=0.5, help="procedural bark: displace the tubes by noise up to this fraction of their radius"
+    )
+    bark_frequency: float = option(8.0, low=0, low_open=True, high=1e6, help="bark features per metre")
+    bark_octaves: int = option(3, low=1, high=16, help="octaves of the bark noise")
 
     def sides_for_order(self, order) -> np.ndarray:
         """Sides of the rings of chains of branch order ``order``, ``int64``."""
@@ -232,9 +198,9 @@ class Tubes:
     def select(self, which) -> Tubes:
         """The tubes ``which`` (indices or a boolean mask), renumbered."""
         which = np.arange(len(self))[which]
-        pts, p_old, p_new = _gather(self.point_offsets, which)
-        wed, w_old, w_new = _gather(self.wedge_offsets, which)
-        fac, _, f_new = _gather(self.face_offsets, which)
+        pts, p_old, p_new = gather(self.point_offsets, which)
+        wed, w_old, w_new = gather(self.wedge_offsets, which)
+        fac, _, f_new = gather(self.face_offsets, which)
         wedge_point = self.wedge_point[wed] - np.repeat(p_old - p_new[:-1], np.diff(w_new))
         faces = self.faces[fac] - np.repeat(w_old - w_new[:-1], np.diff(f_new))[:, None]
         return Tubes(
@@ -269,20 +235,20 @@ class Tubes:
             return self
         nt, sides, rings = len(self), self.sides, self.rings
         all_tube = np.concatenate([np.repeat(np.arange(nt), rings), tube.astype(np.int64)])
-        all_ring = np.concatenate([_local_counts(rings), ring.astype(np.int64)])
+        all_ring = np.concatenate([local_index(rings), ring.astype(np.int64)])
         all_t = np.concatenate([np.zeros(int(rings.sum())), t.astype(np.float64)])
         order = np.lexsort((all_t, all_ring, all_tube))
         rt, rk, rf = all_tube[order], all_ring[order], all_t[order]
         new_rings = np.bincount(rt, minlength=nt)
-        local = _local_counts(new_rings)
-        p_off = _offsets(new_rings * sides + 2)
-        w_off = _offsets((new_rings + 2) * (sides + 1))
-        f_off = _offsets(2 * sides * new_rings)
+        local = local_index(new_rings)
+        p_off = offsets(new_rings * sides + 2)
+        w_off = offsets((new_rings + 2) * (sides + 1))
+        f_off = offsets(2 * sides * new_rings)
 
         points = np.empty((p_off[-1], 3))
         s_ring = sides[rt]
         vert_ring = np.repeat(np.arange(len(rt)), s_ring)
-        j = _local_counts(s_ring)
+        j = local_index(s_ring)
         src = self.point_offsets[rt[vert_ring]] + rk[vert_ring] * s_ring[vert_ring] + j
         f = rf[vert_ring]
         moved = f > 0
@@ -299,7 +265,7 @@ class Tubes:
         wedge_uv = np.empty((nw, 2), np.float32)
         w_ring = s_ring + 1
         wedge_ring = np.repeat(np.arange(len(rt)), w_ring)
-        jw = _local_counts(w_ring)
+        jw = local_index(w_ring)
         s_w = w_ring[wedge_ring]
         src = self.wedge_offsets[rt[wedge_ring]] + rk[wedge_ring] * s_w + jw
         dest = w_off[rt[wedge_ring]] + local[wedge_ring] * s_w + jw
@@ -309,14 +275,14 @@ class Tubes:
         f = rf[wedge_ring]
         moved = f > 0
         a, b, fm = src[moved], src[moved] + s_w[moved], f[moved][:, None]
-        wedge_normal[dest[moved]] = _unit(
+        wedge_normal[dest[moved]] = unit(
             (1.0 - fm) * self.wedge_normal[a].astype(np.float64) + fm * self.wedge_normal[b]
         )
         wedge_uv[dest[moved]] = (1.0 - fm) * self.wedge_uv[a].astype(np.float64) + fm * self.wedge_uv[b]
         # caps: centre and rim, base then tip, as they were; the rims point at the first and last ring
         cap_len = 2 * (sides + 1)
         cap_tube = np.repeat(np.arange(nt), cap_len)
-        jc = _local_counts(cap_len)
+        jc = local_index(cap_len)
         src = self.wedge_offsets[cap_tube] + rings[cap_tube] * (sides[cap_tube] + 1) + jc
         dest = w_off[cap_tube] + new_rings[cap_tube] * (sides[cap_tube] + 1) + jc
         wedge_normal[dest] = self.wedge_normal[src]
@@ -348,49 +314,10 @@ class Tubes:
             self.order,
         )
 
-    def mesh(self, i: int | None = None) -> trimesh.Trimesh:
-        """Tube ``i`` (or all tubes, as one tube soup) as a welded ``Trimesh``.
-
-        The mesh carries ``corner_normals`` and ``corner_uv`` in
-        ``face_attributes`` (see :mod:`lsys3d.tree`).
-        """
+    def mesh(self, i: int | None = None) -> Mesh:
+        """Tube ``i`` (or all tubes, as one tube soup) as a welded :class:`~lsys3d.mesh.Mesh`."""
         tubes = self if i is None else self.select([i])
-        return corner_mesh(
-            tubes.points, tubes.face_points, tubes.wedge_normal[tubes.faces], tubes.wedge_uv[tubes.faces]
-        )
-
-
-def corner_mesh(points, faces, corner_normals, corner_uv) -> trimesh.Trimesh:
-    """A ``Trimesh`` with per-corner ``corner_normals`` / ``corner_uv`` face attributes, as is."""
-    return trimesh.Trimesh(
-        vertices=np.asarray(points, np.float64),
-        faces=np.asarray(faces, np.int64),
-        face_attributes={
-            "corner_normals": np.asarray(corner_normals, np.float32),
-            "corner_uv": np.asarray(corner_uv, np.float32),
-        },
-        process=False,
-        validate=False,
-    )
-
-
-def _gather(offsets: np.ndarray, which: np.ndarray):
-    """Indices of the CSR rows ``which``, their old starts and the new offsets."""
-    counts = offsets[which + 1] - offsets[which]
-    new = np.zeros(len(which) + 1, np.int64)
-    np.cumsum(counts, out=new[1:])
-    old = offsets[which]
-    idx = np.arange(new[-1]) + np.repeat(old - new[:-1], counts)
-    return idx, old, new
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.where(n > 0, n, 1.0)
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("...i,...i->...", a, b)
+        return Mesh(tubes.points, tubes.face_points, tubes.wedge_normal[tubes.faces], tubes.wedge_uv[tubes.faces])
 
 
 def _reflect_transport(u: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -400,20 +327,20 @@ def _reflect_transport(u: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarra
     ``a + b`` (which maps ``a`` to ``-b``) and in the plane normal to ``b``.
     """
     n = a + b
-    u = u - (2.0 * _dot(u, n) / np.maximum(_dot(n, n), 1e-30))[:, None] * n
-    u = u - (2.0 * _dot(u, b))[:, None] * b
+    u = u - (2.0 * dot(u, n) / np.maximum(dot(n, n), 1e-30))[:, None] * n
+    u = u - (2.0 * dot(u, b))[:, None] * b
     # remove drift so the frame stays orthonormal over long chains
-    return _unit(u - _dot(u, b)[:, None] * b)
+    return unit(u - dot(u, b)[:, None] * b)
 
 
 def _perpendicular(d: np.ndarray, hint: np.ndarray) -> np.ndarray:
     """``hint`` made perpendicular to unit ``d`` and unit (any perpendicular if parallel)."""
-    u = hint - _dot(hint, d)[:, None] * d
+    u = hint - dot(hint, d)[:, None] * d
     bad = np.linalg.norm(u, axis=1) < 1e-6
     if bad.any():
         axis = np.where(np.abs(d[bad, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
         u[bad] = np.cross(d[bad], axis)
-    return _unit(u)
+    return unit(u)
 
 
 def sweep(
@@ -500,7 +427,7 @@ def sweep(
 
     # ---- joints between consecutive kept segments: split where a ring cannot follow
     same = chain[1:] == chain[:-1]
-    cos = np.clip(_dot(d[:-1], d[1:]), -1.0, 1.0)
+    cos = np.clip(dot(d[:-1], d[1:]), -1.0, 1.0)
     tan_half = np.sqrt((1.0 - cos) / np.maximum(1.0 + cos, 1e-12))
     r_joint = 0.25 * (w1[:-1] + w0[1:])
     scale = np.abs(p1).max() + 1.0
@@ -565,14 +492,14 @@ def sweep(
     rj = ring_of_end[j]
     joint[rj] = True
     center[rj] = p1[j]
-    tangent[rj] = _unit(d[j] + d[j + 1])
+    tangent[rj] = unit(d[j] + d[j + 1])
     axis_a[rj] = _reflect_transport(u[j], d[j], tangent[rj])
     width[rj] = 0.5 * (w1[j] + w0[j + 1])
     v[rj] = v1[j]
     cj = cos[j]
     turning = cj < 1.0 - 1e-12
     stretch[rj] = np.where(turning, np.sqrt(2.0 / (1.0 + cj)), 1.0)
-    bend_dir[rj] = np.where(turning[:, None], _unit(d[j + 1] - d[j]), 0.0)
+    bend_dir[rj] = np.where(turning[:, None], unit(d[j + 1] - d[j]), 0.0)
 
     # rings that add no shape: straight on, linear taper
     kept = np.ones(nr, bool)
@@ -615,7 +542,7 @@ def sweep(
 
     displace = None
     if opt.bark_displacement > 0:
-        amplitude, noise_seed = opt.bark_displacement, (int(seed), BARK_NOISE_STREAM)
+        amplitude, noise_seed = opt.bark_displacement, (int(seed), int(Stream.BARK_DISPLACEMENT))
 
         def displace(points):
             return amplitude * bark_noise(points, noise_seed, octaves=opt.bark_octaves, frequency=opt.bark_frequency)
@@ -722,27 +649,21 @@ def _merge_groups(chain, p0, p1, v0, v1, w0, w1, deviation, gap):  # pragma: no 
 
 
 def _check_finite(skeleton: Skeleton) -> None:
-    """A NaN or infinite coordinate would pass silently into every tube of its chain: refuse it by name."""
-    ok = np.isfinite(skeleton.start).all(axis=1) & np.isfinite(skeleton.end).all(axis=1)
-    ok &= np.isfinite(skeleton.left).all(axis=1) & np.isfinite(skeleton.width_start) & np.isfinite(skeleton.width_end)
+    """A NaN or infinite coordinate would pass silently into every tube of its chain: refuse it by name.
+
+    So would one too large for the arithmetic of the mesh stages (squared lengths, the union's weld grid,
+    32-bit floats in the files): coordinates and widths are bounded by ``MAX_COORDINATE``.
+    """
+    with np.errstate(invalid="ignore"):  # NaN compares False: refused below
+        ok = (np.abs(skeleton.start) <= MAX_COORDINATE).all(axis=1) & (np.abs(skeleton.end) <= MAX_COORDINATE).all(1)
+        ok &= np.isfinite(skeleton.left).all(axis=1)
+        ok &= (np.abs(skeleton.width_start) <= MAX_COORDINATE) & (np.abs(skeleton.width_end) <= MAX_COORDINATE)
     if not ok.all():
         s = int(np.flatnonzero(~ok)[0])
         raise GeometryError(
             f"sweep: segment {s} (module {int(skeleton.module[s])}) has a start, end, width or frame "
-            "that is not a finite number"
+            f"that is not a finite number, or is beyond {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)"
         )
-
-
-def _offsets(counts: np.ndarray) -> np.ndarray:
-    out = np.zeros(len(counts) + 1, np.int64)
-    np.cumsum(counts, out=out[1:])
-    return out
-
-
-def _local_counts(counts: np.ndarray) -> np.ndarray:
-    """``0..counts[i]-1`` for each ``i``, concatenated."""
-    counts = np.asarray(counts, np.int64)
-    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
 
 
 def _tube_faces(faces: np.ndarray, s: int, rings: np.ndarray, wedge_start: np.ndarray, face_start: np.ndarray) -> None:
@@ -760,7 +681,7 @@ def _tube_faces(faces: np.ndarray, s: int, rings: np.ndarray, wedge_start: np.nd
     template[1::2] = np.stack([js, js + s + 2, js + s + 1], axis=1)
     spans = rings - 1
     tube = np.repeat(np.arange(len(rings)), spans)
-    k = np.arange(int(spans.sum())) - np.repeat(np.cumsum(spans) - spans, spans)  # span within its tube
+    k = local_index(spans)  # span within its tube
     dest = (face_start[tube] + k * 2 * s)[:, None] + np.arange(2 * s)
     faces[dest] = (wedge_start[tube] + k * (s + 1))[:, None, None] + template[None]
     cap_f = face_start + 2 * s * spans
@@ -785,17 +706,17 @@ def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch,
     c[s], si[s] = 1.0, 0.0
     radial = c[None, :, None] * axis_a[:, None, :] + si[None, :, None] * axis_b[:, None, :]  # (n, s+1, 3)
     off = radius[:, None, None] * radial
-    off += ((stretch - 1.0)[:, None] * _dot(off, bend_dir[:, None, :]))[:, :, None] * bend_dir[:, None, :]
+    off += ((stretch - 1.0)[:, None] * dot(off, bend_dir[:, None, :]))[:, :, None] * bend_dir[:, None, :]
     ring_pts = center[:, None, :] + off[:, :s]
     if displace is not None:
         bump = displace(ring_pts.reshape(-1, 3)).reshape(n, s) * radius[:, None]
         ring_pts = ring_pts + bump[:, :, None] * radial[:, :s]
-    normal = _unit(radial - slope[:, None, None] * tangent[:, None, :])
+    normal = unit(radial - slope[:, None, None] * tangent[:, None, :])
 
-    p_off = _offsets(rings * s + 2)
-    w_off = _offsets((rings + 2) * (s + 1))
-    f_off = _offsets(2 * s * rings)
-    first_ring = _offsets(rings)[:-1]
+    p_off = offsets(rings * s + 2)
+    w_off = offsets((rings + 2) * (s + 1))
+    f_off = offsets(2 * s * rings)
+    first_ring = offsets(rings)[:-1]
     tube_of_ring = np.repeat(np.arange(nt), rings)
     local = np.arange(n) - first_ring[tube_of_ring]
     jj = np.arange(s + 1)
@@ -853,7 +774,7 @@ def _surface_normals(points, wedge_point, wedge_normal, faces, f_off, body_faces
     pn = np.zeros((len(points), 3))
     for c in range(3):
         pn[:, c] = sum(np.bincount(fp[:, k], weights=fn[:, c], minlength=len(points)) for k in range(3))
-    wedge_normal[ring_w] = _unit(pn)[wedge_point[ring_w]]
+    wedge_normal[ring_w] = unit(pn)[wedge_point[ring_w]]
 
 
 def _concat(parts: list[Tubes]) -> Tubes:
@@ -864,7 +785,7 @@ def _concat(parts: list[Tubes]) -> Tubes:
     w_shift = np.cumsum([0] + [len(t.wedge_point) for t in parts[:-1]])
     f_shift = np.cumsum([0] + [len(t.faces) for t in parts[:-1]])
 
-    def offsets(name, shift):
+    def shifted(name, shift):
         return np.concatenate([[0]] + [getattr(t, name)[1:] + sh for t, sh in zip(parts, shift, strict=True)])
 
     return Tubes(
@@ -873,8 +794,8 @@ def _concat(parts: list[Tubes]) -> Tubes:
         np.concatenate([t.wedge_normal for t in parts]),
         np.concatenate([t.wedge_uv for t in parts]),
         np.concatenate([t.faces + sh for t, sh in zip(parts, w_shift, strict=True)]),
-        offsets("point_offsets", p_shift),
-        offsets("wedge_offsets", w_shift),
-        offsets("face_offsets", f_shift),
+        shifted("point_offsets", p_shift),
+        shifted("wedge_offsets", w_shift),
+        shifted("face_offsets", f_shift),
         *(np.concatenate([getattr(t, name) for t in parts]) for name in ("chain", "sides", "rings", "order")),
     )

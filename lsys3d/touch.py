@@ -38,6 +38,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .arrays import dot as _dot
+from .arrays import local_index as _local
+from .arrays import offsets as _offsets
 from .errors import LimitError
 from .sweep import Tubes
 
@@ -59,22 +62,6 @@ DEFAULT_MAX_PAIRS = 400_000
 
 _CHUNK = 1 << 21  # candidate pairs examined at once in the broad phase (bounds its memory, ~100 MB)
 _SECONDS_PER_PAIR = 1e-4  # boolean work per touching pair in a crowd (500 parallel tubes: 124,750 pairs, 12 s CPU)
-
-
-def _offsets(counts: np.ndarray) -> np.ndarray:
-    out = np.zeros(len(counts) + 1, np.int64)
-    np.cumsum(counts, out=out[1:])
-    return out
-
-
-def _local(counts: np.ndarray) -> np.ndarray:
-    """``0..counts[i]-1`` for each ``i``, concatenated."""
-    counts = np.asarray(counts, np.int64)
-    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", a, b)
 
 
 def ring_points(tubes: Tubes) -> np.ndarray:

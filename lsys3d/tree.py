@@ -1,54 +1,40 @@
-"""The generated asset: bark mesh, leaves, skeleton and provenance.
+"""The generated asset: bark mesh, leaves, skeleton, counts and provenance.
 
 This is the contract between the mesh stages and the writers in
-:mod:`lsys3d.exchange`.  The writers know nothing of grammars; everything they
-need to reproduce or describe the asset is in :attr:`Tree.provenance`.
-
-Meshes are ``trimesh.Trimesh`` objects with *welded* vertices (so a unioned
-bark is watertight) and per-face-corner shading attributes in
-``mesh.face_attributes``:
-
-``corner_normals`` : (f, 3, 3) float32
-    Unit normal at each corner of each face (smooth around a tube, sharp at caps).
-``corner_uv`` : (f, 3, 2) float32
-    Texture coordinates at each corner: u around the tube in [0, 1], v along
-    the chain in metres.
-
-and, optionally, per-vertex colours in ``mesh.vertex_attributes``:
-
-``vertex_color`` : (v, 3) float32
-    Linear RGB in [0, 1] at each vertex (bark colour variation,
-    :mod:`lsys3d.bark`).  Where present it is the surface colour in place of
-    the material's base colour: glTF ``COLOR_0`` with a white base colour
-    factor, USD ``primvars:displayColor`` read by the material.
+:mod:`lsys3d.exchange`.  The writers know nothing of grammars: what they need
+to name, describe or regrow the asset is :meth:`Tree.metadata` and
+:attr:`Tree.name`.  Meshes are :class:`~lsys3d.mesh.Mesh` (welded vertices,
+corner normals and uv, optional vertex colours).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
-import numpy as np
-import trimesh
-
+from .hierarchy import Hierarchy
+from .leaves import Leaves
+from .materials import BARK, LEAF, Material, MaterialTable
+from .mesh import Mesh
 from .modules import ModuleString
+from .provenance import DEFAULT_NAME, Provenance, asset_identifier
+from .rig import Rig
 from .skeleton import Skeleton
 
-__all__ = ["Material", "Tree"]
+__all__ = ["BARK", "LEAF", "Material", "StageCounts", "Tree"]
 
 
 @dataclass(frozen=True)
-class Material:
-    """A PBR material: linear base colour (RGBA), roughness, double-sidedness."""
+class StageCounts:
+    """What the stages before the mesh produced: modules, segments and the tubes before the union."""
 
-    name: str
-    base_color: tuple[float, float, float, float]
-    roughness: float = 0.8
-    metallic: float = 0.0
-    double_sided: bool = False
+    modules: int = 0
+    segments: int = 0
+    tubes: int = 0
+    tube_vertices: int = 0
+    tube_faces: int = 0
 
-
-BARK = Material("bark", (0.30, 0.20, 0.12, 1.0), roughness=0.9)
-LEAF = Material("leaf", (0.18, 0.45, 0.10, 1.0), roughness=0.6, double_sided=True)
+    def to_json(self) -> dict:
+        return dict(sorted(asdict(self).items()))
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,37 +43,66 @@ class Tree:
 
     Attributes
     ----------
-    bark : trimesh.Trimesh
+    bark : Mesh
         The branches; one watertight 2-manifold when unioned, else the tube soup.
-    leaves : trimesh.Trimesh or None
-        All leaves merged into one flat mesh (polygon leaves plus every leaf
-        instance baked in place): the fallback for formats without instancing.
-    leaf_model : trimesh.Trimesh or None
-        The one leaf model that ``leaf_transforms`` place (instanced leaves).
-    leaf_transforms : (k, 4, 4) float64
-        World transforms of the leaf instances (rotation columns = left, up,
-        heading scaled by the leaf size; translation = position).
-    polygon_leaves : trimesh.Trimesh or None
-        The leaves drawn as polygons with ``{ . }`` (not instanced).
     skeleton : Skeleton
         The branch skeleton (for curves and statistics).
-    provenance : dict
-        JSON-serialisable: grammar name and text, iterations, seed, options,
-        lsys3d version; written into every export.
+    leaves : Leaves
+        Leaf polygons, the leaf model and its instance transforms, and all
+        leaves merged (the fallback for formats without instancing).
+    provenance : Provenance or None
+        How it was grown (None for a tree assembled by hand).
+    counts : StageCounts
+        Modules, segments and tubes of the stages before the mesh.
     unioned : bool
         Whether ``bark`` went through the manifold union.
     modules : ModuleString or None
         The derived string the turtle read (None for trees built by hand).
+    materials : MaterialTable
+        The bark's and the leaves' materials, by the turtle's material index
+        (:mod:`lsys3d.materials`; the two defaults unless the grammar has a
+        ``[materials]`` table).
+    hierarchy : Hierarchy or None
+        The branch hierarchy, when the tree carries hierarchy and wind
+        attributes (the writers write its per-branch table).
+    rig : Rig or None
+        The joints, when the tree is rigged; the bark and the merged leaves
+        then carry their skins (:data:`lsys3d.rig.SKIN_KEYS`).
     """
 
-    bark: trimesh.Trimesh
+    bark: Mesh
     skeleton: Skeleton
-    provenance: dict = field(default_factory=dict)
-    leaves: trimesh.Trimesh | None = None
-    leaf_model: trimesh.Trimesh | None = None
-    leaf_transforms: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
-    polygon_leaves: trimesh.Trimesh | None = None
+    leaves: Leaves = field(default_factory=Leaves)
+    provenance: Provenance | None = None
+    counts: StageCounts = field(default_factory=StageCounts)
     unioned: bool = True
-    bark_material: Material = BARK
-    leaf_material: Material = LEAF
     modules: ModuleString | None = None
+    materials: MaterialTable = field(default_factory=MaterialTable)
+    hierarchy: Hierarchy | None = None
+    rig: Rig | None = None
+
+    @property
+    def bark_material(self) -> Material:
+        """The bark's default material (its segments' index without an entry of its own)."""
+        return self.materials.bark
+
+    @property
+    def leaf_material(self) -> Material:
+        """The leaves' default material."""
+        return self.materials.leaf
+
+    @property
+    def name(self) -> str:
+        """The asset's name (:attr:`Provenance.asset_name`; ``tree`` without provenance)."""
+        return self.provenance.asset_name if self.provenance is not None else DEFAULT_NAME
+
+    @property
+    def identifier(self) -> str:
+        """The asset's name as an identifier (USD prim names): ``abop-1.24a`` -> ``abop_1_24a``."""
+        return asset_identifier(self.name)
+
+    def metadata(self) -> dict:
+        """The ``lsys3d`` block every writer records: provenance and counts, JSON-ready (empty without provenance)."""
+        if self.provenance is None:
+            return {}
+        return {**self.provenance.to_json(), "counts": self.counts.to_json()}

@@ -31,7 +31,7 @@ everything):
    and are welded back onto their rings afterwards (caps found by manifold
    face ids, rings by exact position; the seam and the result are checked,
    and whole tubes are unioned if anything does not match).
-5. *Jobs* (:mod:`lsys3d.batches`).  Runs (or tubes) that touch form clusters;
+5. *Jobs* (:mod:`lsys3d.union_jobs`).  Runs (or tubes) that touch form clusters;
    small clusters are packed into jobs, a crowded cluster is split in space
    and its halves merged back.  Within a job the touch graph is coloured
    greedily and each colour becomes one Manifold of pairwise disjoint parts
@@ -58,13 +58,16 @@ from dataclasses import dataclass
 
 import manifold3d
 import numpy as np
-import trimesh
 
-from . import batches, booleans, repeats
+from . import booleans, repeats, union_jobs
+from .arrays import components, find_rows
+from .arrays import first_equal_row as _first_equal_row
+from .arrays import offsets as _offsets
 from .booleans import BooleanError, Part
 from .errors import GeometryError
-from .rowhash import find_rows, row_hash
-from .sweep import Tubes, corner_mesh
+from .mesh import Mesh, face_normals
+from .options import Options, option
+from .sweep import Tubes
 from .touch import DEFAULT_MAX_PAIRS, buried_tubes, duplicate_tubes, free_stretches, pieces, touching
 
 __all__ = ["UnionOptions", "concatenate", "may_touch", "union"]
@@ -81,58 +84,54 @@ _JOB_TRIANGLES = 60_000  # smallest job worth its own boolean (a few tenths of a
 
 
 @dataclass(frozen=True)
-class UnionOptions:
-    """How tubes are unioned; every default lives here.
+class UnionOptions(Options):
+    """Whether and how tubes are unioned; every default, range and help is in its field.
 
-    Attributes
-    ----------
-    layers : bool
-        Group pairwise-disjoint tubes into layers before the boolean (fast).
-        False hands every tube to ``Manifold.batch_boolean`` separately
-        (manifold's own bounding-box grouping; slower, for comparison).
-    local : bool
-        Send only the pieces that may touch another tube through the boolean
-        and stitch the rest of each tube back on (needs ``layers``).
-    local_max : float
-        Use the local path only while at most this fraction of the pieces may
-        touch another tube (above it, stitching costs more than it saves).
-    margin : float
-        Relative padding of the touch test (fraction of the capsule radii),
-        so that tubes that only graze still count as touching.
-    workers : int
-        Processes the boolean may use; 0: one per core this process may run
-        on (its CPU affinity).  1 keeps everything in this process.  The result
-        does not depend on it.
-    max_pairs : int
-        Most pairs of tube pieces that may touch; more (a crowd of branches
-        at one place) is refused with :class:`~lsys3d.errors.LimitError`
-        before the boolean starts (about 0.1 ms of boolean work per pair).
+    ``layers`` groups pairwise-disjoint tubes into layers before the boolean
+    (fast); off, every tube goes to ``Manifold.batch_boolean`` separately
+    (manifold's own bounding-box grouping; slower, for comparison).
+    ``local`` sends only the pieces that may touch another tube through the
+    boolean and stitches the rest of each tube back on (needs ``layers``),
+    while at most ``local_max`` of the pieces may touch.  ``workers`` is how
+    the work runs, not what it makes: the result is the same bytes with any
+    number of workers, so it is left out of :meth:`plain` (and of the
+    provenance of the files).
     """
 
-    layers: bool = True
-    local: bool = True
-    local_max: float = 0.75
-    margin: float = 0.01
-    workers: int = 0
-    max_pairs: int = DEFAULT_MAX_PAIRS
+    enabled: bool = option(
+        True, name="union", help="the union of the tubes into one watertight mesh (off: the tube soup, a fast preview)"
+    )
+    layers: bool = option(True, help="group pairwise-disjoint tubes into layers before the boolean", cli=False)
+    local: bool = option(True, help="send only the pieces that may touch through the boolean", cli=False)
+    local_max: float = option(
+        0.75, low=0, high=1, help="use the local path while at most this fraction of pieces may touch", cli=False
+    )
+    margin: float = option(0.01, low=0, high=1, help="relative padding of the touch test", cli=False)
+    workers: int = option(
+        0,
+        low=0,
+        high=4096,
+        help="processes the union may use (0: one per core this process may run on; the result is the same)",
+    )
+    max_pairs: int = option(
+        DEFAULT_MAX_PAIRS,
+        low=1,
+        name="max_union_pairs",
+        help="most pairs of tube pieces that may touch in the union (more is a crowd of branches that would take "
+        "minutes; about 0.1 ms of boolean work each)",
+    )
 
-    def __post_init__(self):
-        for name in ("margin", "local_max"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value <= 1):
-                raise ValueError(f"UnionOptions.{name}: value {value!r} is out of range [0, 1]")
-        for name, lowest in (("workers", 0), ("max_pairs", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < lowest:
-                raise ValueError(f"UnionOptions.{name}: expected a whole number >= {lowest}, got {value!r}")
+    def plain(self) -> dict:
+        """The options as plain data, without ``workers`` (how the work runs, not what it makes)."""
+        data = super().plain()
+        del data["workers"]
+        return data
 
 
-def concatenate(tubes: Tubes) -> trimesh.Trimesh:
+def concatenate(tubes: Tubes) -> Mesh:
     """All tubes as one tube-soup mesh (no boolean): the ``union=False`` bark.
 
-    Each tube stays a closed, welded component; tubes may overlap.  The mesh
-    has the ``corner_normals`` / ``corner_uv`` face attributes of
-    :mod:`lsys3d.tree`.
+    Each tube stays a closed, welded component; tubes may overlap.
     """
     return tubes.mesh()
 
@@ -194,7 +193,7 @@ def _unique_pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def union(
     tubes: Tubes, options: UnionOptions | None = None, *, progress: Callable[[float], None] | None = None
-) -> trimesh.Trimesh:
+) -> Mesh:
     """Union the tubes of one tree into one watertight, consistently oriented mesh.
 
     Parameters
@@ -207,7 +206,7 @@ def union(
 
     Returns
     -------
-    trimesh.Trimesh
+    Mesh
         Welded, watertight 2-manifold with outward faces and the
         ``corner_normals`` (unit) / ``corner_uv`` face attributes of
         :mod:`lsys3d.tree`.
@@ -228,7 +227,7 @@ def union(
     if bad.any():
         t = int(np.searchsorted(tubes.point_offsets, np.flatnonzero(bad)[0], side="right") - 1)
         raise GeometryError(f"union: tube {t} (chain {int(tubes.chain[t])}) has a point that is not a finite number")
-    workers = opt.workers or batches.default_workers()
+    workers = opt.workers or union_jobs.default_workers()
     progress = _Progress(progress)
     progress(0.0)
     if not opt.layers:
@@ -238,7 +237,7 @@ def union(
             raise GeometryError(f"{where}: manifold3d reported {result.status().name}")
         if result.is_empty() or result.num_tri() == 0:
             raise GeometryError(f"{where}: manifold3d returned an empty mesh")
-        mesh = _weld_float32(_drop_crumbs(_to_trimesh([booleans.part_of(result)], where)))
+        mesh = _weld_float32(_drop_crumbs(_to_mesh([booleans.part_of(result)], where)))
         progress(1.0)
         return mesh
     t0 = time.perf_counter()
@@ -261,7 +260,7 @@ def union(
     colour = _colour(len(tubes), pairs)
     weight = np.diff(tubes.face_offsets).astype(np.float64)
     box = tubes.bounds()
-    jobs = batches.plan(weight, box.mean(axis=1), pairs[:, 0], pairs[:, 1], _job_target(weight.sum()))
+    jobs = union_jobs.plan(weight, box.mean(axis=1), pairs[:, 0], pairs[:, 1], _job_target(weight.sum()))
 
     def leaf(i: int) -> list[Part]:
         items = jobs.leaves[i]
@@ -271,9 +270,10 @@ def union(
             out.append(_part(sel, sel.faces, np.arange(len(sel.faces))))
         return out
 
-    roots, stats = batches.run(jobs, leaf, _namer(jobs, "layer"), _use(workers, weight.sum(), jobs), progress.boolean)
+    use = _use(workers, weight.sum(), jobs)
+    roots, stats = union_jobs.run(jobs, leaf, _namer(jobs, "layer"), use, progress.boolean)
     log.debug("union: %d tubes in %d jobs, %d workers", len(tubes), stats["jobs"], stats["workers"])
-    mesh = _to_trimesh(roots, where)
+    mesh = _to_mesh(roots, where)
     progress(0.85)
     mesh = _weld_float32(_drop_crumbs(mesh))
     progress(1.0)
@@ -343,14 +343,14 @@ def _job_target(total: float) -> float:
     return max(total / 16, _JOB_TRIANGLES)
 
 
-def _use(workers: int, triangles: float, jobs: batches.Plan) -> int:
+def _use(workers: int, triangles: float, jobs: union_jobs.Plan) -> int:
     """Worker processes for a plan: all of them for big unions, none (this process) for small ones."""
-    if workers > 1 and triangles >= batches.POOL_MIN_TRIANGLES and len(jobs.weight) > 1:
+    if workers > 1 and triangles >= union_jobs.POOL_MIN_TRIANGLES and len(jobs.weight) > 1:
         return min(workers, len(jobs.weight))
     return 1
 
 
-def _namer(jobs: batches.Plan, what: str) -> Callable[[int], str]:
+def _namer(jobs: union_jobs.Plan, what: str) -> Callable[[int], str]:
     def name(node: int) -> str:
         if len(jobs.weight) == 1:
             return f"union: {what} 0"
@@ -370,7 +370,7 @@ def _crumbs(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     below 1e-3 * area^1.5, where a thin tube's ratio is near 0.2 * sqrt(r/L)).
     Real parts of a plant (a separate branch after an ``f`` move) are kept.
     """
-    label = batches.components(len(vertices), faces.ravel(), np.roll(faces, -1, axis=1).ravel())[faces[:, 0]]
+    label = components(len(vertices), faces.ravel(), np.roll(faces, -1, axis=1).ravel())[faces[:, 0]]
     piece = np.unique(label, return_inverse=True)[1].ravel()
     if piece.max(initial=0) == 0:
         return np.zeros(len(faces), bool)
@@ -383,39 +383,36 @@ def _crumbs(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return crumb[piece]
 
 
-def _drop_crumbs(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+def _drop_crumbs(mesh: Mesh) -> Mesh:
     """The mesh without its crumbs (:func:`_crumbs`)."""
-    faces = np.asarray(mesh.faces)
-    crumb = _crumbs(np.asarray(mesh.vertices), faces)
+    faces = mesh.faces
+    crumb = _crumbs(mesh.vertices, faces)
     if not crumb.any():
         return mesh
     keep = ~crumb
     used = np.zeros(len(mesh.vertices), bool)
     used[faces[keep]] = True
     renumber = np.cumsum(used) - 1
-    attrs = mesh.face_attributes
-    return corner_mesh(
-        np.asarray(mesh.vertices)[used], renumber[faces[keep]], attrs["corner_normals"][keep], attrs["corner_uv"][keep]
-    )
+    return Mesh(mesh.vertices[used], renumber[faces[keep]], mesh.normals[keep], mesh.uv[keep])
 
 
-def _repair_corners(mesh: trimesh.Trimesh) -> None:
-    """Give corners whose interpolated attributes manifold3d left non-finite the face normal and uv 0 (in place).
+def _repair_corners(mesh: Mesh) -> None:
+    """Give corners whose interpolated attributes manifold3d left non-finite the face normal and uv 0.
 
     Seen on degenerate input (hypothesis: 15 zero-width tubes 1e-12 apart) where
-    manifold3d interpolates properties over a zero-area triangle.
+    manifold3d interpolates properties over a zero-area triangle.  The union's
+    own fresh arrays are repaired in place.
     """
-    normals = mesh.face_attributes["corner_normals"]
+    normals = mesh.normals
     bad = ~np.isfinite(normals).all(axis=2) | (np.abs(normals).sum(axis=2) == 0)
     if bad.any():
-        fn = np.nan_to_num(np.asarray(mesh.face_normals, np.float32))
+        fn = np.nan_to_num(face_normals(mesh.vertices, mesh.faces).astype(np.float32))
         fn[np.abs(fn).sum(axis=1) == 0] = (0.0, 1.0, 0.0)
         normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad]
-    uv = mesh.face_attributes["corner_uv"]
-    uv[~np.isfinite(uv)] = 0.0
+    mesh.uv[~np.isfinite(mesh.uv)] = 0.0
 
 
-def _weld_float32(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+def _weld_float32(mesh: Mesh) -> Mesh:
     """Merge vertices that share a float32 position and drop the triangles that collapse, if it stays closed.
 
     Where tubes meet almost tangentially, manifold3d keeps distinct vertices a
@@ -428,57 +425,31 @@ def _weld_float32(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     (:func:`_separate_float32`), and so are any left closer than readers weld.
     """
     _repair_corners(mesh)
-    v32 = np.asarray(mesh.vertices, np.float32) + np.float32(0.0)  # + 0.0: -0.0 and 0.0 are one position
+    v32 = mesh.vertices.astype(np.float32) + np.float32(0.0)  # + 0.0: -0.0 and 0.0 are one position
     owner = _first_equal_row(v32.view(np.int32))
     first = owner == np.arange(len(v32))
     if first.all():
         return _separate_float32(mesh)
     renumber = np.cumsum(first) - 1  # the points numbered in their first appearance
-    faces = renumber[owner][np.asarray(mesh.faces)]
+    faces = renumber[owner][mesh.faces]
     a, b, c = faces.T
     keep = (a != b) & (b != c) & (c != a)
     faces = faces[keep]
-    attrs = mesh.face_attributes
     merged = np.zeros(int(first.sum()), bool)  # the points that several vertices became
     merged[renumber[owner[~first]]] = True
     if not _closed(faces, int(first.sum()), merged):
         return _separate_float32(mesh)
-    # in place, one array at a time: the old ones go as soon as they are replaced
-    mesh.faces = faces
-    mesh.vertices = v32[first].astype(np.float64)
-    del faces, v32
-    for name in ("corner_normals", "corner_uv"):
-        attrs[name] = attrs[name][keep]
-    return _separate_float32(mesh)
+    # one array at a time: the old ones go as soon as they are replaced
+    normals, uv = mesh.normals, mesh.uv
+    del mesh
+    vertices = v32[first].astype(np.float64)
+    del v32
+    normals = normals[keep]
+    uv = uv[keep]
+    return _separate_float32(Mesh(vertices, faces, normals, uv))
 
 
-def _first_equal_row(keys: np.ndarray) -> np.ndarray:
-    """For each row of an integer array ``(n, 3)``, the index of the first row equal to it.
-
-    What ``np.unique(keys, axis=0, return_index=True, return_inverse=True)``
-    gives, from one stable sort of a 64-bit hash of the rows (several times
-    faster); should two different rows share a hash, the rows are sorted
-    themselves.
-
-    >>> _first_equal_row(np.array([[1, 2, 3], [0, 0, 0], [1, 2, 3], [0, 0, 0]])).tolist()
-    [0, 1, 0, 1]
-    """
-    h = row_hash(keys)
-    order = np.argsort(h, kind="stable")  # stable: equal rows keep their order, the first comes first
-    ranked = keys[order]
-    same = (ranked[1:] == ranked[:-1]).all(axis=1)
-    if ((h[order][1:] == h[order][:-1]) & ~same).any():  # two rows share a hash: sort the rows
-        order = np.lexsort(keys.T[::-1])
-        ranked = keys[order]
-        same = (ranked[1:] == ranked[:-1]).all(axis=1)
-    starts = np.ones(len(keys), bool)
-    starts[1:] = ~same
-    owner = np.empty(len(keys), np.int64)
-    owner[order] = order[np.flatnonzero(starts)][np.cumsum(starts) - 1]
-    return owner
-
-
-def _separate_float32(mesh: trimesh.Trimesh, rounds: int = 32) -> trimesh.Trimesh:
+def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
     """Give distinct vertices distinct float32 positions, far enough apart that readers do not weld them.
 
     Where a weld would break the mesh (crossings of coplanar tubes), a vertex
@@ -531,8 +502,7 @@ def _separate_float32(mesh: trimesh.Trimesh, rounds: int = 32) -> trimesh.Trimes
     moved = (v32 != v.astype(np.float32)).any(axis=1)
     log.debug("union: %d vertices moved to positions of their own", int(moved.sum()))
     v[moved] = v32[moved]
-    mesh.vertices = v
-    return mesh
+    return Mesh(v, mesh.faces, mesh.normals, mesh.uv)
 
 
 def _local_union(
@@ -618,7 +588,7 @@ def _local_union(
 
     # clusters of runs that touch; congruent clusters are unioned once
     run_pairs = _unique_pairs(run_of_piece[a], run_of_piece[b])
-    label = batches.components(len(run_start), run_pairs[:, 0], run_pairs[:, 1])
+    label = components(len(run_start), run_pairs[:, 0], run_pairs[:, 1])
     by_label = np.argsort(label, kind="stable")
     cluster_runs = np.split(by_label, np.flatnonzero(np.diff(label[by_label])) + 1)
     clusters = repeats.find(tubes, cluster_runs, tri_id, tri_off, faces_of, nf)
@@ -632,7 +602,7 @@ def _local_union(
     colour = _colour(len(todo), todo_pairs)
     weight = np.diff(tri_off)[todo].astype(np.float64)
     centre = 0.5 * (pcs.p[run_start[todo]] + pcs.q[run_end[todo]])
-    jobs = batches.plan(weight, centre, todo_pairs[:, 0], todo_pairs[:, 1], _job_target(weight.sum()))
+    jobs = union_jobs.plan(weight, centre, todo_pairs[:, 0], todo_pairs[:, 1], _job_target(weight.sum()))
 
     def leaf(i: int) -> list[Part]:
         items = jobs.leaves[i]
@@ -643,7 +613,8 @@ def _local_union(
             out.append(_part(tubes, faces_of(ids), ids))
         return out
 
-    roots, stats = batches.run(jobs, leaf, _namer(jobs, "layer"), _use(workers, weight.sum(), jobs), progress.boolean)
+    use = _use(workers, weight.sum(), jobs)
+    roots, stats = union_jobs.run(jobs, leaf, _namer(jobs, "layer"), use, progress.boolean)
     log.debug(
         "union: %d of %d pieces in %d runs, %d clusters (%d unioned, %d triangles, %d colours), %d jobs, "
         "%d workers, %.2f s boolean CPU",
@@ -741,13 +712,7 @@ def _local_union(
     if not _closed(faces, len(vertices), near):
         log.debug("union: the stitched mesh is not closed at a seam; unioning whole tubes")
         return None
-    return corner_mesh(vertices, faces, normals, uv)
-
-
-def _offsets(counts: np.ndarray) -> np.ndarray:
-    out = np.zeros(len(counts) + 1, np.int64)
-    np.cumsum(counts, out=out[1:])
-    return out
+    return Mesh(vertices, faces, normals, uv)
 
 
 def _part(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray) -> Part:
@@ -862,8 +827,8 @@ def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> b
     return bool(np.array_equal(fwd, rev))
 
 
-def _to_trimesh(parts: list[Part], where: str) -> trimesh.Trimesh:
+def _to_mesh(parts: list[Part], where: str) -> Mesh:
     props, tri, _, point_of, npts = _join(parts, where)
     vertices = np.empty((npts, 3))
     vertices[point_of] = props[:, :3]
-    return corner_mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:])
+    return Mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:])

@@ -1,8 +1,11 @@
-"""Synthetic trees for the export tests (until ``lsys3d.generate`` builds real ones).
+"""Synthetic trees for the export tests: geometry made here, assembled as lsys3d assembles real trees.
 
 A trunk and two branches are trimesh cylinders unioned by manifold3d, with
 corner normals (smooth, creased at the caps) and cylindrical UVs computed
-here; leaves are quads placed by instance transforms; one leaf is a polygon.
+here; leaves are quads placed by instance transforms and baked by
+:func:`lsys3d.leaves.instance_leaves`; one leaf is a polygon.  The provenance
+is built by :meth:`lsys3d.provenance.Provenance.of`, the pipeline's own builder,
+so the writers read exactly what they read from a generated tree.
 """
 
 from __future__ import annotations
@@ -10,21 +13,21 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from lsys3d.grammar import Grammar
+from lsys3d.leaves import Leaves, instance_leaves
+from lsys3d.mesh import Mesh
+from lsys3d.pipeline import GenerateOptions
+from lsys3d.provenance import Provenance
 from lsys3d.skeleton import Skeleton
-from lsys3d.tree import Tree
+from lsys3d.tree import StageCounts, Tree
 
-PROVENANCE = {
-    "name": "synthetic",
-    "grammar": "axiom = 'F[+F][-F]'\n",
-    "iterations": 3,
-    "seed": 42,
-    "options": {"angle": 25.0},
-    "lsys3d": "0.1.0",
-}
+GRAMMAR = Grammar(axiom="F[+F][-F]", name="synthetic", iterations=3, seed=42, angle=25.0)
+PROVENANCE = Provenance.of(GRAMMAR, 3, 42, GenerateOptions())
+COUNTS = StageCounts(modules=9, segments=4, tubes=3, tube_vertices=0, tube_faces=0)
 
 
-def corner_attributes(mesh: trimesh.Trimesh, axis_points=None, crease_degrees: float = 40.0) -> trimesh.Trimesh:
-    """Fill ``corner_normals`` and ``corner_uv`` of a welded mesh (in place; returns it).
+def corner_attributes(mesh: trimesh.Trimesh, crease_degrees: float = 40.0) -> Mesh:
+    """A :class:`~lsys3d.mesh.Mesh` of a welded trimesh with corner normals and uv made here.
 
     Normals are the vertex normals, except at corners whose face turns more
     than ``crease_degrees`` away from them (caps), which take the face normal.
@@ -47,24 +50,19 @@ def corner_attributes(mesh: trimesh.Trimesh, axis_points=None, crease_degrees: f
     wrap = (u.max(axis=1) - u.min(axis=1)) > 0.5
     u = np.where(wrap[:, None] & (u < 0.5), u + 1.0, u)
     uv = np.stack([u, p[..., 1]], axis=-1)
-    mesh.face_attributes["corner_normals"] = normals.astype(np.float32)
-    mesh.face_attributes["corner_uv"] = uv.astype(np.float32)
-    return mesh
+    return Mesh(mesh.vertices, faces, normals, uv)
 
 
 def _cylinder(start, end, radius, sections=24) -> trimesh.Trimesh:
     return trimesh.creation.cylinder(radius=radius, segment=np.array([start, end]), sections=sections)
 
 
-def leaf_quad(length: float = 1.0, width: float = 0.5) -> trimesh.Trimesh:
+def leaf_quad(length: float = 1.0, width: float = 0.5) -> Mesh:
     """A leaf model in its own frame: x = left, y = up (the normal), z = heading (the blade)."""
     v = np.array([[-width / 2, 0, 0], [width / 2, 0, 0], [width / 2, 0, length], [-width / 2, 0, length]], float)
     faces = np.array([[0, 2, 1], [0, 3, 2]])
-    mesh = trimesh.Trimesh(v, faces, process=False)
-    mesh.face_attributes["corner_normals"] = np.tile(np.float32([0, 1, 0]), (2, 3, 1))
     uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
-    mesh.face_attributes["corner_uv"] = uv[faces]
-    return mesh
+    return Mesh(v, faces, np.tile(np.float32([0, 1, 0]), (2, 3, 1)), uv[faces])
 
 
 def _frame(heading, size):
@@ -84,8 +82,7 @@ def make_tree(instanced: bool = True, polygons: bool = True, unioned: bool = Tru
     parts = [_cylinder(trunk[0], trunk[2], 0.1)]
     parts += [_cylinder(a, b, 0.05, sections=16) for a, b in branches]
     bark = trimesh.boolean.union(parts, engine="manifold") if unioned else trimesh.util.concatenate(parts)
-    bark = trimesh.Trimesh(bark.vertices, bark.faces, process=False)
-    corner_attributes(bark)
+    bark = corner_attributes(trimesh.Trimesh(bark.vertices, bark.faces, process=False))
 
     start = np.array([trunk[0], trunk[1], branches[0][0], branches[1][0]], float)
     end = np.array([trunk[1], trunk[2], branches[0][1], branches[1][1]], float)
@@ -119,46 +116,19 @@ def make_tree(instanced: bool = True, polygons: bool = True, unioned: bool = Tru
     if polygons:
         pv = np.array([[0.0, 2.0, 0.0], [0.15, 2.1, 0.0], [0.1, 2.25, 0.02], [-0.05, 2.2, 0.0], [-0.1, 2.1, -0.01]])
         pf = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4]])
-        polygon = trimesh.Trimesh(pv, pf, process=False)
-        normal = np.repeat(polygon.face_normals[:, None, :], 3, axis=1)
-        polygon.face_attributes["corner_normals"] = normal.astype(np.float32)
-        polygon.face_attributes["corner_uv"] = (pv[pf][..., :2] * 4).astype(np.float32)
+        polygon = Mesh.flat(pv, pf, uv=(pv[pf][..., :2] * 4))
 
-    placed = []
-    for t in transforms:
-        leaf = model.copy()
-        leaf.apply_transform(t)
-        leaf.face_attributes["corner_normals"] = np.repeat(leaf.face_normals[:, None, :], 3, axis=1).astype(np.float32)
-        leaf.face_attributes["corner_uv"] = model.face_attributes["corner_uv"].copy()
-        placed.append(leaf)
-    if polygon is not None:
-        placed.append(polygon)
-    leaves = _concatenate(placed)
-
-    return Tree(
-        bark=bark,
-        skeleton=skeleton,
-        provenance=dict(PROVENANCE),
-        leaves=leaves,
-        leaf_model=model if instanced else None,
-        leaf_transforms=transforms if instanced else np.zeros((0, 4, 4)),
-        polygon_leaves=polygon,
-        unioned=unioned,
+    merged = Mesh.concatenate([instance_leaves(model, transforms), polygon])
+    leaves = Leaves(
+        merged=merged,
+        model=model if instanced else None,
+        transforms=transforms if instanced else np.zeros((0, 4, 4)),
+        polygons=polygon,
     )
+    return Tree(bark=bark, skeleton=skeleton, leaves=leaves, provenance=PROVENANCE, counts=COUNTS, unioned=unioned)
 
 
-def _concatenate(meshes: list[trimesh.Trimesh]) -> trimesh.Trimesh:
-    """Concatenate meshes keeping their corner attributes (trimesh drops face_attributes)."""
-    offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
-    v = np.concatenate([m.vertices for m in meshes])
-    f = np.concatenate([m.faces + o for m, o in zip(meshes, offsets, strict=True)])
-    out = trimesh.Trimesh(v, f, process=False)
-    for key in ("corner_normals", "corner_uv"):
-        out.face_attributes[key] = np.concatenate([m.face_attributes[key] for m in meshes])
-    return out
-
-
-def make_tube(around: int = 1000, along: int = 500, scramble: bool = False, seed: int = 0) -> trimesh.Trimesh:
+def make_tube(around: int = 1000, along: int = 500, scramble: bool = False, seed: int = 0) -> Mesh:
     """A welded open tube of ``2 * around * along`` triangles along +Y with corner normals and UVs.
 
     ``scramble=True`` permutes the vertex numbering at random (as a boolean union does).
@@ -180,19 +150,16 @@ def make_tube(around: int = 1000, along: int = 500, scramble: bool = False, seed
         inverse[perm] = np.arange(len(perm))
         vertices = vertices[perm]
         faces = inverse[faces]
-    mesh = trimesh.Trimesh(vertices, faces, process=False)
     p = vertices[faces]
     normals = p * np.array([1.0, 0.0, 1.0])
     normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
     u = np.arctan2(p[..., 0], p[..., 2]) / (2 * np.pi) + 0.5
     wrap = (u.max(axis=1) - u.min(axis=1)) > 0.5
     u = np.where(wrap[:, None] & (u < 0.5), u + 1.0, u)
-    mesh.face_attributes["corner_normals"] = normals.astype(np.float32)
-    mesh.face_attributes["corner_uv"] = np.stack([u, p[..., 1]], axis=-1).astype(np.float32)
-    return mesh
+    return Mesh(vertices, faces, normals, np.stack([u, p[..., 1]], axis=-1))
 
 
-def tree_from_bark(bark: trimesh.Trimesh) -> Tree:
+def tree_from_bark(bark: Mesh) -> Tree:
     """A Tree with only a bark mesh (for timing)."""
     skeleton = make_tree().skeleton
-    return Tree(bark=bark, skeleton=skeleton, provenance=dict(PROVENANCE))
+    return Tree(bark=bark, skeleton=skeleton, provenance=PROVENANCE, counts=COUNTS)

@@ -107,7 +107,8 @@ def test_generate_options_reach_the_file(tmp_path, capsys):
 
     stage = Usd.Stage.Open(str(path))
     stats = json.loads(stage.GetDefaultPrim().GetCustomDataByKey("lsys3d")["provenance"])
-    assert stats["options"]["union"] is False and stats["options"]["sweep"]["sides"] == 5
+    assert stats["options"]["union"]["enabled"] is False and stats["options"]["sweep"]["sides"] == 5
+    assert stage.GetDefaultPrim().GetName() == "koch" and Usd.ModelAPI(stage.GetDefaultPrim()).GetAssetName() == "koch"
     assert main(["-q", "generate", "koch", "-n", "1", "-o", str(tmp_path / "q.glb")]) == 0
     assert capsys.readouterr().out.count("wrote") == 1  # -q printed nothing
 

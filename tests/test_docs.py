@@ -37,3 +37,40 @@ def test_python_examples_run(path, tmp_path, monkeypatch):
 def test_toml_examples_parse(text):
     g = lsys3d.Grammar.from_text(text)
     assert len(lsys3d.derive(g)) > 0
+
+
+def test_architecture_names_what_exists():
+    """docs/architecture.md names modules, functions and classes: each must exist, so the map cannot rot."""
+    import importlib
+
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    paths = set(re.findall(r"`((?:lsys3d|tests|benchmarks|assets)/[\w/.]+)`", text))
+    assert len(paths) >= 20
+    for path in sorted(paths):
+        assert (ROOT / path.rstrip("/")).exists(), f"docs/architecture.md names {path}, which does not exist"
+    # every options class of the table lives in the module the table names
+    for cls, module in re.findall(r"^\| `(\w+Options|Limits)` \| `lsys3d/([\w/]+)\.py` \|", text, re.MULTILINE):
+        name = "lsys3d." + module.replace("/", ".").removesuffix(".__init__")
+        assert hasattr(importlib.import_module(name), cls), f"{cls} is not in {name}"
+    # every stage function of the stage table is in its module
+    for module, function in re.findall(r"^\| \w+ \| `lsys3d/([\w/]+)\.py` \| `([\w.]+)", text, re.MULTILINE):
+        obj = importlib.import_module("lsys3d." + module.replace("/", ".").removesuffix(".__init__"))
+        for part in function.split("."):
+            obj = getattr(obj, part.split("(")[0])
+    # every module of the package appears on the page
+    modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / "lsys3d").rglob("*.py") if p.name != "__init__.py"}
+    missing = sorted(m for m in modules if m not in text and m.split("/")[-1] not in ("__main__.py",))
+    assert not missing, f"docs/architecture.md does not mention {missing}"
+
+
+@pytest.mark.parametrize("text", [b for b in blocks("toml") if "[[jobs]]" in b.values[0]])
+def test_jobs_file_examples_parse(text, tmp_path):
+    """A jobs file in the docs reads (the grammar files it names exist beside it, as one would have them)."""
+    from lsys3d.jobs import read_jobs
+
+    for name in re.findall(r'"([\w/]+\.toml)"', text):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text('axiom = "F"\nrules = ["F -> F[+F]F"]\n')
+    path = tmp_path / "jobs.toml"
+    path.write_text(text)
+    assert read_jobs(path)

@@ -50,7 +50,7 @@ def test_blender_imports(tree, tmp_path, name, options):
     np.testing.assert_allclose(size[2], 2.0, rtol=1e-4)
     np.testing.assert_allclose(lo[2], 0.0, atol=1e-4)
     # leaves land where they belong, instanced or not: everything drawn matches the merged leaves
-    everything = np.vstack([tree.bark.vertices, tree.leaves.vertices])
+    everything = np.vstack([tree.bark.vertices, tree.leaves.merged.vertices])
     expected = np.array([everything.min(0), everything.max(0)])[:, [0, 2, 1]] * [1, -1, 1]  # Y up -> Z up
     expected = np.sort(expected, axis=0)
     np.testing.assert_allclose(report["drawn_bbox"], expected, atol=2e-3)

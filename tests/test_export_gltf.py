@@ -5,17 +5,17 @@ from __future__ import annotations
 import errno
 import json
 import re
-import struct
 import time
-from pathlib import Path
+from dataclasses import replace
 
 import export_fixtures as fx
 import numpy as np
 import pytest
 import trimesh
 import validators
+from gltf_files import accessor, node, read_glb
 
-from lsys3d.errors import ExportError
+from lsys3d.errors import ExportError, OptionsError
 from lsys3d.exchange import SUPPORTED_SUFFIXES, ExportOptions, atomic, export
 from lsys3d.exchange.common import decompose_transforms, gather_mesh
 
@@ -27,39 +27,6 @@ def tree():
     return fx.make_tree()
 
 
-def read_glb(path: Path) -> tuple[dict, bytes]:
-    data = path.read_bytes()
-    magic, version, length = struct.unpack_from("<4sII", data, 0)
-    assert (magic, version, length) == (b"glTF", 2, len(data))
-    json_len, json_type = struct.unpack_from("<I4s", data, 12)
-    assert json_type == b"JSON" and json_len % 4 == 0
-    doc = json.loads(data[20 : 20 + json_len])
-    bin_len, bin_type = struct.unpack_from("<I4s", data, 20 + json_len)
-    assert bin_type == b"BIN\0" and bin_len % 4 == 0
-    binary = data[28 + json_len : 28 + json_len + bin_len]
-    assert 28 + json_len + bin_len == len(data)
-    return doc, binary
-
-
-DTYPES = {5126: np.float32, 5123: np.uint16, 5125: np.uint32}
-WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
-
-
-def accessor(doc: dict, binary: bytes, index: int) -> np.ndarray:
-    acc = doc["accessors"][index]
-    view = doc["bufferViews"][acc["bufferView"]]
-    dtype = np.dtype(DTYPES[acc["componentType"]])
-    width = WIDTH[acc["type"]]
-    start = view["byteOffset"] + acc.get("byteOffset", 0)
-    out = np.frombuffer(binary, dtype, acc["count"] * width, start)
-    return out.reshape(-1, width) if width > 1 else out
-
-
-def node(doc: dict, name: str) -> dict:
-    (found,) = [n for n in doc["nodes"] if n.get("name") == name]
-    return found
-
-
 # ---------------------------------------------------------------- structure
 
 
@@ -67,10 +34,11 @@ def test_glb_layout_and_contents(tree, tmp_path):
     path = export(tree, tmp_path / "tree.glb")
     doc, binary = read_glb(path)
     assert doc["asset"]["version"] == "2.0"
-    assert doc["asset"]["extras"] == fx.PROVENANCE
-    assert doc["scenes"][doc["scene"]]["extras"] == fx.PROVENANCE
+    assert doc["asset"]["extras"] == tree.metadata() == {**fx.PROVENANCE.to_json(), "counts": fx.COUNTS.to_json()}
+    assert doc["scenes"][doc["scene"]]["extras"] == tree.metadata()
     assert "extensionsUsed" not in doc and "extensionsRequired" not in doc
     root = doc["nodes"][doc["scenes"][0]["nodes"][0]]
+    assert doc["scenes"][0]["name"] == root["name"] == "synthetic"  # the asset's name, as in USD and SVG
     assert [doc["nodes"][i]["name"] for i in root["children"]] == ["bark", "leaf"]
     for view in doc["bufferViews"]:
         assert view["byteOffset"] % 4 == 0
@@ -93,8 +61,8 @@ def test_glb_layout_and_contents(tree, tmp_path):
     # the split mesh draws the same triangles, with the same corner attributes (v flipped for glTF)
     corners = position[index].reshape(-1, 3, 3)
     np.testing.assert_allclose(corners, tree.bark.vertices[tree.bark.faces], atol=1e-6)
-    np.testing.assert_allclose(normal[index].reshape(-1, 3, 3), tree.bark.face_attributes["corner_normals"], atol=1e-6)
-    expected_uv = tree.bark.face_attributes["corner_uv"].copy()
+    np.testing.assert_allclose(normal[index].reshape(-1, 3, 3), tree.bark.normals, atol=1e-6)
+    expected_uv = tree.bark.uv.copy()
     expected_uv[..., 1] = 1 - expected_uv[..., 1]
     np.testing.assert_allclose(uv[index].reshape(-1, 3, 2), expected_uv, atol=1e-6)
 
@@ -105,8 +73,8 @@ def test_split_vertices_are_unique_corners(tree):
     key = np.concatenate(
         [
             tree.bark.vertices[faces],
-            tree.bark.face_attributes["corner_normals"].reshape(-1, 3),
-            tree.bark.face_attributes["corner_uv"].reshape(-1, 2),
+            tree.bark.normals.reshape(-1, 3),
+            tree.bark.uv.reshape(-1, 2),
         ],
         axis=1,
     ).astype(np.float32)
@@ -126,11 +94,11 @@ def test_scrambled_vertices_are_renumbered_in_face_order():
 
 def test_bad_normals_are_repaired():
     mesh = fx.make_tube(8, 2)
-    normals = mesh.face_attributes["corner_normals"].copy()
+    normals = mesh.normals.copy()
     normals[0, 0] = (0, 0, 0)
     normals[1, 1] = (np.nan, 0, 0)
     normals[2, 2] *= 3
-    mesh.face_attributes["corner_normals"] = normals
+    mesh = replace(mesh, normals=normals)
     arrays = gather_mesh(mesh, np.eye(3), "tube")
     np.testing.assert_allclose(np.linalg.norm(arrays.normals, axis=1), 1.0, atol=1e-6)
 
@@ -156,7 +124,7 @@ def test_instanced_leaves(tree, tmp_path):
     rebuilt = np.array([trimesh.transformations.quaternion_matrix([w, x, y, z]) for x, y, z, w in q])
     rebuilt[:, :3, :3] *= s[:, None, :]
     rebuilt[:, :3, 3] = t
-    np.testing.assert_allclose(rebuilt, tree.leaf_transforms, atol=1e-5)
+    np.testing.assert_allclose(rebuilt, tree.leaves.transforms, atol=1e-5)
     assert node(doc, "leaf_polygons")
 
 
@@ -216,7 +184,7 @@ def test_khronos_validator(name, options, tmp_path):
     infos = validators.gltf_issues(report, 2)
     assert {i.split(" ")[0] for i in infos} <= validators.HARMLESS_INFOS, infos
     if name in ("tree.glb", "tree.gltf", "soup.glb"):
-        assert report["info"]["totalTriangleCount"] == len(tree.bark.faces) + len(tree.leaves.faces)
+        assert report["info"]["totalTriangleCount"] == len(tree.bark.faces) + len(tree.leaves.merged.faces)
 
 
 def test_khronos_validator_bark_only(tmp_path):
@@ -241,10 +209,10 @@ def test_trimesh_round_trip(tree, tmp_path, suffix):
     assert len(bark.faces) == len(tree.bark.faces)
     assert len(np.unique(bark.vertices, axis=0)) == len(tree.bark.vertices)
     np.testing.assert_allclose(bark.bounds, tree.bark.bounds, atol=1e-6)
-    assert len(scene.geometry["leaf"].faces) == len(tree.leaves.faces)
-    everything = np.vstack([tree.bark.vertices, tree.leaves.vertices])
+    assert len(scene.geometry["leaf"].faces) == len(tree.leaves.merged.faces)
+    everything = np.vstack([tree.bark.vertices, tree.leaves.merged.vertices])
     np.testing.assert_allclose(scene.bounds, [everything.min(axis=0), everything.max(axis=0)], atol=1e-6)
-    assert {k: scene.metadata[k] for k in fx.PROVENANCE} == fx.PROVENANCE
+    assert {k: scene.metadata[k] for k in tree.metadata()} == tree.metadata()
 
 
 @pytest.mark.parametrize("suffix", [".obj", ".ply", ".stl"])
@@ -298,9 +266,9 @@ def test_suffix_is_case_insensitive(tree, tmp_path):
 
 
 def test_bad_options(tree, tmp_path):
-    with pytest.raises(ExportError, match="units"):
+    with pytest.raises(OptionsError, match=r"ExportOptions\.units: must be one of 'm', 'cm', not 'mm'"):
         ExportOptions(units="mm")
-    with pytest.raises(ExportError, match="up_axis"):
+    with pytest.raises(OptionsError, match=r"ExportOptions\.up_axis"):
         ExportOptions(up_axis="X")
     with pytest.raises(ExportError, match="ExportOptions"):
         export(tree, tmp_path / "t.glb", {"units": "m"})
@@ -396,11 +364,11 @@ def test_failing_usd_writer_keeps_the_old_file(tree, tmp_path, monkeypatch):
     target = tmp_path / "tree.usdc"
     target.write_bytes(b"good old asset")
 
-    def export_layer(layer, tmp, path):
+    def export_crate(stage, tmp, path):
         tmp.write_bytes(b"half a crate")
         raise OSError(errno.EIO, "Input/output error")
 
-    monkeypatch.setattr(usd, "_export_layer", export_layer)
+    monkeypatch.setattr(usd, "_export_crate", export_crate)
     with pytest.raises(ExportError, match=re.escape(f"{target}: input/output error")):
         export(tree, target)
     assert target.read_bytes() == b"good old asset"
@@ -414,7 +382,7 @@ def test_not_a_tree(tmp_path):
 
 def test_unserialisable_provenance(tmp_path):
     tree = fx.make_tree()
-    tree.provenance["bad"] = object()
+    tree = replace(tree, provenance=replace(tree.provenance, options={"bad": object()}))
     with pytest.raises(ExportError, match="not JSON-serialisable"):
         export(tree, tmp_path / "t.glb")
     assert list(tmp_path.iterdir()) == []
@@ -422,9 +390,10 @@ def test_unserialisable_provenance(tmp_path):
 
 def test_numpy_values_in_provenance(tmp_path):
     tree = fx.make_tree()
-    tree.provenance.update(seed=np.int64(7), angles=np.array([1.5, 2.5]))
+    options = {"seed": np.int64(7), "angles": np.array([1.5, 2.5])}
+    tree = replace(tree, provenance=replace(tree.provenance, options=options))
     doc, _ = read_glb(export(tree, tmp_path / "t.glb"))
-    assert doc["asset"]["extras"]["seed"] == 7 and doc["asset"]["extras"]["angles"] == [1.5, 2.5]
+    assert doc["asset"]["extras"]["options"] == {"seed": 7, "angles": [1.5, 2.5]}
 
 
 # ---------------------------------------------------------------- docs and speed

@@ -105,7 +105,7 @@ def test_a_3d_tree_stands_up_with_its_leaves():
     widths = [s for s, _ in polylines(root)]
     assert len(set(widths)) > 1 and widths[0] == max(widths)
     leaves = list(root.iter(f"{NS}path"))
-    assert len(leaves) == len(tree.leaf_transforms) > 0
+    assert len(leaves) == len(tree.leaves.transforms) > 0
     assert all(p.get("d").startswith("M") and p.get("d").endswith("Z") for p in leaves)
 
 

@@ -63,8 +63,8 @@ def test_usd_bark_only(tmp_path):
     tree = fx.tree_from_bark(fx.make_tube(16, 4))
     stage = open_stage(export(tree, tmp_path / "bare.usda"))
     assert validators.usd_problems(tmp_path / "bare.usda") == []
-    assert [p.GetName() for p in stage.GetPrimAtPath("/Tree/Geom").GetChildren()] == ["bark"]
-    assert [p.GetName() for p in stage.GetPrimAtPath("/Tree/Looks").GetChildren()] == ["bark"]
+    assert [p.GetName() for p in stage.GetPrimAtPath("/synthetic/Geom").GetChildren()] == ["bark"]
+    assert [p.GetName() for p in stage.GetPrimAtPath("/synthetic/Looks").GetChildren()] == ["bark"]
 
 
 # ---------------------------------------------------------------- layout
@@ -73,7 +73,7 @@ def test_usd_bark_only(tmp_path):
 def test_stage_layout(tree, tmp_path):
     stage = open_stage(export(tree, tmp_path / "tree.usda", ExportOptions(skeleton_curves=True)))
     root = stage.GetDefaultPrim()
-    assert root.GetPath() == Sdf.Path("/Tree") and root.GetTypeName() == "Xform"
+    assert root.GetPath() == Sdf.Path("/synthetic") and root.GetTypeName() == "Xform"
     assert Usd.ModelAPI(root).GetKind() == "component"
     assert stage.HasAuthoredMetadata("upAxis") and UsdGeom.GetStageUpAxis(stage) == "Y"
     assert stage.HasAuthoredMetadata("metersPerUnit") and UsdGeom.GetStageMetersPerUnit(stage) == 1.0
@@ -85,8 +85,8 @@ def test_stage_layout(tree, tmp_path):
             assert UsdGeom.Boundable(prim).GetExtentAttr().HasAuthoredValue(), f"{prim.GetPath()} has no extent"
         if prim.IsA(UsdGeom.Mesh):
             check_mesh(UsdGeom.Mesh(prim))
-    assert stage.GetPrimAtPath("/Tree/Looks").GetTypeName() == "Scope"
-    assert stage.GetPrimAtPath("/Tree/Geom").GetTypeName() == "Xform"
+    assert stage.GetPrimAtPath("/synthetic/Looks").GetTypeName() == "Scope"
+    assert stage.GetPrimAtPath("/synthetic/Geom").GetTypeName() == "Xform"
 
 
 def check_mesh(mesh: UsdGeom.Mesh) -> None:
@@ -105,7 +105,7 @@ def check_mesh(mesh: UsdGeom.Mesh) -> None:
     prim = mesh.GetPrim()
     assert prim.HasAPI(UsdShade.MaterialBindingAPI)
     material, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
-    assert material and str(material.GetPath()).startswith("/Tree/Looks/")
+    assert material and str(material.GetPath()).startswith("/synthetic/Looks/")
     shader = material.ComputeSurfaceSource()[0]
     assert shader.GetIdAttr().Get() == "UsdPreviewSurface"
 
@@ -113,48 +113,49 @@ def check_mesh(mesh: UsdGeom.Mesh) -> None:
 def test_materials(tree, tmp_path):
     stage = open_stage(export(tree, tmp_path / "tree.usdc"))
     for name, m in (("bark", tree.bark_material), ("leaf", tree.leaf_material)):
-        material = UsdShade.Material(stage.GetPrimAtPath(f"/Tree/Looks/{name}"))
+        material = UsdShade.Material(stage.GetPrimAtPath(f"/synthetic/Looks/{name}"))
         shader = material.ComputeSurfaceSource()[0]
         np.testing.assert_allclose(shader.GetInput("diffuseColor").Get(), m.base_color[:3], rtol=1e-6)
         assert shader.GetInput("roughness").Get() == pytest.approx(m.roughness)
-    assert UsdGeom.Mesh(stage.GetPrimAtPath("/Tree/Geom/leaf_polygons")).GetDoubleSidedAttr().Get() is True
-    assert not UsdGeom.Mesh(stage.GetPrimAtPath("/Tree/Geom/bark")).GetDoubleSidedAttr().Get()
+    assert UsdGeom.Mesh(stage.GetPrimAtPath("/synthetic/Geom/leaf_polygons")).GetDoubleSidedAttr().Get() is True
+    assert not UsdGeom.Mesh(stage.GetPrimAtPath("/synthetic/Geom/bark")).GetDoubleSidedAttr().Get()
 
 
 def test_point_instancer(tree, tmp_path):
     stage = open_stage(export(tree, tmp_path / "tree.usdc"))
-    instancer = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Tree/Geom/leaf"))
+    instancer = UsdGeom.PointInstancer(stage.GetPrimAtPath("/synthetic/Geom/leaf"))
     assert instancer
     (proto,) = instancer.GetPrototypesRel().GetTargets()
-    assert proto == Sdf.Path("/Tree/Geom/leaf/Prototypes/leaf_model")
-    assert stage.GetPrimAtPath("/Tree/Geom/leaf/Prototypes").GetTypeName() == "Scope"
+    assert proto == Sdf.Path("/synthetic/Geom/leaf/Prototypes/leaf_model")
+    assert stage.GetPrimAtPath("/synthetic/Geom/leaf/Prototypes").GetTypeName() == "Scope"
     assert instancer.GetOrientationsAttr().GetTypeName() == Sdf.ValueTypeNames.QuathArray
     xforms = instancer.ComputeInstanceTransformsAtTime(Usd.TimeCode.Default(), Usd.TimeCode.Default())
     # USD matrices are row-vector style: transpose to compare with the tree's column-vector transforms
     got = np.array([np.array(m).T for m in xforms])
-    np.testing.assert_allclose(got, tree.leaf_transforms, atol=2e-3)  # orientations are half floats
+    np.testing.assert_allclose(got, tree.leaves.transforms, atol=2e-3)  # orientations are half floats
     leaf = UsdGeom.Mesh(stage.GetPrimAtPath(proto))
-    assert len(leaf.GetPointsAttr().Get()) == len(tree.leaf_model.vertices)
+    assert len(leaf.GetPointsAttr().Get()) == len(tree.leaves.model.vertices)
 
 
 def test_merged_leaves(tree, tmp_path):
     stage = open_stage(export(tree, tmp_path / "tree.usda", ExportOptions(instance_leaves=False)))
-    leaves = stage.GetPrimAtPath("/Tree/Geom/leaf")
+    leaves = stage.GetPrimAtPath("/synthetic/Geom/leaf")
     assert leaves.GetTypeName() == "Mesh"
-    assert len(UsdGeom.Mesh(leaves).GetFaceVertexCountsAttr().Get()) == len(tree.leaves.faces)
-    assert not stage.GetPrimAtPath("/Tree/Geom/leaf_polygons")
+    assert len(UsdGeom.Mesh(leaves).GetFaceVertexCountsAttr().Get()) == len(tree.leaves.merged.faces)
+    assert not stage.GetPrimAtPath("/synthetic/Geom/leaf_polygons")
 
 
 def test_polygon_leaves_without_merged_leaves(tmp_path):
     """A tree whose leaves field is empty still writes its polygon leaves, in both formats."""
     from dataclasses import replace
 
-    tree = replace(fx.make_tree(instanced=False), leaves=None)
+    tree = fx.make_tree(instanced=False)
+    tree = replace(tree, leaves=replace(tree.leaves, merged=None))
     stage = open_stage(export(tree, tmp_path / "tree.usda"))
-    faces = UsdGeom.Mesh(stage.GetPrimAtPath("/Tree/Geom/leaf")).GetFaceVertexCountsAttr().Get()
-    assert len(faces) == len(tree.polygon_leaves.faces)
+    faces = UsdGeom.Mesh(stage.GetPrimAtPath("/synthetic/Geom/leaf")).GetFaceVertexCountsAttr().Get()
+    assert len(faces) == len(tree.leaves.polygons.faces)
     scene = trimesh.load(export(tree, tmp_path / "tree.glb"), process=False)
-    assert len(scene.geometry["leaf"].faces) == len(tree.polygon_leaves.faces)
+    assert len(scene.geometry["leaf"].faces) == len(tree.leaves.polygons.faces)
 
 
 def test_same_drawn_bounds_with_or_without_instancing(tree, tmp_path):
@@ -165,7 +166,7 @@ def test_same_drawn_bounds_with_or_without_instancing(tree, tmp_path):
 
 def test_skeleton_curves(tree, tmp_path):
     stage = open_stage(export(tree, tmp_path / "tree.usda", ExportOptions(skeleton_curves=True)))
-    curves = UsdGeom.BasisCurves(stage.GetPrimAtPath("/Tree/Geom/skeleton"))
+    curves = UsdGeom.BasisCurves(stage.GetPrimAtPath("/synthetic/Geom/skeleton"))
     assert curves.GetTypeAttr().Get() == "linear"
     assert curves.GetPurposeAttr().Get() == "guide"
     counts = list(curves.GetCurveVertexCountsAttr().Get())
@@ -177,7 +178,7 @@ def test_skeleton_curves(tree, tmp_path):
 
 def test_no_curves_by_default(tree, tmp_path):
     stage = open_stage(export(tree, tmp_path / "tree.usda"))
-    assert not stage.GetPrimAtPath("/Tree/Geom/skeleton")
+    assert not stage.GetPrimAtPath("/synthetic/Geom/skeleton")
 
 
 @pytest.mark.parametrize("units, scale", [("m", 1.0), ("cm", 100.0)])
@@ -194,7 +195,7 @@ def test_units_and_up_axis(tree, tmp_path, units, scale, up_axis):
     assert size[up] == pytest.approx(2.25 * scale, rel=1e-4)  # trunk top plus the polygon leaf
     # the leaves are moved with the bark: same bounds as the merged-leaf export in the same frame
     frame = file_frame(ExportOptions(units=units, up_axis=up_axis))
-    corners = np.vstack([tree.bark.vertices, tree.leaves.vertices]) @ frame.T
+    corners = np.vstack([tree.bark.vertices, tree.leaves.merged.vertices]) @ frame.T
     np.testing.assert_allclose(bounds, [corners.min(0), corners.max(0)], atol=2e-3 * scale)
 
 
@@ -204,14 +205,15 @@ def test_units_and_up_axis(tree, tmp_path, units, scale, up_axis):
 @pytest.mark.parametrize("suffix", SUFFIXES)
 def test_pxr_round_trip(tree, tmp_path, suffix):
     stage = open_stage(export(tree, tmp_path / f"tree{suffix}"))
-    bark = UsdGeom.Mesh(stage.GetPrimAtPath("/Tree/Geom/bark"))
+    bark = UsdGeom.Mesh(stage.GetPrimAtPath("/synthetic/Geom/bark"))
     points = np.array(bark.GetPointsAttr().Get())
     assert len(points) == len(tree.bark.vertices)
     assert len(bark.GetFaceVertexCountsAttr().Get()) == len(tree.bark.faces)
     np.testing.assert_allclose([points.min(0), points.max(0)], tree.bark.bounds, atol=1e-6)
     data = stage.GetDefaultPrim().GetCustomDataByKey("lsys3d")
-    assert json.loads(data["provenance"]) == fx.PROVENANCE
+    assert json.loads(data["provenance"]) == tree.metadata()
     assert data["generator"].startswith("lsys3d ")
+    assert Usd.ModelAPI(stage.GetDefaultPrim()).GetAssetName() == "synthetic"
 
 
 def test_usdz_holds_one_crate_file(tree, tmp_path):

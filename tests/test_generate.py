@@ -31,9 +31,9 @@ def test_every_preset_is_one_watertight_solid(name):
     # every preset draws one connected plant (no crumbs left by the boolean)
     assert components(bark.faces, len(bark.vertices)) == 1
     # normals and UVs for every corner
-    assert bark.face_attributes["corner_normals"].shape == (len(bark.faces), 3, 3)
-    assert bark.face_attributes["corner_uv"].shape == (len(bark.faces), 3, 2)
-    np.testing.assert_allclose(np.linalg.norm(bark.face_attributes["corner_normals"], axis=-1), 1, atol=1e-4)
+    assert bark.normals.shape == (len(bark.faces), 3, 3)
+    assert bark.uv.shape == (len(bark.faces), 3, 2)
+    np.testing.assert_allclose(np.linalg.norm(bark.normals, axis=-1), 1, atol=1e-4)
 
 
 @pytest.mark.parametrize("name", DRAWING_PRESETS)
@@ -60,7 +60,7 @@ def test_every_preset_passes_the_khronos_validator(name, tmp_path):
     assert validators.gltf_issues(report, 0) == []
     assert validators.gltf_issues(report, 1) == []
     assert {i.split(" ")[0] for i in validators.gltf_issues(report, 2)} <= validators.HARMLESS_INFOS
-    leaves = 0 if tree.leaves is None else len(tree.leaves.faces)
+    leaves = 0 if tree.leaves.merged is None else len(tree.leaves.merged.faces)
     assert report["info"]["totalTriangleCount"] == len(tree.bark.faces) + leaves
 
 
@@ -87,13 +87,14 @@ def test_default_tree_stands_upright_in_blender(name, tmp_path):
 def test_generate_records_provenance_and_counts():
     tree = grown("tree3d")
     p = tree.provenance
-    assert p["grammar_name"] == "tree3d" and p["iterations"] == 6 and p["seed"] == 0
-    assert "A -> " in p["grammar_text"]
-    assert p["counts"]["segments"] == len(tree.skeleton)
-    assert p["counts"]["modules"] == len(tree.modules)
+    assert p.grammar_name == tree.name == "tree3d" and p.iterations == 6 and p.seed == 0
+    assert "A -> " in p.grammar_text
+    assert p == lsys3d.Provenance.of(lsys3d.load_preset("tree3d"), 6, 0, GenerateOptions())
+    assert tree.counts.segments == len(tree.skeleton) and tree.counts.modules == len(tree.modules)
+    assert tree.metadata()["counts"]["segments"] == len(tree.skeleton)
     stats = mesh_stats(tree)
     assert stats["components"] == 1 and stats["watertight"]
-    assert stats["leaf_faces"] == len(tree.leaves.faces) > 0
+    assert stats["leaf_faces"] == len(tree.leaves.merged.faces) > 0
     assert list(stats) == sorted(stats)
 
 
@@ -118,8 +119,9 @@ def test_sides_option():
 
 
 def test_options_object_and_keywords_agree():
-    a = generate("koch", 1, options=GenerateOptions(union=False))
+    a = generate("koch", 1, options=GenerateOptions(union=lsys3d.UnionOptions(enabled=False)))
     b = generate("koch", 1, union=False)
+    assert GenerateOptions.from_flat(union=False) == GenerateOptions(union=lsys3d.UnionOptions(enabled=False))
     assert np.array_equal(a.bark.faces, b.bark.faces)
 
 
@@ -132,7 +134,7 @@ def test_a_grammar_that_draws_nothing_is_a_clear_error(name):
 def test_polygon_leaves_alone_make_a_tree_without_bark(tmp_path):
     g = lsys3d.Grammar(axiom="{.f.+f.+f.}", angle=120, turtle={"move": "f"})
     tree = generate(g)
-    assert len(tree.bark.faces) == 0 and len(tree.polygon_leaves.faces) == 1
+    assert len(tree.bark.faces) == 0 and len(tree.leaves.polygons.faces) == 1
     report = validators.validate_gltf(export(tree, tmp_path / "leaf.glb"))
     assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0
     assert validators.usd_problems(export(tree, tmp_path / "leaf.usda")) == []

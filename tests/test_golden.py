@@ -65,7 +65,7 @@ def test_report_is_stable_and_sorted():
     assert set(r["versions"]) >= {"lsys3d", "numpy", "manifold3d"}
     assert r["derive"]["modules"] == len(tree.modules) == 36
     assert r["interpret"]["segments"] == str(tree.modules).count("F") == 16
-    assert r["sweep"]["faces"] == tree.provenance["counts"]["tube_faces"]
+    assert r["sweep"]["faces"] == tree.counts.tube_faces
     assert r["bark"]["faces"] == len(tree.bark.faces) and r["bark"]["vertices"] == len(tree.bark.vertices)
     # floats are rounded to 9 significant digits, so the same numbers print the same everywhere
     assert r["bark"]["volume"] == float(f"{tree.bark.volume:.9g}")

@@ -8,6 +8,7 @@ import trimesh
 
 import lsys3d
 from lsys3d.leaves import Leaves, default_leaf, instance_leaves, leaf_transforms, leaves, polygon_leaves
+from lsys3d.mesh import Mesh
 from lsys3d.skeleton import Skeleton
 
 
@@ -18,36 +19,24 @@ def leafy_skeleton(polygons=(), instances=()) -> Skeleton:
     pos = np.array([i[0] for i in instances], float).reshape(-1, 3)
     head = np.array([i[1] for i in instances], float).reshape(-1, 3)
     left = np.array([i[2] for i in instances], float).reshape(-1, 3)
-    size = np.array([i[3] for i in instances], float)
-    z3 = np.zeros((0, 3))
-    z = np.zeros(0)
-    return Skeleton(
-        start=z3,
-        end=z3,
-        width_start=z,
-        width_end=z,
-        heading=z3,
-        left=z3,
-        up=z3,
-        parent=np.zeros(0, np.int64),
-        order=np.zeros(0, np.int32),
-        material=np.zeros(0, np.int32),
-        module=np.zeros(0, np.int64),
-        polygon_points=np.concatenate(pts) if pts else z3,
+    return Skeleton.from_segments(
+        np.zeros((0, 3)),
+        np.zeros((0, 3)),
+        polygon_points=np.concatenate(pts) if pts else np.zeros((0, 3)),
         polygon_offsets=offsets,
         polygon_material=np.zeros(len(pts), np.int32),
         leaf_position=pos,
         leaf_heading=head,
         leaf_left=left,
         leaf_up=np.cross(head, left),
-        leaf_size=size,
+        leaf_size=np.array([i[3] for i in instances], float),
         leaf_material=np.zeros(len(pos), np.int32),
     )
 
 
 def attributes_ok(mesh: trimesh.Trimesh):
-    n = mesh.face_attributes["corner_normals"]
-    uv = mesh.face_attributes["corner_uv"]
+    n = mesh.normals
+    uv = mesh.uv
     assert n.shape == (len(mesh.faces), 3, 3) and n.dtype == np.float32
     assert uv.shape == (len(mesh.faces), 3, 2) and uv.dtype == np.float32
     np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-6)
@@ -99,7 +88,7 @@ def test_instances_follow_the_turtle_frame():
     # its front faces the turtle's up
     np.testing.assert_allclose(baked.face_normals, np.tile([0, 0, 1.0], (len(baked.faces), 1)), atol=1e-12)
     attributes_ok(baked)
-    np.testing.assert_array_equal(baked.face_attributes["corner_uv"], model.face_attributes["corner_uv"])
+    np.testing.assert_array_equal(baked.uv, model.uv)
 
 
 def test_mirroring_transform_keeps_fronts_and_normals_together():
@@ -118,9 +107,9 @@ def test_user_leaf_model():
     square = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], [[0, 2, 1], [0, 3, 2]], process=False)
     sk = leafy_skeleton(instances=[([0, 0, 0], [0, 1, 0], [1, 0, 0], 1.0)] * 3)
     got = leaves(sk, model=square)
-    assert got.model is square
+    assert isinstance(got.model, Mesh) and np.array_equal(got.model.faces, square.faces)
     assert len(got.merged.faces) == 6
-    n = got.merged.face_attributes["corner_normals"]
+    n = got.merged.normals
     np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0)
 
 
@@ -134,7 +123,7 @@ def test_square_polygon():
     assert m.area == pytest.approx(1.0)
     np.testing.assert_allclose(m.face_normals, [[0, 0, 1]] * 2)
     attributes_ok(m)
-    uv = m.face_attributes["corner_uv"].reshape(-1, 2)
+    uv = m.uv.reshape(-1, 2)
     assert uv.min() == 0 and uv.max() == 1
 
 

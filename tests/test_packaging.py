@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -18,6 +19,11 @@ def test_wheel_ships_the_presets(tmp_path):
         capture_output=True,
     )
     (wheel,) = wheels.glob("lsys3d-*.whl")
+    with zipfile.ZipFile(wheel) as archive:
+        shipped = {name for name in archive.namelist() if name.startswith("lsys3d/")}
+    # every module of the source tree is in the wheel (an import test alone can be fooled by the editable install)
+    source = {f"lsys3d/{p.relative_to(ROOT / 'lsys3d').as_posix()}" for p in (ROOT / "lsys3d").rglob("*.py")}
+    assert source <= shipped, sorted(source - shipped)
     target = tmp_path / "site"
     subprocess.run(
         [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],

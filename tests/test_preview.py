@@ -19,7 +19,7 @@ import validators
 from pngs import read_png
 
 import lsys3d
-from lsys3d.errors import ExportError, PreviewError
+from lsys3d.errors import ExportError, OptionsError, PreviewError
 from lsys3d.preview import ENV_BLENDER, SCRIPT, PreviewOptions, blender_command, check_preview, preview
 
 BACKGROUND = (0.96, 0.96, 0.95)
@@ -191,12 +191,22 @@ def test_bad_targets_and_options_are_refused_before_rendering(tmp_path):
     with pytest.raises(ExportError, match="file exists"):
         check_preview(tmp_path / "old.png", PreviewOptions(blender=str(python), no_clobber=True))
     for bad in ({"view": "top"}, {"size": (0, 10)}, {"samples": 0}, {"background": (2, 0, 0)}, {"margin": 0.5}):
-        with pytest.raises(PreviewError, match=r"^PreviewOptions: "):
+        field = next(iter(bad))
+        with pytest.raises(OptionsError, match=rf"^PreviewOptions\.{field}: must be "):
             PreviewOptions(**bad)
 
 
-@pytest.mark.parametrize("size", ["0x10", "10x", "big", "20000x10"])
-def test_cli_size_usage_errors_exit_2(size):
+@pytest.mark.parametrize(
+    ("size", "message"),
+    [
+        ("0x10", "must be in [1, 16,384], not 0"),
+        ("10x", "expected WxH, not '10x'"),
+        ("big", "expected WxH, not 'big'"),
+        ("20000x10", "must be in [1, 16,384], not 20,000"),
+        ("10x10x10", "must be a list of 2 whole numbers"),
+    ],
+)
+def test_cli_size_usage_errors_exit_2(size, message):
     proc = subprocess.run([sys.executable, "-m", "lsys3d", "preview", "--size", size], capture_output=True, text=True)
     assert proc.returncode == 2
-    assert "expected WIDTHxHEIGHT" in proc.stderr
+    assert f"argument --size: {message}" in proc.stderr

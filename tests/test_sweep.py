@@ -240,7 +240,7 @@ def test_normals_unit_and_sharp_caps():
     assert n.dtype == np.float32
     np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-6)
     m = tubes.mesh(0)
-    corner = m.face_attributes["corner_normals"]
+    corner = m.normals
     assert corner.shape == (len(m.faces), 3, 3) and corner.dtype == np.float32
     # smooth around: normals point away from the axis; caps: every corner has the face normal
     cap = slice(len(m.faces) - 16, None)

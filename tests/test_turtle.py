@@ -15,8 +15,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lsys3d import Grammar, GrammarError, InterpretError, ModuleString, derive, load_preset
+from lsys3d.errors import OptionsError
+from lsys3d.modules import ASCII_ALPHABET
 from lsys3d.stats import skeleton_stats
-from lsys3d.turtle import COMMANDS, TurtleOptions, commands_markdown, interpret
+from lsys3d.turtle import (
+    COMMANDS,
+    Axis,
+    Op,
+    TurtleOptions,
+    commands_markdown,
+    interpret,
+    options_markdown,
+    symbol_table,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -302,7 +313,9 @@ def test_bracket_with_argument():
         ("F!(-1)F", r"^module 1 '!\(-1\)' \(width\): the width must be"),
         ('F"(-1)F', r"^module 1 '\"\(-1\)' \(step length\)"),
         ("+(1,2)F", r"^module 0 '\+\(1,2\)' \(turn left\): takes at most 1 argument"),
-        ("F(1e308)F(1e308)", r"^module 1 'F\(1e\+308\)' \(forward\): the turtle's position became infinite"),
+        ("F(6e8)F(6e8)", r"^module 1 'F\(6e\+08\)' \(forward\): the turtle's position left the drawable range"),
+        ("F!(2e9)F", r"^module 1 '!\(2e\+09\)' \(width\): the width must be a number from 0 to 1e\+09"),
+        ("F~(2e9)", r"^module 1 '~\(2e\+09\)' \(leaf\): the leaf size must be a number from 0 to 1e\+09"),
     ],
 )
 def test_interpret_errors(axiom, message):
@@ -334,16 +347,16 @@ width = 0.1
     ("line", "message"),
     [
         ("colour = 3", "unknown key"),
-        ("step = -1", "'step' must be > 0"),
-        ("step = 0", "'step' must be > 0"),
-        ('step = "long"', "'step' must be a finite number"),
-        ("width_scale = true", "'width_scale' must be a finite number"),
-        ("tropism = [0, -1]", "'tropism' must be a list of three numbers"),
+        ("step = -1", "step: must be > 0, not -1"),
+        ("step = 0", "step: must be > 0, not 0"),
+        ('step = "long"', "step: must be a number, not 'long'"),
+        ("width_scale = true", "width_scale: must be a number, not True"),
+        ("tropism = [0, -1]", r"tropism: must be a list of 3 numbers, not \[0, -1\]"),
         ('draw = "F+"', "'draw' symbol '\\+' is already the turtle command turn left"),
         ('move = "F"', "'move' symbol 'F' is also a 'draw' symbol"),
         ('leaf = "ab"', "'leaf' must be one symbol"),
-        ("angle_jitter = -2", "'angle_jitter' must be >= 0"),
-        ("elasticity = nan", "'elasticity' must be a finite number"),
+        ("angle_jitter = -2", "angle_jitter: must be >= 0, not -2"),
+        ("elasticity = nan", "elasticity: must be a finite number, not nan"),
     ],
 )
 def test_bad_turtle_keys(line, message):
@@ -355,9 +368,9 @@ def test_bad_turtle_keys(line, message):
 
 
 def test_options_from_python():
-    with pytest.raises(GrammarError, match="'step' must be > 0"):
+    with pytest.raises(OptionsError, match=r"TurtleOptions\.step: must be > 0, not -1"):
         TurtleOptions(step=-1)
-    with pytest.raises(TypeError, match="unknown option"):
+    with pytest.raises(OptionsError, match="unknown option 'stepp'"):
         TurtleOptions.from_grammar(load_preset("koch"), stepp=2)
     opts = TurtleOptions.from_grammar(load_preset("tree"), step=2)
     assert (opts.heading, opts.angle, opts.step, opts.tropism) == (85.0, 22.0, 2.0, (0.0, 0.0, 0.0))
@@ -483,14 +496,45 @@ def test_skeleton_stats_empty():
 
 def test_command_table():
     symbols = [c.symbol for c in COMMANDS]
-    assert len(symbols) == len(set(symbols)) and len({c.opcode for c in COMMANDS}) == len(COMMANDS)
+    assert len(symbols) == len(set(symbols))
     assert set("Ff+-&^\\/|$[]!'\"{.}~") == set(symbols)
+    # one row per behaviour; every op the kernel knows has a row; rotations say their axis and sign
+    assert len({(c.op, c.axis, c.sign) for c in COMMANDS}) == len(COMMANDS)
+    assert {c.op for c in COMMANDS} == set(Op) - {Op.NONE}
+    assert all((c.axis != Axis.NONE) == (c.op == Op.ROTATE) and c.sign in (1, -1) for c in COMMANDS)
+    table = symbol_table(ASCII_ALPHABET, draw="FG", move="fg", leaf="L")
+    assert (
+        Op(table.op[ord("G")]) == Op.FORWARD and Op(table.op[ord("g")]) == Op.MOVE and Op(table.op[ord("L")]) == Op.LEAF
+    )
+    assert Op(table.op[ord("~")]) == Op.NONE and table.command(ord("&")).name == "pitch down"
 
 
 def test_docs_table_and_example():
     text = (ROOT / "docs" / "turtle.md").read_text(encoding="utf-8")
     assert commands_markdown() in text
+    assert options_markdown() in text
     blocks = re.findall(r"```python\n(.*?)```", text, re.DOTALL)
     assert blocks
     for block in blocks:
         exec(compile(block, "docs/turtle.md", "exec"), {})
+
+
+def test_a_new_symbol_is_one_table_row():
+    """What the dialects need first -- cpfg's colour symbols and Houdini's opposite pitch -- are rows, not code."""
+    from dataclasses import replace
+
+    from lsys3d.turtle.commands import Command
+
+    colours = (
+        Command(";", "next colour", Op.MATERIAL, "i", 1, "Set the colour index to `i`; without `i` add 1.", sign=+1),
+        # cpfg's ',' (the grammar notation reserves ',' until the dialect readers map it), here '?'
+        Command("?", "previous colour", Op.MATERIAL, "i", 1, "Without `i` take 1 from the colour index.", sign=-1),
+    )
+    table = tuple(replace(c, sign=-c.sign) if c.symbol in "&^" else c for c in COMMANDS) + colours
+    g = Grammar(axiom="F;F;F?F??F;(7)F&F", angle=90)
+    sk = interpret(derive(g, 0), g, commands=table)
+    assert sk.material.tolist() == [0, 1, 2, 1, 0, 7, 7]  # '?' stops at 0
+    default = interpret(derive(g, 0), g)
+    assert default.material.tolist() == [0] * 7  # ';' and '?' mean nothing in lsys3d's own dialect
+    # '&' with the opposite sign pitches up instead of down
+    assert sk.end[-1, 2] - sk.start[-1, 2] == pytest.approx(1.0) and default.end[-1, 2] - default.start[-1, 2] == -1.0

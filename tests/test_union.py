@@ -84,14 +84,15 @@ def check_union(tubes: Tubes, mesh):
     # welded by manifold's topology (two sheets that only touch may keep two vertices
     # at one place), and no vertex left unused
     assert len(np.unique(mesh.faces)) == len(mesh.vertices)
-    n = mesh.face_attributes["corner_normals"]
-    uv = mesh.face_attributes["corner_uv"]
+    n = mesh.normals
+    uv = mesh.uv
     assert n.shape == (len(mesh.faces), 3, 3) and n.dtype == np.float32
     assert uv.shape == (len(mesh.faces), 3, 2) and uv.dtype == np.float32
     np.testing.assert_allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-5)
     assert uv[:, :, 0].min() >= -1e-6 and uv[:, :, 0].max() <= 1 + 1e-6
     # smooth normals still point out of their faces (slivers have no normal to compare)
-    big = mesh.area_faces > 1e-9 * mesh.scale**2
+    scale = np.linalg.norm(np.ptp(mesh.vertices, axis=0))
+    big = mesh.face_areas > 1e-9 * scale**2
     facing = np.einsum("fcj,fj->fc", n[big], mesh.face_normals[big])
     assert np.mean(facing > 0) > 0.97
 
@@ -210,8 +211,8 @@ def test_concatenate_keeps_every_tube():
     assert len(soup.vertices) == len(tubes.points)
     assert soup.is_watertight and soup.is_winding_consistent
     assert soup.volume == pytest.approx(tubes.volumes().sum())
-    assert soup.face_attributes["corner_normals"].shape == (len(soup.faces), 3, 3)
-    assert soup.face_attributes["corner_uv"].dtype == np.float32
+    assert soup.normals.shape == (len(soup.faces), 3, 3)
+    assert soup.uv.dtype == np.float32
 
 
 # ---------------------------------------------------------------- touch test
@@ -301,16 +302,9 @@ def test_presets_union(name):
 
 def _face_touching_boxes(gap: float):
     """Two closed boxes in one mesh, the second starting ``gap`` beyond the first's x = 1 face."""
-    import trimesh
+    from lsys3d.mesh import Mesh
 
-    from lsys3d.sweep import corner_mesh
-
-    a = trimesh.creation.box(bounds=[[0, 0, 0], [1, 1, 1]])
-    b = trimesh.creation.box(bounds=[[1 + gap, 0, 0], [2, 1, 1]])
-    points = np.concatenate([a.vertices, b.vertices])
-    faces = np.concatenate([a.faces, b.faces + len(a.vertices)])
-    normals = np.repeat(np.concatenate([a.face_normals, b.face_normals])[:, None, :], 3, axis=1).astype(np.float32)
-    return corner_mesh(points, faces, normals, np.zeros((len(faces), 3, 2), np.float32))
+    return Mesh.concatenate([Mesh.box((0, 0, 0), (1, 1, 1)), Mesh.box((1 + gap, 0, 0), (2, 1, 1))])
 
 
 @pytest.mark.parametrize("gap", [1e-9, 0.0])
@@ -322,7 +316,7 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
 
     weld = sys.modules["lsys3d.union"]._weld_float32
     mesh = _face_touching_boxes(gap)
-    out = weld(mesh.copy())
+    out = weld(mesh)
     v32 = np.asarray(out.vertices, np.float32)
     assert len(out.vertices) == 16 and np.array_equal(out.faces, mesh.faces)
     assert len(np.unique(v32, axis=0)) == 16
@@ -332,7 +326,7 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
     welded = trimesh.Trimesh(v32.astype(np.float64), out.faces, process=False)
     welded.merge_vertices()
     assert len(welded.vertices) == 16 and welded.is_watertight
-    assert weld(_face_touching_boxes(1e-3).copy()).vertices.tolist() == _face_touching_boxes(1e-3).vertices.tolist()
+    assert weld(_face_touching_boxes(1e-3)).vertices.tolist() == _face_touching_boxes(1e-3).vertices.tolist()
 
 
 # ---------------------------------------------------------------- at scale: culling, refinement, repeats, workers
@@ -479,7 +473,7 @@ def test_repeated_junctions_are_unioned_once_and_copied_exactly(caplog, monkeypa
     # the copies' corners carry the copies' own texture coordinates: the same range of (u, v) at every position
     def uv_range_by_position(m):
         key = np.ascontiguousarray(m.vertices[m.faces].reshape(-1, 3)).view(np.dtype((np.void, 24))).ravel()
-        uv = m.face_attributes["corner_uv"].reshape(-1, 2).astype(np.float64)
+        uv = m.uv.reshape(-1, 2).astype(np.float64)
         positions, which = np.unique(key, return_inverse=True)
         lo = np.full((len(positions), 2), np.inf)
         hi = np.full((len(positions), 2), -np.inf)
@@ -496,14 +490,14 @@ def test_repeated_junctions_are_unioned_once_and_copied_exactly(caplog, monkeypa
 
 @pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
 def test_the_result_does_not_depend_on_the_number_of_workers(monkeypatch, caplog):
-    from lsys3d import batches
+    from lsys3d import union_jobs
 
-    monkeypatch.setattr(batches, "POOL_MIN_TRIANGLES", 1)  # worker processes even for a small union
+    monkeypatch.setattr(union_jobs, "POOL_MIN_TRIANGLES", 1)  # worker processes even for a small union
     monkeypatch.setattr(sys.modules["lsys3d.union"], "_JOB_TRIANGLES", 300)  # and several jobs
     tubes = sweep(random_tree(8, 150, spread=0.4))
 
     def digest(m):
-        arrays = (m.vertices, m.faces, m.face_attributes["corner_normals"], m.face_attributes["corner_uv"])
+        arrays = (m.vertices, m.faces, m.normals, m.uv)
         return [np.ascontiguousarray(a).tobytes() for a in arrays]
 
     one = union(tubes, UnionOptions(workers=1, local=False))
@@ -515,9 +509,9 @@ def test_the_result_does_not_depend_on_the_number_of_workers(monkeypatch, caplog
 
 
 def test_a_failing_worker_job_raises_a_geometry_error(monkeypatch):
-    from lsys3d import batches
+    from lsys3d import union_jobs
 
-    monkeypatch.setattr(batches, "POOL_MIN_TRIANGLES", 1)
+    monkeypatch.setattr(union_jobs, "POOL_MIN_TRIANGLES", 1)
     monkeypatch.setattr(sys.modules["lsys3d.union"], "_JOB_TRIANGLES", 300)
     tubes = sweep(random_tree(8, 150, spread=0.4))
     faces = tubes.faces.copy()
@@ -536,5 +530,15 @@ def test_progress_goes_from_0_to_1():
 
 def test_union_options_are_checked():
     for bad in ({"workers": -1}, {"workers": 1.5}, {"max_pairs": 0}, {"max_pairs": True}):
-        with pytest.raises(ValueError, match="UnionOptions"):
+        with pytest.raises(lsys3d.OptionsError, match="UnionOptions"):
             UnionOptions(**bad)
+
+
+def test_the_worker_count_is_not_part_of_the_recipe():
+    # how the work runs, not what it makes: the files' provenance is the same with any number of workers
+    from lsys3d.pipeline import GenerateOptions
+
+    assert "workers" not in UnionOptions(workers=3).plain()
+    assert UnionOptions(max_pairs=7).plain()["max_pairs"] == 7
+    assert GenerateOptions.from_flat(workers=1).plain() == GenerateOptions().plain()
+    assert GenerateOptions.from_flat(workers=2, max_union_pairs=9).union.max_pairs == 9

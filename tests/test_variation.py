@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import itertools
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 import validators
+from gltf_files import read_glb
 from pxr import Usd, UsdGeom
 
 import lsys3d
@@ -21,7 +21,8 @@ from lsys3d.pipeline import GenerateOptions
 from lsys3d.stats import components
 from lsys3d.sweep import SweepOptions, sweep
 from lsys3d.tree import BARK
-from lsys3d.turtle import TurtleOptions, _unit_jitter, interpret
+from lsys3d.turtle import TurtleOptions, interpret
+from lsys3d.turtle.interpret import unit_jitter
 from lsys3d.union import union
 
 VARIATION_OFF = dict(
@@ -87,8 +88,8 @@ def test_width_jitter_bounds_and_continuity(distribution):
 
 def test_normal_distribution_is_truncated_and_narrower():
     rng = np.random.default_rng(0)
-    uniform = _unit_jitter(rng, 100_000, "uniform")
-    normal = _unit_jitter(np.random.default_rng(0), 100_000, "normal")
+    uniform = unit_jitter(rng, 100_000, "uniform")
+    normal = unit_jitter(np.random.default_rng(0), 100_000, "normal")
     assert np.abs(normal).max() <= 1.0 and np.abs(uniform).max() <= 1.0
     # sigma 1/2 truncated at 2 sigma: std 0.44; uniform on [-1, 1]: 0.577
     assert 0.42 < normal.std() < 0.46 and 0.56 < uniform.std() < 0.59
@@ -178,11 +179,11 @@ jitter_distribution = "normal"
 @pytest.mark.parametrize(
     ("line", "fragment"),
     [
-        ("branch_drop = 1.5", "'branch_drop' is a probability"),
-        ("branch_drop = -0.1", "'branch_drop' must be >= 0"),
-        ("width_jitter = -1", "'width_jitter' must be >= 0"),
-        ("branch_roll = -5", "'branch_roll' must be >= 0"),
-        ('jitter_distribution = "gauss"', "'jitter_distribution' must be one of 'uniform', 'normal'"),
+        ("branch_drop = 1.5", r"branch_drop: must be in \[0, 1\], not 1.5"),
+        ("branch_drop = -0.1", r"branch_drop: must be in \[0, 1\], not -0.1"),
+        ("width_jitter = -1", "width_jitter: must be >= 0, not -1"),
+        ("branch_roll = -5", "branch_roll: must be >= 0, not -5"),
+        ('jitter_distribution = "gauss"', "jitter_distribution: must be one of 'uniform', 'normal', not 'gauss'"),
     ],
 )
 def test_bad_variation_settings(line, fragment):
@@ -280,8 +281,9 @@ def test_bark_colors_range_and_seed():
         bark_colors(pts, BARK.base_color, 1.5)
 
 
-BARKY = GenerateOptions(
-    sweep=SweepOptions(sides=6, bark_displacement=0.3),
+BARKY = GenerateOptions.from_flat(
+    sides=6,
+    bark_displacement=0.3,
     bark_color_variation=0.5,
     turtle={"angle_jitter": 6.0, "width_jitter": 0.2, "branch_roll": 40.0, "branch_drop": 0.1},
 )
@@ -295,13 +297,13 @@ def barky_tree():
 def test_generate_with_everything_on(barky_tree):
     tree = barky_tree
     assert tree.bark.is_watertight and components(tree.bark.faces, len(tree.bark.vertices)) == 1
-    colors = tree.bark.vertex_attributes["vertex_color"]
+    colors = tree.bark.colors
     assert colors.shape == (len(tree.bark.vertices), 3) and colors.dtype == np.float32
-    assert tree.provenance["options"]["turtle"] == BARKY.turtle
-    assert tree.provenance["options"]["bark_color_variation"] == 0.5
-    assert tree.provenance["options"]["sweep"]["bark_displacement"] == 0.3
+    assert tree.provenance.options["turtle"] == BARKY.turtle
+    assert tree.provenance.options["color"]["variation"] == 0.5
+    assert tree.provenance.options["sweep"]["bark_displacement"] == 0.3
     plain = lsys3d.generate("tree3d", iterations=4, seed=7, sides=6)
-    assert "vertex_color" not in plain.bark.vertex_attributes
+    assert plain.bark.colors is None
 
 
 @pytest.mark.parametrize("suffix", [".glb", ".usda", ".usdz"])
@@ -313,12 +315,6 @@ def test_same_seed_same_bytes(tmp_path, suffix):
         paths.append(export(tree, tmp_path / folder / f"tree{suffix}"))
     a, b, c = (p.read_bytes() for p in paths)
     assert a == b != c
-
-
-def read_glb(path: Path) -> tuple[dict, bytes]:
-    data = path.read_bytes()
-    n = int.from_bytes(data[12:16], "little")
-    return json.loads(data[20 : 20 + n]), data[28 + n :]
 
 
 def test_gltf_vertex_colors_pass_the_validator(barky_tree, tmp_path):
@@ -345,19 +341,23 @@ def test_default_export_has_no_colors(tmp_path):
     assert all("COLOR_0" not in p["attributes"] for m in doc["meshes"] for p in m["primitives"])
     assert doc["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"] == list(BARK.base_color)
     stage = Usd.Stage.Open(str(export(tree, tmp_path / "plain.usda")))
-    assert not UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/Tree/Geom/bark")).GetPrimvar("displayColor").HasAuthoredValue()
+    assert (
+        not UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/abop_1_24a/Geom/bark"))
+        .GetPrimvar("displayColor")
+        .HasAuthoredValue()
+    )
 
 
 def test_usd_display_color(barky_tree, tmp_path):
     path = export(barky_tree, tmp_path / "bark.usdc", ExportOptions(up_axis="Z", units="cm"))
     assert validators.usd_problems(path) == []
     stage = Usd.Stage.Open(str(path))
-    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Tree/Geom/bark"))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/tree3d/Geom/bark"))
     primvar = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("displayColor")
     assert primvar.GetInterpolation() == UsdGeom.Tokens.vertex
     colors = np.array(primvar.Get())
     assert colors.shape == (len(mesh.GetPointsAttr().Get()), 3) and colors.min() >= 0 and colors.max() <= 1
-    reader = stage.GetPrimAtPath("/Tree/Looks/bark/displayColor")
+    reader = stage.GetPrimAtPath("/tree3d/Looks/bark/displayColor")
     assert reader.GetAttribute("info:id").Get() == "UsdPrimvarReader_float3"
 
 
@@ -367,6 +367,7 @@ def test_usd_display_color(barky_tree, tmp_path):
 @pytest.fixture(scope="module")
 def siblings():
     options = GenerateOptions(sweep=SweepOptions(sides=5), turtle={"angle_jitter": 8.0, "length_jitter": 0.1})
+    assert options == GenerateOptions.from_flat(sides=5, turtle={"angle_jitter": 8.0, "length_jitter": 0.1})
     return [lsys3d.generate("abop-1.24a", iterations=2, seed=7 + i, options=options) for i in range(4)]
 
 
@@ -405,7 +406,7 @@ def test_variants_in_one_usd_file(siblings, tmp_path, suffix):
     seen = []
     for name in variants.GetVariantNames():
         assert variants.SetVariantSelection(name)
-        points = np.array(UsdGeom.Mesh(stage.GetPrimAtPath("/Tree/Geom/bark")).GetPointsAttr().Get())
+        points = np.array(UsdGeom.Mesh(stage.GetPrimAtPath("/abop_1_24a/Geom/bark")).GetPointsAttr().Get())
         provenance = json.loads(root.GetCustomDataByKey("lsys3d")["provenance"])
         assert f"seed_{provenance['seed']}" == name
         seen.append(points)
@@ -441,14 +442,14 @@ def test_cli_variants_usd_and_bark(tmp_path):
     assert stage.GetDefaultPrim().GetVariantSets().GetVariantSet("seed").GetVariantNames() == ["seed_0", "seed_1"]
     options = json.loads(stage.GetDefaultPrim().GetCustomDataByKey("lsys3d")["provenance"])["options"]
     assert options["turtle"] == {"branch_roll": 90}
-    assert options["sweep"]["bark_displacement"] == 0.2 and options["bark_color_variation"] == 0.3
+    assert options["sweep"]["bark_displacement"] == 0.2 and options["color"]["variation"] == 0.3
 
 
 @pytest.mark.parametrize(
     ("args", "fragment"),
     [
         (["--turtle", "wobble=1"], "expected KEY=VALUE with KEY one of"),
-        (["--bark-displacement", "0.8"], "must be between 0 and 0.5"),
+        (["--bark-displacement", "0.8"], "must be in [0, 0.5], not 0.8"),
         (["--bark-color-variation", "x"], "expected a number"),
         (["--variants", "0"], "must be at least 1"),
     ],
@@ -460,7 +461,7 @@ def test_cli_usage_errors(args, fragment, capsys, tmp_path):
 
 
 def test_generate_options_reject_unknown_turtle_keys():
-    with pytest.raises(ValueError, match="unknown setting 'wobble'"):
+    with pytest.raises(lsys3d.OptionsError, match="unknown setting 'wobble'"):
         GenerateOptions(turtle={"wobble": 1})
-    with pytest.raises(ValueError, match="bark_color_variation"):
-        GenerateOptions(bark_color_variation=2.0)
+    with pytest.raises(lsys3d.OptionsError, match=r"BarkColorOptions.variation: must be in \[0, 1\], not 2"):
+        GenerateOptions.from_flat(bark_color_variation=2.0)

@@ -22,8 +22,6 @@ import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import ExportError
 from ..tree import Tree
 from .atomic import check_target, write_bytes
@@ -67,8 +65,7 @@ def _trimesh(tree, path, options):
     import trimesh
 
     frame = file_frame(options)
-    vertices = np.asarray(tree.bark.vertices) @ frame.T
-    mesh = trimesh.Trimesh(vertices, np.asarray(tree.bark.faces), process=False)
+    mesh = trimesh.Trimesh(tree.bark.vertices @ frame.T, tree.bark.faces, process=False)
     file_type = path.suffix[1:].lower()
     data = mesh.export(file_type=file_type)
     if isinstance(data, str):
@@ -98,8 +95,9 @@ SUPPORTED_SUFFIXES: tuple[str, ...] = tuple(_WRITERS)
 def check_output(path: str | os.PathLike, options: ExportOptions | None = None) -> Path:
     """Check, before any long work, that :func:`export` could write ``path``.
 
-    Raises :class:`~lsys3d.errors.ExportError` for an unknown suffix, a missing
-    or unwritable folder, or an existing file with ``no_clobber``; leaves nothing
+    Raises :class:`~lsys3d.errors.ExportError` for an unknown suffix, options
+    the format cannot honour (glTF in centimetres or Z up), a missing or
+    unwritable folder, or an existing file with ``no_clobber``; leaves nothing
     behind (the folder is tested by creating and removing an empty hidden file).
 
     Examples
@@ -117,6 +115,10 @@ def check_output(path: str | os.PathLike, options: ExportOptions | None = None) 
     if suffix not in _WRITERS:
         what = f"unknown suffix {suffix!r}" if suffix else "no suffix"
         raise ExportError(f"{path}: {what}; supported: {', '.join(SUPPORTED_SUFFIXES)}")
+    if suffix in (".glb", ".gltf"):
+        from .gltf import check_options
+
+        check_options(options, str(path))
     check_target(path, options.no_clobber)
     return path
 
@@ -188,9 +190,9 @@ def export_variants(trees: Sequence[Tree], path: str | os.PathLike, options: Exp
     trees : sequence of Tree
         The siblings, e.g. one grammar grown with seeds 7, 8, 9.
     path : str or path-like
-        For a USD suffix, the one file to write: ``/Tree`` gets the variant
-        set ``seed`` with one variant per tree, named ``seed_<seed>`` after
-        the tree's provenance (``seed_7``, ``seed_8``...), the first selected.
+        For a USD suffix, the one file to write: the root prim gets the
+        variant set ``seed`` with one variant per tree, named ``seed_<seed>``
+        after the tree's provenance (``seed_7``, ``seed_8``...), the first selected.
         For any other suffix, the pattern of the files
         (:func:`variant_paths`): ``tree.glb`` gives ``tree_0.glb``,
         ``tree_1.glb``...
@@ -219,7 +221,7 @@ def export_variants(trees: Sequence[Tree], path: str | os.PathLike, options: Exp
     if path.suffix.lower() in _USD_SUFFIXES:
         from .usd import write_usd_variants
 
-        names = [f"seed_{int((t.provenance or {}).get('seed', i))}" for i, t in enumerate(trees)]
+        names = [f"seed_{t.provenance.seed if t.provenance is not None else i}" for i, t in enumerate(trees)]
         if len(set(names)) != len(names):
             raise ExportError(f"{path}: two trees have the same seed, so their variants would share a name: {names}")
         return [write_usd_variants(trees, names, path, options)]

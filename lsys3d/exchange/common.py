@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass
-from typing import Literal
+from dataclasses import dataclass, field
 
 import numpy as np
-import trimesh
 
+from ..attributes import ATTRIBUTES
 from ..errors import ExportError
+from ..mesh import Mesh
+from ..options import Options, option
 
 __all__ = [
     "ExportOptions",
@@ -23,7 +24,8 @@ __all__ = [
     "file_frame",
     "frame_transforms",
     "gather_mesh",
-    "provenance_json",
+    "metadata_json",
+    "to_float32",
 ]
 
 log = logging.getLogger("lsys3d")
@@ -31,49 +33,34 @@ log = logging.getLogger("lsys3d")
 UNITS = {"m": 1.0, "cm": 0.01}
 UP_AXES = ("Y", "Z")
 
+POINT_ATTRIBUTES = frozenset(a.key for a in ATTRIBUTES if a.point)
+"""Attributes that are positions: carried into the file's frame with the vertices."""
+
 # Y up -> Z up: a +90 degree turn about X, so +Y (the trunk) goes to +Z and +Z to -Y.
 _Y_TO_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
 @dataclass(frozen=True)
-class ExportOptions:
-    """How :func:`lsys3d.exchange.export` writes a tree.
+class ExportOptions(Options):
+    """How :func:`lsys3d.exchange.export` writes a tree; every default, range and help is in its field.
 
-    Parameters
-    ----------
-    units : {"m", "cm"}
-        Length unit of the file.  ``"cm"`` scales the geometry by 100 and
-        authors ``metersPerUnit = 0.01`` (USD).  glTF is always metres.
-    up_axis : {"Y", "Z"}
-        The axis the tree stands along.  ``"Z"`` turns the geometry +90
-        degrees about X and authors ``upAxis = "Z"`` (USD).  glTF is always Y up.
-    instance_leaves : bool or None
-        Write leaves as instances of one leaf model (USD ``PointInstancer``,
-        glTF ``EXT_mesh_gpu_instancing``) instead of one merged mesh.  ``None``
-        (default) picks the format's natural choice: instanced for USD, merged
-        for glTF (readable by every viewer).
-    skeleton_curves : bool
-        Also write the branch skeleton as curves (USD ``BasisCurves`` with
-        purpose ``guide``; glTF a ``LINES`` primitive).
-    no_clobber : bool
-        Refuse to overwrite an existing file.
-    hairline : bool
-        SVG only: draw every branch one pixel wide (at the drawing's natural
-        size) instead of as wide as the branch.
+    ``units = "cm"`` scales the geometry by 100 and authors ``metersPerUnit =
+    0.01`` (USD); ``up_axis = "Z"`` turns the geometry +90 degrees about X and
+    authors ``upAxis = "Z"``.  glTF is always metres and Y up.
+    ``instance_leaves`` writes leaves as instances of one leaf model (USD
+    ``PointInstancer``, glTF ``EXT_mesh_gpu_instancing``) instead of one merged
+    mesh; ``None`` (default) picks the format's natural choice: instanced for
+    USD, merged for glTF (readable by every viewer).
     """
 
-    units: Literal["m", "cm"] = "m"
-    up_axis: Literal["Y", "Z"] = "Y"
-    instance_leaves: bool | None = None
-    skeleton_curves: bool = False
-    no_clobber: bool = False
-    hairline: bool = False
-
-    def __post_init__(self):
-        if self.units not in UNITS:
-            raise ExportError(f"ExportOptions: units must be one of {sorted(UNITS)}, not {self.units!r}")
-        if self.up_axis not in UP_AXES:
-            raise ExportError(f"ExportOptions: up_axis must be one of {list(UP_AXES)}, not {self.up_axis!r}")
+    units: str = option("m", choices=tuple(UNITS), help="length unit of a USD file")
+    up_axis: str = option("Y", choices=UP_AXES, help="up axis of a USD file")
+    instance_leaves: bool | None = option(
+        None, kind=bool, help="leaves as instances of one model (None: the format's choice)", cli=False
+    )
+    skeleton_curves: bool = option(False, help="also write the branch skeleton as curves")
+    no_clobber: bool = option(False, help="refuse to overwrite an existing file")
+    hairline: bool = option(False, help="SVG: lines one pixel wide instead of as wide as branches")
 
     @property
     def meters_per_unit(self) -> float:
@@ -102,15 +89,17 @@ class MeshArrays:
         Triangles indexing ``points``.
     normals : (f * 3, 3) float32
         Unit normal per face corner.
-    uv : (f * 3, 2) float32 or None
+    uv : (f * 3, 2) float32
         Texture coordinates per face corner.
     split_points, split_normals, split_uv : (s, ...) float32
         One vertex per unique (point, normal, uv): what glTF needs.
     split_index : (f * 3,) uint32
         Split vertex of each face corner.
     colors, split_colors : (v, 3) / (s, 3) float32 or None
-        Linear RGB vertex colours (the mesh's ``vertex_color`` vertex
-        attribute, see :mod:`lsys3d.tree`), per point and per split vertex.
+        Linear RGB vertex colours (:attr:`lsys3d.mesh.Mesh.colors`), per point and per split vertex.
+    attributes, split_attributes : dict of str to (v, ...) / (s, ...) float32
+        The mesh's per-vertex attributes (:attr:`lsys3d.mesh.Mesh.attributes`), points among them
+        (:data:`lsys3d.attributes.ATTRIBUTES`) in the file's frame, per point and per split vertex.
     """
 
     points: np.ndarray
@@ -123,6 +112,23 @@ class MeshArrays:
     split_index: np.ndarray
     colors: np.ndarray | None = None
     split_colors: np.ndarray | None = None
+    attributes: dict = field(default_factory=dict)
+    split_attributes: dict = field(default_factory=dict)
+
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def to_float32(values, what: str, where: str) -> np.ndarray:
+    """``values`` as float32, the precision of the files, refusing what float32 cannot hold (an overflow to inf)."""
+    values = np.asarray(values, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        ok = bool((np.abs(values) <= FLOAT32_MAX).all())
+    if not ok:
+        raise ExportError(
+            f"{where}: {what} holds a value that is not a number or beyond the 32-bit float range (3.4e38)"
+        )
+    return values.astype(np.float32)
 
 
 def _unit_normals(normals: np.ndarray, faces: np.ndarray, vertices: np.ndarray) -> np.ndarray:
@@ -172,51 +178,37 @@ def _first_use_order(corner_v: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarr
     return old_of_new, new_of_old
 
 
-def gather_mesh(mesh: trimesh.Trimesh, frame: np.ndarray, where: str) -> MeshArrays:
+def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
     """Gather a welded mesh with corner attributes into arrays for the writers.
 
     Parameters
     ----------
-    mesh : trimesh.Trimesh
-        Welded vertices; ``face_attributes`` may hold ``corner_normals (f, 3, 3)``
-        and ``corner_uv (f, 3, 2)``.  Missing normals are taken from the
-        (smooth) vertex normals; missing UVs are left out.
+    mesh : Mesh
+        Welded vertices, corner normals and uv, optional vertex colours.
     frame : (3, 3) float64
         Linear map into the file's frame (see :func:`file_frame`).
     where : str
         Name used in error messages.
     """
-    vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    faces = np.asarray(mesh.faces, dtype=np.int64)
-    if faces.ndim != 2 or faces.shape[1] != 3 or not len(faces):
+    vertices = mesh.vertices
+    faces = mesh.faces
+    if not len(faces):
         raise ExportError(f"{where}: the mesh has no triangles")
     if not np.isfinite(vertices).all():
         raise ExportError(f"{where}: the mesh has non-finite vertices")
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise ExportError(f"{where}: a face points past the {len(vertices)} vertices")
-    nf = len(faces)
-    attrs = getattr(mesh, "face_attributes", None) or {}
-    normals = attrs.get("corner_normals")
-    if normals is None:
-        normals = np.asarray(mesh.vertex_normals)[faces]
     # a private float32 copy: it is normalised and rotated in place
-    normals = np.array(normals, dtype=np.float32).reshape(-1, 3)
-    if normals.shape[0] != nf * 3:
-        raise ExportError(f"{where}: corner_normals has {normals.shape[0]} rows, expected {nf * 3}")
-    uv = attrs.get("corner_uv")
-    if uv is not None:
-        uv = np.ascontiguousarray(uv, dtype=np.float32).reshape(-1, 2)
-        if uv.shape[0] != nf * 3:
-            raise ExportError(f"{where}: corner_uv has {uv.shape[0]} rows, expected {nf * 3}")
-        if not np.isfinite(uv).all():
-            raise ExportError(f"{where}: corner_uv holds a NaN or infinite value")
-    colors = (getattr(mesh, "vertex_attributes", None) or {}).get("vertex_color")
-    if colors is not None:
-        colors = np.asarray(colors, dtype=np.float32)
-        if colors.shape != (len(vertices), 3):
-            raise ExportError(f"{where}: vertex_color has shape {colors.shape}, expected ({len(vertices)}, 3)")
-        if not (np.isfinite(colors).all() and (colors >= 0).all()):
-            raise ExportError(f"{where}: vertex_color holds a negative, NaN or infinite value")
+    normals = np.array(mesh.normals, dtype=np.float32).reshape(-1, 3)
+    uv = np.ascontiguousarray(mesh.uv, dtype=np.float32).reshape(-1, 2)
+    if not np.isfinite(uv).all():
+        raise ExportError(f"{where}: the uv hold a NaN or infinite value")
+    colors = mesh.colors
+    attributes = dict(mesh.attributes)
+    if not all(np.isfinite(a).all() for a in attributes.values()):
+        raise ExportError(f"{where}: a vertex attribute holds a NaN or infinite value")
+    if colors is not None and not (np.isfinite(colors).all() and (colors >= 0).all()):
+        raise ExportError(f"{where}: the vertex colours hold a negative, NaN or infinite value")
 
     corner_v = faces.reshape(-1)
     renumber = _first_use_order(corner_v, len(vertices))
@@ -226,8 +218,9 @@ def gather_mesh(mesh: trimesh.Trimesh, frame: np.ndarray, where: str) -> MeshArr
         vertices = vertices[old_of_new]
         if colors is not None:
             colors = colors[old_of_new]
+        attributes = {k: a[old_of_new] for k, a in attributes.items()}
     identity = np.array_equal(frame, np.eye(3))
-    points = (vertices if identity else vertices @ frame.T).astype(np.float32)
+    points = to_float32(vertices if identity else vertices @ frame.T, "the vertices", where)
 
     if not identity:
         rotation = (frame / np.cbrt(np.linalg.det(frame))).astype(np.float32)
@@ -236,7 +229,14 @@ def gather_mesh(mesh: trimesh.Trimesh, frame: np.ndarray, where: str) -> MeshArr
     normals = np.ascontiguousarray(normals, dtype=np.float32)  # _split views the rows as bytes
     normals += np.float32(0.0)  # -0.0 -> 0.0, so corners that compare equal are equal bit for bit
 
-    split_index, split_points, split_normals, split_uv, split_colors = _split(points, corner_v, normals, uv, colors)
+    if not identity:  # positions among the attributes go into the file's frame like the vertices
+        attributes = {
+            k: (a @ frame.T).astype(np.float32) if k in POINT_ATTRIBUTES else a for k, a in attributes.items()
+        }
+    split_index, split_points, split_normals, split_uv, split_colors, vertex_of_split = _split(
+        points, corner_v, normals, uv, colors
+    )
+    split_attributes = {k: a if vertex_of_split is None else a[vertex_of_split] for k, a in attributes.items()}
     return MeshArrays(
         points=points,
         faces=corner_v.astype(np.int32).reshape(-1, 3),
@@ -248,6 +248,8 @@ def gather_mesh(mesh: trimesh.Trimesh, frame: np.ndarray, where: str) -> MeshArr
         split_index=split_index,
         colors=colors,
         split_colors=split_colors,
+        attributes=attributes,
+        split_attributes=split_attributes,
     )
 
 
@@ -296,7 +298,7 @@ def _split(points, corner_v, normals, uv, colors=None):
     split_colors = None
     if colors is not None:  # a colour belongs to the point: split vertices copy their point's
         split_colors = colors if vertex_of_split is None else colors[vertex_of_split]
-    return split_index, split_points, split_normals, split_uv, split_colors
+    return split_index, split_points, split_normals, split_uv, split_colors, vertex_of_split
 
 
 def _unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -419,13 +421,13 @@ def _jsonable(value, where: str):
         return value
     if isinstance(value, float):
         if not np.isfinite(value):
-            raise ExportError(f"{where}: provenance holds a non-finite number")
+            raise ExportError(f"{where}: the asset's metadata holds a non-finite number")
         return value
-    raise ExportError(f"{where}: provenance value of type {type(value).__name__} is not JSON-serialisable")
+    raise ExportError(f"{where}: metadata value of type {type(value).__name__} is not JSON-serialisable")
 
 
-def provenance_json(provenance: dict, where: str) -> dict:
-    """A JSON-ready copy of ``tree.provenance`` (numpy scalars and arrays become plain values)."""
-    out = _jsonable(dict(provenance or {}), where)
+def metadata_json(tree, where: str) -> dict:
+    """The tree's ``lsys3d`` metadata block (:meth:`lsys3d.tree.Tree.metadata`), checked JSON-ready."""
+    out = _jsonable(tree.metadata(), where)
     json.dumps(out)  # fail here rather than half-way through a file
     return out

@@ -33,10 +33,11 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from ..errors import ExportError
-from ..tree import Material, Tree
+from ..errors import ExportError, printable
+from ..materials import Material
+from ..tree import Tree
 from .atomic import write_bytes
-from .common import UNITS, ExportOptions, provenance_json
+from .common import UNITS, ExportOptions, metadata_json, to_float32
 
 __all__ = ["DISPLAY_PIXELS", "drawing_plane", "svg_text", "write_svg"]
 
@@ -142,10 +143,10 @@ def svg_text(tree: Tree, options: ExportOptions | None = None, where: str = "svg
     end = np.asarray(skeleton.end, np.float64) * scale
     polygon_points = np.asarray(skeleton.polygon_points, np.float64) * scale
     leaf_shapes = []  # (k, L, 3) world outlines of the leaf instances, one array per loop
-    if tree.leaf_model is not None and len(tree.leaf_transforms):
-        model = np.asarray(tree.leaf_model.vertices, np.float64)
-        t = np.asarray(tree.leaf_transforms, np.float64)
-        for loop in _leaf_outline(tree.leaf_model):
+    if tree.leaves.instanced:
+        model = tree.leaves.model.vertices
+        t = np.asarray(tree.leaves.transforms, np.float64)
+        for loop in _leaf_outline(tree.leaves.model):
             leaf_shapes.append((np.einsum("kij,lj->kli", t[:, :3, :3], model[loop]) + t[:, None, :3, 3]) * scale)
     everything = np.concatenate([start, end, polygon_points, *(s.reshape(-1, 3) for s in leaf_shapes)])
     if len(everything) == 0:
@@ -171,15 +172,16 @@ def svg_text(tree: Tree, options: ExportOptions | None = None, where: str = "svg
     margin = MARGIN * size + 0.5 * (float(widths.max()) if len(skeleton) else 0.0)
     x0, y0 = lo - margin
     w, h = hi - lo + 2 * margin
-    px_w, px_h = (DISPLAY_PIXELS, DISPLAY_PIXELS * h / w) if w >= h else (DISPLAY_PIXELS * w / h, DISPLAY_PIXELS)
+    to_float32([x0, y0, w, h], "the drawing's extent (with the branch widths)", where)  # what viewers draw with
+    px_w, px_h = (DISPLAY_PIXELS, DISPLAY_PIXELS * (h / w)) if w >= h else (DISPLAY_PIXELS * (w / h), DISPLAY_PIXELS)
 
-    title = tree.provenance.get("grammar_name") or "lsys3d"
-    metadata = _json_text(provenance_json(tree.provenance, where))
+    title = tree.name
+    metadata = _json_text(metadata_json(tree, where))
     out = [
         '<?xml version="1.0" encoding="UTF-8"?>',
         f'<svg xmlns="http://www.w3.org/2000/svg" version="1.1" viewBox="{num.one(x0)} {num.one(y0)} '
         f'{num.one(w)} {num.one(h)}" width="{round(px_w)}" height="{round(px_h)}">',
-        f"<title>{escape(str(title))}</title>",
+        f"<title>{escape(printable(title))}</title>",  # XML 1.0 allows no control characters
         f"<metadata>{escape(metadata)}</metadata>",
         f'<rect x="{num.one(x0)}" y="{num.one(y0)}" width="{num.one(w)}" height="{num.one(h)}" fill="white"/>',
     ]
@@ -198,7 +200,7 @@ def svg_text(tree: Tree, options: ExportOptions | None = None, where: str = "svg
                 out.append(f'<polygon points="{num.points(projected[a:b])}"/>')
         if leaf_shapes:
             loops = [project(s) for s in leaf_shapes]
-            for i in range(len(tree.leaf_transforms)):
+            for i in range(len(tree.leaves.transforms)):
                 d = " ".join(f"M{num.points(loop[i])}Z" for loop in loops)
                 out.append(f'<path d="{d}"/>')
         out.append("</g>")

@@ -36,10 +36,11 @@ from typing import NamedTuple
 import numpy as np
 
 from . import booleans
+from .arrays import components
 from .booleans import BooleanError, Part, run_job
 from .errors import GeometryError
 
-__all__ = ["POOL_MIN_TRIANGLES", "Part", "Plan", "components", "default_workers", "plan", "run"]
+__all__ = ["POOL_MIN_TRIANGLES", "Part", "Plan", "default_workers", "plan", "run"]
 
 POOL_MIN_TRIANGLES = 300_000
 """Boolean input (triangles) from which a union runs its jobs in worker processes (when it may use several)."""
@@ -63,33 +64,6 @@ def default_workers() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):  # pragma: no cover - not Linux
         return max(1, os.cpu_count() or 1)
-
-
-def components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Connected component of each of ``n`` nodes joined by edges ``a - b``: the smallest node index in it.
-
-    Label propagation with pointer jumping, in numpy: each pass hooks every
-    root under the smallest root it touches, then compresses the paths; a few
-    passes over the edges, whatever the graph's diameter.
-
-    >>> components(6, np.array([0, 4, 2]), np.array([1, 5, 1])).tolist()
-    [0, 0, 0, 3, 4, 4]
-    """
-    parent = np.arange(n, dtype=np.int64)
-    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
-    while len(a):
-        pa, pb = parent[a], parent[b]
-        differ = pa != pb
-        if not differ.any():
-            break
-        lo, hi = np.minimum(pa[differ], pb[differ]), np.maximum(pa[differ], pb[differ])
-        np.minimum.at(parent, hi, lo)  # hook each root under the smaller root it touches
-        while True:  # compress paths until every node points at a root
-            jumped = parent[parent]
-            if np.array_equal(jumped, parent):
-                break
-            parent = jumped
-    return parent
 
 
 def plan(weight: np.ndarray, centre: np.ndarray, a: np.ndarray, b: np.ndarray, target: float) -> Plan:

@@ -1,0 +1,456 @@
+"""The turtle's numba kernel: one pass over the modules, writing into preallocated arrays.
+
+Arguments travel in named tuples of arrays (numba compiles them as plain
+tuples): :class:`Program` (what each symbol id does, from the command table),
+:class:`Modules` (the module string), :class:`Config` (the numeric settings),
+:class:`Variation` (per-module random numbers) and the outputs
+:class:`SegmentArrays`, :class:`PolygonArrays`, :class:`LeafArrays`.  The kernel switches on
+:class:`~lsys3d.turtle.commands.Op`; rotations read their axis and sign from
+the program, so a new rotation symbol needs no new branch here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numba
+import numpy as np
+
+from ..skeleton import MAX_COORDINATE
+from .commands import N_OPS, Axis, Op
+
+__all__ = [
+    "MESSAGES",
+    "OK",
+    "Config",
+    "LeafArrays",
+    "Modules",
+    "PolygonArrays",
+    "Program",
+    "SegmentArrays",
+    "Variation",
+    "dropped_modules",
+    "run",
+    "survey",
+]
+
+Program = namedtuple("Program", ["op", "axis", "sign", "max_args"])
+Modules = namedtuple("Modules", ["symbols", "arity", "offsets", "params"])
+Config = namedtuple(
+    "Config",
+    ["angle", "heading", "step", "width", "width_scale", "length_scale", "elasticity", "tx", "ty", "tz", "far"],
+)
+Variation = namedtuple("Variation", ["angle", "length", "width", "roll", "skipped"])
+SegmentArrays = namedtuple(
+    "SegmentArrays",
+    ["start", "end", "heading", "left", "up", "width_start", "width_end", "parent", "module", "order", "material"],
+)
+PolygonArrays = namedtuple("PolygonArrays", ["points", "offsets", "material", "segment"])
+LeafArrays = namedtuple("LeafArrays", ["position", "heading", "left", "up", "size", "material", "segment"])
+
+# numba sees the enums as plain integers
+_NONE = int(Op.NONE)
+_FORWARD = int(Op.FORWARD)
+_MOVE = int(Op.MOVE)
+_ROTATE = int(Op.ROTATE)
+_TURN_AROUND = int(Op.TURN_AROUND)
+_ROLL_HORIZONTAL = int(Op.ROLL_HORIZONTAL)
+_PUSH = int(Op.PUSH)
+_POP = int(Op.POP)
+_WIDTH = int(Op.WIDTH)
+_MATERIAL = int(Op.MATERIAL)
+_LENGTH = int(Op.LENGTH)
+_POLYGON_BEGIN = int(Op.POLYGON_BEGIN)
+_POLYGON_VERTEX = int(Op.POLYGON_VERTEX)
+_POLYGON_END = int(Op.POLYGON_END)
+_LEAF = int(Op.LEAF)
+_AXIS_U = int(Axis.U)
+_AXIS_L = int(Axis.L)
+
+# status codes; the message says what went wrong at module `bad`
+OK = 0
+MESSAGES = {
+    1: "nothing to pop: more ']' than '[' so far",
+    2: "a polygon is already open (polygons do not nest)",
+    3: "no polygon is open ('}' without '{')",
+    4: "polygon never closed (no matching '}')",
+    5: f"the turtle's position left the drawable range of +-{MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE); "
+    "check the step length (F's parameter, step, length_scale, length_jitter)",
+    6: f"the width must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
+    7: "the step length must be a finite number >= 0",
+    8: "the material index must be >= 0",
+    9: f"the leaf size must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
+    10: f"the width with width_jitter is more than {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
+}
+
+
+@numba.njit(cache=True, inline="always")
+def _pair(ax, ay, az, bx, by, bz, c, s):
+    """Rotate a frame pair in its plane: a toward b by the angle with cos c, sin s."""
+    return ax * c + bx * s, ay * c + by * s, az * c + bz * s, bx * c - ax * s, by * c - ay * s, bz * c - az * s
+
+
+@numba.njit(cache=True, inline="always")
+def _orthonormal(hx, hy, hz, lx, ly, lz):
+    """Re-orthonormalise a nearly orthonormal H, L and return H, L, U = H x L.
+
+    Keeps rounding from piling up over millions of turns.  The inputs are unit
+    vectors to within rounding, so one Newton step ``v * (3 - v.v) / 2`` normalises
+    them to full precision without a square root or a division.
+    """
+    n = 1.5 - 0.5 * (hx * hx + hy * hy + hz * hz)
+    hx *= n
+    hy *= n
+    hz *= n
+    d = lx * hx + ly * hy + lz * hz
+    lx -= d * hx
+    ly -= d * hy
+    lz -= d * hz
+    n = 1.5 - 0.5 * (lx * lx + ly * ly + lz * lz)
+    lx *= n
+    ly *= n
+    lz *= n
+    return hx, hy, hz, lx, ly, lz, hy * lz - hz * ly, hz * lx - hx * lz, hx * ly - hy * lx
+
+
+@numba.njit(cache=True, inline="always")
+def _cos_sin(degrees):
+    """Cosine and sine of an angle in degrees, exact for multiples of 90 (so +(90) and heading 90 are exact)."""
+    r = degrees % 360.0
+    if r == 0.0:
+        return 1.0, 0.0
+    if r == 90.0:
+        return 0.0, 1.0
+    if r == 180.0:
+        return -1.0, 0.0
+    if r == 270.0:
+        return 0.0, -1.0
+    a = math.radians(degrees)
+    return math.cos(a), math.sin(a)
+
+
+@numba.njit(cache=True, inline="always")
+def _put(a, k, x, y, z):
+    a[k, 0] = x
+    a[k, 1] = y
+    a[k, 2] = z
+
+
+@numba.njit(cache=True, inline="always")
+def _add_vertex(points, n, first, x, y, z):
+    """Append a polygon vertex unless it repeats the previous one; return the new count."""
+    if n > first and points[n - 1, 0] == x and points[n - 1, 1] == y and points[n - 1, 2] == z:
+        return n
+    points[n, 0] = x
+    points[n, 1] = y
+    points[n, 2] = z
+    return n + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def survey(program, modules):
+    """One pass before drawing: how many modules of each op, deepest bracket, bad arguments.
+
+    Returns (counts (N_OPS,), max depth, bad module or -1, 1 too many arguments / 2 not finite).
+    """
+    counts = np.zeros(N_OPS, np.int64)
+    depth = 0
+    deepest = 0
+    symbols, arity, offsets, params = modules
+    for i in range(symbols.shape[0]):
+        sym = symbols[i]
+        code = program.op[sym]
+        counts[code] += 1
+        if code == _NONE:
+            continue
+        if arity[i] > program.max_args[sym]:
+            return counts, deepest, i, 1
+        if arity[i] > 0 and not math.isfinite(params[offsets[i]]):
+            return counts, deepest, i, 2
+        if code == _PUSH:
+            depth += 1
+            if depth > deepest:
+                deepest = depth
+        elif code == _POP:
+            depth -= 1
+    return counts, deepest, -1, 0
+
+
+@numba.njit(cache=True, nogil=True)
+def dropped_modules(program, symbols, drop):
+    """Modules inside a dropped branch: from a ``[`` whose ``drop`` is set to its matching ``]`` (or the end)."""
+    m = symbols.shape[0]
+    out = np.zeros(m, np.bool_)
+    depth = 0  # bracket depth inside the branch being dropped; 0: not dropping
+    for i in range(m):
+        code = program.op[symbols[i]]
+        if depth == 0:
+            if code == _PUSH and drop[i]:
+                depth = 1
+                out[i] = True
+            continue
+        out[i] = True
+        if code == _PUSH:
+            depth += 1
+        elif code == _POP:
+            depth -= 1
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def run(program, modules, config, variation, max_depth, seg, poly, leaf):
+    """Run the turtle over the modules, writing segments, polygons and leaves into the preallocated outputs.
+
+    Returns (status, bad module, segments, polygon points, polygons, leaves, dropped polygons).
+    """
+    symbols, arity, offsets, params = modules
+    n_cap = seg.start.shape[0]
+    depth_of = np.empty(n_cap, np.int64)
+    first_child = np.full(n_cap, -1, np.int64)
+    same_child = np.full(n_cap, -1, np.int64)  # first child of the same order
+    stack_f = np.empty((max_depth, 14))
+    stack_i = np.empty((max_depth, 3), np.int64)
+
+    angle = config.angle
+    cos_angle, sin_angle = _cos_sin(angle)
+    step = config.step
+    width = config.width
+    width_scale = config.width_scale
+    length_scale = config.length_scale
+    elasticity = config.elasticity
+    far = config.far  # MAX_COORDINATE
+    tx, ty, tz = config.tx, config.ty, config.tz
+    bend = elasticity != 0.0 and (tx != 0.0 or ty != 0.0 or tz != 0.0)
+    jitter_angle = variation.angle.shape[0] > 0
+    jitter_length = variation.length.shape[0] > 0
+    jitter_width = variation.width.shape[0] > 0
+    roll_branch = variation.roll.shape[0] > 0
+    drop_branch = variation.skipped.shape[0] > 0
+
+    px = py = pz = 0.0
+    hx, hy = _cos_sin(config.heading)
+    hz = 0.0
+    lx, ly, lz = -hy, hx, 0.0
+    ux, uy, uz = 0.0, 0.0, 1.0
+    material = 0
+    last = -1  # parent of the next segment
+    anchor = -1  # last segment drawn in this state, for branch order
+    depth = 0
+    n_seg = 0
+    n_pts = 0
+    n_poly = 0
+    n_leaf = 0
+    dropped = 0
+    poly_open = -1  # module that opened the polygon
+    poly_start = 0
+    poly_mat = 0
+    poly_seg = -1
+
+    m = symbols.shape[0]
+    for i in range(m):
+        sym = symbols[i]
+        code = program.op[sym]
+        if code == _NONE:
+            continue
+        if drop_branch and variation.skipped[i]:
+            continue
+        has_arg = arity[i] > 0
+        arg = params[offsets[i]] if has_arg else 0.0
+        if code in (_FORWARD, _MOVE):
+            if bend:
+                # H x T: rotate the frame about it by e * |H x T| so H bends toward T
+                cx = hy * tz - hz * ty
+                cy = hz * tx - hx * tz
+                cz = hx * ty - hy * tx
+                norm = math.sqrt(cx * cx + cy * cy + cz * cz)
+                if norm > 1e-12:
+                    a = elasticity * norm
+                    kx, ky, kz = cx / norm, cy / norm, cz / norm
+                    c, s = math.cos(a), math.sin(a)
+                    # Rodrigues: v' = v c + (k x v) s + k (k.v)(1 - c), for H and L
+                    d = (kx * hx + ky * hy + kz * hz) * (1.0 - c)
+                    nhx = hx * c + (ky * hz - kz * hy) * s + kx * d
+                    nhy = hy * c + (kz * hx - kx * hz) * s + ky * d
+                    nhz = hz * c + (kx * hy - ky * hx) * s + kz * d
+                    d = (kx * lx + ky * ly + kz * lz) * (1.0 - c)
+                    nlx = lx * c + (ky * lz - kz * ly) * s + kx * d
+                    nly = ly * c + (kz * lx - kx * lz) * s + ky * d
+                    nlz = lz * c + (kx * ly - ky * lx) * s + kz * d
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _orthonormal(nhx, nhy, nhz, nlx, nly, nlz)
+            length = arg if has_arg else step
+            if jitter_length:
+                length *= variation.length[i]
+            qx = px + hx * length
+            qy = py + hy * length
+            qz = pz + hz * length
+            if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):  # NaN fails too
+                return 5, i, n_seg, n_pts, n_poly, n_leaf, dropped
+            if poly_open >= 0:
+                n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
+                last = -1
+            elif code == _FORWARD:
+                s_ = n_seg
+                _put(seg.start, s_, px, py, pz)
+                _put(seg.end, s_, qx, qy, qz)
+                _put(seg.heading, s_, hx, hy, hz)
+                _put(seg.left, s_, lx, ly, lz)
+                _put(seg.up, s_, ux, uy, uz)
+                drawn = width * variation.width[i] if jitter_width else width
+                if not drawn <= far:
+                    return 10, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                seg.width_start[s_] = drawn
+                seg.width_end[s_] = drawn
+                if anchor >= 0:
+                    rise = depth - depth_of[anchor]
+                    order = seg.order[anchor] + (rise if rise > 0 else 0)
+                else:
+                    order = 0
+                seg.parent[s_] = last
+                seg.module[s_] = i
+                seg.order[s_] = order
+                seg.material[s_] = material
+                depth_of[s_] = depth
+                if last >= 0:
+                    if first_child[last] < 0:
+                        first_child[last] = s_
+                    if same_child[last] < 0 and seg.order[last] == order:
+                        same_child[last] = s_
+                last = s_
+                anchor = s_
+                n_seg += 1
+            else:
+                last = -1
+            px, py, pz = qx, qy, qz
+        elif code == _ROTATE:
+            if jitter_angle:
+                c, s = _cos_sin((arg if has_arg else angle) + variation.angle[i])
+            elif has_arg:
+                c, s = _cos_sin(arg)
+            else:
+                c, s = cos_angle, sin_angle
+            s = s * program.sign[sym]
+            axis = program.axis[sym]
+            if axis == _AXIS_U:  # turn: H toward L
+                hx, hy, hz, lx, ly, lz = _pair(hx, hy, hz, lx, ly, lz, c, s)
+            elif axis == _AXIS_L:  # pitch: H toward U
+                hx, hy, hz, ux, uy, uz = _pair(hx, hy, hz, ux, uy, uz, c, s)
+                lx, ly, lz = uy * hz - uz * hy, uz * hx - ux * hz, ux * hy - uy * hx
+            else:  # roll: L toward U
+                lx, ly, lz, ux, uy, uz = _pair(lx, ly, lz, ux, uy, uz, c, s)
+            hx, hy, hz, lx, ly, lz, ux, uy, uz = _orthonormal(hx, hy, hz, lx, ly, lz)
+        elif code == _TURN_AROUND:
+            hx, hy, hz = -hx, -hy, -hz
+            lx, ly, lz = -lx, -ly, -lz
+        elif code == _ROLL_HORIZONTAL:
+            # L = V x H with V = (0, 1, 0)
+            norm = math.sqrt(hz * hz + hx * hx)
+            if norm > 1e-12:
+                lx, ly, lz = hz / norm, 0.0, -hx / norm
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _orthonormal(hx, hy, hz, lx, ly, lz)
+        elif code == _PUSH:
+            row = stack_f[depth]
+            row[0] = px
+            row[1] = py
+            row[2] = pz
+            row[3] = hx
+            row[4] = hy
+            row[5] = hz
+            row[6] = lx
+            row[7] = ly
+            row[8] = lz
+            row[9] = ux
+            row[10] = uy
+            row[11] = uz
+            row[12] = width
+            row[13] = step
+            stack_i[depth, 0] = material
+            stack_i[depth, 1] = last
+            stack_i[depth, 2] = anchor
+            depth += 1
+            if roll_branch:  # the branch starts rolled about H; the saved state is not
+                c, s = _cos_sin(variation.roll[i])
+                lx, ly, lz, ux, uy, uz = _pair(lx, ly, lz, ux, uy, uz, c, s)
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _orthonormal(hx, hy, hz, lx, ly, lz)
+        elif code == _POP:
+            if depth == 0:
+                return 1, i, n_seg, n_pts, n_poly, n_leaf, dropped
+            depth -= 1
+            row = stack_f[depth]
+            px, py, pz = row[0], row[1], row[2]
+            hx, hy, hz = row[3], row[4], row[5]
+            lx, ly, lz = row[6], row[7], row[8]
+            ux, uy, uz = row[9], row[10], row[11]
+            width = row[12]
+            step = row[13]
+            material = stack_i[depth, 0]
+            last = stack_i[depth, 1]
+            anchor = stack_i[depth, 2]
+        elif code == _WIDTH:
+            width = arg if has_arg else width * width_scale
+            if not (0.0 <= width <= far):
+                return 6, i, n_seg, n_pts, n_poly, n_leaf, dropped
+            if last >= 0 and depth_of[last] == depth:
+                seg.width_end[last] = width
+        elif code == _MATERIAL:
+            if has_arg:
+                if arg < -0.5:
+                    return 8, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                material = round(arg)
+            else:
+                material = max(0, material + int(program.sign[sym]))
+        elif code == _LENGTH:
+            step = step * (arg if has_arg else length_scale)
+            if not (step >= 0.0 and math.isfinite(step)):
+                return 7, i, n_seg, n_pts, n_poly, n_leaf, dropped
+        elif code == _POLYGON_BEGIN:
+            if poly_open >= 0:
+                return 2, i, n_seg, n_pts, n_poly, n_leaf, dropped
+            poly_open = i
+            poly_start = n_pts
+            poly_mat = material
+            poly_seg = last
+        elif code == _POLYGON_VERTEX:
+            if poly_open >= 0:
+                n_pts = _add_vertex(poly.points, n_pts, poly_start, px, py, pz)
+        elif code == _POLYGON_END:
+            if poly_open < 0:
+                return 3, i, n_seg, n_pts, n_poly, n_leaf, dropped
+            poly_open = -1
+            k = n_pts - poly_start
+            if k >= 2:
+                # a polygon walked back to its first vertex lists that vertex once
+                f0 = poly.points[poly_start]
+                fl = poly.points[n_pts - 1]
+                gap = abs(f0[0] - fl[0]) + abs(f0[1] - fl[1]) + abs(f0[2] - fl[2])
+                if gap <= 1e-9 * (1.0 + abs(f0[0]) + abs(f0[1]) + abs(f0[2])):
+                    n_pts -= 1
+                    k -= 1
+            if k >= 3:
+                n_poly += 1
+                poly.offsets[n_poly] = n_pts
+                poly.material[n_poly - 1] = poly_mat
+                poly.segment[n_poly - 1] = poly_seg
+            else:
+                n_pts = poly_start
+                dropped += 1
+        elif code == _LEAF:
+            size = arg if has_arg else step
+            if not (0.0 <= size <= far):
+                return 9, i, n_seg, n_pts, n_poly, n_leaf, dropped
+            _put(leaf.position, n_leaf, px, py, pz)
+            _put(leaf.heading, n_leaf, hx, hy, hz)
+            _put(leaf.left, n_leaf, lx, ly, lz)
+            _put(leaf.up, n_leaf, ux, uy, uz)
+            leaf.size[n_leaf] = size
+            leaf.material[n_leaf] = material
+            leaf.segment[n_leaf] = last
+            n_leaf += 1
+    if poly_open >= 0:
+        return 4, poly_open, n_seg, n_pts, n_poly, n_leaf, dropped
+    # width_end: where the chain goes on (the rule of Skeleton.chains), the next width; at a tip, the tip's
+    for s_ in range(n_seg):
+        nxt = same_child[s_] if same_child[s_] >= 0 else first_child[s_]
+        if nxt >= 0:
+            seg.width_end[s_] = seg.width_start[nxt]
+    return OK, -1, n_seg, n_pts, n_poly, n_leaf, dropped

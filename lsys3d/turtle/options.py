@@ -1,0 +1,205 @@
+"""The turtle's settings: :class:`TurtleOptions`, read from a grammar's ``[turtle]`` table.
+
+Every setting is one field of :class:`TurtleOptions` (default, range, help);
+the ``[turtle]`` table, ``GenerateOptions.turtle`` overrides
+(:class:`TurtleOverrides`), the CLI's ``--turtle KEY=VALUE`` and the settings
+table of ``docs/turtle.md`` (:func:`options_markdown`) all read those fields.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, fields
+
+from ..errors import GrammarError, OptionsError, clip
+from ..grammar import Grammar, table_key_line
+from ..options import Options, check_value, option, spec_of
+from .commands import RENAMEABLE, by_symbol
+
+__all__ = ["GRAMMAR_KEYS", "JITTER_DISTRIBUTIONS", "TurtleOptions", "TurtleOverrides", "options_markdown"]
+
+JITTER_DISTRIBUTIONS = ("uniform", "normal")
+"""Values of ``TurtleOptions.jitter_distribution``."""
+
+
+@dataclass(frozen=True)
+class TurtleOptions(Options):
+    """How the turtle draws; every default lives here.
+
+    The ``[turtle]`` table of a grammar sets any field but ``angle`` and
+    ``seed``, which come from the grammar's top level (:data:`GRAMMAR_KEYS`
+    are the keys it may hold).  Each field's help is in its declaration;
+    ``docs/turtle.md`` lists them (:func:`options_markdown`).
+
+    ``tropism`` and ``elasticity`` bend the frame toward T before each move
+    by ``e * |H x T|`` radians about ``H x T`` (ABOP 2.8).  The jitters and
+    the branch roll draw ``u`` in [-1, 1]: uniform, or (``jitter_distribution
+    = "normal"``) normal with sigma 1/2 truncated by redrawing.
+    """
+
+    angle: float = option(90.0, help="default rotation angle, degrees (the grammar's `angle`)", cli=False)
+    heading: float = option(90.0, help="initial heading in the XY plane, degrees (90: up along +Y, 0: along +X)")
+    step: float = option(1.0, low=0, low_open=True, help="initial step length")
+    width: float = option(0.1, low=0, help="initial branch diameter")
+    width_scale: float = option(0.7, low=0, low_open=True, help="factor of `!` without argument")
+    length_scale: float = option(0.9, low=0, low_open=True, help='factor of `"` without argument')
+    draw: str = option("F", help='symbols that move drawing a segment, e.g. `"FLR"`')
+    move: str = option("f", help="symbols that move without drawing")
+    leaf: str = option("~", help="the leaf-instance symbol")
+    tropism: tuple[float, float, float] = option((0.0, 0.0, 0.0), help="tropism vector T (ABOP 2.8), `[x, y, z]`")
+    elasticity: float = option(0.0, help="before each move the frame turns by e\\|H x T\\| radians about H x T")
+    angle_jitter: float = option(0.0, low=0, help="random change of each rotation angle, up to this many degrees")
+    length_jitter: float = option(0.0, low=0, help="random relative change of each step, up to this fraction")
+    width_jitter: float = option(0.0, low=0, help="random relative change of each segment's width, up to this fraction")
+    branch_roll: float = option(
+        0.0, low=0, help="random roll of each new branch about its heading at `[`, up to this many degrees"
+    )
+    branch_drop: float = option(0.0, low=0, high=1, help="probability that a branch, `[` to its `]`, is left out")
+    jitter_distribution: str = option(
+        "uniform",
+        choices=JITTER_DISTRIBUTIONS,
+        help='how jitters and rolls are drawn: `"uniform"` or `"normal"` (see below)',
+    )
+    seed: int = option(0, low=0, help="seed of the natural variation (the grammar's `seed`)", cli=False)
+
+    def __post_init__(self):
+        super().__post_init__()
+        _check_symbols(self.draw, self.move, self.leaf)
+
+    @classmethod
+    def from_grammar(cls, grammar: Grammar, overrides: Mapping | None = None, **more) -> TurtleOptions:
+        """The options of a grammar: its ``[turtle]`` table, ``angle`` and ``seed``.
+
+        Parameters
+        ----------
+        grammar : Grammar
+        overrides : mapping, optional
+            Settings to use regardless of the grammar (``GenerateOptions.turtle``).
+        **more
+            More fields, as keywords (``angle`` and ``seed`` too).
+
+        Raises
+        ------
+        GrammarError
+            An unknown key or a bad value in ``[turtle]``, with the grammar's
+            file and the key's line.
+        OptionsError
+            A bad override.
+
+        Examples
+        --------
+        >>> from lsys3d import load_preset
+        >>> TurtleOptions.from_grammar(load_preset("koch")).heading
+        0.0
+        """
+        values: dict = {"angle": grammar.angle, "seed": grammar.seed}
+        for key, value in grammar.turtle.items():
+            if key not in GRAMMAR_KEYS:
+                known = ", ".join(sorted(GRAMMAR_KEYS))
+                raise _turtle_error(grammar, key, f"unknown key {clip(repr(key))} (known keys: {known})")
+            try:
+                values[key] = check_value(_SPECS[key], value, key)
+            except OptionsError as exc:
+                raise _turtle_error(grammar, key, str(exc)) from None
+        try:
+            _check_symbols(values.get("draw", "F"), values.get("move", "f"), values.get("leaf", "~"))
+        except OptionsError as exc:
+            key = re.match(r"'(\w+)'", str(exc)).group(1)
+            raise _turtle_error(grammar, key, str(exc)) from None
+        values.update(TurtleOverrides(overrides or {}))
+        unknown = sorted(set(more) - set(_SPECS))
+        if unknown:
+            raise OptionsError(f"TurtleOptions.from_grammar: unknown option {clip(repr(unknown[0]))}")
+        values.update(more)
+        return cls(**values)
+
+
+_SPECS = {f.name: spec_of(f) for f in fields(TurtleOptions)}
+
+GRAMMAR_KEYS: frozenset[str] = frozenset(_SPECS) - {"angle", "seed"}
+"""The keys a grammar's ``[turtle]`` table, ``GenerateOptions.turtle`` and ``--turtle`` accept."""
+
+
+class TurtleOverrides(Mapping):
+    """Turtle settings that override a grammar's ``[turtle]`` table: an immutable, checked mapping.
+
+    Keys are :data:`GRAMMAR_KEYS`; values are checked by the same rules as
+    :class:`TurtleOptions`' fields.
+
+    >>> TurtleOverrides({"width_jitter": 0.2})["width_jitter"]
+    0.2
+    >>> TurtleOverrides({"colour": 3})  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+      ...
+    lsys3d.errors.OptionsError: turtle: unknown setting 'colour' (known: angle_jitter, branch_drop, ..., width_scale)
+    """
+
+    def __init__(self, values: Mapping | None = None):
+        checked = {}
+        for key, value in dict(values or {}).items():
+            if key not in GRAMMAR_KEYS:
+                known = ", ".join(sorted(GRAMMAR_KEYS))
+                raise OptionsError(f"turtle: unknown setting {clip(repr(key))} (known: {known})")
+            checked[key] = check_value(_SPECS[key], value, f"turtle.{key}")
+        self._values = dict(sorted(checked.items()))
+
+    def __getitem__(self, key):
+        return self._values[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+    def __repr__(self) -> str:
+        return f"TurtleOverrides({self._values!r})"
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Mapping) and dict(self) == dict(other)
+
+    def __hash__(self) -> int:
+        return hash(tuple(self._values.items()))
+
+
+def _check_symbols(draw: str, move: str, leaf: str) -> None:
+    """The renameable symbols must be symbols, and none may be another command's or each other's."""
+    for key, value in (("draw", draw), ("move", move), ("leaf", leaf)):
+        if key == "leaf" and len(value) != 1:
+            raise OptionsError(f"'{key}' must be one symbol, not {clip(repr(value))}")
+        if any(c.isspace() or c in "()," for c in value):
+            raise OptionsError(f"'{key}' holds a character that cannot be a symbol: {clip(repr(value))}")
+        for ch in value:
+            fixed = by_symbol(ch)
+            if fixed is not None:
+                raise OptionsError(f"'{key}' symbol {ch!r} is already the turtle command {fixed.name}")
+    both = sorted(set(draw) & set(move))
+    if both:
+        raise OptionsError(f"'move' symbol {both[0]!r} is also a 'draw' symbol")
+    if leaf in draw or leaf in move:
+        raise OptionsError(f"'leaf' symbol {leaf!r} is also a 'draw' or 'move' symbol")
+
+
+assert set(RENAMEABLE) <= set(_SPECS)  # the renameable commands' symbols are settings
+
+
+def _turtle_error(grammar: Grammar, key: str, what: str) -> GrammarError:
+    line = table_key_line(grammar.text, "turtle", key) if grammar.text else None
+    return GrammarError(f"[turtle] {what}", grammar.source, line, 1 if line else None)
+
+
+def options_markdown() -> str:
+    """The ``[turtle]`` settings as a Markdown table (in ``docs/turtle.md``; the tests check it)."""
+    rows = ["| Key | Default | Meaning |", "|---|---|---|"]
+    defaults = TurtleOptions()
+    for f in fields(TurtleOptions):
+        if f.name not in GRAMMAR_KEYS:
+            continue
+        value = getattr(defaults, f.name)
+        shown = f'`"{value}"`' if isinstance(value, str) else f"`{list(value)}`" if isinstance(value, tuple) else value
+        spec = _SPECS[f.name]
+        rng = spec.range_text() if spec.low is not None or spec.high is not None else ""
+        help_text = spec.help + (f" ({rng})" if rng else "")
+        rows.append(f"| `{f.name}` | {shown} | {help_text} |")
+    return "\n".join(rows) + "\n"
