@@ -12,7 +12,6 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from functools import partial
 
 from . import bark as bark_stage
 from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
@@ -205,6 +204,13 @@ def generate(
             f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter than "
             f"min_length ({options.sweep.min_length:g}) and there is no leaf"
         )
+    counts = StageCounts(
+        modules=len(modules),
+        segments=len(skeleton),
+        tubes=len(tubes.sides),
+        tube_vertices=len(tubes.points),
+        tube_faces=len(tubes.faces),
+    )
     if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
         bark = stage("union", Mesh.empty)
     elif options.union.enabled:
@@ -212,7 +218,8 @@ def generate(
         def report(fraction: float) -> None:
             progress("union", "progress", fraction)
 
-        bark = stage("union", partial(union, progress=report if progress else None), tubes, options.union)
+        held, tubes = [tubes], None  # the union is given the only reference: it frees the soup once it is culled
+        bark = stage("union", _union_of_held, held, options.union, report if progress else None)
     else:
         bark = stage("union", concatenate, tubes)
     bark = stage("color", bark_stage.color, bark, options.color, table.bark.base_color, seed)
@@ -221,7 +228,7 @@ def generate(
     keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
     branches = hierarchy(skeleton, seed) if keys or table else None
     bulge = options.sweep.bark_displacement
-    if table and len(tubes):
+    if table and counts.tubes:
         bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
     if keys:
         bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
@@ -232,13 +239,6 @@ def generate(
         bark, leaves = stage("rig", bind, bark, leaves, rig, branches)
         if keys != wanted:  # the rig's own use of them: not the user's attributes
             bark, leaves = _keep(bark, leaves, wanted + SKIN_KEYS)
-    counts = StageCounts(
-        modules=len(modules),
-        segments=len(skeleton),
-        tubes=len(tubes.sides),
-        tube_vertices=len(tubes.points),
-        tube_faces=len(tubes.faces),
-    )
     return Tree(
         bark=bark,
         skeleton=skeleton,
@@ -251,6 +251,11 @@ def generate(
         rig=rig,
         materials=table,
     )
+
+
+def _union_of_held(held: list, options: UnionOptions, progress: Callable[[float], None] | None) -> Mesh:
+    """``union(held.pop(), options)``: the list is emptied, so the union holds the tube soup alone."""
+    return union(held.pop(), options, progress=progress)
 
 
 def _keep(bark: Mesh, leaves, keys):

@@ -316,7 +316,7 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
 
     weld = sys.modules["lsys3d.union"]._weld_float32
     mesh = _face_touching_boxes(gap)
-    out = weld(mesh)
+    out = weld([mesh])
     v32 = np.asarray(out.vertices, np.float32)
     assert len(out.vertices) == 16 and np.array_equal(out.faces, mesh.faces)
     assert len(np.unique(v32, axis=0)) == 16
@@ -326,7 +326,7 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
     welded = trimesh.Trimesh(v32.astype(np.float64), out.faces, process=False)
     welded.merge_vertices()
     assert len(welded.vertices) == 16 and welded.is_watertight
-    assert weld(_face_touching_boxes(1e-3)).vertices.tolist() == _face_touching_boxes(1e-3).vertices.tolist()
+    assert weld([_face_touching_boxes(1e-3)]).vertices.tolist() == _face_touching_boxes(1e-3).vertices.tolist()
 
 
 # ---------------------------------------------------------------- at scale: culling, refinement, repeats, workers
