@@ -9,8 +9,9 @@ a welded mesh comes back welded), ``.usd*`` through its USD importer.  The
 last line of output is ``LSYS3D-BLENDER ``, then JSON with the Blender version,
 the imported objects (type, parent, vertex and face counts, world bounding
 box, materials, whether ``Mesh.validate`` had to repair anything), the
-materials (Principled BSDF base colour and roughness) and the world bounding
-box of everything Blender draws, instances included.
+materials (Principled BSDF base colour and roughness, and the image textures
+wired into its Base Color, Alpha and Normal inputs, with their pixel size) and
+the world bounding box of everything Blender draws, instances included.
 
 Blender crashes on some malformed files: the caller should run this in a
 child process and treat a signal as a failure (``tests/validators.py`` does).
@@ -47,6 +48,23 @@ def _points(mesh):
     co = np.empty(len(mesh.vertices) * 3, np.float64)
     mesh.vertices.foreach_get("co", co)
     return co.reshape(-1, 3)
+
+
+def _images_into(socket):
+    """The image textures upstream of a node socket (through normal-map, mix and separate nodes)."""
+    out, seen, stack = [], set(), [socket]
+    while stack:
+        for link in stack.pop().links:
+            node = link.from_node
+            if node.name in seen:
+                continue
+            seen.add(node.name)
+            if node.type == "TEX_IMAGE" and node.image is not None:
+                image = node.image
+                space = image.colorspace_settings.name
+                out.append({"image": image.name, "size": list(image.size), "colorspace": space})
+            stack.extend(i for i in node.inputs if i.is_linked)
+    return out
 
 
 def main(path):
@@ -91,6 +109,11 @@ def main(path):
             if bsdf is not None:
                 entry["base_color"] = list(bsdf.inputs["Base Color"].default_value)
                 entry["roughness"] = bsdf.inputs["Roughness"].default_value
+                entry["textures"] = {
+                    name: _images_into(bsdf.inputs[name])
+                    for name in ("Base Color", "Alpha", "Normal")
+                    if bsdf.inputs[name].is_linked and _images_into(bsdf.inputs[name])
+                }
         materials.append(entry)
 
     # what is drawn, instances included: evaluate the dependency graph
