@@ -19,6 +19,7 @@ from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import GeometryError
 from .grammar import Grammar
 from .hierarchy import hierarchy
+from .leaves import LeafOptions
 from .leaves import leaves as build_leaves
 from .materials import material_table, with_face_materials
 from .mesh import Mesh
@@ -28,6 +29,7 @@ from .presets import load
 from .provenance import Provenance
 from .rig import SKIN_KEYS, RigOptions, bind, build_rig
 from .skeleton import Skeleton
+from .surfaces import surface_table, with_cards
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret
@@ -50,7 +52,9 @@ class Limits(Options):
     )
     max_segments: int = option(DEFAULT_MAX_SEGMENTS, low=1, help="most segments the turtle draws")
     max_triangles: int = option(
-        DEFAULT_MAX_TRIANGLES, low=1, help="most tube triangles before the union (counted before the sweep allocates)"
+        DEFAULT_MAX_TRIANGLES,
+        low=1,
+        help="most tube triangles before the union, and most leaf triangles baked in place (counted before allocating)",
     )
 
 
@@ -75,6 +79,8 @@ class GenerateOptions(Options):
         Bark colour variation written as vertex colours after the union.
     attributes : AttributeOptions
         Hierarchy and wind attributes on the bark's vertices and the leaves (off by default).
+    leaves : LeafOptions
+        The built-in leaf's resolution (a grammar's ``[surfaces] leaf`` replaces the built-in leaf).
     rig : RigOptions
         Joints along the branches and the skin that binds bark and leaves to them (off by default).
 
@@ -89,6 +95,7 @@ class GenerateOptions(Options):
     union: UnionOptions = option(factory=UnionOptions, help="the union")
     color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
     attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
+    leaves: LeafOptions = option(factory=LeafOptions, help="leaves")
     rig: RigOptions = option(factory=RigOptions, help="the rig")
 
     def __post_init__(self):
@@ -185,7 +192,9 @@ def generate(
     def stage(name, fn, *args, **kw):
         return run_stage(name, fn, *args, progress=progress, **kw)
 
-    table = material_table(grammar)  # a bad [materials] table fails before the work
+    table = material_table(grammar)  # a bad [materials] or [surfaces] table fails before the work
+    surfaces = surface_table(grammar)
+    table = with_cards(table, surfaces, grammar)
 
     modules, skeleton = draw(grammar, n, seed, options, progress=progress)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
@@ -215,7 +224,17 @@ def generate(
         bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
     if keys:
         bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
-    leaves = stage("leaves", build_leaves, skeleton, hierarchy=branches, attributes=keys)
+    leaf_model = surfaces.leaf.mesh if surfaces.leaf is not None else None
+    leaves = stage(
+        "leaves",
+        build_leaves,
+        skeleton,
+        model=leaf_model,
+        hierarchy=branches,
+        attributes=keys,
+        options=options.leaves,
+        max_triangles=options.limits.max_triangles,
+    )
     rig = None
     if options.rig.enabled:
         rig = build_rig(branches, skeleton, options.rig)

@@ -8,6 +8,7 @@ Layout of the file::
         node "leaf"      mesh "leaf"      material "leaf"   (all leaves merged; or the leaf model
                                                              with EXT_mesh_gpu_instancing)
         node "leaf_polygons"                                (only with instanced leaves)
+        node "organ_<name>"                                 (organs of one kind: merged, or instanced)
         node "skeleton"  mesh "skeleton"  LINES             (only with skeleton_curves)
 
 glTF is metres and Y up by definition, so ``units`` and ``up_axis`` other
@@ -293,40 +294,60 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         bark_groups = groups(tree.bark.face_material, table.for_bark, white=bark.split_colors is not None)
         add_node("bark", primitives_of(buf, bark, bark_groups, joints), skinned=rig is not None)
 
-    leaves = tree.leaves
-    instanced = bool(options.instance_leaves) and leaves.instanced and rig is None  # skinned leaves are merged
-    if instanced:
-        model = gather_mesh(leaves.model, eye, f"{where}: leaf_model")
-        translation, quaternion, scale = decompose_transforms(leaves.transforms, where)
-        k = len(translation)
-        per_leaf = np.asarray(tree.skeleton.leaf_material, np.int64) if table else np.zeros(0, np.int64)
-        if len(per_leaf) != k:
-            per_leaf = np.zeros(k, np.int64)
-        extra = gltf_attributes(leaves.instance_attributes)  # the branch each leaf grows from
-        for n, (m, i, rows) in enumerate(material_groups(per_leaf, table.for_leaf)):  # a node per leaf material
+    def instanced_nodes(base: str, model_mesh, transforms, index, instance_attributes, material_of):
+        """One node per material of the instances, each drawing ``model_mesh`` at its instances' transforms."""
+        model = gather_mesh(model_mesh, eye, f"{where}: {base} model")
+        translation, quaternion, scale = decompose_transforms(transforms, where)
+        extra = gltf_attributes(instance_attributes)  # the branch each instance grows from
+        for n, (m, i, rows) in enumerate(material_groups(index, material_of)):
             sel = slice(None) if rows is None else rows
             attributes = {
-                "TRANSLATION": buf.accessor(to_float32(translation[sel], "leaf positions", where), target=None),
+                "TRANSLATION": buf.accessor(to_float32(translation[sel], f"{base} positions", where), target=None),
                 "ROTATION": buf.accessor(quaternion[sel].astype(np.float32), target=None),
-                "SCALE": buf.accessor(to_float32(scale[sel], "leaf sizes", where), target=None),
+                "SCALE": buf.accessor(to_float32(scale[sel], f"{base} sizes", where), target=None),
             }
             for name, values in extra.items():
                 attributes[name] = buf.accessor(np.ascontiguousarray(values[sel]), target=None)
             primitives = primitives_of(buf, model, [(material_index(m), None)])
-            add_node("leaf" if n == 0 else f"leaf_{i}", primitives, {INSTANCING: {"attributes": attributes}})
-        extensions_used.append(INSTANCING)
+            add_node(base if n == 0 else f"{base}_{i}", primitives, {INSTANCING: {"attributes": attributes}})
+        if INSTANCING not in extensions_used:
+            extensions_used.append(INSTANCING)
+
+    def merged_node(name: str, mesh, material_of):
+        if mesh is None or not len(mesh.faces):
+            return
+        arrays = gather_mesh(mesh, eye, f"{where}: {name}")
+        skinned = rig is not None and "skin_joints" in mesh.attributes
+        mesh_groups = groups(mesh.face_material, material_of)
+        add_node(name, primitives_of(buf, arrays, mesh_groups, joints if skinned else None), skinned=skinned)
+
+    leaves = tree.leaves
+    instanced = bool(options.instance_leaves) and rig is None  # skinned leaves and organs are merged
+    if instanced and leaves.instanced:
+        k = len(leaves.transforms)
+        per_leaf = np.asarray(tree.skeleton.leaf_material, np.int64) if table else np.zeros(0, np.int64)
+        if len(per_leaf) != k:
+            per_leaf = np.zeros(k, np.int64)
+        instanced_nodes("leaf", leaves.model, leaves.transforms, per_leaf, leaves.instance_attributes, table.for_leaf)
         if leaves.polygons is not None and len(leaves.polygons.faces):
-            polygons = gather_mesh(leaves.polygons, eye, f"{where}: polygon_leaves")
-            polygon_groups = groups(leaves.polygons.face_material, table.for_leaf)
-            add_node("leaf_polygons", primitives_of(buf, polygons, polygon_groups))
+            merged_node("leaf_polygons", leaves.polygons, table.for_leaf)
     else:
         # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
-        merged = leaves.merged if leaves.merged is not None else leaves.polygons
-        if merged is not None and len(merged.faces):
-            arrays = gather_mesh(merged, eye, f"{where}: leaves")
-            skinned = rig is not None and "skin_joints" in merged.attributes
-            leaf_groups = groups(merged.face_material, table.for_leaf)
-            add_node("leaf", primitives_of(buf, arrays, leaf_groups, joints if skinned else None), skinned=skinned)
+        merged_node("leaf", leaves.merged if leaves.merged is not None else leaves.polygons, table.for_leaf)
+
+    organs = tree.organs
+    for p, proto in enumerate(organs.prototypes):  # a part per kind of organ: organ_sphere, organ_flower...
+        material_of = table.for_leaf if proto.material is None else (lambda i, m=proto.material: m)
+        if instanced:
+            mine = organs.of(p)
+            if len(mine):
+                attributes = {key: a[mine] for key, a in organs.instance_attributes.items()}
+                index = organs.material[mine] if table else None
+                instanced_nodes(
+                    f"organ_{proto.name}", proto.mesh, organs.transforms[mine], index, attributes, material_of
+                )
+        else:
+            merged_node(f"organ_{proto.name}", organs.merged[p], material_of)
 
     if tree.hierarchy is not None and len(tree.hierarchy):
         # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.attributes)

@@ -11,9 +11,11 @@ The stage (``<asset>`` is the asset's name as an identifier: ``bush``, ``abop_1_
                 Prototypes      Scope
                     leaf_model  Mesh (model space)
             leaf_polygons       Mesh (leaves drawn as polygons; only with instancing)
+            organs              PointInstancer of Prototypes/<kind>...  -- or organ_<kind> Meshes, merged
             skeleton            BasisCurves, linear, widths, purpose guide (only with skeleton_curves)
         Looks                   Scope
-            bark, leaf          Material with a UsdPreviewSurface
+            bark, leaf          Material with a UsdPreviewSurface (and UsdUVTextures reading the images in
+                                <stem>_textures/ beside the layer, or textures/ inside a .usdz)
 
 The parts have the same names as in glTF (``bark``, ``leaf``, ``leaf_polygons``,
 ``skeleton``), so a DCC shows the same objects whichever format it read.
@@ -273,37 +275,52 @@ def _skeleton(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray) -> Non
     curves.CreateExtentAttr(UsdGeom.Curves.ComputeExtent(pts, w))
 
 
-def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, looks: _Looks, where: str) -> None:
-    """Leaves as a ``PointInstancer``: one prototype of the leaf model per leaf material used."""
+def _instancer(
+    stage: Usd.Stage, path: str, parts, transforms, index, instance_attributes, frame, looks: _Looks, where: str
+) -> None:
+    """A ``PointInstancer`` over ``parts``: one prototype per part and material used by its instances.
+
+    ``parts`` are ``(prototype name, model Mesh, the instances of it, material_of)``; ``index`` holds the
+    material index of every instance (None: all the default).
+    """
     instancer = UsdGeom.PointInstancer.Define(stage, path)
     UsdGeom.Scope.Define(stage, f"{path}/Prototypes")
-    model = gather_mesh(tree.leaves.model, np.eye(3), f"{where}: leaf_model")
-    k = len(tree.leaves.transforms)
-    index = np.asarray(tree.skeleton.leaf_material, np.int64) if tree.materials else np.zeros(0, np.int64)
-    if len(index) != k:
-        index = np.zeros(k, np.int64)
-    proto_index = np.zeros(k, np.int32)
+    proto_index = np.zeros(len(transforms), np.int32)
     prototypes = []
-    for n, (m, i, rows) in enumerate(material_groups(index, tree.materials.for_leaf)):
-        name = "leaf_model" if n == 0 else f"leaf_model_{i}"
-        prototypes.append(_mesh(stage, f"{path}/Prototypes/{name}", model, looks.get(m), m.double_sided).GetPath())
-        if rows is not None:
-            proto_index[rows] = n
+    for name, model_mesh, members, material_of in parts:
+        model = gather_mesh(model_mesh, np.eye(3), f"{where}: {name}")
+        own = None if index is None else index[members]
+        for n, (m, i, rows) in enumerate(material_groups(own, material_of)):
+            proto = name if n == 0 else f"{name}_{i}"
+            prototypes.append(_mesh(stage, f"{path}/Prototypes/{proto}", model, looks.get(m), m.double_sided).GetPath())
+            proto_index[members if rows is None else members[rows]] = len(prototypes) - 1
     instancer.CreatePrototypesRel().SetTargets(prototypes)
-    transforms = frame_transforms(tree.leaves.transforms, frame)
-    translation, quaternion, scale = decompose_transforms(transforms, where)
-    instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(proto_index.reshape(-1).astype(np.int32)))
-    instancer.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(to_float32(translation, "leaf positions", where)))
+    translation, quaternion, scale = decompose_transforms(frame_transforms(transforms, frame), where)
+    instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(proto_index))
+    instancer.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(to_float32(translation, "instance positions", where)))
     # Gf.Quath is stored imaginary-first, so (x, y, z, w) rows are its memory layout
     instancer.CreateOrientationsAttr(Vt.QuathArray.FromNumpy(quaternion.astype(np.float16)))
-    instancer.CreateScalesAttr(Vt.Vec3fArray.FromNumpy(to_float32(scale, "leaf sizes", where)))
+    instancer.CreateScalesAttr(Vt.Vec3fArray.FromNumpy(to_float32(scale, "instance sizes", where)))
     per_instance = {
         k: (np.asarray(v, np.float64) @ frame.T).astype(np.float32) if k in POINT_ATTRIBUTES else v
-        for k, v in tree.leaves.instance_attributes.items()
+        for k, v in instance_attributes.items()
     }
     _attribute_primvars(UsdGeom.PrimvarsAPI(instancer), per_instance)
     extent = instancer.ComputeExtentAtTime(Usd.TimeCode.Default(), Usd.TimeCode.Default())
     instancer.CreateExtentAttr(extent)
+
+
+def _prim_names(names) -> list[str]:
+    """Valid, distinct prim names for ``names`` (``a-b`` -> ``a_b``; a repeat gets ``_2``...)."""
+    out: list[str] = []
+    for name in names:
+        valid = base = Tf.MakeValidIdentifier(name)
+        i = 1
+        while valid in out:
+            i += 1
+            valid = f"{base}_{i}"
+        out.append(valid)
+    return out
 
 
 def build_stage(
@@ -399,7 +416,14 @@ def _author_tree(
     has_merged = merged is not None and len(merged.faces) > 0
     leaf_default = table.for_leaf(-1)
     if instanced:
-        _leaf_instancer(stage, f"{geom}/leaf", tree, frame, shading, where)
+        k = len(leaves.transforms)
+        index = np.asarray(tree.skeleton.leaf_material, np.int64) if table else None
+        if index is not None and len(index) != k:
+            index = None
+        parts = [("leaf_model", leaves.model, np.arange(k), table.for_leaf)]
+        _instancer(
+            stage, f"{geom}/leaf", parts, leaves.transforms, index, leaves.instance_attributes, frame, shading, where
+        )
         if has_polygons:
             polygons = gather_mesh(leaves.polygons, frame, f"{where}: polygon_leaves")
             mesh = _mesh(stage, f"{geom}/leaf_polygons", polygons, shading.get(leaf_default), True)
@@ -411,6 +435,30 @@ def _author_tree(
         if table:
             _subsets(mesh, merged.face_material, table.for_leaf, shading, False)
         _bind(mesh, arrays, skeleton)
+
+    organs = tree.organs
+    if len(organs):
+        names = _prim_names(p.name for p in organs.prototypes)
+        materials = [table.for_leaf if p.material is None else (lambda i, m=p.material: m) for p in organs.prototypes]
+        if options.instance_leaves is not False and skeleton is None:  # one instancer, a prototype per kind
+            parts = [
+                (names[p], proto.mesh, organs.of(p), materials[p])
+                for p, proto in enumerate(organs.prototypes)
+                if len(organs.of(p))
+            ]
+            index = organs.material if table else None
+            transforms, attributes = organs.transforms, organs.instance_attributes
+            _instancer(stage, f"{geom}/organs", parts, transforms, index, attributes, frame, shading, where)
+        else:
+            for p, mesh_of in enumerate(organs.merged):
+                if mesh_of is None or not len(mesh_of.faces):
+                    continue
+                arrays = gather_mesh(mesh_of, frame, f"{where}: organ_{names[p]}")
+                material_of = materials[p]
+                mesh = _mesh(stage, f"{geom}/organ_{names[p]}", arrays, shading.get(material_of(-1)), True)
+                if table:
+                    _subsets(mesh, mesh_of.face_material, material_of, shading, False)
+                _bind(mesh, arrays, skeleton)
 
     if tree.hierarchy is not None and len(tree.hierarchy):
         _branch_table(prim, tree, frame)
