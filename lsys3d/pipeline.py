@@ -3,7 +3,7 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> color -> materials -> attributes -> leaves -> rig
+    derive -> interpret -> sweep -> union -> color -> materials -> attributes -> leaves -> rig -> wind
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from . import bark as bark_stage
 from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
 from .derive import DEFAULT_MAX_MODULES, derive
-from .errors import GeometryError
+from .errors import GeometryError, OptionsError
 from .grammar import Grammar
 from .hierarchy import hierarchy
 from .leaves import LeafOptions
@@ -34,12 +34,13 @@ from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret
 from .union import UnionOptions, concatenate, union
+from .wind import WindOptions, sway
 
 __all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage"]
 
 log = logging.getLogger("lsys3d")
 
-STAGES = ("derive", "interpret", "sweep", "union", "color", "materials", "attributes", "leaves", "rig")
+STAGES = ("derive", "interpret", "sweep", "union", "color", "materials", "attributes", "leaves", "rig", "wind")
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
 
@@ -83,6 +84,8 @@ class GenerateOptions(Options):
         The built-in leaf's resolution (a grammar's ``[surfaces] leaf`` replaces the built-in leaf).
     rig : RigOptions
         Joints along the branches and the skin that binds bark and leaves to them (off by default).
+    wind : WindOptions
+        A sample wind animation keyed on the rig's joints (off by default; needs the rig).
 
     Every field below these has a flat name (``sides``, ``union``,
     ``max_modules``, ``bark_color_variation``...) for :meth:`from_flat`,
@@ -97,11 +100,17 @@ class GenerateOptions(Options):
     attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
     leaves: LeafOptions = option(factory=LeafOptions, help="leaves")
     rig: RigOptions = option(factory=RigOptions, help="the rig")
+    wind: WindOptions = option(factory=WindOptions, help="the wind animation")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
             object.__setattr__(self, "turtle", TurtleOverrides(self.turtle))
         super().__post_init__()
+        if self.wind.enabled and not self.rig.enabled:
+            raise OptionsError(
+                "WindOptions.seconds (--wind-animation): the wind animation moves the rig's joints: "
+                "it needs the rig (--rig)"
+            )
 
 
 def run_stage(name: str, fn: Callable, *args, progress: Callable[[str, str, float], None] | None = None, **kw):
@@ -235,12 +244,14 @@ def generate(
         options=options.leaves,
         max_triangles=options.limits.max_triangles,
     )
-    rig = None
+    rig = animation = None
     if options.rig.enabled:
         rig = build_rig(branches, skeleton, options.rig)
         bark, leaves = stage("rig", bind, bark, leaves, rig, branches)
         if keys != wanted:  # the rig's own use of them: not the user's attributes
             bark, leaves = _keep(bark, leaves, wanted + SKIN_KEYS)
+        if options.wind.enabled:
+            animation = stage("wind", sway, rig, branches, options.wind)
     counts = StageCounts(
         modules=len(modules),
         segments=len(skeleton),
@@ -259,6 +270,7 @@ def generate(
         hierarchy=branches if options.attributes.enabled else None,
         rig=rig,
         materials=table,
+        animation=animation,
     )
 
 

@@ -20,6 +20,7 @@ from .organs import Organs
 from .provenance import DEFAULT_NAME, Provenance, asset_identifier
 from .rig import Rig
 from .skeleton import Skeleton
+from .wind import Animation
 
 __all__ = ["BARK", "LEAF", "Material", "StageCounts", "Tree"]
 
@@ -72,6 +73,8 @@ class Tree:
     organs : Organs
         Spheres, discs, boxes and named surfaces (:mod:`lsys3d.organs`): their
         prototypes and instances, and each prototype's organs merged.
+    animation : Animation or None
+        The sample wind animation of the rig's joints (:mod:`lsys3d.wind`), when asked for.
     """
 
     bark: Mesh
@@ -85,6 +88,7 @@ class Tree:
     hierarchy: Hierarchy | None = None
     rig: Rig | None = None
     organs: Organs = field(default_factory=Organs)
+    animation: Animation | None = None
 
     @property
     def bark_material(self) -> Material:

@@ -24,6 +24,7 @@ from lsys3d.rig import RigOptions
 from lsys3d.sweep import SweepOptions
 from lsys3d.turtle import TurtleOptions, TurtleOverrides
 from lsys3d.union import UnionOptions
+from lsys3d.wind import WindOptions
 
 CLASSES = [
     Limits,
@@ -38,6 +39,7 @@ CLASSES = [
     ExportOptions,
     PreviewOptions,
     ForestOptions,
+    WindOptions,
 ]
 
 
@@ -54,7 +56,7 @@ def test_every_field_is_declared_with_its_spec(cls):
 
 def test_generate_options_nest_one_class_per_stage():
     names = {f.name: f.type for f in dataclasses.fields(GenerateOptions)}
-    assert list(names) == ["limits", "turtle", "sweep", "union", "color", "attributes", "leaves", "rig"]
+    assert list(names) == ["limits", "turtle", "sweep", "union", "color", "attributes", "leaves", "rig", "wind"]
     flat = flat_fields(GenerateOptions)
     assert flat["sides"] == ("sweep", "sides") and flat["union"] == ("union", "enabled")
     assert flat["max_modules"] == ("limits", "max_modules") and flat["bark_color_variation"] == ("color", "variation")
@@ -113,7 +115,16 @@ def test_cli_flags_come_from_the_fields():
     add_arguments(parser, GenerateOptions)
     flags = {a.option_strings[0] for a in parser._actions if a.option_strings and a.dest.startswith("opt__")}
     expected = set()
-    for cls in (Limits, SweepOptions, UnionOptions, BarkColorOptions, AttributeOptions, LeafOptions, RigOptions):
+    for cls in (
+        Limits,
+        SweepOptions,
+        UnionOptions,
+        BarkColorOptions,
+        AttributeOptions,
+        LeafOptions,
+        RigOptions,
+        WindOptions,
+    ):
         for f in dataclasses.fields(cls):
             spec = spec_of(f)
             if spec.cli:

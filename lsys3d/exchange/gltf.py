@@ -389,6 +389,18 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
             }
         )
 
+    animations = []
+    if rig is not None and tree.animation is not None:  # the wind: a rotation channel per joint but the root
+        anim = tree.animation
+        times = buf.accessor(anim.times.astype(np.float32), target=None, bounds=True)
+        samplers, channels = [], []
+        for i in range(1, len(rig)):
+            output = buf.accessor(np.ascontiguousarray(anim.rotations[:, i], np.float32), target=None)
+            samplers.append({"input": times, "interpolation": "LINEAR", "output": output})
+            channels.append({"sampler": len(samplers) - 1, "target": {"node": base + i, "path": "rotation"}})
+        if channels:
+            animations.append({"name": "wind", "channels": channels, "samplers": samplers})
+
     metadata = metadata_json(tree, where)
     doc = {"asset": {"version": "2.0", "generator": f"lsys3d {__version__}"}}
     if metadata:
@@ -402,7 +414,7 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
     # glTF arrays may not be empty: leave out what a tree without geometry lacks
     samplers = [SAMPLER] if textures else []
     parts = (("meshes", meshes), ("materials", materials), ("textures", textures), ("images", images))
-    parts += (("samplers", samplers), ("skins", skins), ("accessors", buf.accessors))
+    parts += (("samplers", samplers), ("skins", skins), ("animations", animations), ("accessors", buf.accessors))
     for key, value in parts:
         if value:
             doc[key] = value

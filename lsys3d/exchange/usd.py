@@ -487,7 +487,28 @@ def _rig(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, where: str)
     skeleton.CreateJointNamesAttr(Vt.TokenArray(list(rig.names)))
     skeleton.CreateBindTransformsAttr(translations(world))
     skeleton.CreateRestTransformsAttr(translations(local))
+    if tree.animation is not None:
+        _wind(stage, f"{path}/Wind", skeleton, names, local, tree.animation, frame)
     return skeleton
+
+
+def _wind(stage, path: str, skeleton, joints, local: np.ndarray, anim, frame: np.ndarray) -> None:
+    """The wind animation as a ``UsdSkel.Animation`` bound to ``skeleton``: rotations sampled at each frame."""
+    animation = UsdSkel.Animation.Define(stage, path)
+    animation.CreateJointsAttr(Vt.TokenArray(joints))
+    animation.CreateTranslationsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)))
+    animation.CreateScalesAttr(Vt.Vec3hArray.FromNumpy(np.ones((len(joints), 3), np.float16)))
+    rotation = frame / np.cbrt(np.linalg.det(frame))  # turns the axes of the rotations into the file's frame
+    quaternions = anim.rotations.astype(np.float64)
+    quaternions[..., :3] = quaternions[..., :3] @ rotation.T
+    attribute = animation.CreateRotationsAttr()
+    for k in range(len(anim)):  # Gf.Quatf is stored imaginary-first: (x, y, z, w) rows are its memory layout
+        attribute.Set(Vt.QuatfArray.FromNumpy(np.ascontiguousarray(quaternions[k], np.float32)), float(k))
+    UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
+    stage.SetTimeCodesPerSecond(anim.fps)
+    stage.SetFramesPerSecond(anim.fps)
+    stage.SetStartTimeCode(0)
+    stage.SetEndTimeCode(len(anim) - 1)
 
 
 def _bind(mesh: UsdGeom.Mesh, arrays: MeshArrays, skeleton: UsdSkel.Skeleton | None) -> None:
