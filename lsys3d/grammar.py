@@ -55,6 +55,7 @@ _KEYS = {
     "defines",
     "turtle",
     "materials",
+    "surfaces",
 }
 
 # maps an offset in a piece of text to (line, col); line None when unknown
@@ -139,6 +140,7 @@ class Grammar:
     defines: Mapping[str, float] = field(default_factory=dict)
     turtle: Mapping[str, object] = field(default_factory=dict)
     materials: Mapping[str, object] = field(default_factory=dict)
+    surfaces: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
     # parsed, filled in by __post_init__
@@ -151,7 +153,7 @@ class Grammar:
         if isinstance(self.rules, str):
             raise GrammarError("'rules' must be a list of rule strings, not one string", self.source)
         set_ = object.__setattr__
-        for key in ("defines", "turtle", "materials"):
+        for key in ("defines", "turtle", "materials", "surfaces"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         if not isinstance(self.rules, (list, tuple)):
@@ -168,6 +170,7 @@ class Grammar:
         )
         set_(self, "turtle", MappingProxyType(dict(self.turtle)))
         set_(self, "materials", MappingProxyType(dict(self.materials)))
+        set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
         self._check_scalars()
         where_axiom = self._where.get("axiom") or _api_where("axiom")
         if not self.axiom.strip():
@@ -240,7 +243,8 @@ class Grammar:
             )
         if "axiom" not in data:
             raise GrammarError("missing 'axiom' (the start string, e.g. axiom = \"F\")", source, 1, 1)
-        for key, kind in (("rules", list), ("defines", dict), ("turtle", dict), ("materials", dict)):
+        tables = (("defines", dict), ("turtle", dict), ("materials", dict), ("surfaces", dict))
+        for key, kind in (("rules", list), *tables):
             if key in data and not isinstance(data[key], kind):
                 line = _key_line(text, key)
                 raise GrammarError(
@@ -297,6 +301,7 @@ class Grammar:
                 "defines",
                 "turtle",
                 "materials",
+                "surfaces",
                 "source",
                 "text",
             )

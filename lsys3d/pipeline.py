@@ -3,7 +3,7 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> color -> materials -> attributes -> leaves -> rig
+    derive -> interpret -> sweep -> union -> color -> materials -> attributes -> leaves -> rig -> wind
 """
 
 from __future__ import annotations
@@ -16,9 +16,10 @@ from dataclasses import dataclass, field
 from . import bark as bark_stage
 from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
 from .derive import DEFAULT_MAX_MODULES, derive
-from .errors import GeometryError
+from .errors import GeometryError, OptionsError
 from .grammar import Grammar
 from .hierarchy import hierarchy
+from .leaves import LeafOptions
 from .leaves import leaves as build_leaves
 from .materials import material_table, with_face_materials
 from .mesh import Mesh
@@ -28,16 +29,18 @@ from .presets import load
 from .provenance import Provenance
 from .rig import SKIN_KEYS, RigOptions, bind, build_rig
 from .skeleton import Skeleton
+from .surfaces import surface_table, with_cards
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret
 from .union import UnionOptions, concatenate, union
+from .wind import WindOptions, sway
 
 __all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage"]
 
 log = logging.getLogger("lsys3d")
 
-STAGES = ("derive", "interpret", "sweep", "union", "color", "materials", "attributes", "leaves", "rig")
+STAGES = ("derive", "interpret", "sweep", "union", "color", "materials", "attributes", "leaves", "rig", "wind")
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
 
@@ -50,7 +53,9 @@ class Limits(Options):
     )
     max_segments: int = option(DEFAULT_MAX_SEGMENTS, low=1, help="most segments the turtle draws")
     max_triangles: int = option(
-        DEFAULT_MAX_TRIANGLES, low=1, help="most tube triangles before the union (counted before the sweep allocates)"
+        DEFAULT_MAX_TRIANGLES,
+        low=1,
+        help="most tube triangles before the union, and most leaf triangles baked in place (counted before allocating)",
     )
 
 
@@ -75,8 +80,12 @@ class GenerateOptions(Options):
         Bark colour variation written as vertex colours after the union.
     attributes : AttributeOptions
         Hierarchy and wind attributes on the bark's vertices and the leaves (off by default).
+    leaves : LeafOptions
+        The built-in leaf's resolution (a grammar's ``[surfaces] leaf`` replaces the built-in leaf).
     rig : RigOptions
         Joints along the branches and the skin that binds bark and leaves to them (off by default).
+    wind : WindOptions
+        A sample wind animation keyed on the rig's joints (off by default; needs the rig).
 
     Every field below these has a flat name (``sides``, ``union``,
     ``max_modules``, ``bark_color_variation``...) for :meth:`from_flat`,
@@ -89,12 +98,19 @@ class GenerateOptions(Options):
     union: UnionOptions = option(factory=UnionOptions, help="the union")
     color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
     attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
+    leaves: LeafOptions = option(factory=LeafOptions, help="leaves")
     rig: RigOptions = option(factory=RigOptions, help="the rig")
+    wind: WindOptions = option(factory=WindOptions, help="the wind animation")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
             object.__setattr__(self, "turtle", TurtleOverrides(self.turtle))
         super().__post_init__()
+        if self.wind.enabled and not self.rig.enabled:
+            raise OptionsError(
+                "WindOptions.seconds (--wind-animation): the wind animation moves the rig's joints: "
+                "it needs the rig (--rig)"
+            )
 
 
 def run_stage(name: str, fn: Callable, *args, progress: Callable[[str, str, float], None] | None = None, **kw):
@@ -185,7 +201,9 @@ def generate(
     def stage(name, fn, *args, **kw):
         return run_stage(name, fn, *args, progress=progress, **kw)
 
-    table = material_table(grammar)  # a bad [materials] table fails before the work
+    table = material_table(grammar)  # a bad [materials] or [surfaces] table fails before the work
+    surfaces = surface_table(grammar)
+    table = with_cards(table, surfaces, grammar)
 
     modules, skeleton = draw(grammar, n, seed, options, progress=progress)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
@@ -215,13 +233,25 @@ def generate(
         bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
     if keys:
         bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
-    leaves = stage("leaves", build_leaves, skeleton, hierarchy=branches, attributes=keys)
-    rig = None
+    leaf_model = surfaces.leaf.mesh if surfaces.leaf is not None else None
+    leaves = stage(
+        "leaves",
+        build_leaves,
+        skeleton,
+        model=leaf_model,
+        hierarchy=branches,
+        attributes=keys,
+        options=options.leaves,
+        max_triangles=options.limits.max_triangles,
+    )
+    rig = animation = None
     if options.rig.enabled:
         rig = build_rig(branches, skeleton, options.rig)
         bark, leaves = stage("rig", bind, bark, leaves, rig, branches)
         if keys != wanted:  # the rig's own use of them: not the user's attributes
             bark, leaves = _keep(bark, leaves, wanted + SKIN_KEYS)
+        if options.wind.enabled:
+            animation = stage("wind", sway, rig, branches, options.wind)
     counts = StageCounts(
         modules=len(modules),
         segments=len(skeleton),
@@ -240,6 +270,7 @@ def generate(
         hierarchy=branches if options.attributes.enabled else None,
         rig=rig,
         materials=table,
+        animation=animation,
     )
 
 

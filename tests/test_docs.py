@@ -74,3 +74,12 @@ def test_jobs_file_examples_parse(text, tmp_path):
     path = tmp_path / "jobs.toml"
     path.write_text(text)
     assert read_jobs(path)
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "docs" / "looks").glob("*.toml")), ids=lambda p: p.name)
+def test_looks_grammars_grow(path, tmp_path):
+    """The example grammars of docs/looks.md grow with the textures and models beside them, and export."""
+    tree = lsys3d.generate(path, iterations=3)
+    assert tree.materials and tree.bark.is_watertight
+    lsys3d.export(tree, tmp_path / "look.glb")
+    lsys3d.export(tree, tmp_path / "look.usdz")
