@@ -310,10 +310,10 @@ class _Alphabet:
             self.extra.append(ch)
         return 128 + self.extra.index(ch)
 
-    def table(self) -> str:
+    def table(self) -> tuple[str, ...]:
         if not self.extra:
             return ASCII_ALPHABET
-        return ASCII_ALPHABET[:128] + "".join(self.extra) + "\0" * (128 - len(self.extra))
+        return ASCII_ALPHABET[:128] + tuple(self.extra) + ("\0",) * (128 - len(self.extra))
 
 
 # ------------------------------------------------------------------ locations

@@ -508,7 +508,7 @@ def test_an_unbalanced_start_string_ends_context_walks():
     st.integers(1, 9),
 )
 def test_text_pieces_equal_the_text_of_each_module(modules, chunk):
-    alphabet = ModuleString.from_symbols("").alphabet[:128] + "é" + "\0" * 127
+    alphabet = ModuleString.from_symbols("").alphabet[:128] + ("é",) + ("\0",) * 127
     ms = ModuleString(
         np.array([ord(c) if c != "é" else 128 for c, _ in modules], np.uint8),
         np.array([len(args) for _, args in modules], np.uint8),
