@@ -254,11 +254,15 @@ class Expr:
     @property
     def random(self) -> bool:
         """Whether evaluating it draws random numbers (directly or through a function it calls)."""
-        if self.op == "random":
-            return True
-        if self.op == "ucall" and self.function is not None and self.function.body.random:
-            return True
-        return any(a.random for a in self.args)
+        todo = [self]  # a loop, not recursion: a chain of operators is as tall as MAX_DEPTH allows
+        while todo:
+            node = todo.pop()
+            if node.op == "random":
+                return True
+            if node.op == "ucall" and node.function is not None:
+                todo.append(node.function.body)
+            todo.extend(node.args)
+        return False
 
     def evaluate(
         self,
@@ -497,24 +501,21 @@ class _Parser:
     def parse(self) -> Expr:
         if self.peek()[0] == "end":
             raise ExprSyntaxError("empty expression", 0)
-        e = self.conditional()
+        e = self.binary(0)
         kind, val, pos = self.peek()
         if kind != "end":
             raise ExprSyntaxError(f"unexpected {val!r} after expression", pos)
         return e
 
-    def conditional(self) -> Expr:
-        start = self.peek()[2]
-        e = self.binary(0)
-        if self.syntax.python and self.peek()[0] == "op" and self.peek()[1] == "if":
-            self.take()
-            self.enter(start)
-            cond = self.binary(0)
-            self.expect("else")
-            other = self.conditional()
-            self.depth -= 1
-            return self.node("if", start, args=(cond, e, other))
-        return e
+    def conditional(self, start: int, e: Expr) -> Expr:
+        """Python's ``e if cond else other``, after ``e`` (read by ``binary(0)``, so nesting costs no extra frame)."""
+        self.take()
+        self.enter(start)
+        cond = self.binary(0)
+        self.expect("else")
+        other = self.binary(0)
+        self.depth -= 1
+        return self.node("if", start, args=(cond, e, other))
 
     _LEVELS = (("or",), ("and",), None, ("<", "<=", ">", ">=", "==", "!="), ("+", "-"), ("*", "/", "%", "//"))
 
@@ -540,6 +541,8 @@ class _Parser:
                 left = self.node("and", start, args=(left, second))
                 if self.peek()[1] in ops:
                     raise ExprSyntaxError("more than two comparisons in a chain", self.peek()[2])
+        if level == 0 and self.syntax.python and self.peek()[0] == "op" and self.peek()[1] == "if":
+            return self.conditional(start, left)
         return left
 
     def negation(self) -> Expr:
@@ -597,7 +600,7 @@ class _Parser:
             raise ExprSyntaxError(f"unknown name {val!r}", pos)
         if kind == "op" and val == "(":
             self.enter(pos)
-            e = self.conditional()
+            e = self.binary(0)
             self.expect(")")
             self.depth -= 1
             return e
@@ -612,10 +615,10 @@ class _Parser:
         self.enter(pos)
         args = []
         if self.peek()[1] != ")":
-            args.append(self.conditional())
+            args.append(self.binary(0))
             while self.peek()[1] == ",":
                 self.take()
-                args.append(self.conditional())
+                args.append(self.binary(0))
         self.expect(")")
         self.depth -= 1
         if name in self.functions:

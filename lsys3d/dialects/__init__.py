@@ -1,0 +1,51 @@
+"""The dialects: other tools' notations and turtles, and readers for their files.
+
+A grammar names its dialect (``dialect = "lpy"`` in TOML, or the reader of a
+native file sets it); the dialect decides how rules are written
+(:class:`~lsys3d.dialects.common.Notation`), what the turtle does with each
+symbol (its command table) and the tool's conventions (default angle, width
+unit, the cut symbol).  One module per dialect:
+
+- :mod:`~lsys3d.dialects.lsys3d`: lsys3d's own (the default);
+- :mod:`~lsys3d.dialects.abop`: *The Algorithmic Beauty of Plants*, as printed;
+- :mod:`~lsys3d.dialects.lpy`: L-Py (``.lpy`` files);
+- :mod:`~lsys3d.dialects.cpfg`: cpfg / L-studio / vlab (``.l`` files);
+- :mod:`~lsys3d.dialects.lparser`: Lparser (``.ls`` files; the ABOP-like ``.ls`` of web projects too);
+- :mod:`~lsys3d.dialects.houdini`: Houdini's L-system SOP (premise and rules in TOML).
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from ..errors import GrammarError, clip
+from .common import Dialect, Notation
+
+__all__ = ["DIALECTS", "SUFFIXES", "Dialect", "Notation", "get", "reader_for"]
+
+DIALECTS = ("lsys3d", "abop", "lpy", "cpfg", "lparser", "houdini")
+"""The names ``dialect = "..."`` accepts; ``lsys3d`` is the default."""
+
+SUFFIXES: dict[str, str] = {}
+"""Native file suffixes and the dialect whose reader reads them."""
+
+_LOADED: dict[str, Dialect] = {}
+
+
+def get(name: str) -> Dialect:
+    """The dialect called ``name`` (a :class:`GrammarError` for an unknown one)."""
+    dialect = _LOADED.get(name)
+    if dialect is None:
+        if not isinstance(name, str) or name not in DIALECTS:
+            raise GrammarError(f"unknown dialect {clip(repr(name))} (known: {', '.join(DIALECTS)})")
+        dialect = importlib.import_module(f"{__name__}.{name}").DIALECT
+        _LOADED[name] = dialect
+    return dialect
+
+
+def reader_for(source: str):
+    """The reader of a native file, chosen by the suffix of ``source``; None for TOML (and anything else)."""
+    base = source.rsplit("/", 1)[-1]
+    suffix = "." + base.rsplit(".", 1)[-1].lower() if "." in base else ""
+    name = SUFFIXES.get(suffix)
+    return get(name).reader if name is not None else None
