@@ -250,7 +250,7 @@ class Grammar:
                 _check_defines(dict(self.defines), self.source, self._where.get("defines"), notation, functions)
             ),
         )
-        context = _RuleContext(self.source, self.defines, scanner, notation, functions)
+        context = _RuleContext(self.source, self.defines, scanner, notation, functions, dialect)
         where_axiom = self._where.get("axiom") or _api_where("axiom")
         if not self.axiom.strip():
             raise GrammarError("the axiom is empty", *_loc(self.source, where_axiom, 0))
@@ -881,8 +881,9 @@ _STATEMENT = re.compile(r"\s*([A-Za-z_][A-Za-z_0-9]*)\s*([-+*/]?)=(?!=)")
 class _RuleContext:
     """What parsing a grammar's strings needs: names, defines, functions, the notation and the alphabet so far."""
 
-    def __init__(self, source, defines, scanner: _Scanner, notation, functions):
+    def __init__(self, source, defines, scanner: _Scanner, notation, functions, dialect):
         self.source = source
+        self.dialect = dialect
         self.defines = defines
         self.scanner = scanner
         self.notation = notation
@@ -896,7 +897,12 @@ class _RuleContext:
                 text, names=names, defines=self.defines, syntax=self.syntax, functions=self.functions, site=site
             )
         except ExprSyntaxError as exc:
-            raise _error(f"{what}{exc}", self.source, where, offset + exc.offset) from None
+            message = f"{what}{exc}"
+            known = re.match(r"unknown name '(\w+)'", str(exc))
+            if known and known.group(1) in self.dialect.variables:  # Houdini's t, g, b...
+                name = known.group(1)
+                message += f" ({self.dialect.title}'s predefined variable {name}: {self.dialect.variables[name]})"
+            raise _error(message, self.source, where, offset + exc.offset) from None
 
     def rule(self, index: int, rule: str, where: Where, site: int) -> Production:
         source, notation = self.source, self.notation

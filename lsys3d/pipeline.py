@@ -14,8 +14,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from . import bark as bark_stage
+from . import dialects
 from .attributes import AttributeOptions, with_attributes
-from .derive import DEFAULT_MAX_MODULES, derive
+from .derive import DEFAULT_MAX_MODULES, derive, interpretation
+from .diagnostics import Checks, check
 from .errors import GeometryError
 from .grammar import Grammar
 from .hierarchy import hierarchy
@@ -29,7 +31,7 @@ from .provenance import Provenance
 from .skeleton import Skeleton
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
-from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret
+from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret, symbol_table
 from .union import UnionOptions, concatenate, union
 
 __all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage"]
@@ -74,6 +76,8 @@ class GenerateOptions(Options):
         Bark colour variation written as vertex colours after the union.
     attributes : AttributeOptions
         Hierarchy and wind attributes on the bark's vertices and the leaves (off by default).
+    checks : Checks
+        Whether the grammar's warnings (:mod:`lsys3d.diagnostics`) are errors (``strict``).
 
     Every field below these has a flat name (``sides``, ``union``,
     ``max_modules``, ``bark_color_variation``...) for :meth:`from_flat`,
@@ -86,6 +90,7 @@ class GenerateOptions(Options):
     union: UnionOptions = option(factory=UnionOptions, help="the union")
     color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
     attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
+    checks: Checks = option(factory=Checks, help="the grammar's warnings")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
@@ -117,6 +122,9 @@ def draw(
 
     ``options`` gives the size limits and the ``turtle`` overrides of the
     grammar's ``[turtle]`` table; :func:`generate` goes on from here to the meshes.
+    The turtle reads the derived string rewritten by the grammar's homomorphism
+    rules (:func:`lsys3d.derive.interpretation`), with its dialect's commands;
+    what it cannot draw as meant is reported (:mod:`lsys3d.diagnostics`).
 
     Examples
     --------
@@ -128,10 +136,17 @@ def draw(
     options = options or GenerateOptions()
     limits = options.limits
     modules = run_stage("derive", derive, grammar, iterations, seed, max_modules=limits.max_modules, progress=progress)
-    turtle = TurtleOptions.from_grammar(grammar, options.turtle) if options.turtle else grammar
-    skeleton = run_stage(
-        "interpret", interpret, modules, turtle, seed=seed, max_segments=limits.max_segments, progress=progress
-    )
+    turtle = TurtleOptions.from_grammar(grammar, options.turtle)
+    commands = dialects.get(grammar.dialect).commands
+
+    def turtle_stage():
+        shown = interpretation(grammar, modules, seed, max_modules=limits.max_modules)
+        skeleton = interpret(shown, turtle, seed=seed, max_segments=limits.max_segments, commands=commands)
+        return shown, skeleton
+
+    shown, skeleton = run_stage("interpret", turtle_stage, progress=progress)
+    table = symbol_table(shown.alphabet, turtle.draw, turtle.move, turtle.leaf, commands)
+    check(grammar, shown, skeleton, table, options.checks)
     return modules, skeleton
 
 

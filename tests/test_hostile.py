@@ -817,8 +817,8 @@ def test_bombs_inside_the_limits_end_within_memory_and_time(tmp_path, text, argv
     assert check(proc.stdout), proc.stdout[:200]
     if status:
         one_error_line(proc, "parameters (each counts as 0.4 of a module)")
-    else:
-        assert proc.stderr == ""
+    else:  # nothing but the grammar's warnings (a symbol with no rule and no meaning)
+        assert all(line.startswith("lsys3d: warning: ") for line in proc.stderr.splitlines()), proc.stderr
 
 
 @pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_AS")

@@ -12,6 +12,7 @@ import lsys3d
 from lsys3d.attributes import AttributeOptions
 from lsys3d.bark import BarkColorOptions
 from lsys3d.cli import build_parser, main
+from lsys3d.diagnostics import Checks
 from lsys3d.errors import OptionsError
 from lsys3d.exchange import ExportOptions
 from lsys3d.options import Options, add_arguments, check_value, flat_fields, from_arguments, spec_of
@@ -23,6 +24,7 @@ from lsys3d.union import UnionOptions
 
 CLASSES = [
     Limits,
+    Checks,
     SweepOptions,
     UnionOptions,
     BarkColorOptions,
@@ -46,7 +48,8 @@ def test_every_field_is_declared_with_its_spec(cls):
 
 def test_generate_options_nest_one_class_per_stage():
     names = {f.name: f.type for f in dataclasses.fields(GenerateOptions)}
-    assert list(names) == ["limits", "turtle", "sweep", "union", "color", "attributes"]
+    assert list(names) == ["limits", "turtle", "sweep", "union", "color", "attributes", "checks"]
+    assert flat_fields(GenerateOptions)["strict"] == ("checks", "strict")
     flat = flat_fields(GenerateOptions)
     assert flat["sides"] == ("sweep", "sides") and flat["union"] == ("union", "enabled")
     assert flat["max_modules"] == ("limits", "max_modules") and flat["bark_color_variation"] == ("color", "variation")
@@ -105,7 +108,7 @@ def test_cli_flags_come_from_the_fields():
     add_arguments(parser, GenerateOptions)
     flags = {a.option_strings[0] for a in parser._actions if a.option_strings and a.dest.startswith("opt__")}
     expected = set()
-    for cls in (Limits, SweepOptions, UnionOptions, BarkColorOptions, AttributeOptions):
+    for cls in (Limits, SweepOptions, UnionOptions, BarkColorOptions, AttributeOptions, Checks):
         for f in dataclasses.fields(cls):
             spec = spec_of(f)
             if spec.cli:

@@ -79,6 +79,9 @@ class Dialect:
         ``reader(text, source, **overrides) -> Grammar`` for the tool's own files.
     variables : mapping
         The tool's predefined variables and what becomes of them in lsys3d (for messages and docs).
+    unsupported : frozenset of str
+        The tool's turtle commands that lsys3d reads but does not draw: a string holding one is named in a
+        warning (:mod:`lsys3d.diagnostics`).
     """
 
     name: str
@@ -91,6 +94,7 @@ class Dialect:
     suffixes: tuple[str, ...] = ()
     reader: Callable | None = field(default=None, compare=False)
     variables: Mapping[str, str] = field(default_factory=dict)
+    unsupported: frozenset[str] = frozenset()
 
     def __post_init__(self):
         object.__setattr__(self, "turtle", MappingProxyType(dict(self.turtle)))

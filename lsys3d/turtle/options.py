@@ -44,6 +44,17 @@ class TurtleOptions(Options):
     width: float = option(0.1, low=0, help="initial branch diameter")
     width_scale: float = option(0.7, low=0, low_open=True, help="factor of `!` without argument")
     length_scale: float = option(0.9, low=0, low_open=True, help='factor of `"` without argument')
+    width_unit: float = option(
+        1.0,
+        low=0,
+        low_open=True,
+        help="what a width given in the grammar (`!(w)`) is worth, as a diameter: 2 for a radius (L-Py), "
+        "0.01 for centimetres",
+    )
+    width_increment: float = option(
+        1.0, low=0, help="what L-Py's `_` and `!` (cpfg's `#` and `!`) add to or take from the width"
+    )
+    angle_scale: float = option(0.9, low=0, low_open=True, help="factor of the angle-scaling symbols without argument")
     draw: str = option("F", help='symbols that move drawing a segment, e.g. `"FLR"`')
     move: str = option("f", help="symbols that move without drawing")
     leaf: str = option("~", help="the leaf-instance symbol")
