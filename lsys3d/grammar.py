@@ -59,7 +59,7 @@ MAX_PARAMETERS = 32
 """Most parameters one module may carry."""
 MAX_SYMBOLS = 128
 """Most distinct symbols beyond ASCII (non-ASCII characters and multi-character names) one grammar may use."""
-MAX_DEPTH = 64
+MAX_DEPTH = 1000
 """Largest ``homomorphism_depth`` / ``decomposition_depth`` (L-Py's and cpfg's ``maximum depth``)."""
 
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z_0-9]*\Z")
@@ -267,7 +267,8 @@ class Grammar:
                 wheres.append(where)
             groups[key] = (productions, wheres)
         derived = groups["rules"][0] + groups["decomposition"][0]
-        _check_arities(derived, groups["rules"][1] + groups["decomposition"][1], axiom, where_axiom, self.source)
+        if dialect.arity_check:
+            _check_arities(derived, groups["rules"][1] + groups["decomposition"][1], axiom, where_axiom, self.source)
         set_(self, "ignored", self._symbol_set("ignore", scanner, context))
         considered = self._symbol_set("consider", scanner, context) if self.consider.strip() else None
         set_(self, "considered", considered)
@@ -875,6 +876,7 @@ def _find_arrow(rule: str, start: int, notation):
 
 
 _LABEL = re.compile(r"\s*p\d+\s*:")
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\Z")
 _STATEMENT = re.compile(r"\s*([A-Za-z_][A-Za-z_0-9]*)\s*([-+*/]?)=(?!=)")
 
 
@@ -890,6 +892,7 @@ class _RuleContext:
         self.syntax = notation.syntax
         self.functions = functions
         self.alphabet = _Alphabet()
+        self.constants: list[tuple[str, float]] = []  # the values a rule's patterns match (A(0))
 
     def expression(self, text: str, names, where: Where, offset: int, site: int, what: str = "") -> Expr:
         try:
@@ -910,6 +913,7 @@ class _RuleContext:
         def err(msg, offset):
             return _error(msg, source, where, offset)
 
+        self.constants = []
         begin = 0
         if notation.labels:
             label = _LABEL.match(rule)
@@ -1003,6 +1007,15 @@ class _RuleContext:
         condition, steps, names = None, (), list(formals)
         if colons:
             condition, steps, names = self.condition(rule, ctx_end + 1, lhs_end, formals, where, site)
+        if self.constants:  # the values the patterns match are the first tests
+            tests = [
+                ("test", Expr("==", None, (Expr("name", n, (), n), Expr("num", v, (), f"{v:g}")), f"{n} == {v:g}"))
+                for n, v in self.constants
+            ]
+            rest = list(steps) or ([("test", condition)] if condition is not None else [])
+            condition, steps = None, tuple(tests + rest)
+            if len(steps) == 1:
+                condition, steps = steps[0][1], ()
 
         succ_text = rule[rhs_start:succ_end]
         if succ_text.strip() == "*":  # ABOP's and cpfg's empty successor
@@ -1110,7 +1123,7 @@ class _RuleContext:
             if ch.isspace():
                 i += 1
                 continue
-            if ch in "()," or ch in notation.reserved or (pattern and notation.contexts and ch in "<>"):
+            if ch in "()" or ch in notation.reserved or (pattern and notation.contexts and ch in "<>"):
                 hint = ""
                 if ch == "(":
                     hint = " (parameters must follow a symbol)"
@@ -1189,6 +1202,11 @@ class _RuleContext:
                 raise _error(f"empty parameter in {symbol}(...)", source, where, a)
             if kind in ("predecessor", "context"):
                 name = piece.strip()
+                if self.notation.values_in_patterns and _NUMBER.match(name):  # L-Py's A(0): a test of the value
+                    constant = f"_{a}"
+                    self.constants.append((constant, float(name)))
+                    args.append(constant)
+                    continue
                 if not _IDENT.match(name):
                     what = f"parameters of a {kind} must be names, not {clip(repr(name))}"
                     raise _error(what, source, where, a + _lstrip_len(piece))

@@ -341,7 +341,7 @@ def test_random_functions_are_refused_where_a_constant_is_needed():
 
 def test_toml_keys_of_the_dialects(tmp_path):
     text = """
-dialect = "lsys3d"
+dialect = "houdini"
 premise = "A"
 rules = ["A = AB"]
 homomorphism = ["B -> F"]
@@ -353,11 +353,11 @@ modules = ["Leaf"]
 functions = ["f(x) = x"]
 """
     g = Grammar.from_text(text)
-    assert g.axiom == "A" and g.dialect == "lsys3d" and g.homomorphism_depth == 2 and g.decomposition_depth == 3
+    assert g.axiom == "A" and g.dialect == "houdini" and g.homomorphism_depth == 2 and g.decomposition_depth == 3
     for bad, message in [
         ('axiom = "A"\npremise = "B"\n', "both 'axiom' and 'premise'"),
         ('axiom = "A"\ndialect = "fractint"\n', "unknown dialect 'fractint' (known: lsys3d, abop, lpy"),
-        ('axiom = "A"\ndecomposition_depth = 0\n', "'decomposition_depth' must be a whole number from 1 to 64"),
+        ('axiom = "A"\ndecomposition_depth = 0\n', "'decomposition_depth' must be a whole number from 1 to 1000"),
         ('axiom = "A"\nhomomorphism = "B -> F"\n', "'homomorphism' must be a list"),
     ]:
         with pytest.raises(GrammarError, match=re.escape(message)):

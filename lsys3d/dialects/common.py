@@ -7,13 +7,15 @@ Plain records, read by the grammar parser (:mod:`lsys3d.grammar`), the turtle
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
+from ..errors import GrammarError
 from ..expr import DEFAULT_SYNTAX, Syntax
 
-__all__ = ["Dialect", "Notation"]
+__all__ = ["Dialect", "Located", "Notation", "fail", "line_where"]
 
 
 @dataclass(frozen=True)
@@ -38,9 +40,11 @@ class Notation:
     labels : bool
         A rule may start with a label ``p1:`` (ABOP's numbering).
     reserved : str
-        Characters that can never be symbols.
+        Characters that can never be symbols (besides parentheses); ``,`` is a symbol in L-Py and cpfg.
     syntax : Syntax
         How expressions are spelled.
+    values_in_patterns : bool
+        A number in a predecessor or context matches that value (L-Py's ``I(0) --> ...``).
     """
 
     names: frozenset[str] = frozenset()
@@ -51,6 +55,7 @@ class Notation:
     labels: bool = False
     reserved: str = "(),:="
     syntax: Syntax = DEFAULT_SYNTAX
+    values_in_patterns: bool = False
 
 
 @dataclass(frozen=True)
@@ -82,6 +87,9 @@ class Dialect:
     unsupported : frozenset of str
         The tool's turtle commands that lsys3d reads but does not draw: a string holding one is named in a
         warning (:mod:`lsys3d.diagnostics`).
+    arity_check : bool
+        A module whose symbol has rules, but none of its number of parameters, is an error (lsys3d's typo
+        guard); off where the tool lets such a module simply match no rule (L-Py, cpfg).
     """
 
     name: str
@@ -95,7 +103,59 @@ class Dialect:
     reader: Callable | None = field(default=None, compare=False)
     variables: Mapping[str, str] = field(default_factory=dict)
     unsupported: frozenset[str] = frozenset()
+    arity_check: bool = True
 
     def __post_init__(self):
         object.__setattr__(self, "turtle", MappingProxyType(dict(self.turtle)))
         object.__setattr__(self, "variables", MappingProxyType(dict(self.variables)))
+
+
+class Located:
+    """Text assembled from pieces of a file, remembering the line and column each character came from.
+
+    The readers build lsys3d rule strings out of a native file's pieces (an L-Py ``if`` becomes a
+    condition); :meth:`where` maps an offset in the built text back to the file, so an error in a
+    rule points at the file's own line and column.
+    """
+
+    def __init__(self):
+        self.pieces: list[str] = []
+        self.starts: list[int] = []
+        self.places: list[tuple[int, int]] = []
+        self.length = 0
+
+    def add(self, piece: str, line: int, col: int) -> Located:
+        """Append ``piece``, which stands at ``line``:``col`` of the file (glue text: the place it is about)."""
+        self.pieces.append(piece)
+        self.starts.append(self.length)
+        self.places.append((line, col))
+        self.length += len(piece)
+        return self
+
+    @property
+    def text(self) -> str:
+        return "".join(self.pieces)
+
+    def where(self):
+        starts, places, pieces = list(self.starts), list(self.places), list(self.pieces)
+
+        def where(offset: int):
+            k = max(bisect.bisect_right(starts, max(offset, 0)) - 1, 0)
+            line, col = places[k]
+            return line, col + min(max(offset - starts[k], 0), max(len(pieces[k]) - 1, 0))
+
+        return where
+
+
+def line_where(line: int, col: int = 1):
+    """Positions in a string that stands on one line of a file from column ``col`` on."""
+
+    def where(offset: int):
+        return line, col + max(offset, 0)
+
+    return where
+
+
+def fail(message: str, source: str, line: int | None = None, col: int | None = None) -> GrammarError:
+    """A reader's error: ``file:line:col: message``."""
+    return GrammarError(message, source, line, col if line else None)

@@ -136,6 +136,7 @@ DIALECT = Dialect(
         names=frozenset(c.symbol for c in COMMANDS_CPFG if len(c.symbol) > 1) | UNSUPPORTED,
         surface_prefix="~",
         arrows=("-->", "->"),
+        reserved=":=",
         syntax=Syntax(degrees=True),
     ),
     commands=COMMANDS_CPFG,
@@ -144,4 +145,5 @@ DIALECT = Dialect(
     cut="%",
     suffixes=(".l",),
     unsupported=UNSUPPORTED,
+    arity_check=False,
 )

@@ -70,7 +70,7 @@ COMMANDS_LPARSER = (
 DIALECT = Dialect(
     name="lparser",
     title="Lparser",
-    notation=Notation(arrows=("=",), contexts=False, conditions=False, reserved="(),="),
+    notation=Notation(arrows=("=",), contexts=False, conditions=False, reserved="=,"),
     commands=COMMANDS_LPARSER,
     angle=90.0,
     cut="",
