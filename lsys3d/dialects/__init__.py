@@ -26,7 +26,7 @@ __all__ = ["DIALECTS", "SUFFIXES", "Dialect", "Notation", "get", "reader_for"]
 DIALECTS = ("lsys3d", "abop", "lpy", "cpfg", "lparser", "houdini")
 """The names ``dialect = "..."`` accepts; ``lsys3d`` is the default."""
 
-SUFFIXES: dict[str, str] = {".lpy": "lpy", ".l": "cpfg"}
+SUFFIXES: dict[str, str] = {".lpy": "lpy", ".l": "cpfg", ".ls": "lparser"}
 """Native file suffixes and the dialect whose reader reads them."""
 
 _LOADED: dict[str, Dialect] = {}
