@@ -38,7 +38,8 @@ _ROWS = (
     ),
 )
 
-COMMANDS_ABOP = tuple(c for c in COMMANDS if c.symbol != "~") + _ROWS
+# the book's symbols: lsys3d's own, but for the step-length and organ symbols ABOP does not have
+COMMANDS_ABOP = tuple(c for c in COMMANDS if c.symbol not in ("~", '"', "@O", "@c", "@o")) + _ROWS
 
 DIALECT = Dialect(
     name="abop",

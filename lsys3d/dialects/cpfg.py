@@ -84,15 +84,6 @@ COMMANDS_CPFG = (
         "@c", "disc", Op.ORGAN, "d", 1, "A disc of diameter `d` in the plane of H and L: an organ.", organ=Organ.DISC
     ),
     Command(
-        "@o",
-        "circle",
-        Op.ORGAN,
-        "d",
-        1,
-        "A circle of diameter `d` in the plane of H and L: an organ.",
-        organ=Organ.CIRCLE,
-    ),
-    Command(
         "~",
         "surface",
         Op.ORGAN,
@@ -102,7 +93,6 @@ COMMANDS_CPFG = (
         organ=Organ.SURFACE,
         prefix=True,
     ),
-    Command("@Ts", "elasticity", Op.ELASTICITY, "e", 1, "Set the elasticity of the moves that follow."),
 )
 
 UNSUPPORTED = frozenset(

@@ -121,7 +121,7 @@ def read(text: str, source: str = "<string>", **overrides) -> Grammar:
     if _ABOP_LIKE.search(text):
         return _read_abop_like(text, source, **overrides)
     lines = _content(text)
-    if len(lines) >= 3 and all(_NUMBER.match(code) for code, _, _ in lines[:3]):
+    if lines and _NUMBER.match(lines[0][0]):
         return _read_lparser(lines, [], text, source, overrides)
     if lines and _KEYWORDS.match(lines[0][0]):
         return _read_keywords(lines, text, source, overrides)
@@ -138,6 +138,8 @@ def read(text: str, source: str = "<string>", **overrides) -> Grammar:
 def _read_lparser(lines, header, text, source, overrides, names=("recursion depth", "angle", "thickness")):
     """The numeric layout: recursion depth, angle, thickness (% of the length), axiom, ``X=...`` rules."""
     values = []
+    if len(lines) < 3:
+        raise fail(f"the file ends before the {names[len(lines)]} (Lparser's third line)", source, lines[-1][1], 1)
     for (code, number, col), what in zip(lines[:3], names, strict=True):
         if not _NUMBER.match(code):
             raise fail(f"expected the {what} (a number), not {clip(code, 30)!r}", source, number, col)

@@ -332,8 +332,7 @@ class _Reader:
         self.groups = {"rules": [], "homomorphism": [], "decomposition": []}
         self.depths: dict[str, int] = {}
         self.modules: list[str] = []
-        self.ignore = ""
-        self.consider = ""
+        self.symbols = {"ignore": "", "consider": ""}  # ignore: and consider:
         self.turtle: dict[str, object] = {}
         self.angle: float | None = None
         self.where: dict = {}
@@ -395,7 +394,7 @@ class _Reader:
                 if name:
                     self.modules.append(name)
         elif key in ("ignore", "consider"):
-            setattr(self, key, (getattr(self, key) + " " + rest).strip())
+            self.symbols[key] = (self.symbols[key] + " " + rest).strip()
             self.where[key] = line_where(line.number, rest_col)
         elif key.startswith("group"):
             if int(key.split()[1]) != 0:
@@ -563,6 +562,7 @@ class _Reader:
         for arrow in ("-->", "->"):
             at = _arrow_at(code, arrow)
             if at >= 0:
+                self.no_queries(line, code[:at])
                 if body:
                     raise self.error(body[0], "unexpected indentation after a one-line rule")
                 self.add_rule(section, Located().add(code, line.number, line.col))
@@ -574,8 +574,7 @@ class _Reader:
         inline = code[colon + 1 :].strip()
         if inline:
             body = [_Line(line.number, line.indent + 1, inline, line.col + code.index(inline, colon)), *body]
-        if any(m in header for m in ("?P", "?H", "?U", "?L", "?R", "?F", "?I")):
-            raise self.error(line, "L-Py's query modules (?P, ?H...) need the turtle during derivation: not supported")
+        self.no_queries(line, header)
         statements = self.statements(body, 0, len(body))
         paths: list = []
         self.walk(statements, [], [], paths, line)
@@ -601,6 +600,12 @@ class _Reader:
                 text.add("*", line.number, line.col + colon)
             self.add_rule(section, text)
         return nxt
+
+    def no_queries(self, line: _Line, pattern: str):
+        if any(q in pattern for q in _QUERIES if q.startswith("?")) or re.search(
+            r"\bGet(Pos|Head|Up|Left|Right|Frame)\b", pattern
+        ):
+            raise self.error(line, "L-Py's query modules (?P, ?H...) need the turtle during derivation: not supported")
 
     def add_rule(self, section: str, text: Located):
         group = self.groups[section]
@@ -654,6 +659,8 @@ class _Reader:
                         j += 1
                 out.append(("if", branches, otherwise))
                 continue
+            if word in ("for", "while", "with", "try", "def", "class", "global", "lambda", "yield"):
+                raise self.error(line, f"Python's '{word}' in a rule is not supported (rules are read, never run)")
             if j > i + 1:
                 raise self.error(body[i + 1], f"unexpected indentation (a {clip(code, 30)!r} block is not supported)")
             if word in ("produce", "nproduce"):
@@ -664,8 +671,6 @@ class _Reader:
                 out.append(("return",))
             elif word == "pass" or _STRING.match(code) or (_HARMLESS.match(code) and word != "global"):
                 pass
-            elif word in ("for", "while", "with", "try", "def", "class", "global", "lambda", "yield"):
-                raise self.error(line, f"Python's '{word}' in a rule is not supported (rules are read, never run)")
             else:
                 m = _ASSIGN.match(code)
                 if not m:
@@ -742,8 +747,8 @@ class _Reader:
             "defines": dict(self.defines),
             "functions": [t for t, _ in self.function_texts],
             "modules": sorted(set(self.modules)),
-            "ignore": self.ignore,
-            "consider": self.consider,
+            "ignore": self.symbols["ignore"],
+            "consider": self.symbols["consider"],
             "turtle": dict(self.turtle),
             "dialect": "lpy",
         }

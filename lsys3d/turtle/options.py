@@ -12,6 +12,7 @@ import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, fields
 
+from .. import dialects
 from ..errors import GrammarError, OptionsError, clip
 from ..grammar import Grammar, _key_line
 from ..options import Options, check_value, option, spec_of
@@ -80,7 +81,7 @@ class TurtleOptions(Options):
 
     @classmethod
     def from_grammar(cls, grammar: Grammar, overrides: Mapping | None = None, **more) -> TurtleOptions:
-        """The options of a grammar: its ``[turtle]`` table, ``angle`` and ``seed``.
+        """The options of a grammar: its dialect's turtle, its ``[turtle]`` table, ``angle`` and ``seed``.
 
         Parameters
         ----------
@@ -105,6 +106,7 @@ class TurtleOptions(Options):
         0.0
         """
         values: dict = {"angle": grammar.angle, "seed": grammar.seed}
+        values.update(dialects.get(grammar.dialect).turtle)  # the tool's own turtle (L-Py's radii...)
         for key, value in grammar.turtle.items():
             if key not in GRAMMAR_KEYS:
                 known = ", ".join(sorted(GRAMMAR_KEYS))
@@ -143,7 +145,7 @@ class TurtleOverrides(Mapping):
     >>> TurtleOverrides({"colour": 3})  # doctest: +ELLIPSIS
     Traceback (most recent call last):
       ...
-    lsys3d.errors.OptionsError: turtle: unknown setting 'colour' (known: angle_jitter, branch_drop, ..., width_scale)
+    lsys3d.errors.OptionsError: turtle: unknown setting 'colour' (known: angle_jitter, angle_scale, ..., width_unit)
     """
 
     def __init__(self, values: Mapping | None = None):
