@@ -98,9 +98,10 @@ def findings(grammar: Grammar, shown: ModuleString, skeleton: Skeleton, table) -
     if ignored:
         out.append(f"{grammar.source}: module parameters the turtle ignores: {printable(', '.join(ignored))}")
     if skeleton.n_organs:
+        n = skeleton.n_organs
         out.append(
-            f"{grammar.source}: {skeleton.n_organs:,} organs (spheres, discs, surfaces...) are recorded in the "
-            "skeleton but not meshed yet"
+            f"{grammar.source}: {n:,} organ{'s' if n != 1 else ''} (spheres, discs, surfaces...) "
+            f"{'are' if n != 1 else 'is'} recorded in the skeleton but not meshed yet"
         )
     width = _width_finding(grammar, skeleton)
     if width:
