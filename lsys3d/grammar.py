@@ -1018,7 +1018,7 @@ class _RuleContext:
                 condition, steps = steps[0][1], ()
 
         succ_text = rule[rhs_start:succ_end]
-        if succ_text.strip() == "*":  # ABOP's and cpfg's empty successor
+        if succ_text.strip() == "*" and notation.star_empty:  # ABOP's and cpfg's empty successor
             successor = ()
         else:
             successor = self.modules(rule, "successor", names, where, rhs_start, succ_end, site)

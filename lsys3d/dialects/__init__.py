@@ -21,7 +21,7 @@ import importlib
 from ..errors import GrammarError, clip
 from .common import Dialect, Notation
 
-__all__ = ["DIALECTS", "SUFFIXES", "Dialect", "Notation", "get", "reader_for"]
+__all__ = ["DIALECTS", "SUFFIXES", "Dialect", "Notation", "get", "reader_for", "table_markdown"]
 
 DIALECTS = ("lsys3d", "abop", "lpy", "cpfg", "lparser", "houdini")
 """The names ``dialect = "..."`` accepts; ``lsys3d`` is the default."""
@@ -49,3 +49,51 @@ def reader_for(source: str):
     suffix = "." + base.rsplit(".", 1)[-1].lower() if "." in base else ""
     name = SUFFIXES.get(suffix)
     return get(name).reader if name is not None else None
+
+
+_NOTATION = {
+    "<": "not a symbol: the left context of a rule",
+    ">": "not a symbol: the right context of a rule",
+    "%": "cuts the rest of its branch (derivation, not the turtle)",
+    "*": "not a command: any module in a context; alone as a successor, nothing",
+    ":": "not a symbol: a rule's condition or weight",
+    ",": "not a symbol: between parameters",
+}
+"""What lsys3d's own notation makes of the characters that are not its turtle's commands."""
+
+
+def table_markdown(name: str) -> str:
+    """A dialect's symbols as a Markdown table, each beside what lsys3d's own dialect does with it.
+
+    The tables of ``docs/dialects/*.md`` are this function's output (the tests check it).
+    """
+    from ..turtle.commands import COMMANDS
+
+    own = {c.symbol: c for c in COMMANDS}
+    dialect = get(name)
+    rows = [f"| Symbol | In {dialect.title} | In lsys3d's own dialect |", "|---|---|---|"]
+
+    def cell(text: str) -> str:
+        return text.replace("|", "\\|")
+
+    for c in dialect.commands:
+        symbol = c.symbol + ("name" if c.prefix else "")
+        args = f"({c.args})" if c.args else ""
+        ignored = f" (ignores {', '.join(c.ignored)})" if c.ignored else ""
+        mine = own.get(c.symbol) if not c.prefix else None
+        if c.prefix:
+            theirs = "nothing (a symbol of its own)"
+        elif c.symbol in _NOTATION:
+            theirs = _NOTATION[c.symbol]
+        elif mine is None:
+            theirs = "no command" if len(c.symbol) == 1 else "no command (not a name lsys3d knows)"
+        elif (mine.op, mine.axis, mine.sign) == (c.op, c.axis, c.sign) and mine.factor == c.factor:
+            theirs = "the same"
+        else:
+            theirs = f"{mine.name}: {mine.description}"
+        rows.append(
+            f"| `{cell(symbol + args)}` | {cell(c.name)}: {cell(c.description)}{cell(ignored)} | {cell(theirs)} |"
+        )
+    for symbol in sorted(dialect.unsupported):
+        rows.append(f"| `{cell(symbol)}` | read, not drawn by lsys3d (a warning names it) | no command |")
+    return "\n".join(rows) + "\n"

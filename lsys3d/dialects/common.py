@@ -45,6 +45,8 @@ class Notation:
         How expressions are spelled.
     values_in_patterns : bool
         A number in a predecessor or context matches that value (L-Py's ``I(0) --> ...``).
+    star_empty : bool
+        A successor that is ``*`` alone is empty (ABOP, cpfg, L-Py); Houdini's ``*`` is a turtle command.
     """
 
     names: frozenset[str] = frozenset()
@@ -56,6 +58,7 @@ class Notation:
     reserved: str = "(),:="
     syntax: Syntax = DEFAULT_SYNTAX
     values_in_patterns: bool = False
+    star_empty: bool = True
 
 
 @dataclass(frozen=True)

@@ -136,7 +136,7 @@ VARIABLES = {
 DIALECT = Dialect(
     name="houdini",
     title="Houdini",
-    notation=Notation(arrows=("=", "->")),
+    notation=Notation(arrows=("=", "->"), star_empty=False),
     commands=COMMANDS_HOUDINI,
     angle=90.0,
     cut="%",
