@@ -254,6 +254,7 @@ class Grammar:
         where_axiom = self._where.get("axiom") or _api_where("axiom")
         if not self.axiom.strip():
             raise GrammarError("the axiom is empty", *_loc(self.source, where_axiom, 0))
+        context.current = self.axiom
         axiom = context.modules(self.axiom, "axiom", (), where_axiom)
         groups = {}
         for key in _RULE_LISTS:
@@ -263,7 +264,7 @@ class Grammar:
                 if not isinstance(rule, str):
                     raise GrammarError(f"{_ordinal(key, i)} must be a string, not {type(rule).__name__}", self.source)
                 where = self._where.get((key, i)) or _api_where(f"{key}[{i}]")
-                productions.append(context.rule(i, rule, where, _site(key, i, where)))
+                productions.append(context.rule(i, rule, where))
                 wheres.append(where)
             groups[key] = (productions, wheres)
         derived = groups["rules"][0] + groups["decomposition"][0]
@@ -486,18 +487,6 @@ def read_text(path) -> str:
 
 def _ordinal(key: str, i: int) -> str:
     return f"rule {i + 1}" if key == "rules" else f"{key} rule {i + 1}"
-
-
-def _site(key: str, i: int, where: Where) -> int:
-    """Where a rule stands, as a whole number: random functions are keyed by it (and their offset in the rule).
-
-    The rule's line and column when it came from a file (the rules an L-Py ``if`` becomes share their
-    first line, so the numbers drawn before the ``if`` are the same in each), else its list and index.
-    """
-    line, col = where(0)
-    if line is not None:
-        return (line << 20) + ((col or 0) << 12)
-    return (zlib.crc32(key.encode()) % 997 + 1 + (i << 10)) << 12
 
 
 # ------------------------------------------------------------------ alphabet
@@ -893,8 +882,12 @@ class _RuleContext:
         self.functions = functions
         self.alphabet = _Alphabet()
         self.constants: list[tuple[str, float]] = []  # the values a rule's patterns match (A(0))
+        self.current = ""  # the text being parsed (random functions are keyed by what precedes them)
 
-    def expression(self, text: str, names, where: Where, offset: int, site: int, what: str = "") -> Expr:
+    def expression(self, text: str, names, where: Where, offset: int, what: str = "") -> Expr:
+        # a random function is keyed by the text of its rule before it: the same place in the same rule
+        # draws the same numbers wherever the rule came from (a file, TOML, an L-Py if's two branches)
+        site = zlib.crc32(self.current[:offset].encode("utf-8", "surrogatepass"))
         try:
             return parse_expression(
                 text, names=names, defines=self.defines, syntax=self.syntax, functions=self.functions, site=site
@@ -907,8 +900,9 @@ class _RuleContext:
                 message += f" ({self.dialect.title}'s predefined variable {name}: {self.dialect.variables[name]})"
             raise _error(message, self.source, where, offset + exc.offset) from None
 
-    def rule(self, index: int, rule: str, where: Where, site: int) -> Production:
+    def rule(self, index: int, rule: str, where: Where) -> Production:
         source, notation = self.source, self.notation
+        self.current = rule
 
         def err(msg, offset):
             return _error(msg, source, where, offset)
@@ -944,7 +938,7 @@ class _RuleContext:
             wtext = rule[succ_end + 1 :]
             if not wtext.strip():
                 raise err("empty weight after ':'", succ_end + 1)
-            expr = self.expression(wtext, (), where, succ_end + 1, site, "bad weight: ")
+            expr = self.expression(wtext, (), where, succ_end + 1, "bad weight: ")
             if expr.random:
                 raise err("bad weight: random functions are not allowed in a weight", succ_end + 1)
             try:
@@ -1006,7 +1000,7 @@ class _RuleContext:
 
         condition, steps, names = None, (), list(formals)
         if colons:
-            condition, steps, names = self.condition(rule, ctx_end + 1, lhs_end, formals, where, site)
+            condition, steps, names = self.condition(rule, ctx_end + 1, lhs_end, formals, where)
         if self.constants:  # the values the patterns match are the first tests
             tests = [
                 ("test", Expr("==", None, (Expr("name", n, (), n), Expr("num", v, (), f"{v:g}")), f"{n} == {v:g}"))
@@ -1021,7 +1015,7 @@ class _RuleContext:
         if succ_text.strip() == "*" and notation.star_empty:  # ABOP's and cpfg's empty successor
             successor = ()
         else:
-            successor = self.modules(rule, "successor", names, where, rhs_start, succ_end, site)
+            successor = self.modules(rule, "successor", names, where, rhs_start, succ_end)
         return Production(
             index=index,
             text=rule.strip(),
@@ -1035,7 +1029,7 @@ class _RuleContext:
             steps=steps,
         )
 
-    def condition(self, rule: str, start: int, stop: int, formals: list[str], where: Where, site: int):
+    def condition(self, rule: str, start: int, stop: int, formals: list[str], where: Where):
         """A condition: tests and ``{name = expression; ...}`` blocks, in order; ``*`` or nothing is none."""
         text = rule[start:stop]
         if not text.strip():
@@ -1058,14 +1052,14 @@ class _RuleContext:
             elif ch == "{" and depth == 0:
                 test = rule[piece:i]
                 if test.strip() and test.strip() != "*":
-                    expr = self.expression(test, names, where, piece, site + piece, "bad condition: ")
+                    expr = self.expression(test, names, where, piece, "bad condition: ")
                     steps.append(("test", expr))
                 if i == stop:
                     break
                 close = rule.find("}", i + 1, stop)
                 if close < 0:
                     raise _error("'{' without '}' in the condition", self.source, where, i)
-                steps += self.block(rule, i + 1, close, names, where, site)
+                steps += self.block(rule, i + 1, close, names, where)
                 i = piece = close + 1
                 continue
             i += 1
@@ -1073,7 +1067,7 @@ class _RuleContext:
             return steps[0][1], (), names
         return None, tuple(steps), names
 
-    def block(self, rule: str, start: int, stop: int, names: list[str], where: Where, site: int):
+    def block(self, rule: str, start: int, stop: int, names: list[str], where: Where):
         """``name = expression`` statements separated by ';' or line breaks (``+=`` and the like too)."""
         steps = []
         at = start
@@ -1096,7 +1090,7 @@ class _RuleContext:
                     raise _error(f"nothing assigned to {name!r}", self.source, where, offset)
                 if op and name not in names:
                     raise _error(f"{name!r} {op}= before {name!r} has a value", self.source, where, at + m.start(1))
-                expr = self.expression(body, names, where, offset, site + offset)
+                expr = self.expression(body, names, where, offset)
                 if op:  # x += e is x = x + (e)
                     expr = Expr(op, None, (Expr("name", name, (), name), expr), f"{name} {op} ({expr.text})")
                 steps.append(("let", name, expr))
@@ -1105,7 +1099,7 @@ class _RuleContext:
             at += len(statement) + 1
         return steps
 
-    def modules(self, text, kind, formals, where, start=0, stop=None, site: int = 0):
+    def modules(self, text, kind, formals, where, start=0, stop=None):
         """Parse modules in ``text[start:stop]``.
 
         ``kind`` is ``predecessor``/``context`` (parameters are formal names) or
@@ -1152,7 +1146,7 @@ class _RuleContext:
                     j += 1
                 if j >= stop:
                     raise _error(f"unclosed '(' after {symbol!r}", source, where, i)
-                args = self.args(text, i + 1, j, symbol, kind, formals, where, site)
+                args = self.args(text, i + 1, j, symbol, kind, formals, where)
                 i = j + 1
             if kind == "predecessor":
                 pass  # a bracket predecessor is reported by the caller
@@ -1177,7 +1171,7 @@ class _RuleContext:
             raise _error("unbalanced '[' in right context", source, where, stack[-1])
         return tuple(out)
 
-    def args(self, text, start, stop, symbol, kind, formals, where, site):
+    def args(self, text, start, stop, symbol, kind, formals, where):
         source = self.source
         pieces = []
         depth, last = 0, start
@@ -1214,7 +1208,7 @@ class _RuleContext:
                     raise _error(f"parameter name {name!r} is reserved", source, where, a + _lstrip_len(piece))
                 args.append(name)
             else:
-                expr = self.expression(piece, formals, where, a, site + a)
+                expr = self.expression(piece, formals, where, a)
                 if expr.random and kind == "axiom":
                     raise _error("random functions are not allowed in the axiom", source, where, a + _lstrip_len(piece))
                 args.append(expr)
