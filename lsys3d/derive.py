@@ -47,6 +47,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from . import dialects
 from .errors import DerivationError, LimitError, clip
 from .expr import NOT_FINITE, EvalError, RandomDraws
 from .grammar import Grammar, PatternModule, Production
@@ -111,8 +112,11 @@ class _Plan:
         productions = grammar.productions if productions is None else productions
         pools: dict[tuple, _Pool] = {}
         self.pools_by_code: dict[int, list[_Pool]] = {}
+        pooled = dialects.get(grammar.dialect).notation.unweighted_alternatives
         for prod in productions:
             key = prod.pool_key()
+            if prod.weight is None and not pooled:  # the first rule that matches applies (L-Py, cpfg...)
+                key = (*key, prod.index)
             if key not in pools:
                 code = self.code[prod.predecessor.symbol]
                 pool = _Pool(

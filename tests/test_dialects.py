@@ -377,3 +377,13 @@ def test_the_readers_have_no_door_to_python():
     for name in ("lpy", "cpfg", "lparser", "common"):
         source = (Path(lsys3d.__file__).parent / "dialects" / f"{name}.py").read_text()
         assert not re.search(r"(?<![\w.])(eval|exec|compile|getattr|__import__)\(|importlib|ast\.", source), name
+
+
+def test_rules_without_weights_are_alternatives_only_in_lsys3d_notation():
+    """In L-Py and cpfg the first rule that matches applies; lsys3d's own notation pools rules without weights."""
+    lpy_g = lpy("Axiom: A A A A A A A A\nderivation length: 1\nproduction:\nA --> B\nA --> C\nendlsystem\n")
+    assert str(lsys3d.derive(lpy_g)) == "BBBBBBBB"
+    cpfg = Grammar.from_text("axiom: AAAAAAAA\nA --> B : 1\nA --> C : 1\nA --> D\n", source="p.l")
+    assert set(str(lsys3d.derive(cpfg, 1, seed=2))) == {"B", "C"}  # weighted: stochastic; D never applies
+    own = Grammar(axiom="A" * 40, rules=["A -> B", "A -> C"])
+    assert set(str(lsys3d.derive(own, 1))) == {"B", "C"}

@@ -47,6 +47,10 @@ class Notation:
         A number in a predecessor or context matches that value (L-Py's ``I(0) --> ...``).
     star_empty : bool
         A successor that is ``*`` alone is empty (ABOP, cpfg, L-Py); Houdini's ``*`` is a turtle command.
+    unweighted_alternatives : bool
+        Rules without a weight for the same predecessor, contexts and condition are stochastic alternatives
+        (lsys3d's own notation); elsewhere only weighted rules are, and the first rule that matches applies,
+        as in L-Py, cpfg and the others.
     """
 
     names: frozenset[str] = frozenset()
@@ -59,6 +63,7 @@ class Notation:
     syntax: Syntax = DEFAULT_SYNTAX
     values_in_patterns: bool = False
     star_empty: bool = True
+    unweighted_alternatives: bool = False
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ __all__ = ["DIALECT"]
 DIALECT = Dialect(
     name="lsys3d",
     title="lsys3d",
-    notation=Notation(names=frozenset(c.symbol for c in COMMANDS if len(c.symbol) > 1)),
+    notation=Notation(names=frozenset(c.symbol for c in COMMANDS if len(c.symbol) > 1), unweighted_alternatives=True),
     commands=COMMANDS,
     angle=90.0,
     cut="%",
