@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .arrays import offsets
@@ -36,6 +37,7 @@ __all__ = [
     "SEAM_TOLERANCE",
     "Attribute",
     "AttributeOptions",
+    "attributes_markdown",
     "bark_attributes",
     "branch_table",
     "branch_values",
@@ -195,18 +197,8 @@ def branch_values(h: Hierarchy, branch: np.ndarray, t: np.ndarray, fallback_pivo
     return {k: np.ascontiguousarray(values[k], np.float32) for k in KEYS}
 
 
-def _segment_points(p, a, b):
-    """Closest point parameter of ``p`` on segments ``a b`` (rows) in [0, 1], and the distance."""
-    d = b - a
-    dd = np.einsum("ij,ij->i", d, d)
-    f = np.clip(np.einsum("ij,ij->i", p - a, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    return f, np.linalg.norm(p - (a + f[:, None] * d), axis=1)
-
-
-def _candidates(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs (point, box) with the point inside the box: boxes hashed into a uniform grid, points looked up."""
-    if not len(points) or not len(lo):
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+def _grid(lo: np.ndarray, hi: np.ndarray, points: np.ndarray):
+    """Boxes hashed into a uniform grid: origin, cell size, dims, the occupied cells' keys and their boxes (CSR)."""
     size = (hi - lo).max(axis=1)
     cell = max(float(np.median(size)), 1e-9)
     origin = np.minimum(lo.min(axis=0), points.min(axis=0))
@@ -225,18 +217,57 @@ def _candidates(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.
     ix = c0[box, 0] + k % ex[:, 0]
     iy = c0[box, 1] + (k // ex[:, 0]) % ex[:, 1]
     iz = c0[box, 2] + k // (ex[:, 0] * ex[:, 1])
-    box_key = (iz * dims[1] + iy) * dims[0] + ix
-    cp = np.floor((points - origin) / cell).astype(np.int64)
-    point_key = (cp[:, 2] * dims[1] + cp[:, 1]) * dims[0] + cp[:, 0]
-    order = np.argsort(box_key, kind="stable")
-    box_key, box = box_key[order], box[order]
-    first = np.searchsorted(box_key, point_key, side="left")
-    last = np.searchsorted(box_key, point_key, side="right")
-    n = last - first
-    pi = np.repeat(np.arange(len(points)), n)
-    bi = box[np.repeat(first, n) + (np.arange(int(n.sum())) - np.repeat(offsets(n)[:-1], n))]
-    inside = ((points[pi] >= lo[bi]) & (points[pi] <= hi[bi])).all(axis=1)
-    return pi[inside], bi[inside]
+    key = (iz * dims[1] + iy) * dims[0] + ix
+    order = np.argsort(key, kind="stable")
+    key, box = key[order], box[order]
+    starts = np.flatnonzero(np.concatenate([[True], key[1:] != key[:-1]])) if len(key) else np.zeros(0, np.int64)
+    return origin, cell, dims, key[starts], np.append(starts, len(key)), box
+
+
+@numba.njit(cache=True, nogil=True)
+def _match(points, origin, cell, dims, keys, key_offsets, boxes, lo, hi, a, b, w0, w1, depth, surface, tolerance):
+    """Per point: the chosen segment (-1: none within reach) and the point's parameter along it (see nearest_branch)."""
+    n = points.shape[0]
+    segment = np.full(n, -1, np.int64)
+    param = np.zeros(n)
+    for p in range(n):
+        x, y, z = points[p, 0], points[p, 1], points[p, 2]
+        cx = np.int64(np.floor((x - origin[0]) / cell))
+        cy = np.int64(np.floor((y - origin[1]) / cell))
+        cz = np.int64(np.floor((z - origin[2]) / cell))
+        key = (cz * dims[1] + cy) * dims[0] + cx
+        k = np.searchsorted(keys, key)
+        if k >= keys.shape[0] or keys[k] != key:
+            continue
+        best = np.inf
+        for pass_ in range(2):
+            chosen, chosen_depth, chosen_n, chosen_f = -1, -1, np.inf, 0.0
+            for e in range(key_offsets[k], key_offsets[k + 1]):
+                s = boxes[e]
+                if not (lo[s, 0] <= x <= hi[s, 0] and lo[s, 1] <= y <= hi[s, 1] and lo[s, 2] <= z <= hi[s, 2]):
+                    continue
+                dx, dy, dz = b[s, 0] - a[s, 0], b[s, 1] - a[s, 1], b[s, 2] - a[s, 2]
+                px, py, pz = x - a[s, 0], y - a[s, 1], z - a[s, 2]
+                dd = dx * dx + dy * dy + dz * dz
+                f = (px * dx + py * dy + pz * dz) / dd if dd > 0 else 0.0
+                f = min(max(f, 0.0), 1.0)
+                qx, qy, qz = px - f * dx, py - f * dy, pz - f * dz
+                r = 0.5 * max(w0[s] + f * (w1[s] - w0[s]), 2e-6)
+                norm = np.sqrt(qx * qx + qy * qy + qz * qz) / r
+                if pass_ == 0:
+                    best = min(best, norm)
+                    continue
+                if not (norm <= surface or norm <= best + tolerance):
+                    continue
+                # the deepest branch; then the nearest; then the lowest segment index
+                if depth[s] > chosen_depth or (
+                    depth[s] == chosen_depth and (norm < chosen_n or (norm == chosen_n and s < chosen))
+                ):
+                    chosen, chosen_depth, chosen_n, chosen_f = s, depth[s], norm, f
+            if pass_ == 1 and chosen >= 0:
+                segment[p] = chosen
+                param[p] = chosen_f
+    return segment, param
 
 
 def nearest_branch(points: np.ndarray, skeleton: Skeleton, h: Hierarchy, reach: float = 2.0, bulge: float = 0.0):
@@ -249,42 +280,29 @@ def nearest_branch(points: np.ndarray, skeleton: Skeleton, h: Hierarchy, reach: 
     the search.  Returns ``(segment (v,) int64, t (v,) float64)``; segment -1 without segments.
     """
     surface = 1.0 + SEAM_TOLERANCE + bulge
-    points = np.asarray(points, np.float64)
+    points = np.ascontiguousarray(points, np.float64)
     v = len(points)
     segment = np.full(v, -1, np.int64)
     t = np.zeros(v)
     if not len(skeleton) or not v:
         return segment, t
-    a, b = skeleton.start, skeleton.end
-    radius = 0.5 * np.maximum(np.maximum(skeleton.width_start, skeleton.width_end), 1e-6)
+    a, b = np.ascontiguousarray(skeleton.start, np.float64), np.ascontiguousarray(skeleton.end, np.float64)
+    w0 = np.ascontiguousarray(skeleton.width_start, np.float64)
+    w1 = np.ascontiguousarray(skeleton.width_end, np.float64)
+    radius = 0.5 * np.maximum(np.maximum(w0, w1), 1e-6)
+    depth = h.depth[h.branch_of].astype(np.int64)
     scale = float(np.abs(np.concatenate([a, b])).max()) + 1.0
     todo = np.arange(v)
     while len(todo):
         pad = reach * radius[:, None] + 1e-9 * scale
         lo, hi = np.minimum(a, b) - pad, np.maximum(a, b) + pad
-        pi, si = _candidates(points[todo], lo, hi)
-        f, dist = _segment_points(points[todo][pi], a[si], b[si])
-        r = 0.5 * np.maximum(skeleton.width_start[si] + f * (skeleton.width_end[si] - skeleton.width_start[si]), 2e-6)
-        normalized = dist / r
-        # per point: among the tubes it lies on (or in), the deepest branch; the nearest when it lies on none
-        best = np.full(len(todo), np.inf)
-        np.minimum.at(best, pi, normalized)
-        near = (normalized <= surface) | (normalized <= best[pi] + SEAM_TOLERANCE)
-        depth = h.depth[h.branch_of[si]].astype(np.float64)
-        # rank: deeper first, then nearer (the deepest gets the lowest key)
-        key = -depth * 1e6 + normalized
-        key = np.where(near, key, np.inf)
-        order = np.lexsort((si, key, pi))  # per point, the lowest key first; ties by segment index
-        first = np.ones(len(order), bool)
-        first[1:] = pi[order][1:] != pi[order][:-1]
-        chosen = order[first & np.isfinite(key[order])]
-        found = todo[pi[chosen]]
-        segment[found] = si[chosen]
-        seg = si[chosen]
-        t[found] = h.t_start[seg] + f[chosen] * (h.t_end[seg] - h.t_start[seg])
-        done = np.zeros(len(todo), bool)
-        done[pi[chosen]] = True
-        todo = todo[~done]
+        grid = _grid(lo, hi, points[todo])
+        seg, f = _match(points[todo], *grid, lo, hi, a, b, w0, w1, depth, surface, SEAM_TOLERANCE)
+        found = seg >= 0
+        segment[todo[found]] = seg[found]
+        s = seg[found]
+        t[todo[found]] = h.t_start[s] + f[found] * (h.t_end[s] - h.t_start[s])
+        todo = todo[~found]
         reach *= 4.0
         if reach > 1e6:  # pragma: no cover - every point is within some finite reach
             break
@@ -299,23 +317,28 @@ def bark_attributes(points: np.ndarray, skeleton: Skeleton, h: Hierarchy, keys=K
     return {k: values[k] for k in keys}
 
 
-def with_attributes(
-    bark: Mesh, skeleton: Skeleton, h: Hierarchy, options: AttributeOptions, bulge: float = 0.0
-) -> Mesh:
-    """The attributes stage: ``bark`` with the attributes of its vertices that ``options`` asks for.
+def with_attributes(bark: Mesh, skeleton: Skeleton, h: Hierarchy, keys=KEYS, bulge: float = 0.0) -> Mesh:
+    """The attributes stage: ``bark`` with the attributes ``keys`` of its vertices (:data:`KEYS` by default).
 
     Examples
     --------
     >>> import lsys3d
     >>> from lsys3d.hierarchy import hierarchy
     >>> tree = lsys3d.generate("abop-1.24a", iterations=1, sides=4)
-    >>> full = with_attributes(tree.bark, tree.skeleton, hierarchy(tree.skeleton), AttributeOptions("full"))
+    >>> full = with_attributes(tree.bark, tree.skeleton, hierarchy(tree.skeleton))
     >>> sorted(full.attributes) == sorted(KEYS), full.attributes["pivot"].shape == (len(full.vertices), 3)
     (True, True)
-    >>> compact = with_attributes(tree.bark, tree.skeleton, hierarchy(tree.skeleton), AttributeOptions("compact"))
+    >>> compact = with_attributes(tree.bark, tree.skeleton, hierarchy(tree.skeleton), AttributeOptions("compact").keys)
     >>> sorted(compact.attributes)
     ['branch_id', 'branch_t']
     """
-    if not len(bark.vertices) or not options.enabled:
+    if not len(bark.vertices) or not keys:
         return bark
-    return bark.with_attributes(bark_attributes(bark.vertices, skeleton, h, options.keys, bulge))
+    return bark.with_attributes(bark_attributes(bark.vertices, skeleton, h, keys, bulge))
+
+
+def attributes_markdown() -> str:
+    """The attribute table of ``docs/engines.md`` (the tests check the page holds it)."""
+    rows = ["| name (USD `primvars:<name>`) | per | meaning |", "|---|---|---|"]
+    rows += [f"| `{a.usd}` | {'branch' if a.per_branch else 'vertex'} | {a.description} |" for a in ATTRIBUTES]
+    return "\n".join(rows) + "\n"

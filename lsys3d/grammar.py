@@ -85,6 +85,7 @@ _KEYS = {
     "defines",
     "functions",
     "turtle",
+    "materials",
 }
 _RULE_LISTS = ("rules", "decomposition", "homomorphism")
 _WORDS = ("and", "or", "not", "if", "else")
@@ -194,6 +195,7 @@ class Grammar:
     ignore: str = ""
     defines: Mapping[str, float] = field(default_factory=dict)
     turtle: Mapping[str, object] = field(default_factory=dict)
+    materials: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
     dialect: str = "lsys3d"
@@ -220,7 +222,7 @@ class Grammar:
         for key in _RULE_LISTS:
             if isinstance(getattr(self, key), str):
                 raise GrammarError(f"'{key}' must be a list of rule strings, not one string", self.source)
-        for key in ("defines", "turtle"):
+        for key in ("defines", "turtle", "materials"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         for key in (*_RULE_LISTS, "modules", "functions"):
@@ -238,6 +240,7 @@ class Grammar:
         if self.angle is None:
             set_(self, "angle", dialect.angle)
         set_(self, "turtle", MappingProxyType(dict(self.turtle)))
+        set_(self, "materials", MappingProxyType(dict(self.materials)))
         self._check_scalars()
         notation = dialect.notation
         names = self._declared_names(notation)
@@ -387,6 +390,7 @@ class Grammar:
         for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + [
             ("defines", dict),
             ("turtle", dict),
+            ("materials", dict),
         ]:
             if key in data and not isinstance(data[key], kind):
                 line = _key_line(text, key)
@@ -419,6 +423,7 @@ class Grammar:
                 "ignore",
                 "defines",
                 "turtle",
+                "materials",
                 "source",
                 "text",
                 "dialect",
@@ -545,6 +550,22 @@ def _toml_error(exc: tomllib.TOMLDecodeError, source: str) -> GrammarError:
     m = re.search(r"\(at end of document\)", msg)
     reason = msg[: m.start()].strip() if m else msg
     return GrammarError(f"TOML syntax error: {reason} (at end of file)", source)
+
+
+def table_key_line(text: str, table: str, key: str) -> int | None:
+    """Line of ``key`` inside the TOML table ``[table]`` (or of the table itself), for error positions."""
+    start = _key_line(text, table)
+    if start is None:
+        return None
+    lines = text.splitlines()
+    pattern = re.compile(rf"^[ \t]*[\"']?{re.escape(key)}[\"']?[ \t]*=")
+    for number in range(start + 1, len(lines) + 1):
+        line = lines[number - 1]
+        if re.match(r"^[ \t]*\[", line):
+            break
+        if pattern.match(line):
+            return number
+    return start
 
 
 def _key_line(text: str, key: str) -> int | None:

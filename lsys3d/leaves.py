@@ -134,13 +134,15 @@ def leaf_transforms(skeleton: Skeleton) -> np.ndarray:
     return out
 
 
-def instance_leaves(model: Mesh, transforms: np.ndarray, attributes: Mapping | None = None) -> Mesh | None:
+def instance_leaves(
+    model: Mesh, transforms: np.ndarray, attributes: Mapping | None = None, material: np.ndarray | None = None
+) -> Mesh | None:
     """Copies of ``model`` baked in place by each transform (None when there are none).
 
     Corner normals follow the rotation (inverse transpose, renormalised); uv
     are copied.  Transforms with a zero scale give degenerate copies, which
     are dropped.  ``attributes`` (per transform) become per-vertex attributes
-    of the copies.
+    of the copies, ``material`` (per transform) their faces' material index.
     """
     transforms = np.asarray(transforms, np.float64)
     if transforms.ndim != 3 or transforms.shape[1:] != (4, 4):
@@ -161,12 +163,14 @@ def instance_leaves(model: Mesh, transforms: np.ndarray, attributes: Mapping | N
     if (det < 0).any():  # a mirroring transform turns the winding around
         wfaces[det < 0] = wfaces[det < 0][:, :, ::-1]
     per_vertex = {name: np.repeat(np.asarray(a)[ok], nv, axis=0) for name, a in (attributes or {}).items()}
+    per_face = None if material is None else np.repeat(np.asarray(material)[ok], len(faces))
     return Mesh(
         world.reshape(-1, 3),
         wfaces.reshape(-1, 3),
         wn.reshape(-1, 3, 3),
         np.broadcast_to(np.asarray(uv), (k, *np.shape(uv))).reshape(-1, 3, 2),
         attributes=per_vertex,
+        face_material=per_face,
     )
 
 
@@ -248,7 +252,8 @@ def polygon_leaves(skeleton: Skeleton, attributes: Mapping | None = None) -> Mes
     remap = np.full(len(points), -1, np.int64)
     remap[used] = np.arange(len(used))
     per_vertex = {name: np.asarray(a)[sel[poly[used]]] for name, a in (attributes or {}).items()}
-    return Mesh(points[used], remap[faces], normals, uv[faces], attributes=per_vertex)
+    material = np.asarray(skeleton.polygon_material)[sel[fpoly]] if len(skeleton.polygon_material) else None
+    return Mesh(points[used], remap[faces], normals, uv[faces], attributes=per_vertex, face_material=material)
 
 
 def leaves(
@@ -282,7 +287,7 @@ def leaves(
     baked = None
     if len(transforms):
         leaf_model = default_leaf() if model is None else model
-        baked = instance_leaves(leaf_model, transforms, instance_attrs)
+        baked = instance_leaves(leaf_model, transforms, instance_attrs, skeleton.leaf_material)
     parts = [m for m in (polygons, baked) if m is not None]
     merged = Mesh.concatenate(parts) if parts else None
     return Leaves(merged, leaf_model, transforms, polygons, instance_attrs)

@@ -19,6 +19,9 @@ duplicated vertex:
     Where present it is the surface colour in place of the material's base
     colour: glTF ``COLOR_0`` with a white base colour factor, USD
     ``primvars:displayColor`` read by the material.
+``face_material`` : (f,) int32 or None
+    The turtle's material index of each face (:mod:`lsys3d.materials`); None
+    when the tree has one material per mesh.
 ``attributes`` : mapping of name to (v,) or (v, 3) float32
     Per-vertex data the writers carry as they are: the hierarchy and wind
     attributes of :mod:`lsys3d.attributes` (glTF ``_BRANCH_ID``..., USD
@@ -49,6 +52,7 @@ class Mesh:
     uv : (f, 3, 2) float32
     colors : (v, 3) float32 or None
     attributes : dict of str to (v,) or (v, 3) float32
+    face_material : (f,) int32 or None
 
     Examples
     --------
@@ -63,6 +67,7 @@ class Mesh:
     uv: np.ndarray
     colors: np.ndarray | None = None
     attributes: Mapping[str, np.ndarray] = field(default_factory=dict)
+    face_material: np.ndarray | None = None
 
     def __post_init__(self):
         v = np.asarray(self.vertices, np.float64).reshape(-1, 3)
@@ -87,6 +92,11 @@ class Mesh:
                 )
             attributes[name] = a
         object.__setattr__(self, "attributes", MappingProxyType(attributes))
+        if self.face_material is not None:
+            fm = np.asarray(self.face_material, np.int32)
+            if fm.shape != (len(f),):
+                raise ValueError(f"Mesh.face_material has shape {fm.shape}, expected ({len(f)},)")
+            object.__setattr__(self, "face_material", fm)
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -126,6 +136,11 @@ class Mesh:
         if all(m.colors is not None for m in meshes):
             colors = np.concatenate([m.colors for m in meshes])
         shared = set.intersection(*(set(m.attributes) for m in meshes))
+        face_material = None
+        if any(m.face_material is not None for m in meshes):
+            face_material = np.concatenate(
+                [m.face_material if m.face_material is not None else np.zeros(len(m.faces), np.int32) for m in meshes]
+            )
         return cls(
             np.concatenate([m.vertices for m in meshes]),
             np.concatenate([m.faces + s for m, s in zip(meshes, shift, strict=True)]),
@@ -133,6 +148,7 @@ class Mesh:
             np.concatenate([m.uv for m in meshes]),
             colors,
             {k: np.concatenate([m.attributes[k] for m in meshes]) for k in sorted(shared)},
+            face_material,
         )
 
     @classmethod
@@ -162,6 +178,10 @@ class Mesh:
     def with_attributes(self, attributes: Mapping[str, np.ndarray]) -> Mesh:
         """A copy with these per-vertex attributes added (arrays are shared, not copied)."""
         return replace(self, attributes={**self.attributes, **attributes})
+
+    def keeping(self, keys) -> Mesh:
+        """A copy with only the attributes ``keys`` (of those it has)."""
+        return replace(self, attributes={k: a for k, a in self.attributes.items() if k in keys})
 
     # ---------------------------------------------------------------- measures
     @property

@@ -3,7 +3,7 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> color -> attributes -> leaves
+    derive -> interpret -> sweep -> union -> color -> materials -> attributes -> leaves -> rig
 """
 
 from __future__ import annotations
@@ -15,19 +15,20 @@ from dataclasses import dataclass, field
 
 from . import bark as bark_stage
 from . import dialects
-from .attributes import AttributeOptions, with_attributes
+from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
 from .derive import DEFAULT_MAX_MODULES, derive, interpretation
 from .diagnostics import Checks, check
 from .errors import GeometryError
 from .grammar import Grammar
 from .hierarchy import hierarchy
 from .leaves import leaves as build_leaves
-from .materials import BARK
+from .materials import material_table, with_face_materials
 from .mesh import Mesh
 from .modules import ModuleString
 from .options import Options, option
 from .presets import load
 from .provenance import Provenance
+from .rig import SKIN_KEYS, RigOptions, bind, build_rig
 from .skeleton import Skeleton
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
@@ -38,7 +39,7 @@ __all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage
 
 log = logging.getLogger("lsys3d")
 
-STAGES = ("derive", "interpret", "sweep", "union", "color", "attributes", "leaves")
+STAGES = ("derive", "interpret", "sweep", "union", "color", "materials", "attributes", "leaves", "rig")
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
 
@@ -76,6 +77,8 @@ class GenerateOptions(Options):
         Bark colour variation written as vertex colours after the union.
     attributes : AttributeOptions
         Hierarchy and wind attributes on the bark's vertices and the leaves (off by default).
+    rig : RigOptions
+        Joints along the branches and the skin that binds bark and leaves to them (off by default).
     checks : Checks
         Whether the grammar's warnings (:mod:`lsys3d.diagnostics`) are errors (``strict``).
 
@@ -90,6 +93,7 @@ class GenerateOptions(Options):
     union: UnionOptions = option(factory=UnionOptions, help="the union")
     color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
     attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
+    rig: RigOptions = option(factory=RigOptions, help="the rig")
     checks: Checks = option(factory=Checks, help="the grammar's warnings")
 
     def __post_init__(self):
@@ -196,6 +200,8 @@ def generate(
     def stage(name, fn, *args, **kw):
         return run_stage(name, fn, *args, progress=progress, **kw)
 
+    table = material_table(grammar)  # a bad [materials] table fails before the work
+
     modules, skeleton = draw(grammar, n, seed, options, progress=progress)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
@@ -214,12 +220,23 @@ def generate(
         bark = stage("union", union, tubes, options.union)
     else:
         bark = stage("union", concatenate, tubes)
-    bark = stage("color", bark_stage.color, bark, options.color, BARK.base_color, seed)
-    branches = hierarchy(skeleton, seed) if options.attributes.enabled else None
-    if branches is not None:
-        bulge = options.sweep.bark_displacement
-        bark = stage("attributes", with_attributes, bark, skeleton, branches, options.attributes, bulge)
-    leaves = stage("leaves", build_leaves, skeleton, hierarchy=branches, attributes=options.attributes.keys)
+    bark = stage("color", bark_stage.color, bark, options.color, table.bark.base_color, seed)
+    wanted = options.attributes.keys
+    # the rig binds by branch and t, so it needs those two whatever the attributes' layout
+    keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
+    branches = hierarchy(skeleton, seed) if keys or table else None
+    bulge = options.sweep.bark_displacement
+    if table and len(tubes):
+        bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
+    if keys:
+        bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
+    leaves = stage("leaves", build_leaves, skeleton, hierarchy=branches, attributes=keys)
+    rig = None
+    if options.rig.enabled:
+        rig = build_rig(branches, skeleton, options.rig)
+        bark, leaves = stage("rig", bind, bark, leaves, rig, branches)
+        if keys != wanted:  # the rig's own use of them: not the user's attributes
+            bark, leaves = _keep(bark, leaves, wanted + SKIN_KEYS)
     counts = StageCounts(
         modules=len(modules),
         segments=len(skeleton),
@@ -235,5 +252,17 @@ def generate(
         counts=counts,
         unioned=options.union.enabled,
         modules=modules,
-        hierarchy=branches,
+        hierarchy=branches if options.attributes.enabled else None,
+        rig=rig,
+        materials=table,
     )
+
+
+def _keep(bark: Mesh, leaves, keys):
+    """``bark`` and ``leaves`` with only the attributes ``keys``."""
+    from dataclasses import replace
+
+    merged = leaves.merged.keeping(keys) if leaves.merged is not None else None
+    polygons = leaves.polygons.keeping(keys) if leaves.polygons is not None else None
+    instance = {k: a for k, a in leaves.instance_attributes.items() if k in keys}
+    return bark.keeping(keys), replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance)

@@ -131,7 +131,6 @@ def test_usd_primvars_in_the_file_frame(small, tmp_path):
 
 def test_geometric_match_agrees_with_the_tubes():
     """On a preset's tubes, every vertex on the surface of the union matches its own tube's branch, or a child's."""
-    from lsys3d.attributes import _candidates, _segment_points
     from lsys3d.sweep import sweep
     from lsys3d.turtle import interpret
 
@@ -143,13 +142,15 @@ def test_geometric_match_agrees_with_the_tubes():
     expected = tubes.chain[owner]
     points = tubes.points
     # vertices inside another branch's tube are not on the union's surface: leave them out
-    radius = 0.5 * np.maximum(sk.width_start, sk.width_end)[:, None]
-    pi, si = _candidates(points, np.minimum(sk.start, sk.end) - radius, np.maximum(sk.start, sk.end) + radius)
-    f, d = _segment_points(points[pi], sk.start[si], sk.end[si])
-    r = 0.5 * (sk.width_start[si] + f * (sk.width_end[si] - sk.width_start[si]))
-    inside = (d / r < 0.999) & (h.branch_of[si] != expected[pi])
     surface = np.ones(len(points), bool)
-    surface[pi[inside]] = False
+    for start in range(0, len(points), 500):  # every point against every segment, in chunks
+        p = points[start : start + 500, None, :]
+        d = sk.end - sk.start
+        f = np.clip(((p - sk.start) * d).sum(-1) / (d * d).sum(-1), 0, 1)
+        dist = np.linalg.norm(p - (sk.start + f[..., None] * d), axis=-1)
+        r = 0.5 * (sk.width_start + f * (sk.width_end - sk.width_start))
+        other = h.branch_of[None, :] != expected[start : start + 500, None]
+        surface[start : start + 500] = ~((dist / r < 0.999) & other).any(axis=1)
     segment, t = nearest_branch(points, sk, h)
     got = h.branch_of[segment]
     assert (segment >= 0).all() and ((t >= 0) & (t <= 1)).all()
@@ -173,3 +174,10 @@ def test_presets_with_attributes_pass_the_judges(name, tmp_path):
     assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0
     usd = export(tree, tmp_path / f"{name}.usdc")
     assert validators.usd_problems(usd) == []
+
+
+def test_the_docs_table_is_the_attribute_table():
+    from lsys3d.attributes import attributes_markdown
+
+    text = (validators.REPO / "docs" / "engines.md").read_text(encoding="utf-8")
+    assert attributes_markdown() in text

@@ -41,7 +41,8 @@ FLOAT, UNSIGNED_SHORT, UNSIGNED_INT = 5126, 5123, 5125
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
 TRIANGLES, LINES = 4, 1
 INSTANCING = "EXT_mesh_gpu_instancing"
-_TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4"}
+_TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
+UNSIGNED_BYTE = 5121
 
 
 class _Buffer:
@@ -67,11 +68,15 @@ class _Buffer:
         self.views.append(view)
         return len(self.views) - 1
 
-    def accessor(self, data: np.ndarray, target: int | None = ARRAY_BUFFER, bounds: bool = False) -> int:
-        """Add ``data`` ((n,) or (n, c), float32 / uint16 / uint32) as a tightly packed view and accessor."""
+    def accessor(
+        self, data: np.ndarray, target: int | None = ARRAY_BUFFER, bounds: bool = False, normalized: bool = False
+    ) -> int:
+        """Add ``data`` ((n,) or (n, c), float32 / uint8 / uint16 / uint32) as a tightly packed view and accessor."""
         data = np.ascontiguousarray(data)
         if data.dtype == np.float32:
             component = FLOAT
+        elif data.dtype == np.uint8:
+            component = UNSIGNED_BYTE
         elif data.dtype == np.uint16:
             component = UNSIGNED_SHORT
         elif data.dtype == np.uint32:
@@ -85,6 +90,8 @@ class _Buffer:
             "count": int(data.shape[0]),
             "type": _TYPES[width],
         }
+        if normalized:
+            acc["normalized"] = True
         if bounds:
             two_d = data.reshape(len(data), width)
             acc["min"] = two_d.min(axis=0).tolist()
@@ -102,7 +109,23 @@ def _indices(index: np.ndarray, n_vertices: int) -> np.ndarray:
     return index.astype(np.uint16 if n_vertices < 0xFFFF else np.uint32, copy=False)
 
 
-def _primitive(buf: _Buffer, arrays: MeshArrays, material: int) -> dict:
+def quantized_weights(weights: np.ndarray) -> np.ndarray:
+    """Skin weights as normalized unsigned bytes whose every row sums to exactly 255 (largest remainders round up).
+
+    >>> quantized_weights(np.array([[0.5, 0.5, 0, 0], [1 / 3, 1 / 3, 1 / 3, 0]], np.float32)).tolist()
+    [[128, 127, 0, 0], [85, 85, 85, 0]]
+    """
+    scaled = np.asarray(weights, np.float64) * 255.0
+    q = np.floor(scaled).astype(np.int64)
+    short = 255 - q.sum(axis=1)
+    rank = np.argsort(-(scaled - q), axis=1, kind="stable")
+    bump = np.arange(weights.shape[1])[None, :] < short[:, None]
+    np.add.at(q, (np.repeat(np.arange(len(q)), weights.shape[1])[bump.ravel()], rank[bump]), 1)
+    return q.astype(np.uint8)
+
+
+def _vertex_attributes(buf: _Buffer, arrays: MeshArrays, joints: int | None = None) -> dict:
+    """The accessors of a gathered mesh's split vertices, shared by all its primitives."""
     attributes = {
         "POSITION": buf.accessor(arrays.split_points, bounds=True),
         "NORMAL": buf.accessor(arrays.split_normals),
@@ -115,13 +138,28 @@ def _primitive(buf: _Buffer, arrays: MeshArrays, material: int) -> dict:
         attributes["COLOR_0"] = buf.accessor(arrays.split_colors)
     for name, values in gltf_attributes(arrays.split_attributes).items():  # hierarchy and wind
         attributes[name] = buf.accessor(values)
-    index = _indices(arrays.split_index, len(arrays.split_points))
-    return {
-        "attributes": attributes,
-        "indices": buf.accessor(index, ELEMENT_ARRAY_BUFFER),
-        "material": material,
-        "mode": TRIANGLES,
-    }
+    if joints is not None and "skin_joints" in arrays.split_attributes:
+        ids = arrays.split_attributes["skin_joints"]
+        attributes["JOINTS_0"] = buf.accessor(ids.astype(np.uint8 if joints <= 256 else np.uint16))
+        attributes["WEIGHTS_0"] = buf.accessor(
+            quantized_weights(arrays.split_attributes["skin_weights"]), normalized=True
+        )
+    return attributes
+
+
+def _primitives(buf: _Buffer, arrays: MeshArrays, groups, joints: int | None = None) -> list[dict]:
+    """One primitive per ``(material index, faces)`` group (faces None: all), sharing the vertex accessors."""
+    attributes = _vertex_attributes(buf, arrays, joints)
+    index = _indices(arrays.split_index, len(arrays.split_points)).reshape(-1, 3)
+    return [
+        {
+            "attributes": attributes,
+            "indices": buf.accessor((index if faces is None else index[faces]).reshape(-1), ELEMENT_ARRAY_BUFFER),
+            "material": material,
+            "mode": TRIANGLES,
+        }
+        for material, faces in groups
+    ]
 
 
 def _material(m: Material) -> dict:
@@ -170,49 +208,82 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
     meshes, nodes, materials = [], [{"name": tree.name, "children": []}], []
     extensions_used = []
 
-    def add_node(name: str, primitives: list[dict], extensions: dict | None = None):
+    rig = tree.rig
+    joints = len(rig) if rig is not None else None
+    roots = [0]  # scene roots: the asset's node, and skinned meshes (glTF ignores a skinned mesh's parents)
+
+    def add_node(name: str, primitives: list[dict], extensions: dict | None = None, skinned: bool = False):
         meshes.append({"name": name, "primitives": primitives})
         node = {"name": name, "mesh": len(meshes) - 1}
         if extensions:
             node["extensions"] = extensions
         nodes.append(node)
-        nodes[0]["children"].append(len(nodes) - 1)
+        if skinned:
+            node["skin"] = 0
+            roots.append(len(nodes) - 1)
+        else:
+            nodes[0]["children"].append(len(nodes) - 1)
+
+    made: dict[Material, int] = {}
 
     def material_index(m: Material) -> int:
-        materials.append(_material(m))
-        return len(materials) - 1
+        if m not in made:
+            materials.append(_material(m))
+            made[m] = len(materials) - 1
+        return made[m]
+
+    table = tree.materials
+
+    def groups(face_material, material_of, white: bool = False) -> list[tuple[int, np.ndarray | None]]:
+        """(glTF material, faces) of each material index the faces use; one group of all faces without a table."""
+
+        def index_of(m: Material) -> int:  # vertex colours: the colour is COLOR_0, glTF multiplies it by the factor
+            return material_index(replace(m, base_color=(1.0, 1.0, 1.0, m.base_color[3])) if white else m)
+
+        if not table or face_material is None:
+            return [(index_of(material_of(-1)), None)]
+        return [
+            (index_of(material_of(i)), np.flatnonzero(face_material == i)) for i in np.unique(face_material).tolist()
+        ]
 
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
         bark = gather_mesh(tree.bark, eye, f"{where}: bark")
-        material = tree.bark_material
-        if bark.split_colors is not None:  # COLOR_0 is the colour; glTF multiplies it by the factor
-            material = replace(material, base_color=(1.0, 1.0, 1.0, material.base_color[3]))
-        add_node("bark", [_primitive(buf, bark, material_index(material))])
+        bark_groups = groups(tree.bark.face_material, table.for_bark, white=bark.split_colors is not None)
+        add_node("bark", _primitives(buf, bark, bark_groups, joints), skinned=rig is not None)
 
     leaves = tree.leaves
-    instanced = bool(options.instance_leaves) and leaves.instanced
+    instanced = bool(options.instance_leaves) and leaves.instanced and rig is None  # skinned leaves are merged
     if instanced:
-        leaf_mat = material_index(tree.leaf_material)
         model = gather_mesh(leaves.model, eye, f"{where}: leaf_model")
         translation, quaternion, scale = decompose_transforms(leaves.transforms, where)
-        attributes = {
-            "TRANSLATION": buf.accessor(to_float32(translation, "leaf positions", where), target=None),
-            "ROTATION": buf.accessor(quaternion.astype(np.float32), target=None),
-            "SCALE": buf.accessor(to_float32(scale, "leaf sizes", where), target=None),
-        }
-        for name, values in gltf_attributes(leaves.instance_attributes).items():  # the branch each leaf grows from
-            attributes[name] = buf.accessor(values, target=None)
-        add_node("leaf", [_primitive(buf, model, leaf_mat)], {INSTANCING: {"attributes": attributes}})
+        k = len(translation)
+        per_leaf = np.asarray(tree.skeleton.leaf_material, np.int64) if table else np.zeros(0, np.int64)
+        if len(per_leaf) != k:
+            per_leaf = np.zeros(k, np.int64)
+        extra = gltf_attributes(leaves.instance_attributes)  # the branch each leaf grows from
+        for n, i in enumerate(np.unique(per_leaf).tolist()):  # one instanced node per leaf material
+            sel = np.flatnonzero(per_leaf == i) if n or len(np.unique(per_leaf)) > 1 else slice(None)
+            attributes = {
+                "TRANSLATION": buf.accessor(to_float32(translation[sel], "leaf positions", where), target=None),
+                "ROTATION": buf.accessor(quaternion[sel].astype(np.float32), target=None),
+                "SCALE": buf.accessor(to_float32(scale[sel], "leaf sizes", where), target=None),
+            }
+            for name, values in extra.items():
+                attributes[name] = buf.accessor(np.ascontiguousarray(values[sel]), target=None)
+            primitives = _primitives(buf, model, [(material_index(table.for_leaf(i)), None)])
+            add_node("leaf" if n == 0 else f"leaf_{i}", primitives, {INSTANCING: {"attributes": attributes}})
         extensions_used.append(INSTANCING)
         if leaves.polygons is not None and len(leaves.polygons.faces):
             polygons = gather_mesh(leaves.polygons, eye, f"{where}: polygon_leaves")
-            add_node("leaf_polygons", [_primitive(buf, polygons, leaf_mat)])
+            add_node("leaf_polygons", _primitives(buf, polygons, groups(leaves.polygons.face_material, table.for_leaf)))
     else:
         # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
         merged = leaves.merged if leaves.merged is not None else leaves.polygons
         if merged is not None and len(merged.faces):
             arrays = gather_mesh(merged, eye, f"{where}: leaves")
-            add_node("leaf", [_primitive(buf, arrays, material_index(tree.leaf_material))])
+            skinned = rig is not None and "skin_joints" in merged.attributes
+            leaf_groups = groups(merged.face_material, table.for_leaf)
+            add_node("leaf", _primitives(buf, arrays, leaf_groups, joints if skinned else None), skinned=skinned)
 
     if tree.hierarchy is not None and len(tree.hierarchy):
         # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.attributes)
@@ -232,18 +303,40 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
             }
             add_node("skeleton", [primitive])
 
+    skins = []
+    if rig is not None:  # the joints under the asset's node, each translated from its parent (no rotation)
+        base = len(nodes)
+        local = to_float32(rig.local, "joint positions", where)
+        for i, name in enumerate(rig.names):
+            nodes.append({"name": name, "translation": local[i].tolist()})
+        for i, up in enumerate(rig.parent.tolist()):
+            if up >= 0:
+                nodes[base + up].setdefault("children", []).append(base + i)
+        nodes[0]["children"].append(base)
+        inverse_bind = np.zeros((len(rig), 16), np.float32)
+        inverse_bind[:, [0, 5, 10, 15]] = 1.0
+        inverse_bind[:, 12:15] = -to_float32(rig.position, "joint positions", where)  # column-major translation
+        skins.append(
+            {
+                "name": "rig",
+                "joints": list(range(base, base + len(rig))),
+                "skeleton": base,
+                "inverseBindMatrices": buf.accessor(inverse_bind, target=None),
+            }
+        )
+
     metadata = metadata_json(tree, where)
     doc = {"asset": {"version": "2.0", "generator": f"lsys3d {__version__}"}}
     if metadata:
         doc["asset"]["extras"] = metadata
     if extensions_used:
         doc["extensionsUsed"] = extensions_used
-    scene = {"name": tree.name, "nodes": [0]}
+    scene = {"name": tree.name, "nodes": roots}
     if metadata:
         scene["extras"] = metadata
     doc.update(scene=0, scenes=[scene], nodes=nodes)
     # glTF arrays may not be empty: leave out what a tree without geometry lacks
-    for key, value in (("meshes", meshes), ("materials", materials), ("accessors", buf.accessors)):
+    for key, value in (("meshes", meshes), ("materials", materials), ("skins", skins), ("accessors", buf.accessors)):
         if value:
             doc[key] = value
     if buf.views:

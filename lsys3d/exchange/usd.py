@@ -33,14 +33,16 @@ import os
 import struct
 import zlib
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, UsdShade, Vt
+from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, UsdShade, UsdSkel, Vt
 
 from ..attributes import ATTRIBUTES, branch_table
 from ..errors import ExportError
 from ..materials import Material
+from ..rig import INFLUENCES
 from ..tree import Tree
 from ..version import __version__
 from .atomic import atomic_path, check_target, scratch_path, write_bytes, write_failure
@@ -96,6 +98,43 @@ def _material(stage: Usd.Stage, looks: str, name: str, m: Material, vertex_color
         shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(a)
     material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
     return material
+
+
+class _Looks:
+    """The stage's materials under ``Looks``, each authored once however many meshes use it (names kept distinct)."""
+
+    def __init__(self, stage: Usd.Stage, path: str):
+        self.stage, self.path = stage, path
+        self.made: dict[tuple[Material, bool], UsdShade.Material] = {}
+        self.names: set[str] = set()
+
+    def get(self, m: Material, vertex_colors: bool = False) -> UsdShade.Material:
+        key = (replace(m, double_sided=False), vertex_colors)  # in USD sidedness belongs to the mesh
+        if key not in self.made:
+            name = base = Tf.MakeValidIdentifier(m.name or "material")
+            i = 1
+            while name in self.names:
+                i += 1
+                name = f"{base}_{i}"
+            self.names.add(name)
+            self.made[key] = _material(self.stage, self.path, name, m, vertex_colors)
+        return self.made[key]
+
+
+def _subsets(mesh: UsdGeom.Mesh, face_material: np.ndarray | None, material_of, looks: _Looks, colors: bool) -> None:
+    """One ``GeomSubset`` (family ``materialBind``) per material index of the faces, each bound to its material."""
+    if face_material is None:
+        return
+    indices = np.unique(face_material)
+    if len(indices) < 2 and material_of(int(indices[0])) == material_of(-1):
+        return  # one material, the mesh's own
+    for index in indices.tolist():
+        faces = np.flatnonzero(face_material == index).astype(np.int32)
+        subset = UsdGeom.Subset.CreateGeomSubset(
+            mesh, f"material_{index}", UsdGeom.Tokens.face, Vt.IntArray.FromNumpy(faces), "materialBind"
+        )
+        UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(looks.get(material_of(index), colors))
+    UsdGeom.Subset.SetFamilyType(mesh, "materialBind", UsdGeom.Tokens.partition)
 
 
 def _mesh(stage: Usd.Stage, path: str, arrays: MeshArrays, material: UsdShade.Material, double_sided: bool):
@@ -178,16 +217,25 @@ def _skeleton(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray) -> Non
     curves.CreateExtentAttr(UsdGeom.Curves.ComputeExtent(pts, w))
 
 
-def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, material, where: str) -> None:
+def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, looks: _Looks, where: str) -> None:
+    """Leaves as a ``PointInstancer``: one prototype of the leaf model per leaf material used."""
     instancer = UsdGeom.PointInstancer.Define(stage, path)
     UsdGeom.Scope.Define(stage, f"{path}/Prototypes")
     model = gather_mesh(tree.leaves.model, np.eye(3), f"{where}: leaf_model")
-    proto = _mesh(stage, f"{path}/Prototypes/leaf_model", model, material, tree.leaf_material.double_sided)
-    instancer.CreatePrototypesRel().SetTargets([proto.GetPath()])
+    k = len(tree.leaves.transforms)
+    index = np.asarray(tree.skeleton.leaf_material, np.int64) if tree.materials else np.zeros(0, np.int64)
+    if len(index) != k:
+        index = np.zeros(k, np.int64)
+    used, proto_index = np.unique(index, return_inverse=True)
+    prototypes = []
+    for n, i in enumerate(used.tolist()):
+        m = tree.materials.for_leaf(i)
+        name = "leaf_model" if n == 0 else f"leaf_model_{i}"
+        prototypes.append(_mesh(stage, f"{path}/Prototypes/{name}", model, looks.get(m), m.double_sided).GetPath())
+    instancer.CreatePrototypesRel().SetTargets(prototypes)
     transforms = frame_transforms(tree.leaves.transforms, frame)
     translation, quaternion, scale = decompose_transforms(transforms, where)
-    k = len(translation)
-    instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(np.zeros(k, np.int32)))
+    instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(proto_index.reshape(-1).astype(np.int32)))
     instancer.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(to_float32(translation, "leaf positions", where)))
     # Gf.Quath is stored imaginary-first, so (x, y, z, w) rows are its memory layout
     instancer.CreateOrientationsAttr(Vt.QuathArray.FromNumpy(quaternion.astype(np.float16)))
@@ -201,22 +249,9 @@ def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, 
     instancer.CreateExtentAttr(extent)
 
 
-def _names(materials: list[Material]) -> list[str]:
-    """Valid, distinct prim names for the materials."""
-    out = []
-    for m in materials:
-        name = Tf.MakeValidIdentifier(m.name or "material")
-        base, i = name, 1
-        while name in out:
-            i += 1
-            name = f"{base}_{i}"
-        out.append(name)
-    return out
-
-
 def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> Usd.Stage:
     """Build the tree's stage in memory (see the module docstring for its layout)."""
-    stage, prim = _new_stage(options, tree.identifier)
+    stage, prim = _new_stage(options, tree.identifier, tree.rig is not None)
     _author_tree(stage, prim, tree, options, where)
     return stage
 
@@ -236,7 +271,7 @@ def build_variant_stage(
     bad = [n for n in names if not Tf.IsValidIdentifier(n)]
     if bad or len(set(names)) != len(names):
         raise ExportError(f"{where}: variant names must be distinct identifiers, not {list(names)!r}")
-    stage, prim = _new_stage(options, trees[0].identifier)
+    stage, prim = _new_stage(options, trees[0].identifier, any(t.rig is not None for t in trees))
     variants = prim.GetVariantSets().AddVariantSet(VARIANT_SET)
     for name, tree in zip(names, trees, strict=True):
         variants.AddVariant(name)
@@ -247,12 +282,15 @@ def build_variant_stage(
     return stage
 
 
-def _new_stage(options: ExportOptions, name: str) -> tuple[Usd.Stage, Usd.Prim]:
-    """An in-memory stage with its axis, units and the root component ``/<name>`` (the default prim)."""
+def _new_stage(options: ExportOptions, name: str, rigged: bool = False) -> tuple[Usd.Stage, Usd.Prim]:
+    """An in-memory stage with its axis, units and the root component ``/<name>`` (the default prim).
+
+    A rigged tree's root is a ``SkelRoot``, so its skeleton and skinned meshes are one skeletal asset.
+    """
     stage = Usd.Stage.CreateInMemory()
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z if options.up_axis == "Z" else UsdGeom.Tokens.y)
     UsdGeom.SetStageMetersPerUnit(stage, options.meters_per_unit)
-    root = UsdGeom.Xform.Define(stage, f"/{name}")
+    root = (UsdSkel.Root if rigged else UsdGeom.Xform).Define(stage, f"/{name}")
     prim = root.GetPrim()
     stage.SetDefaultPrim(prim)
     Usd.ModelAPI(prim).SetKind(Kind.Tokens.component)
@@ -271,35 +309,79 @@ def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOp
     )
     UsdGeom.Xform.Define(stage, geom)
     UsdGeom.Scope.Define(stage, looks)
-    bark_name, leaf_name = _names([tree.bark_material, tree.leaf_material])
+    shading = _Looks(stage, looks)
+    table = tree.materials
+    skeleton = _rig(stage, f"{root}/Rig", tree, frame, where) if tree.rig is not None else None
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
         bark = gather_mesh(tree.bark, frame, f"{where}: bark")
-        bark_material = _material(stage, looks, bark_name, tree.bark_material, vertex_colors=bark.colors is not None)
-        _mesh(stage, f"{geom}/bark", bark, bark_material, tree.bark_material.double_sided)
+        colors = bark.colors is not None
+        mesh = _mesh(stage, f"{geom}/bark", bark, shading.get(table.bark, colors), table.bark.double_sided)
+        if table:
+            _subsets(mesh, tree.bark.face_material, table.for_bark, shading, colors)
+        _bind(mesh, bark, skeleton)
 
     leaves = tree.leaves
-    instanced = options.instance_leaves is not False and leaves.instanced
+    instanced = options.instance_leaves is not False and leaves.instanced and skeleton is None  # skinned: merged
     has_polygons = leaves.polygons is not None and len(leaves.polygons.faces) > 0
     # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
     merged = leaves.merged if leaves.merged is not None else leaves.polygons
     has_merged = merged is not None and len(merged.faces) > 0
-    if instanced or has_merged:
-        leaf_material = _material(stage, looks, leaf_name, tree.leaf_material)
-        double = tree.leaf_material.double_sided
-        if instanced:
-            _leaf_instancer(stage, f"{geom}/leaf", tree, frame, leaf_material, where)
-            if has_polygons:
-                polygons = gather_mesh(leaves.polygons, frame, f"{where}: polygon_leaves")
-                _mesh(stage, f"{geom}/leaf_polygons", polygons, leaf_material, double)
-        else:
-            arrays = gather_mesh(merged, frame, f"{where}: leaves")
-            _mesh(stage, f"{geom}/leaf", arrays, leaf_material, double)
+    leaf_default = table.for_leaf(-1)
+    if instanced:
+        _leaf_instancer(stage, f"{geom}/leaf", tree, frame, shading, where)
+        if has_polygons:
+            polygons = gather_mesh(leaves.polygons, frame, f"{where}: polygon_leaves")
+            mesh = _mesh(stage, f"{geom}/leaf_polygons", polygons, shading.get(leaf_default), True)
+            if table:
+                _subsets(mesh, leaves.polygons.face_material, table.for_leaf, shading, False)
+    elif has_merged:
+        arrays = gather_mesh(merged, frame, f"{where}: leaves")
+        mesh = _mesh(stage, f"{geom}/leaf", arrays, shading.get(leaf_default), True)
+        if table:
+            _subsets(mesh, merged.face_material, table.for_leaf, shading, False)
+        _bind(mesh, arrays, skeleton)
 
     if tree.hierarchy is not None and len(tree.hierarchy):
         _branch_table(prim, tree, frame)
 
     if options.skeleton_curves:
         _skeleton(stage, f"{geom}/skeleton", tree, frame)
+
+
+def _rig(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, where: str) -> UsdSkel.Skeleton:
+    """The tree's joints as a ``Skeleton``: joint paths, bind (world) and rest (local) transforms, in the file frame."""
+    rig = tree.rig
+    names = []
+    for i, name in enumerate(rig.names):  # parents come first, so their paths are known
+        up = int(rig.parent[i])
+        names.append(name if up < 0 else f"{names[up]}/{name}")
+    world = to_float32(rig.position @ frame.T, "joint positions", where).astype(np.float64)
+    local = world.copy()
+    has = rig.parent >= 0
+    local[has] -= world[rig.parent[has]]
+
+    def translations(points):
+        return Vt.Matrix4dArray([Gf.Matrix4d(1.0).SetTranslate(Gf.Vec3d(*map(float, p))) for p in points])
+
+    skeleton = UsdSkel.Skeleton.Define(stage, path)
+    skeleton.CreateJointsAttr(Vt.TokenArray(names))
+    skeleton.CreateJointNamesAttr(Vt.TokenArray(list(rig.names)))
+    skeleton.CreateBindTransformsAttr(translations(world))
+    skeleton.CreateRestTransformsAttr(translations(local))
+    return skeleton
+
+
+def _bind(mesh: UsdGeom.Mesh, arrays: MeshArrays, skeleton: UsdSkel.Skeleton | None) -> None:
+    """Bind a mesh to the skeleton with its skin (4 joints a point; nothing without a rig or a skin)."""
+    if skeleton is None or "skin_joints" not in arrays.attributes:
+        return
+    binding = UsdSkel.BindingAPI.Apply(mesh.GetPrim())
+    binding.CreateSkeletonRel().SetTargets([skeleton.GetPath()])
+    joints = np.ascontiguousarray(arrays.attributes["skin_joints"], np.int32).reshape(-1)
+    weights = np.ascontiguousarray(arrays.attributes["skin_weights"], np.float32).reshape(-1)
+    binding.CreateJointIndicesPrimvar(False, INFLUENCES).Set(Vt.IntArray.FromNumpy(joints))
+    binding.CreateJointWeightsPrimvar(False, INFLUENCES).Set(Vt.FloatArray.FromNumpy(weights))
+    binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
 
 
 def write_usd(tree: Tree, path: Path, options: ExportOptions) -> Path:
