@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import PurePath
 
@@ -150,7 +151,23 @@ def grammar_text(grammar) -> str:
     for key in ("homomorphism_depth", "decomposition_depth"):
         if getattr(grammar, key) != 1:
             lines.append(f"{key} = {getattr(grammar, key)}")
-    if grammar.turtle:
-        lines.append("[turtle]")
-        lines.extend(f"{k} = {json.dumps(v)}" for k, v in grammar.turtle.items())
+    for table in ("turtle", "materials"):
+        if getattr(grammar, table):
+            lines.append(f"[{table}]")
+            lines.extend(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in getattr(grammar, table).items())
     return "\n".join(lines) + "\n"
+
+
+def _toml_key(key) -> str:
+    """A TOML key: bare when it can be, quoted otherwise."""
+    key = str(key)
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else json.dumps(key)
+
+
+def _toml_value(value) -> str:
+    """A TOML value for a table entry (a material's inline table; strings, numbers, booleans and lists as JSON)."""
+    if isinstance(value, Mapping):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return json.dumps(value)

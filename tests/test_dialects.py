@@ -18,6 +18,7 @@ import lsys3d
 from lsys3d import Grammar, GrammarError, dialects
 from lsys3d.derive import interpretation
 from lsys3d.modules import ASCII_ALPHABET
+from lsys3d.provenance import grammar_text
 from lsys3d.turtle import Axis, Op, Organ, interpret, symbol_table
 
 U, L, H = Axis.U, Axis.L, Axis.H
@@ -387,3 +388,32 @@ def test_rules_without_weights_are_alternatives_only_in_lsys3d_notation():
     assert set(str(lsys3d.derive(cpfg, 1, seed=2))) == {"B", "C"}  # weighted: stochastic; D never applies
     own = Grammar(axiom="A" * 40, rules=["A -> B", "A -> C"])
     assert set(str(lsys3d.derive(own, 1))) == {"B", "C"}
+
+
+@pytest.mark.parametrize(
+    ("dialect", "axiom"),
+    [
+        ("lpy", "F;F;(5)F,F@O(0.1)"),
+        ("cpfg", "F;F;(5)F,F@O(0.2)"),
+        ("lparser", "FcFc(5)F!(1)c(4)F"),
+        ("houdini", "F'F'(5)F'(4)F"),
+        ("abop", "F'F'(5)F'(4)F"),
+    ],
+)
+def test_colour_commands_pick_the_materials_table(dialect, axiom):
+    """Each dialect's colour symbols set the one material index of the turtle, which [materials] colours."""
+    text = f"""dialect = "{dialect}"
+axiom = "{axiom}"
+[materials]
+1 = {{ name = "one", base_color = [1, 0, 0] }}
+5 = {{ name = "five", base_color = [0, 1, 0] }}
+4 = {{ name = "four", base_color = [0, 0, 1] }}
+"""
+    grammar = Grammar.from_text(text, source=f"{dialect}.toml")
+    tree = lsys3d.generate(grammar, sides=6, union=False)
+    assert tree.skeleton.material.tolist() == [0, 1, 5, 4]
+    assert sorted(set(tree.bark.face_material.tolist())) == [0, 1, 4, 5]
+    assert [tree.materials.for_bark(i).name for i in (1, 5, 4)] == ["one", "five", "four"]
+    assert tree.skeleton.organ_material.tolist() == ([4] if "@O" in axiom else [])
+    again = Grammar.from_text(grammar_text(grammar))  # the provenance's TOML keeps the table
+    assert again.materials == grammar.materials and again.dialect == dialect
