@@ -99,7 +99,11 @@ class Skeleton:
     organ_segment : (o,) int64
         The segment the organ grows from, -1 for none.
     organ_module : (o,) int64
-        The module that recorded it (its name tells a surface's or instance's name).
+        The index of the module that recorded it, in the string the turtle read (after
+        the grammar's homomorphism rules).
+    organ_name : (o,) str
+        The name of that module as written (``@O``, ``~l``, ``J``): a surface's or an
+        instance's name, kept so that the mesh stages need not keep the string.
     """
 
     start: np.ndarray
@@ -133,6 +137,7 @@ class Skeleton:
     organ_material: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     organ_segment: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     organ_module: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    organ_name: np.ndarray = field(default_factory=lambda: np.zeros(0, "U1"))
 
     def __len__(self) -> int:
         return int(self.start.shape[0])

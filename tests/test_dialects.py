@@ -135,7 +135,11 @@ def test_widths_and_organs_in_each_dialects_units():
     g = Grammar(axiom="F~l(2)J(3)", dialect="cpfg")
     sk = interpret(lsys3d.derive(g, 0), g)
     assert sk.organ_kind.tolist() == [Organ.SURFACE] and sk.organ_size.tolist() == [2.0]
+    assert sk.organ_name.tolist() == ["~l"]  # the surface's name, kept with the organ
     assert lsys3d.derive(g, 0).symbol(1) == "~l"
+    g = Grammar(axiom="FA", dialect="lpy", modules=("A",), homomorphism=["A --> @O(0.1)~l(2)"])
+    sk = interpret(interpretation(g, lsys3d.derive(g, 0)), g)  # organs drawn by a homomorphism rule
+    assert sk.organ_name.tolist() == ["@O", "~l"] and sk.organ_kind.tolist() == [Organ.SPHERE, Organ.SURFACE]
 
 
 # ---------------------------------------------------------------- the readers

@@ -293,6 +293,7 @@ def interpret(
         organ_material=organ.material[:n_organ],
         organ_segment=organ.segment[:n_organ],
         organ_module=organ.module[:n_organ],
+        organ_name=np.array([modules.symbol(i) for i in organ.module[:n_organ]], dtype=str).reshape(n_organ),
     )
     log.debug(
         "interpret: %d modules -> %d segments, %d polygons, %d leaves, %d organs in %.3f s",
