@@ -47,6 +47,7 @@ from .materials import Material
 from .mesh import Mesh, face_normals
 from .options import Options, option
 from .sweep import DEFAULT_MAX_TRIANGLES
+from .turtle.commands import Organ
 
 __all__ = [
     "BUILT_IN",
@@ -57,6 +58,7 @@ __all__ = [
     "box",
     "disc",
     "organs",
+    "skeleton_organs",
     "sphere",
 ]
 
@@ -326,10 +328,8 @@ def organs(
             )
         closed = mesh.is_watertight and mesh.is_winding_consistent
         prototypes.append(Prototype(name, mesh, closed, material_of_card))
-    if fallbacks:
-        log.warning(
-            "organs: no [surfaces] model for %s: drawn as the leaf", ", ".join(repr(f) for f in sorted(fallbacks))
-        )
+    if fallbacks:  # lsys3d.diagnostics warns of them once, with the grammar's name (--strict: an error)
+        log.info("organs: no [surfaces] model for %s: drawn as the leaf", ", ".join(repr(f) for f in sorted(fallbacks)))
 
     transforms = np.zeros((len(idx), 4, 4))
     transforms[:, :3, :3] = frame * size[:, None, None]
@@ -373,3 +373,47 @@ def bind_organs(organs_: Organs, rig, h: Hierarchy) -> Organs:
         joints, weights = skin_weights(rig, h, mesh.attributes["branch_id"], mesh.attributes["branch_t"], rigid=True)
         merged.append(mesh.with_attributes({"skin_joints": joints.astype(np.float32), "skin_weights": weights}))
     return replace(organs_, merged=tuple(merged))
+
+
+_KIND_NAMES = {Organ.SPHERE: "sphere", Organ.DISC: "disc", Organ.CIRCLE: "circle", Organ.BOX: "box"}
+
+
+def organ_names(skeleton) -> np.ndarray:
+    """The prototype name of each organ the turtle recorded: ``sphere``, ``disc``, ``circle``, ``box``, or a
+    surface's name (``~flower`` -> ``flower``; Houdini's instance symbols ``J``, ``K``, ``M`` by their own name).
+    """
+    names = []
+    for kind, module in zip(skeleton.organ_kind.tolist(), skeleton.organ_name.tolist(), strict=True):
+        name = _KIND_NAMES.get(kind)
+        if name is None:  # a named surface or an instance: the [surfaces] entry of that name
+            name = module[1:] if module.startswith("~") and len(module) > 1 else module
+        names.append(name)
+    return np.asarray(names, dtype=str)
+
+
+def skeleton_organs(
+    skeleton,
+    *,
+    surfaces=None,
+    options: OrganOptions | None = None,
+    hierarchy: Hierarchy | None = None,
+    attributes: Sequence[str] | None = None,
+    max_triangles: int = DEFAULT_MAX_TRIANGLES,
+) -> Organs:
+    """The organs the turtle recorded in ``skeleton`` (its ``organ_*`` arrays), built by :func:`organs`."""
+    if not skeleton.n_organs:
+        return Organs()
+    frame = np.stack([skeleton.organ_left, skeleton.organ_up, skeleton.organ_heading], axis=2)
+    return organs(
+        organ_names(skeleton),
+        skeleton.organ_position,
+        frame,
+        skeleton.organ_size,
+        skeleton.organ_material,
+        surfaces=surfaces,
+        options=options,
+        segment=skeleton.organ_segment,
+        hierarchy=hierarchy,
+        attributes=attributes,
+        max_triangles=max_triangles,
+    )

@@ -12,6 +12,7 @@ import lsys3d
 from lsys3d.attributes import AttributeOptions
 from lsys3d.bark import BarkColorOptions
 from lsys3d.cli import build_parser, main
+from lsys3d.diagnostics import Checks
 from lsys3d.errors import OptionsError
 from lsys3d.exchange import ExportOptions
 from lsys3d.forest import ForestOptions
@@ -28,6 +29,7 @@ from lsys3d.wind import WindOptions
 
 CLASSES = [
     Limits,
+    Checks,
     SweepOptions,
     UnionOptions,
     BarkColorOptions,
@@ -56,7 +58,20 @@ def test_every_field_is_declared_with_its_spec(cls):
 
 def test_generate_options_nest_one_class_per_stage():
     names = {f.name: f.type for f in dataclasses.fields(GenerateOptions)}
-    assert list(names) == ["limits", "turtle", "sweep", "union", "color", "attributes", "leaves", "rig", "wind"]
+    assert list(names) == [
+        "limits",
+        "turtle",
+        "sweep",
+        "union",
+        "color",
+        "attributes",
+        "leaves",
+        "organs",
+        "rig",
+        "wind",
+        "checks",
+    ]
+    assert flat_fields(GenerateOptions)["strict"] == ("checks", "strict")
     flat = flat_fields(GenerateOptions)
     assert flat["sides"] == ("sweep", "sides") and flat["union"] == ("union", "enabled")
     assert flat["max_modules"] == ("limits", "max_modules") and flat["bark_color_variation"] == ("color", "variation")
@@ -123,7 +138,9 @@ def test_cli_flags_come_from_the_fields():
         AttributeOptions,
         LeafOptions,
         RigOptions,
+        OrganOptions,
         WindOptions,
+        Checks,
     ):
         for f in dataclasses.fields(cls):
             spec = spec_of(f)

@@ -116,7 +116,7 @@ def write_surfaces(folder):
 
 def test_surfaces_and_fallbacks(tmp_path, caplog):
     table = surface_table(write_surfaces(tmp_path))
-    with caplog.at_level(logging.WARNING, logger="lsys3d"):
+    with caplog.at_level(logging.INFO, logger="lsys3d"):
         o = organs(["flower", "petal", "l", "sphere", "disc"], np.zeros((5, 3)), frames(5), np.ones(5), surfaces=table)
     by_name = {p.name: p for p in o.prototypes}
     assert len(by_name["flower"].mesh.faces) == 2 and by_name["flower"].material is None
@@ -225,3 +225,34 @@ def test_rigged_organs_are_skinned(tmp_path):
     stage = Usd.Stage.Open(str(path))
     binding = UsdSkel.BindingAPI(stage.GetPrimAtPath("/abop_1_24a/Geom/organ_sphere"))
     assert binding.GetJointIndicesPrimvar().Get() is not None
+
+
+def test_the_dialects_organs_grow_through_the_pipeline(tmp_path):
+    """L-Py's @O (radius), @o and ~name in a grammar become organs of the tree, exported and validator-clean."""
+    import trimesh
+
+    star = trimesh.Trimesh([[0, 0, 0], [0.3, 0, 0.5], [0, 0, 1], [-0.3, 0, 0.5]], [[0, 2, 1], [0, 3, 2]])
+    (tmp_path / "flower.obj").write_text(star.export(file_type="obj"))
+    (tmp_path / "plant.toml").write_text(
+        'dialect = "lpy"\n'
+        'axiom = "_(0.05) F(1) [ +(40) F(1) @O(0.1) ] [ -(40) F(1) ~k(0.5) ] F(1) ;(2) @o(0.2)"\n\n'
+        '[surfaces]\nk = "flower.obj"\n'
+    )
+    tree = lsys3d.generate(tmp_path / "plant.toml", seed=0)
+    sk, o = tree.skeleton, tree.organs
+    assert len(o) == 3 and sorted(p.name for p in o.prototypes) == ["circle", "k", "sphere"]
+    by_name = {p.name: i for i, p in enumerate(o.prototypes)}
+    sphere_row = int(np.flatnonzero(o.prototype == by_name["sphere"])[0])
+    assert np.allclose(o.transforms[sphere_row, :3, 3], sk.organ_position[sphere_row])
+    assert np.allclose(np.linalg.norm(o.transforms[sphere_row, :3, :3], axis=0), 0.2)  # L-Py's radius 0.1
+    circle_row = int(np.flatnonzero(o.prototype == by_name["circle"])[0])
+    assert o.material[circle_row] == 2 and o.fallbacks == ()
+    path = export(tree, tmp_path / "plant.glb")
+    report = validators.validate_gltf(path)
+    assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, report["issues"]
+    doc, _ = read_glb(path)
+    assert {"organ_sphere", "organ_circle", "organ_k"} <= {n["name"] for n in doc["nodes"]}
+    path = export(tree, tmp_path / "plant.usda")
+    assert validators.usd_problems(path) == []
+    rigged = lsys3d.generate(tmp_path / "plant.toml", rig=True)
+    assert all("skin_weights" in m.attributes and "branch_id" not in m.attributes for m in rigged.organs.merged)
