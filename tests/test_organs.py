@@ -12,6 +12,7 @@ from gltf_files import node, read_glb
 from pxr import Usd, UsdGeom, UsdShade, UsdSkel
 
 import lsys3d
+from lsys3d.cli import main
 from lsys3d.exchange import ExportOptions, export
 from lsys3d.hierarchy import hierarchy
 from lsys3d.images import png_bytes
@@ -256,3 +257,9 @@ def test_the_dialects_organs_grow_through_the_pipeline(tmp_path):
     assert validators.usd_problems(path) == []
     rigged = lsys3d.generate(tmp_path / "plant.toml", rig=True)
     assert all("skin_weights" in m.attributes and "branch_id" not in m.attributes for m in rigged.organs.merged)
+
+
+def test_the_cli_counts_organs(tmp_path, capsys):
+    (tmp_path / "berry.lpy").write_text("Axiom: _(0.05) F(1) @O(0.1) F(1) @O(0.1)\nderivation length: 0\nendlsystem\n")
+    assert main(["generate", str(tmp_path / "berry.lpy"), "-o", str(tmp_path / "berry.glb")]) == 0
+    assert ", 0 leaves, 2 organs (" in capsys.readouterr().out
