@@ -321,10 +321,11 @@ def cmd_generate(args) -> int:
         segments, leaves = len(tree.skeleton), tree.skeleton.n_leaves
         _print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
     elif not args.quiet:
-        bark, leaves = tree.bark, tree.skeleton.n_leaves
+        bark, leaves, organs = tree.bark, tree.skeleton.n_leaves, len(tree.organs)
         _print(
-            f"wrote {path}: {len(bark.vertices):,} vertices, {len(bark.faces):,} faces, {leaves:,} leaves "
-            f"({time.perf_counter() - t0:.1f} s)"
+            f"wrote {path}: {len(bark.vertices):,} vertices, {len(bark.faces):,} faces, {leaves:,} leaves"
+            + (f", {organs:,} organs" if organs else "")
+            + f" ({time.perf_counter() - t0:.1f} s)"
         )
     return 0
 

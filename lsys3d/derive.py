@@ -24,7 +24,16 @@ one generation is alive at a time.
 Stochastic choice draws, for generation ``g`` and rule pool ``p`` of symbol
 ``s``, a stream seeded with ``(seed, g, s, p)``: the k-th module rewritten by a
 pool takes the k-th number of its stream.  Changing one pool's weights thus
-leaves every other pool's choices alone.
+leaves every other pool's choices alone.  The grammar's random functions take
+counter-based numbers keyed by the seed, the step, their place in the grammar
+and the module's position (:func:`lsys3d.streams.hashed_uniform`).
+
+A step is: cut (the dialect's cut symbol, ``%``, removes itself and the rest of
+its branch, as L-Py and cpfg do when they meet it), rewrite with the
+productions, then the decomposition rules up to ``decomposition_depth`` times
+(each time only what the previous time produced, as L-Py recurses into a
+successor).  :func:`interpretation` applies the homomorphism rules the same
+way to the derived string, for the turtle only.
 """
 
 from __future__ import annotations
@@ -38,11 +47,12 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from . import dialects
 from .errors import DerivationError, LimitError, clip
-from .expr import NOT_FINITE, EvalError
+from .expr import NOT_FINITE, EvalError, RandomDraws
 from .grammar import Grammar, PatternModule, Production
 from .modules import ModuleString
-from .streams import rule_generator
+from .streams import Stream, hashed_uniform, rule_generator
 
 __all__ = [
     "DEFAULT_MAX_MODULES",
@@ -50,6 +60,7 @@ __all__ = [
     "PARAMETER_COST",
     "derive",
     "generations",
+    "interpretation",
     "predict_counts",
     "predict_length",
 ]
@@ -82,20 +93,30 @@ class _Pool:
     condition: object
     alternatives: list[Production]
     cumulative: np.ndarray | None = None  # cumulative weights when stochastic
+    steps: tuple = ()  # a condition with local variables: ("let", name, expr) and ("test", expr)
 
 
 class _Plan:
-    """The grammar arranged for rewriting: pools per symbol code, in rule order."""
+    """One group of the grammar's rules arranged for rewriting: pools per symbol code, in rule order."""
 
-    def __init__(self, grammar: Grammar):
+    def __init__(self, grammar: Grammar, productions: tuple[Production, ...] | None = None):
         self.grammar = grammar
         self.alphabet = grammar.alphabet
         self.code = {ch: i for i, ch in enumerate(grammar.alphabet) if ch != "\0" or i == 0}
-        self.ignore = frozenset(self.code[c] for c in grammar.ignore if c in self.code)
+        if grammar.considered is not None:  # consider: every other symbol is ignored (never brackets)
+            self.ignore = frozenset(
+                i for ch, i in self.code.items() if ch not in grammar.considered and ch not in ("[", "]", "\0")
+            )
+        else:
+            self.ignore = frozenset(self.code[c] for c in grammar.ignored if c in self.code)
+        productions = grammar.productions if productions is None else productions
         pools: dict[tuple, _Pool] = {}
         self.pools_by_code: dict[int, list[_Pool]] = {}
-        for prod in grammar.productions:
+        pooled = dialects.get(grammar.dialect).notation.unweighted_alternatives
+        for prod in productions:
             key = prod.pool_key()
+            if prod.weight is None and not pooled:  # the first rule that matches applies (L-Py, cpfg...)
+                key = (*key, prod.index)
             if key not in pools:
                 code = self.code[prod.predecessor.symbol]
                 pool = _Pool(
@@ -106,6 +127,7 @@ class _Plan:
                     prod.right,
                     prod.condition,
                     [],
+                    steps=prod.steps,
                 )
                 pools[key] = pool
                 self.pools_by_code.setdefault(code, []).append(pool)
@@ -116,13 +138,20 @@ class _Plan:
                 # scaled by a power of two (exact, so the choices are those of the unscaled weights) to
                 # the largest in [0.5, 1): finite weights whose sum would overflow stay finite
                 pool.cumulative = np.cumsum(np.ldexp(w, -math.frexp(float(w.max()))[1]))
-        self.stochastic = any(p.cumulative is not None for p in pools.values())
+        self.random = any(p.random for p in productions)
+        self.stochastic = self.random or any(p.cumulative is not None for p in pools.values())
         self.context = any(p.left or p.right for p in pools.values())
-        # every module's successor length is known from its symbol and arity alone
-        self.predictable = not self.context and all(
-            p.cumulative is None and p.condition is None for p in pools.values()
+        cut = grammar.cut_symbol
+        self.cut = self.code[cut] if cut and cut in grammar.written_symbols else -1
+        # every module's successor length is known from its symbol and arity alone (and no cut or
+        # decomposition changes it afterwards)
+        self.predictable = (
+            not self.context
+            and self.cut < 0
+            and not grammar.decomposition_productions
+            and all(p.cumulative is None and p.condition is None and not p.steps for p in pools.values())
         )
-        self.d0l = self.predictable and not grammar.parametric
+        self.d0l = self.predictable and not grammar.parametric and not self.random
 
 
 def _succ_codes(plan: _Plan, prod: Production) -> np.ndarray:
@@ -251,16 +280,100 @@ def generations(
     if start is not None:
         _check_finite_start(current)
     yield current
+    decompose = _Plan(grammar, grammar.decomposition_productions) if grammar.decomposition_productions else None
     fixed = False
     for g in range(1, n + 1):
         if not fixed:
             previous = current
-            current = _step(plan, previous, g, int(seed), max_modules)
+            current = previous if plan.cut < 0 else _cut(previous, plan.cut)
+            if plan.pools_by_code:
+                current = _step(plan, current, (_PRODUCTION, g), int(seed), max_modules, g)[0]
+            if decompose is not None:
+                current = _passes(decompose, current, grammar.decomposition_depth, _DECOMPOSITION, g, seed, max_modules)
             log.debug("generation %d: %d modules", g, len(current))
             # without chance, a string that rewrites to itself stays itself: the rest is this string
-            fixed = not plan.stochastic and current == previous
+            fixed = not (plan.stochastic or (decompose is not None and decompose.stochastic)) and current == previous
             del previous
         yield current
+
+
+def interpretation(
+    grammar: Grammar,
+    modules: ModuleString,
+    seed: int | None = None,
+    *,
+    max_modules: int = DEFAULT_MAX_MODULES,
+) -> ModuleString:
+    """The string the turtle reads: ``modules`` cut and rewritten by the homomorphism rules (if any).
+
+    Homomorphism (interpretation) rules apply after derivation, up to
+    ``grammar.homomorphism_depth`` times (each time to what the previous time
+    produced), and their result is never fed back into the derivation.
+
+    >>> from lsys3d import Grammar, derive
+    >>> g = Grammar(axiom="A", rules=["A -> AB"], homomorphism=["B -> F+"], iterations=2)
+    >>> str(derive(g)), str(interpretation(g, derive(g)))
+    ('ABB', 'AF+F+')
+    """
+    seed = grammar.seed if seed is None else seed
+    plan = _Plan(grammar, grammar.homomorphism_productions)
+    if plan.cut >= 0:
+        modules = _cut(modules, plan.cut)
+    if plan.pools_by_code:
+        if modules.alphabet != plan.alphabet and modules.alphabet[128:] != plan.alphabet[128:]:
+            raise DerivationError("the string uses symbols this grammar does not know")
+        modules = _passes(plan, modules, grammar.homomorphism_depth, _HOMOMORPHISM, 0, seed, max_modules)
+        if plan.cut >= 0:
+            modules = _cut(modules, plan.cut)
+    return modules
+
+
+_PRODUCTION, _DECOMPOSITION, _HOMOMORPHISM = 0, 1, 2
+_PHASE = {_PRODUCTION: "generation", _DECOMPOSITION: "decomposition of generation", _HOMOMORPHISM: "homomorphism"}
+
+
+def _passes(plan: _Plan, ms: ModuleString, depth: int, kind: int, generation: int, seed, max_modules) -> ModuleString:
+    """Rewrite ``ms`` with ``plan`` up to ``depth`` times, each time only the modules the previous time produced."""
+    eligible = None
+    for d in range(depth):
+        out, produced = _step(plan, ms, (kind, generation, d), int(seed), max_modules, generation, eligible)
+        if produced is None:  # nothing matched
+            break
+        ms, eligible = out, produced
+    return ms
+
+
+@numba.njit(cache=True, nogil=True)
+def _cut_mask(symbols, cut):
+    """The modules kept when each ``cut`` symbol removes itself and the rest of its branch (up to its ``]``)."""
+    m = symbols.shape[0]
+    keep = np.ones(m, np.bool_)
+    i = 0
+    while i < m:
+        if symbols[i] != cut:
+            i += 1
+            continue
+        depth = 0
+        while i < m:
+            s = symbols[i]
+            if s == _OPEN:
+                depth += 1
+            elif s == _CLOSE:
+                if depth == 0:
+                    break
+                depth -= 1
+            keep[i] = False
+            i += 1
+    return keep
+
+
+def _cut(ms: ModuleString, cut: int) -> ModuleString:
+    if not (ms.symbols == cut).any():
+        return ms
+    keep = _cut_mask(ms.symbols, np.uint8(cut))
+    return ModuleString(
+        ms.symbols[keep], ms.arity[keep], ms.params[np.repeat(keep, ms.arity.astype(np.int64))], ms.alphabet
+    )
 
 
 def _check_iterations(grammar: Grammar, iterations) -> int:
@@ -291,7 +404,9 @@ def _count(x: float) -> str:
     return f"{int(x):,}" if x < _CAP else f"more than {int(_CAP):,}"
 
 
-def _check_size(modules: float, params: float, max_modules: int, grammar: Grammar, generation: int):
+def _check_size(
+    modules: float, params: float, max_modules: int, grammar: Grammar, generation: int, phase: str = "generation"
+):
     """Refuse a generation of ``modules`` modules holding ``params`` parameters when it costs more than the limit."""
     if modules + PARAMETER_COST * params <= max_modules:
         return
@@ -299,7 +414,7 @@ def _check_size(modules: float, params: float, max_modules: int, grammar: Gramma
     if modules <= max_modules:  # the parameters tipped it over
         what += f" with {_count(params)} parameters (each counts as {PARAMETER_COST:g} of a module)"
     raise LimitError(
-        f"{grammar.source}: generation {generation} would have {what}, more than the limit of "
+        f"{grammar.source}: {phase} {generation} would have {what}, more than the limit of "
         f"{max_modules:,} modules; use fewer iterations, or raise the limit (--max-modules, or max_modules=)"
     )
 
@@ -484,6 +599,8 @@ class _Context:
 
     def _bind(self, j: np.ndarray, ok: np.ndarray, pm: PatternModule, values: list) -> None:
         """Narrow ``ok`` to the candidates whose module ``j`` is ``pm``; append its parameters to ``values``."""
+        if pm.symbol == "*":  # any module (its parameters are not bound)
+            return
         ms = self.ms
         jj = np.where(ok, j, 0)
         ok &= (ms.symbols[jj] == self.code[pm.symbol]) & (ms.arity[jj] == len(pm.formals))
@@ -528,25 +645,67 @@ class _Context:
         return ok, values
 
 
-def _fail(prod: Production, where: str, exc: EvalError, ms: ModuleString, idx: np.ndarray, generation: int):
+def _fail(prod: Production, where: str, exc: EvalError, ms: ModuleString, idx: np.ndarray, during: str):
     bad = int(idx[int(exc.index[0])]) if len(exc.index) and len(idx) else int(idx[0]) if len(idx) else -1
     module = f" for module {ms.module_text(bad, short=True)} (#{bad})" if bad >= 0 else ""
-    return DerivationError(
-        f"{prod.location}: rule '{clip(prod.text)}': {exc} in {where}{module} while deriving generation {generation}"
-    )
+    return DerivationError(f"{prod.location}: rule '{clip(prod.text)}': {exc} in {where}{module} while {during}")
 
 
-def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules: int) -> ModuleString:
+def _during(keys: tuple) -> str:
+    kind, generation = keys[0], keys[1]
+    if kind == _PRODUCTION:
+        return f"deriving generation {generation}"
+    if kind == _DECOMPOSITION:
+        return f"decomposing generation {generation}"
+    return "applying the homomorphism rules"
+
+
+class _Draws(RandomDraws):
+    """The random functions' numbers of one step: keyed by the seed, the step and each module's position."""
+
+    def __init__(self, seed: int, keys: tuple, index: np.ndarray):
+        self.seed = seed
+        self.keys = keys
+        self.index = index
+
+    def draw(self, site: int, k: int) -> np.ndarray:
+        return hashed_uniform(self.seed, Stream.GRAMMAR_RANDOM, (*self.keys, site, k), self.index)
+
+    def subset(self, index: np.ndarray) -> _Draws:
+        return _Draws(self.seed, self.keys, self.index[index])
+
+
+def _narrow(sel, env, draws, ok):
+    return sel[ok], {k: v[ok] for k, v in env.items()}, draws.subset(np.flatnonzero(ok))
+
+
+def _step(
+    plan: _Plan,
+    ms: ModuleString,
+    keys: tuple,
+    seed: int,
+    max_modules: int,
+    generation: int,
+    eligible: np.ndarray | None = None,
+) -> tuple[ModuleString, np.ndarray | None]:
+    """One parallel rewrite of ``ms`` with ``plan``'s rules: the new string and which of its modules were produced.
+
+    ``keys`` name the step for the random numbers (kind, generation[, pass]); ``eligible`` restricts
+    the modules that may be rewritten.  The mask of produced modules is None when nothing matched.
+    """
     m = len(ms)
     sym = ms.symbols
     offsets = ms.offsets
     params = ms.params
     matched = np.zeros(m, dtype=bool)
-    chosen: list[tuple[Production, np.ndarray, dict]] = []
+    chosen: list[tuple[Production, np.ndarray, dict, _Draws]] = []
     context = _Context(plan, ms) if plan.context else None
+    during = _during(keys)
 
     for code, pools in plan.pools_by_code.items():
         remaining = np.flatnonzero(sym == code)
+        if eligible is not None:
+            remaining = remaining[eligible[remaining]]
         for pool in pools:
             if not len(remaining):
                 break
@@ -572,21 +731,35 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
                 base = offsets[sel]
                 for c, name in enumerate(prod0.predecessor.formals):
                     env[name] = params[base + c]
+            draws = _Draws(seed, keys, sel)
             if pool.condition is not None:
                 try:
-                    ok = pool.condition.evaluate(env, len(sel)) != 0
+                    ok = pool.condition.evaluate(env, len(sel), random=draws) != 0
                 except EvalError as exc:
-                    raise _fail(prod0, "its condition", exc, ms, sel, generation) from None
-                sel = sel[ok]
-                env = {k: v[ok] for k, v in env.items()}
+                    raise _fail(prod0, "its condition", exc, ms, sel, during) from None
+                sel, env, draws = _narrow(sel, env, draws, ok)
+            for step in pool.steps:  # local variables and tests, in order
                 if not len(sel):
-                    continue
+                    break
+                try:
+                    value = step[-1].evaluate(env, len(sel), random=draws)
+                except EvalError as exc:
+                    what = f"local variable '{step[1]}'" if step[0] == "let" else "its condition"
+                    raise _fail(prod0, what, exc, ms, sel, during) from None
+                if step[0] == "let":
+                    env[step[1]] = value
+                else:
+                    sel, env, draws = _narrow(sel, env, draws, value != 0)
+            if not len(sel):
+                continue
             matched[sel] = True
             remaining = remaining[~matched[remaining]]
             if pool.cumulative is None:
-                chosen.append((prod0, sel, env))
+                chosen.append((prod0, sel, env, draws))
                 continue
-            rng = rule_generator(seed, generation, code, pool.pool_id)
+            # productions keep the streams they always had; the later passes take their own
+            later = 0 if keys[0] == _PRODUCTION else (1 << 20) * (64 * keys[0] + keys[-1] + 1)
+            rng = rule_generator(seed, keys[1], code, pool.pool_id + later)
             u = rng.random(len(sel)) * pool.cumulative[-1]
             pick = np.minimum(np.searchsorted(pool.cumulative, u, side="right"), len(pool.alternatives) - 1)
             # group the modules by the alternative they drew: one sort, not one pass per alternative
@@ -594,11 +767,15 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
             bounds = np.concatenate([[0], np.cumsum(np.bincount(pick, minlength=len(pool.alternatives)))])
             for a in np.flatnonzero(np.diff(bounds)).tolist():
                 take = order[bounds[a] : bounds[a + 1]]
-                chosen.append((pool.alternatives[a], sel[take], {k: v[take] for k, v in env.items()}))
+                chosen.append(
+                    (pool.alternatives[a], sel[take], {k: v[take] for k, v in env.items()}, draws.subset(take))
+                )
+    if not chosen:
+        return ms, None
 
     out_len = np.ones(m, dtype=np.int64)
     out_arity = ms.arity.astype(np.int64)
-    for prod, idx, _ in chosen:
+    for prod, idx, _, _ in chosen:
         out_len[idx] = len(prod.successor)
         out_arity[idx] = sum(len(s.args) for s in prod.successor)
     mod_off = np.zeros(m + 1, dtype=np.int64)
@@ -606,7 +783,7 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
     par_off = np.zeros(m + 1, dtype=np.int64)
     np.cumsum(out_arity, out=par_off[1:])
     total = int(mod_off[-1])
-    _check_size(total, int(par_off[-1]), max_modules, plan.grammar, generation)
+    _check_size(total, int(par_off[-1]), max_modules, plan.grammar, generation, _PHASE[keys[0]])
 
     new_sym = np.empty(total, dtype=np.uint8)
     new_arity = np.empty(total, dtype=np.uint8)
@@ -619,7 +796,7 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
         lengths = ms.arity[with_params]
         new_params[_ranges(par_off[with_params], lengths)] = params[_ranges(offsets[with_params], lengths)]
 
-    for prod, idx, env in chosen:
+    for prod, idx, env, draws in chosen:
         n = len(idx)
         p = 0
         first_module, first_param = mod_off[idx], par_off[idx]
@@ -629,37 +806,40 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
             new_arity[pos] = len(smod.args)
             for expr in smod.args:
                 try:
-                    values = expr.evaluate(env, n, finite=False)  # checked below, all at once
+                    values = expr.evaluate(env, n, finite=False, random=draws)  # checked below, all at once
                 except EvalError as exc:
                     what = f"parameter '{clip(expr.text)}' of {smod.symbol}"
-                    raise _fail(prod, what, exc, ms, idx, generation) from None
+                    raise _fail(prod, what, exc, ms, idx, during) from None
                 new_params[first_param + p] = values
                 p += 1
     # Overflow (A(x) -> A(x*1e300)) or NaN: one pass over the whole generation.  The sum is
     # finite exactly when every parameter is, unless finite values overflow it; only then (and
     # on a real error) the elementwise test runs.
     with np.errstate(over="ignore"):
-        total = new_params.sum()
-    if not np.isfinite(total) and not np.isfinite(new_params).all():
-        raise _not_finite(chosen, ms, new_params, par_off, generation)
-    return ModuleString(new_sym, new_arity, new_params, plan.alphabet)
+        total_sum = new_params.sum()
+    if not np.isfinite(total_sum) and not np.isfinite(new_params).all():
+        raise _not_finite(chosen, ms, new_params, par_off, during)
+    produced = np.zeros(total if keys[0] != _PRODUCTION else 0, np.bool_)
+    if keys[0] != _PRODUCTION:  # the passes after this one rewrite only what this one produced
+        rewritten = np.flatnonzero(matched)
+        produced[_ranges(mod_off[rewritten], out_len[rewritten])] = True
+    return ModuleString(new_sym, new_arity, new_params, plan.alphabet), produced
 
 
-def _not_finite(chosen, ms: ModuleString, new_params, par_off, generation: int) -> DerivationError:
+def _not_finite(chosen, ms: ModuleString, new_params, par_off, during: str) -> DerivationError:
     """The error for the first parameter of a generation that is infinite or NaN: its rule and module."""
     k = int(np.flatnonzero(~np.isfinite(new_params))[0])
     i = int(np.searchsorted(par_off, k, side="right")) - 1  # the module it was rewritten from
-    for prod, idx, _ in chosen:
+    for prod, idx, _, _ in chosen:
         pos = int(np.searchsorted(idx, i))
         if pos < len(idx) and idx[pos] == i:
             p = k - int(par_off[i])
             for smod in prod.successor:
                 if p < len(smod.args):
                     where = f"parameter '{clip(smod.args[p].text)}' of {smod.symbol}"
-                    return _fail(prod, where, EvalError(NOT_FINITE, [pos]), ms, idx, generation)
+                    return _fail(prod, where, EvalError(NOT_FINITE, [pos]), ms, idx, during)
                 p -= len(smod.args)
     # copied unchanged: only a start string given from Python can hold such a number
     return DerivationError(
-        f"module {ms.module_text(i, short=True)} (#{i}) has a parameter that is not a finite number "
-        f"while deriving generation {generation}"
+        f"module {ms.module_text(i, short=True)} (#{i}) has a parameter that is not a finite number while {during}"
     )

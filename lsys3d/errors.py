@@ -9,6 +9,7 @@ from __future__ import annotations
 import re
 
 __all__ = [
+    "AssetError",
     "BatchError",
     "DerivationError",
     "ExportError",
@@ -105,6 +106,14 @@ class GrammarError(LSystemError, ValueError):
             if col is not None:
                 where += f":{col}"
         super().__init__(f"{where}: {message}")
+
+
+class AssetError(LSystemError, ValueError):
+    """A file a grammar names (a texture, a leaf or organ model) that cannot be used: ``path: what``.
+
+    Read through :mod:`lsys3d.external`; the grammar's tables report it as a
+    :class:`GrammarError` at the line of the entry that names the file.
+    """
 
 
 class OptionsError(LSystemError, ValueError):

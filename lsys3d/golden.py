@@ -29,6 +29,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from . import dialects
 from .errors import GoldenError, LSystemError, OptionsError, clip, os_reason
 from .exchange.atomic import write_bytes
 from .grammar import Grammar
@@ -218,6 +219,8 @@ def recipe_for(
         folder = Path(golden_path).resolve().parent
         kind["file"] = Path(os.path.relpath(Path(source).resolve(), folder)).as_posix()
     else:
+        if dialects.reader_for(source) is not None:  # a native file no longer there: its grammar as TOML
+            text = grammar_text(Grammar.from_text(text, source=source))
         kind["text"] = text
     return Recipe(
         iterations=int(iterations),

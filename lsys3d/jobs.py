@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .dialects import SUFFIXES
 from .errors import BatchError, LSystemError, OptionsError, clip
 from .exchange import ExportOptions
 from .grammar import MAX_GRAMMAR_BYTES, Grammar
@@ -338,7 +339,7 @@ def _read_grammar(spec: str, folder: Path, loc: _Locator, entry: int) -> _Gramma
     from .presets import list_presets, load_preset, preset_text
 
     path = folder / spec
-    is_path = spec.endswith(".toml") or "/" in spec or os.sep in spec or path.exists()
+    is_path = spec.endswith((".toml", *SUFFIXES)) or "/" in spec or os.sep in spec or path.exists()
     if not is_path:
         if spec not in list_presets():
             raise loc.error(

@@ -30,12 +30,23 @@ from dataclasses import dataclass, field
 import manifold3d
 import numpy as np
 
-from .errors import GeometryError
+from .errors import GeometryError, LimitError
 from .hierarchy import Hierarchy
 from .mesh import Mesh
+from .options import Options, option
 from .skeleton import Skeleton
+from .sweep import DEFAULT_MAX_TRIANGLES
 
-__all__ = ["Leaves", "default_leaf", "instance_leaves", "leaf_transforms", "leaves", "polygon_leaves"]
+__all__ = ["LeafOptions", "Leaves", "default_leaf", "instance_leaves", "leaf_transforms", "leaves", "polygon_leaves"]
+
+
+@dataclass(frozen=True)
+class LeafOptions(Options):
+    """How the leaves stage builds the built-in leaf (a grammar's ``[surfaces] leaf`` replaces it)."""
+
+    leaf_points: int = option(
+        7, low=1, high=256, help="rows across the built-in leaf blade between base and tip (4 triangles each)"
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -257,7 +268,12 @@ def polygon_leaves(skeleton: Skeleton, attributes: Mapping | None = None) -> Mes
 
 
 def leaves(
-    skeleton: Skeleton, model: Mesh | None = None, hierarchy: Hierarchy | None = None, attributes=None
+    skeleton: Skeleton,
+    model: Mesh | None = None,
+    hierarchy: Hierarchy | None = None,
+    attributes=None,
+    options: LeafOptions | None = None,
+    max_triangles: int = DEFAULT_MAX_TRIANGLES,
 ) -> Leaves:
     """Every leaf of a skeleton: polygons, instances (model + transforms) and all merged.
 
@@ -265,14 +281,25 @@ def leaves(
     ----------
     skeleton : Skeleton
     model : Mesh or trimesh.Trimesh, optional
-        Leaf model in the convention of this module (default :func:`default_leaf`).
+        Leaf model in the convention of this module (default :func:`default_leaf`
+        with ``options.leaf_points`` rows; a grammar's ``[surfaces] leaf``,
+        :mod:`lsys3d.surfaces`).
     hierarchy : Hierarchy, optional
         The skeleton's branch hierarchy: when given, every leaf carries the
         attributes of the branch it grows from (:mod:`lsys3d.attributes`), per
         instance and per vertex.
     attributes : sequence of str, optional
         Which attributes (default: all of :data:`lsys3d.attributes.ATTRIBUTES`).
+    options : LeafOptions, optional
+    max_triangles : int
+        Most triangles of the leaves baked in place (instances times the model's triangles).
+
+    Raises
+    ------
+    LimitError
+        The baked leaves would have more than ``max_triangles`` triangles (counted before they are built).
     """
+    options = options or LeafOptions()
     if model is not None and not isinstance(model, Mesh):
         model = Mesh.from_trimesh(model)
     instance_attrs = polygon_attrs = {}
@@ -286,7 +313,14 @@ def leaves(
     leaf_model = None
     baked = None
     if len(transforms):
-        leaf_model = default_leaf() if model is None else model
+        leaf_model = default_leaf(options.leaf_points) if model is None else model
+        total = len(transforms) * len(leaf_model.faces)
+        if total > max_triangles:
+            raise LimitError(
+                f"leaves: {len(transforms):,} leaves of {len(leaf_model.faces):,} triangles make {total:,} triangles, "
+                f"more than the limit of {max_triangles:,}; use a smaller leaf model or fewer leaves, or raise the "
+                "limit (--max-triangles, or max_triangles=)"
+            )
         baked = instance_leaves(leaf_model, transforms, instance_attrs, skeleton.leaf_material)
     parts = [m for m in (polygons, baked) if m is not None]
     merged = Mesh.concatenate(parts) if parts else None

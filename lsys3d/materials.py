@@ -11,7 +11,12 @@ the dialects' colour symbols) materials of their own::
     5 = { name = "blossom", base_color = [0.9, 0.75, 0.8, 1.0], roughness = 0.4, double_sided = true }
 
 ``base_color`` is linear RGB (or RGBA) in [0, 1], or an sRGB hex colour
-``"#rrggbb"`` as picked in an image editor (converted to linear).  A segment or
+``"#rrggbb"`` as picked in an image editor (converted to linear).  ``texture``
+names a PNG or JPEG image for the base colour (multiplied by ``base_color``, as
+glTF does), ``normal_texture`` a tangent-space normal map, both relative to the
+grammar file (:mod:`lsys3d.external`, checked by :mod:`lsys3d.images`);
+``alpha_cutoff`` makes the texture's alpha a cut-out mask (leaf cards): texels
+with less alpha are not drawn.  A segment or
 a leaf whose index has no entry keeps the default bark or leaf material; the
 keys ``bark`` and ``leaf`` replace those defaults.  Leaves are single sheets, so
 their materials are always double-sided.  The writers give each
@@ -28,7 +33,9 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from .errors import GrammarError, OptionsError, clip
+from .errors import AssetError, GrammarError, OptionsError, clip
+from .external import grammar_folder, resolve
+from .images import Image, read_image
 
 __all__ = [
     "BARK",
@@ -46,13 +53,27 @@ MAX_MATERIAL_INDEX = 255
 
 @dataclass(frozen=True)
 class Material:
-    """A PBR material: linear base colour (RGBA), roughness, metallic, double-sidedness."""
+    """A PBR material: linear base colour (RGBA), roughness, metallic, double-sidedness, textures.
+
+    ``texture`` (the base colour's image, multiplied by ``base_color``) and
+    ``normal_texture`` (a tangent-space normal map) are :class:`~lsys3d.images.Image`;
+    ``alpha_cutoff`` (None: opaque, or blended when ``base_color``'s alpha is
+    below 1) makes alpha a cut-out mask: texels with less alpha are not drawn.
+    """
 
     name: str
     base_color: tuple[float, float, float, float]
     roughness: float = 0.8
     metallic: float = 0.0
     double_sided: bool = False
+    texture: Image | None = None
+    normal_texture: Image | None = None
+    alpha_cutoff: float | None = None
+
+    @property
+    def images(self) -> tuple[Image, ...]:
+        """The material's images (base colour first), for the writers to embed or copy."""
+        return tuple(i for i in (self.texture, self.normal_texture) if i is not None)
 
 
 BARK = Material("bark", (0.30, 0.20, 0.12, 1.0), roughness=0.9)
@@ -116,7 +137,15 @@ def _color(value, where: str) -> tuple[float, float, float, float]:
     return tuple(rgba)
 
 
-def _material(entry, default: Material, where: str) -> Material:
+def _texture(value, folder, where: str) -> Image:
+    try:
+        return read_image(resolve(folder, value, where))
+    except AssetError as exc:
+        text = str(exc)
+        raise OptionsError(text if text.startswith(where) else f"{where}: {text}") from None
+
+
+def _material(entry, default: Material, where: str, folder=None) -> Material:
     if not isinstance(entry, Mapping):
         raise OptionsError(f"{where}: expected a table such as {{ base_color = [0.3, 0.2, 0.1] }}")
     unknown = sorted(set(entry) - _FIELDS)
@@ -138,6 +167,17 @@ def _material(entry, default: Material, where: str) -> Material:
             if not isinstance(value, bool):
                 raise OptionsError(f"{where}: double_sided must be true or false, not {clip(repr(value))}")
             values[key] = value
+        elif key in ("texture", "normal_texture"):
+            values[key] = _texture(value, folder, f"{where}: {key}")
+        elif key == "alpha_cutoff":
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value <= 1:
+                raise OptionsError(f"{where}: alpha_cutoff must be a number in [0, 1], not {clip(repr(value))}")
+            values[key] = float(value)
+    texture = values.get("texture", default.texture)
+    if "alpha_cutoff" in values and texture is not None and not texture.alpha:
+        raise OptionsError(
+            f"{where}: alpha_cutoff needs a texture with an alpha channel, and {clip(repr(texture.name))} has none"
+        )
     if "name" not in values:
         values["name"] = default.name if where.endswith(("bark", "leaf")) else f"material_{where.split('.')[-1]}"
     return Material(**{**{f: getattr(default, f) for f in _FIELDS}, **values})
@@ -162,15 +202,16 @@ def material_table(grammar) -> MaterialTable:
 
     raw = dict(getattr(grammar, "materials", {}) or {})
     bark, leaf, by_index = BARK, LEAF, {}
+    folder = grammar_folder(grammar) if raw else None
     for key, entry in raw.items():
         where = f"materials.{key}"
         try:
             if key == "bark":
-                bark = _material(entry, BARK, where)
+                bark = _material(entry, BARK, where, folder)
             elif key == "leaf":
-                leaf = _material(entry, LEAF, where)
+                leaf = _material(entry, LEAF, where, folder)
             elif re.fullmatch(r"\d+", str(key)) and int(key) <= MAX_MATERIAL_INDEX:
-                by_index[int(key)] = _material(entry, BARK, where)
+                by_index[int(key)] = _material(entry, BARK, where, folder)
             else:
                 raise OptionsError(
                     f"{where}: a key is a material index 0..{MAX_MATERIAL_INDEX}, 'bark' or 'leaf', "

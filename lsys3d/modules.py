@@ -9,8 +9,12 @@ A string of ``m`` modules is stored as arrays, never as Python objects per modul
     Number of parameters of each module.
 ``params : (k,) float64``
     All parameters, module after module (``k == arity.sum()``).
-``alphabet : str``
-    256 characters; ``alphabet[id]`` is the symbol with that id.
+``alphabet : tuple of 256 str``
+    ``alphabet[id]`` is the name of the module with that id (``"\\0"`` for an id
+    no module uses).  Ids below 128 are ASCII symbols, named by their own
+    character; the ids from 128 up name everything else: non-ASCII symbols and
+    multi-character module names (``Leaf``, ``@O``, ``~l``), so a module is
+    still one ``uint8`` however long its name.
 """
 
 from __future__ import annotations
@@ -21,9 +25,28 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["ASCII_ALPHABET", "ModuleString", "format_number"]
+__all__ = ["ASCII_ALPHABET", "ModuleString", "as_alphabet", "format_number"]
 
-ASCII_ALPHABET = "".join(chr(i) for i in range(128)) + "\0" * 128
+UNUSED = "\0"
+"""The name of an id that no module uses."""
+ASCII_ALPHABET: tuple[str, ...] = tuple(chr(i) for i in range(128)) + (UNUSED,) * 128
+"""The alphabet of strings whose symbols are all ASCII characters."""
+
+
+def as_alphabet(names) -> tuple[str, ...]:
+    """``names`` (a 256-character string or a sequence of 256 names) as the tuple a :class:`ModuleString` holds.
+
+    >>> as_alphabet(ASCII_ALPHABET) is ASCII_ALPHABET
+    True
+    >>> as_alphabet("".join(ASCII_ALPHABET[:128]) + "é" + "\\0" * 127)[128]
+    'é'
+    """
+    if names is ASCII_ALPHABET:
+        return names
+    out = tuple(names)
+    if len(out) != 256 or not all(isinstance(n, str) and n for n in out):
+        raise ValueError("an alphabet holds 256 names, one per symbol id")
+    return ASCII_ALPHABET if out == ASCII_ALPHABET else out
 
 
 def format_number(x: float) -> str:
@@ -44,15 +67,17 @@ class ModuleString:
     symbols: np.ndarray
     arity: np.ndarray
     params: np.ndarray
-    alphabet: str = ASCII_ALPHABET
+    alphabet: tuple[str, ...] = ASCII_ALPHABET
 
     def __post_init__(self):
         for name in ("symbols", "arity", "params"):
             getattr(self, name).setflags(write=False)
+        object.__setattr__(self, "alphabet", as_alphabet(self.alphabet))
 
     @classmethod
-    def from_symbols(cls, text: str, alphabet: str = ASCII_ALPHABET) -> ModuleString:
+    def from_symbols(cls, text: str, alphabet=ASCII_ALPHABET) -> ModuleString:
         """A parameterless string from its text (every character one module)."""
+        alphabet = as_alphabet(alphabet)
         codes = [alphabet.index(c) if ord(c) >= 128 else ord(c) for c in text]
         m = len(codes)
         return cls(np.array(codes, dtype=np.uint8), np.zeros(m, np.uint8), np.zeros(0, np.float64), alphabet)
@@ -83,15 +108,24 @@ class ModuleString:
 
     def count(self, symbol: str) -> int:
         """How many modules have this symbol."""
-        code = ord(symbol) if ord(symbol) < 128 else self.alphabet.find(symbol)
+        code = ord(symbol) if len(symbol) == 1 and ord(symbol) < 128 else self.code(symbol)
         return int(np.count_nonzero(self.symbols == code)) if code >= 0 else 0
+
+    def code(self, name: str) -> int:
+        """The id of the module named ``name``, or -1 if the alphabet has no such name."""
+        if len(name) == 1 and ord(name) < 128:
+            return ord(name)
+        try:
+            return self.alphabet.index(name, 128)
+        except ValueError:
+            return -1
 
     def symbol_text(self, start: int = 0, stop: int | None = None) -> str:
         """The symbols alone, without parameters (of modules ``start`` to ``stop``)."""
         raw = self.symbols[start:stop].tobytes().decode("latin-1")
-        if self.alphabet is ASCII_ALPHABET or self.alphabet[128:] == ASCII_ALPHABET[128:]:
+        if self.alphabet is ASCII_ALPHABET:
             return raw
-        return raw.translate({i: self.alphabet[i] for i in range(128, 256)})
+        return raw.translate({i: self.alphabet[i] for i in range(128, 256) if self.alphabet[i] != UNUSED})
 
     def iter_text(self, chunk: int = 1 << 16) -> Iterator[str]:
         """The text of :meth:`__str__` in pieces of ``chunk`` modules, to write a long string without holding it.

@@ -3,7 +3,7 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> color -> materials -> attributes -> leaves -> rig
+    derive -> interpret -> sweep -> union -> color -> materials -> attributes -> leaves -> rig -> wind
 """
 
 from __future__ import annotations
@@ -11,33 +11,51 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from . import bark as bark_stage
+from . import dialects
 from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
-from .derive import DEFAULT_MAX_MODULES, derive
-from .errors import GeometryError
+from .derive import DEFAULT_MAX_MODULES, derive, interpretation
+from .diagnostics import Checks, check
+from .errors import GeometryError, OptionsError
 from .grammar import Grammar
 from .hierarchy import hierarchy
+from .leaves import LeafOptions
 from .leaves import leaves as build_leaves
 from .materials import material_table, with_face_materials
 from .mesh import Mesh
 from .modules import ModuleString
 from .options import Options, option
+from .organs import OrganOptions, bind_organs, skeleton_organs
 from .presets import load
 from .provenance import Provenance
 from .rig import SKIN_KEYS, RigOptions, bind, build_rig
 from .skeleton import Skeleton
+from .surfaces import surface_table, with_cards
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
-from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret
+from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret, symbol_table
 from .union import UnionOptions, concatenate, union
+from .wind import WindOptions, sway
 
 __all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage"]
 
 log = logging.getLogger("lsys3d")
 
-STAGES = ("derive", "interpret", "sweep", "union", "color", "materials", "attributes", "leaves", "rig")
+STAGES = (
+    "derive",
+    "interpret",
+    "sweep",
+    "union",
+    "color",
+    "materials",
+    "attributes",
+    "leaves",
+    "organs",
+    "rig",
+    "wind",
+)
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
 
@@ -50,7 +68,9 @@ class Limits(Options):
     )
     max_segments: int = option(DEFAULT_MAX_SEGMENTS, low=1, help="most segments the turtle draws")
     max_triangles: int = option(
-        DEFAULT_MAX_TRIANGLES, low=1, help="most tube triangles before the union (counted before the sweep allocates)"
+        DEFAULT_MAX_TRIANGLES,
+        low=1,
+        help="most tube triangles before the union, and most leaf triangles baked in place (counted before allocating)",
     )
 
 
@@ -75,8 +95,16 @@ class GenerateOptions(Options):
         Bark colour variation written as vertex colours after the union.
     attributes : AttributeOptions
         Hierarchy and wind attributes on the bark's vertices and the leaves (off by default).
+    leaves : LeafOptions
+        The built-in leaf's resolution (a grammar's ``[surfaces] leaf`` replaces the built-in leaf).
+    organs : OrganOptions
+        The resolution of the built-in organs (spheres, discs) the dialects' ``@O``, ``@c``, ``@o`` draw.
     rig : RigOptions
         Joints along the branches and the skin that binds bark and leaves to them (off by default).
+    wind : WindOptions
+        A sample wind animation keyed on the rig's joints (off by default; needs the rig).
+    checks : Checks
+        Whether the grammar's warnings (:mod:`lsys3d.diagnostics`) are errors (``strict``).
 
     Every field below these has a flat name (``sides``, ``union``,
     ``max_modules``, ``bark_color_variation``...) for :meth:`from_flat`,
@@ -89,12 +117,21 @@ class GenerateOptions(Options):
     union: UnionOptions = option(factory=UnionOptions, help="the union")
     color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
     attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
+    leaves: LeafOptions = option(factory=LeafOptions, help="leaves")
+    organs: OrganOptions = option(factory=OrganOptions, help="organs")
     rig: RigOptions = option(factory=RigOptions, help="the rig")
+    wind: WindOptions = option(factory=WindOptions, help="the wind animation")
+    checks: Checks = option(factory=Checks, help="the grammar's warnings")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
             object.__setattr__(self, "turtle", TurtleOverrides(self.turtle))
         super().__post_init__()
+        if self.wind.enabled and not self.rig.enabled:
+            raise OptionsError(
+                "WindOptions.seconds (--wind-animation): the wind animation moves the rig's joints: "
+                "it needs the rig (--rig)"
+            )
 
 
 def run_stage(name: str, fn: Callable, *args, progress: Callable[[str, str, float], None] | None = None, **kw):
@@ -125,6 +162,9 @@ def draw(
 
     ``options`` gives the size limits and the ``turtle`` overrides of the
     grammar's ``[turtle]`` table; :func:`generate` goes on from here to the meshes.
+    The turtle reads the derived string rewritten by the grammar's homomorphism
+    rules (:func:`lsys3d.derive.interpretation`), with its dialect's commands;
+    what it cannot draw as meant is reported (:mod:`lsys3d.diagnostics`).
 
     Examples
     --------
@@ -136,10 +176,17 @@ def draw(
     options = options or GenerateOptions()
     limits = options.limits
     modules = run_stage("derive", derive, grammar, iterations, seed, max_modules=limits.max_modules, progress=progress)
-    turtle = TurtleOptions.from_grammar(grammar, options.turtle) if options.turtle else grammar
-    skeleton = run_stage(
-        "interpret", interpret, modules, turtle, seed=seed, max_segments=limits.max_segments, progress=progress
-    )
+    turtle = TurtleOptions.from_grammar(grammar, options.turtle)
+    commands = dialects.get(grammar.dialect).commands
+
+    def turtle_stage():
+        shown = interpretation(grammar, modules, seed, max_modules=limits.max_modules)
+        skeleton = interpret(shown, turtle, seed=seed, max_segments=limits.max_segments, commands=commands)
+        return shown, skeleton
+
+    shown, skeleton = run_stage("interpret", turtle_stage, progress=progress)
+    table = symbol_table(shown.alphabet, turtle.draw, turtle.move, turtle.leaf, commands)
+    check(grammar, shown, skeleton, table, options.checks)
     return modules, skeleton
 
 
@@ -190,7 +237,9 @@ def generate(
     def stage(name, fn, *args, **kw):
         return run_stage(name, fn, *args, progress=progress, **kw)
 
-    table = material_table(grammar)  # a bad [materials] table fails before the work
+    table = material_table(grammar)  # a bad [materials] or [surfaces] table fails before the work
+    surfaces = surface_table(grammar)
+    table = with_cards(table, surfaces, grammar)
 
     modules, skeleton = draw(grammar, n, seed, options, progress=progress)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
@@ -232,13 +281,36 @@ def generate(
         bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
     if keys:
         bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
-    leaves = stage("leaves", build_leaves, skeleton, hierarchy=branches, attributes=keys)
-    rig = None
+    leaf_model = surfaces.leaf.mesh if surfaces.leaf is not None else None
+    leaves = stage(
+        "leaves",
+        build_leaves,
+        skeleton,
+        model=leaf_model,
+        hierarchy=branches,
+        attributes=keys,
+        options=options.leaves,
+        max_triangles=options.limits.max_triangles,
+    )
+    organs = stage(
+        "organs",
+        skeleton_organs,
+        skeleton,
+        surfaces=surfaces,
+        options=options.organs,
+        hierarchy=branches if keys else None,
+        attributes=keys,
+        max_triangles=options.limits.max_triangles,
+    )
+    rig = animation = None
     if options.rig.enabled:
         rig = build_rig(branches, skeleton, options.rig)
         bark, leaves = stage("rig", bind, bark, leaves, rig, branches)
+        organs = bind_organs(organs, rig, branches)
         if keys != wanted:  # the rig's own use of them: not the user's attributes
-            bark, leaves = _keep(bark, leaves, wanted + SKIN_KEYS)
+            bark, leaves, organs = _keep(bark, leaves, organs, wanted + SKIN_KEYS)
+        if options.wind.enabled:
+            animation = stage("wind", sway, rig, branches, options.wind)
     return Tree(
         bark=bark,
         skeleton=skeleton,
@@ -249,7 +321,9 @@ def generate(
         modules=modules,
         hierarchy=branches if options.attributes.enabled else None,
         rig=rig,
+        organs=organs,
         materials=table,
+        animation=animation,
     )
 
 
@@ -258,11 +332,14 @@ def _union_of_held(held: list, options: UnionOptions, progress: Callable[[float]
     return union(held.pop(), options, progress=progress)
 
 
-def _keep(bark: Mesh, leaves, keys):
-    """``bark`` and ``leaves`` with only the attributes ``keys``."""
-    from dataclasses import replace
-
+def _keep(bark: Mesh, leaves, organs, keys):
+    """``bark``, ``leaves`` and ``organs`` with only the attributes ``keys``."""
     merged = leaves.merged.keeping(keys) if leaves.merged is not None else None
     polygons = leaves.polygons.keeping(keys) if leaves.polygons is not None else None
     instance = {k: a for k, a in leaves.instance_attributes.items() if k in keys}
-    return bark.keeping(keys), replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance)
+    organs = replace(
+        organs,
+        merged=tuple(m.keeping(keys) if m is not None else None for m in organs.merged),
+        instance_attributes={k: a for k, a in organs.instance_attributes.items() if k in keys},
+    )
+    return bark.keeping(keys), replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance), organs

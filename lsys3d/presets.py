@@ -7,6 +7,7 @@ import tomllib
 from importlib import resources
 from pathlib import Path
 
+from .dialects import SUFFIXES
 from .errors import GrammarError, clip
 from .grammar import Grammar
 
@@ -14,6 +15,8 @@ __all__ = ["DEFAULT_PRESET", "list_presets", "load", "load_preset", "preset_text
 
 DEFAULT_PRESET = "tree3d"
 """The preset the CLI grows when it is given no grammar."""
+
+_GRAMMAR_SUFFIXES = {".toml", *SUFFIXES}
 
 
 def _folder():
@@ -49,6 +52,6 @@ def load(spec, **overrides) -> Grammar:
         return spec.replace(**overrides) if overrides else spec
     path = Path(spec)
     # lexists() is False for a name too long, and True for a symlink loop: from_file says what is wrong
-    if path.suffix == ".toml" or "/" in str(spec) or os.sep in str(spec) or os.path.lexists(path):
+    if path.suffix in _GRAMMAR_SUFFIXES or "/" in str(spec) or os.sep in str(spec) or os.path.lexists(path):
         return Grammar.from_file(path, **overrides)
     return load_preset(str(spec), **overrides)

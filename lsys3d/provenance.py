@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import PurePath
 
@@ -127,9 +128,15 @@ def asset_identifier(name: str) -> str:
 
 
 def grammar_text(grammar) -> str:
-    """A TOML rendering of a grammar built from Python (for provenance and golden recipes)."""
+    """A TOML rendering of a grammar (for provenance and golden recipes of grammars built in Python).
+
+    Every field that differs from its default is written, the dialect first, so that reading the text
+    back gives the same grammar (a native file's rules are written in its dialect's notation).
+    """
     lines = [f"axiom = {json.dumps(grammar.axiom)}"]
-    for key in ("name", "description", "ignore"):
+    if grammar.dialect != "lsys3d":
+        lines.insert(0, f"dialect = {json.dumps(grammar.dialect)}")
+    for key in ("name", "description", "ignore", "consider"):
         if getattr(grammar, key):
             lines.append(f"{key} = {json.dumps(getattr(grammar, key))}")
     lines.append(f"iterations = {grammar.iterations}")
@@ -137,8 +144,30 @@ def grammar_text(grammar) -> str:
     lines.append(f"seed = {grammar.seed}")
     if grammar.defines:
         lines.append("defines = { " + ", ".join(f"{k} = {v!r}" for k, v in grammar.defines.items()) + " }")
-    lines.append("rules = [" + ", ".join(json.dumps(r) for r in grammar.rules) + "]")
-    if grammar.turtle:
-        lines.append("[turtle]")
-        lines.extend(f"{k} = {json.dumps(v)}" for k, v in grammar.turtle.items())
+    for key in ("modules", "functions", "rules", "homomorphism", "decomposition"):
+        values = getattr(grammar, key)
+        if values or key == "rules":
+            lines.append(f"{key} = [" + ", ".join(json.dumps(r) for r in values) + "]")
+    for key in ("homomorphism_depth", "decomposition_depth"):
+        if getattr(grammar, key) != 1:
+            lines.append(f"{key} = {getattr(grammar, key)}")
+    for table in ("turtle", "materials", "surfaces"):
+        if getattr(grammar, table):
+            lines.append(f"[{table}]")
+            lines.extend(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in getattr(grammar, table).items())
     return "\n".join(lines) + "\n"
+
+
+def _toml_key(key) -> str:
+    """A TOML key: bare when it can be, quoted otherwise."""
+    key = str(key)
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else json.dumps(key)
+
+
+def _toml_value(value) -> str:
+    """A TOML value for a table entry (a material's inline table; strings, numbers, booleans and lists as JSON)."""
+    if isinstance(value, Mapping):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return json.dumps(value)

@@ -84,6 +84,26 @@ class Skeleton:
     leaf_material : (k,) int32
     leaf_segment : (k,) int64 or None
         The segment (twig) the leaf grows from, -1 for none; None when unknown.
+
+    Organs (``o``, recorded by the dialects' spheres, discs, named surfaces and
+    instances: cpfg's and L-Py's ``@O``, ``@c``, ``@o``, ``~l``, Houdini's ``J``;
+    the skeleton records them, the mesh stages do not build them yet):
+
+    organ_kind : (o,) int8
+        What each organ is (:class:`lsys3d.turtle.Organ`: sphere, disc, circle, surface, instance, box).
+    organ_position, organ_heading, organ_left, organ_up : (o, 3) float64
+    organ_size : (o,) float64
+        The diameter of a sphere, disc or circle (in width units, as widths), the
+        scale of a surface or instance.
+    organ_material : (o,) int32
+    organ_segment : (o,) int64
+        The segment the organ grows from, -1 for none.
+    organ_module : (o,) int64
+        The index of the module that recorded it, in the string the turtle read (after
+        the grammar's homomorphism rules).
+    organ_name : (o,) str
+        The name of that module as written (``@O``, ``~l``, ``J``): a surface's or an
+        instance's name, kept so that the mesh stages need not keep the string.
     """
 
     start: np.ndarray
@@ -108,6 +128,16 @@ class Skeleton:
     leaf_material: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     polygon_segment: np.ndarray | None = None
     leaf_segment: np.ndarray | None = None
+    organ_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int8))
+    organ_position: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    organ_heading: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    organ_left: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    organ_up: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    organ_size: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    organ_material: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    organ_segment: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    organ_module: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    organ_name: np.ndarray = field(default_factory=lambda: np.zeros(0, "U1"))
 
     def __len__(self) -> int:
         return int(self.start.shape[0])
@@ -178,6 +208,11 @@ class Skeleton:
     @property
     def n_polygons(self) -> int:
         return len(self.polygon_offsets) - 1
+
+    @property
+    def n_organs(self) -> int:
+        """Organs recorded (spheres, discs, surfaces...), built by :mod:`lsys3d.organs`."""
+        return int(self.organ_kind.shape[0])
 
     @property
     def n_leaves(self) -> int:

@@ -7,7 +7,12 @@ global state, no process, no hash seed).  A new use of randomness takes the
 next free id here.
 
 Stochastic rules (:mod:`lsys3d.derive`) draw from one stream per generation,
-symbol and pool of rules: :func:`rule_generator`.
+symbol and pool of rules: :func:`rule_generator`.  A grammar's random functions
+(``ran``, ``uniform``, ``normal``...) take counter-based numbers instead
+(:func:`hashed_uniform`): the number a module draws at a place of the grammar
+depends only on the seed, the step, that place and the module's position, so it
+is the same however the modules are grouped and however often the place is
+evaluated (the two branches of an L-Py ``if`` see the same ``random()``).
 """
 
 from __future__ import annotations
@@ -16,7 +21,7 @@ from enum import IntEnum
 
 import numpy as np
 
-__all__ = ["Stream", "generator", "rule_generator"]
+__all__ = ["Stream", "generator", "hashed_uniform", "rule_generator"]
 
 
 class Stream(IntEnum):
@@ -38,6 +43,10 @@ class Stream(IntEnum):
     """Bark colour: the noise pattern of the vertex colours (``bark_color_variation``)."""
     WIND_PHASE = 8
     """Hierarchy: the wind phase of each branch (:mod:`lsys3d.hierarchy`)."""
+    GRAMMAR_RANDOM = 9
+    """Derivation: the grammar's random functions (``ran``, ``uniform``, ``normal``...), :func:`hashed_uniform`."""
+    RANDOM_TURN = 10
+    """Turtle: the random turns of Lparser's and Houdini's ``~`` (three angles per module)."""
 
 
 def generator(seed: int, stream: Stream) -> np.random.Generator:
@@ -53,3 +62,30 @@ def generator(seed: int, stream: Stream) -> np.random.Generator:
 def rule_generator(seed: int, generation: int, symbol: int, pool: int) -> np.random.Generator:
     """The generator a stochastic rule pool draws from: one per seed, generation, symbol code and pool."""
     return np.random.Generator(np.random.PCG64(np.random.SeedSequence([seed, generation, symbol, pool])))
+
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+
+
+def hashed_uniform(seed: int, stream: Stream, keys, index: np.ndarray) -> np.ndarray:
+    """Numbers in [0, 1), one per entry of ``index``, that depend only on ``seed``, ``stream``, ``keys`` and the entry.
+
+    ``keys`` are whole numbers >= 0 naming the draw (a step, a place in the grammar, a draw number);
+    ``index`` are the positions drawn for (a module's place in the string).  The same arguments give the
+    same numbers in any process, in any order, in any grouping (splitmix64 of the position, keyed by a
+    seed sequence of the rest).
+
+    >>> a = hashed_uniform(7, Stream.GRAMMAR_RANDOM, (1, 2), np.arange(4))
+    >>> b = hashed_uniform(7, Stream.GRAMMAR_RANDOM, (1, 2), np.array([3, 1]))
+    >>> bool(a[3] == b[0] and a[1] == b[1] and ((0 <= a) & (a < 1)).all())
+    True
+    """
+    key = np.random.SeedSequence([int(seed), int(stream), *(int(k) for k in keys)]).generate_state(1, np.uint64)[0]
+    with np.errstate(over="ignore"):
+        x = np.asarray(index).astype(np.uint64) * _GOLDEN + key
+        x = (x ^ (x >> np.uint64(30))) * _MIX1
+        x = (x ^ (x >> np.uint64(27))) * _MIX2
+        x = x ^ (x >> np.uint64(31))
+    return (x >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)

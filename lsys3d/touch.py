@@ -272,8 +272,7 @@ def touching(pcs: Pieces, margin: float = 0.01, max_pairs: int = DEFAULT_MAX_PAI
             raise LimitError(
                 f"union: more than {max_pairs:,} pairs of tube pieces may touch, a crowd of branches (measured: "
                 f"about 0.1 ms of boolean work a pair, so over {max_pairs * _SECONDS_PER_PAIR:,.0f} s); use fewer, "
-                "thinner or more spread-out branches, or raise the limit (--max-union-pairs, or "
-                "UnionOptions(max_pairs=))"
+                "thinner or more spread-out branches, or raise the limit (--max-union-pairs N, max_union_pairs=N)"
             )
         found_a.append(np.minimum(a, b))
         found_b.append(np.maximum(a, b))

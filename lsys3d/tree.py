@@ -16,9 +16,11 @@ from .leaves import Leaves
 from .materials import BARK, LEAF, Material, MaterialTable
 from .mesh import Mesh
 from .modules import ModuleString
+from .organs import Organs
 from .provenance import DEFAULT_NAME, Provenance, asset_identifier
 from .rig import Rig
 from .skeleton import Skeleton
+from .wind import Animation
 
 __all__ = ["BARK", "LEAF", "Material", "StageCounts", "Tree"]
 
@@ -68,6 +70,11 @@ class Tree:
     rig : Rig or None
         The joints, when the tree is rigged; the bark and the merged leaves
         then carry their skins (:data:`lsys3d.rig.SKIN_KEYS`).
+    organs : Organs
+        Spheres, discs, boxes and named surfaces (:mod:`lsys3d.organs`): their
+        prototypes and instances, and each prototype's organs merged.
+    animation : Animation or None
+        The sample wind animation of the rig's joints (:mod:`lsys3d.wind`), when asked for.
     """
 
     bark: Mesh
@@ -80,6 +87,8 @@ class Tree:
     materials: MaterialTable = field(default_factory=MaterialTable)
     hierarchy: Hierarchy | None = None
     rig: Rig | None = None
+    organs: Organs = field(default_factory=Organs)
+    animation: Animation | None = None
 
     @property
     def bark_material(self) -> Material:

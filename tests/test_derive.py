@@ -15,7 +15,7 @@ from invariants import balanced
 
 import lsys3d
 from lsys3d import DerivationError, Grammar, LimitError, derive, generations, load_preset, predict_length
-from lsys3d.derive import predict_counts
+from lsys3d.derive import interpretation, predict_counts
 from lsys3d.modules import ModuleString, format_number
 
 
@@ -508,7 +508,7 @@ def test_an_unbalanced_start_string_ends_context_walks():
     st.integers(1, 9),
 )
 def test_text_pieces_equal_the_text_of_each_module(modules, chunk):
-    alphabet = ModuleString.from_symbols("").alphabet[:128] + "é" + "\0" * 127
+    alphabet = ModuleString.from_symbols("").alphabet[:128] + ("é",) + ("\0",) * 127
     ms = ModuleString(
         np.array([ord(c) if c != "é" else 128 for c, _ in modules], np.uint8),
         np.array([len(args) for _, args in modules], np.uint8),
@@ -517,3 +517,44 @@ def test_text_pieces_equal_the_text_of_each_module(modules, chunk):
     )
     expected = "".join(ms.module_text(i) for i in range(len(ms)))
     assert "".join(ms.iter_text(chunk)) == str(ms) == expected
+
+
+# ---------------------------------------------------------------- cut, decomposition, homomorphism, random functions
+def test_cut_removes_the_rest_of_its_branch_at_the_next_step():
+    g = Grammar(axiom="A", rules=["A -> F[+B]A", "B -> F%F[X]G"])
+    steps = [str(s) for s in lsys3d.generations(g, 3)]
+    # as L-Py and cpfg: '%' and what follows it in its branch go when the string is next rewritten
+    assert steps == ["A", "F[+B]A", "F[+F%F[X]G]F[+B]A", "F[+F]F[+F%F[X]G]F[+B]A"]
+    assert str(interpretation(g, lsys3d.derive(g, 2))) == "F[+F]F[+B]A"  # and before the turtle reads it
+
+
+def test_decomposition_rewrites_what_it_produced_up_to_its_depth():
+    g = Grammar(axiom="A(3)", rules=["A(n) -> A(n + 1)"], decomposition=["A(n) : n > 0 -> I A(n - 1)"])
+    assert str(lsys3d.derive(g, 1)) == "IA(3)"  # depth 1 (the default)
+    assert str(lsys3d.derive(g.replace(decomposition_depth=64), 1)) == "IIIIA(0)"
+    assert lsys3d.predict_length(g, 2) is None  # decomposition makes lengths depend on the derivation
+
+
+def test_homomorphism_is_for_the_turtle_only():
+    g = Grammar(axiom="A", rules=["A -> I[L]A"], homomorphism=["L -> [+F(0.5)]", "I -> F"], iterations=2)
+    derived = lsys3d.derive(g)
+    assert str(derived) == "I[L]I[L]A"  # never fed back
+    assert str(interpretation(g, derived)) == "F[[+F(0.5)]]F[[+F(0.5)]]A"
+    deep = g.replace(homomorphism=["B -> C", "C -> F"], axiom="BB", rules=[])
+    assert str(interpretation(deep, deep.axiom_modules)) == "CC"
+    assert str(interpretation(deep.replace(homomorphism_depth=2), deep.axiom_modules)) == "FF"
+
+
+def test_random_functions_depend_on_seed_step_and_position_only():
+    g = Grammar(axiom="A(0)" * 6, rules=["A(x) : {r = ran(1)} r < 0.5 -> B(r)", "A(x) -> C(uniform(5, 6))"])
+    a = lsys3d.derive(g, 1, seed=3)
+    assert str(a) == str(lsys3d.derive(g, 1, seed=3)) and str(a) != str(lsys3d.derive(g, 1, seed=4))
+    values = [a.module(i) for i in range(len(a))]
+    assert all((s == "B" and 0 <= v[0] < 0.5) or (s == "C" and 5 <= v[0] < 6) for s, v in values)
+    assert {s for s, _ in values} == {"B", "C"}
+
+
+def test_an_error_in_a_local_variable_names_it():
+    g = Grammar(axiom="A(0)", rules=["A(x) : {y = 1 / x} y > 0 -> B"])
+    with pytest.raises(DerivationError, match="division by zero in local variable 'y' for module A"):
+        lsys3d.derive(g, 1)

@@ -10,7 +10,7 @@ import pytest
 import lsys3d
 
 ROOT = Path(__file__).resolve().parent.parent
-DOCS = sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")])
+DOCS = sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md"), *(ROOT / "docs" / "dialects").glob("*.md")])
 
 
 def blocks(lang: str):
@@ -74,3 +74,22 @@ def test_jobs_file_examples_parse(text, tmp_path):
     path = tmp_path / "jobs.toml"
     path.write_text(text)
     assert read_jobs(path)
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "docs" / "looks").glob("*.toml")), ids=lambda p: p.name)
+def test_looks_grammars_grow(path, tmp_path):
+    """The example grammars of docs/looks.md grow with the textures and models beside them, and export."""
+    tree = lsys3d.generate(path, iterations=3)
+    assert tree.materials and tree.bark.is_watertight
+    lsys3d.export(tree, tmp_path / "look.glb")
+    lsys3d.export(tree, tmp_path / "look.usdz")
+
+
+@pytest.mark.parametrize("name", ["abop", "lpy", "cpfg", "lparser", "houdini"])
+def test_each_dialect_has_a_page_with_its_generated_table(name):
+    from lsys3d.dialects import table_markdown
+
+    text = (ROOT / "docs" / "dialects" / f"{name}.md").read_text(encoding="utf-8")
+    assert table_markdown(name) in text
+    for section in ("## What is read", "## The symbols", "## What is refused", "## A worked example"):
+        assert section in text, section

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -260,3 +261,104 @@ def test_load_prefers_an_existing_path(tmp_path):
     assert lsys3d.load("koch").name == "koch"
     with pytest.raises(GrammarError, match="no bundled preset"):
         lsys3d.load("no-such-preset")
+
+
+# ---------------------------------------------------------------- what the dialects brought to every grammar
+def test_condition_blocks_hold_local_variables_between_tests():
+    g = Grammar(axiom="A(1)", rules=["A(x) : {y = x * 2; z = y + 1} z > 2 {w = z * 10} -> B(w)"])
+    p = g.productions[0]
+    assert p.condition is None and [s[0] for s in p.steps] == ["let", "let", "test", "let"]
+    assert str(lsys3d.derive(g, 1)) == "B(30)"
+    # x += e is x = x + (e); a test over a local narrows what the rest sees
+    g = Grammar(axiom="A(1)A(5)", rules=["A(x) : {y = x; y += 10} y < 12 -> B(y)"])
+    assert str(lsys3d.derive(g, 1)) == "B(11)A(5)"
+
+
+@pytest.mark.parametrize(
+    ("rule", "message"),
+    [
+        ("A(x) : {y == 1} -> B", "each statement reads 'name = expression'"),
+        ("A(x) : {y = } -> B", "nothing assigned to 'y'"),
+        ("A(x) : {y += 1} -> B", "'y' += before 'y' has a value"),
+        ("A(x) : {sin = 1} -> B", "'sin' is reserved"),
+        ("A(x) : {y = 1 -> B", "'{' without '}'"),
+        ("A(x) : y } -> B", "'}' without '{'"),
+        ("A(x) : {y = 1} q > 1 -> B", "unknown name 'q'"),
+        ("A(x) -> B(uniform(1, 2)) : uniform(1, 2)", "random functions are not allowed in a weight"),
+        ("* -> B", "'*' (any module) can stand in a context, not as the predecessor"),
+        ("A << B -> C", "'<<' (L-Py's context of the string being built) is not supported"),
+    ],
+)
+def test_condition_block_errors(rule, message):
+    with pytest.raises(GrammarError, match=re.escape(message)):
+        Grammar(axiom="A(1)", rules=[rule])
+
+
+def test_star_is_any_module_in_a_context_and_nothing_as_a_successor():
+    g = Grammar(axiom="F+F-+F", rules=["* < + > * -> -", "* < - > F -> +", "A -> *"])
+    assert str(lsys3d.derive(g, 1)) == "F-F--F"  # every "+"; "-" only before F
+    assert str(lsys3d.derive(Grammar(axiom="+F", rules=["* < + > * -> -"]), 1)) == "-F"
+    assert len(lsys3d.derive(Grammar(axiom="AB", rules=["A -> *", "B -> * : 2"]), 1)) == 0
+    g = Grammar(axiom="XAY", rules=["X < A > * -> B"])
+    assert str(lsys3d.derive(g, 1)) == "XBY"
+
+
+def test_declared_module_names_are_read_by_longest_match():
+    g = Grammar(axiom="FLeaf(1)LeafyA", rules=["Leaf(x) -> Leaf(x + 1)"], modules=["Leaf", "Leafy"])
+    assert g.axiom_modules.symbol(1) == "Leaf" and g.axiom_modules.symbol(2) == "Leafy"
+    assert str(lsys3d.derive(g, 2)) == "FLeaf(3)LeafyA"
+    with pytest.raises(GrammarError, match="is not a module name"):
+        Grammar(axiom="F", modules=["Le af"])
+
+
+def test_ignore_and_consider_take_names():
+    g = Grammar(axiom="B Leaf A", rules=["B < A -> C"], ignore="Leaf", modules=["Leaf"])
+    assert str(lsys3d.derive(g, 1)) == "BLeafC"
+    g = Grammar(axiom="B Leaf + A", rules=["B < A -> C"], consider="AB", modules=["Leaf"])
+    assert str(lsys3d.derive(g, 1)) == "BLeaf+C"
+
+
+def test_functions_are_pure_expressions():
+    g = Grammar(axiom="A(2)", rules=["A(x) -> A(twice(x) + k)"], functions=["twice(v) = 2 * v"], defines={"k": 1})
+    assert str(lsys3d.derive(g, 2)) == "A(11)"
+    for bad, message in [
+        ("f(x) = ", "empty expression"),
+        ("sin(x) = x", "'sin' is reserved"),
+        ("f(x, x) = x", "names a parameter twice"),
+        ("f(x) = g(x)", "unknown function 'g'"),
+        ("f = 1", "name(parameters) = expression"),
+    ]:
+        with pytest.raises(GrammarError, match=re.escape(message)):
+            Grammar(axiom="A", functions=[bad])
+
+
+def test_random_functions_are_refused_where_a_constant_is_needed():
+    with pytest.raises(GrammarError, match="not allowed in the axiom"):
+        Grammar(axiom="A(ran(1))")
+    with pytest.raises(GrammarError, match="a define is a constant"):
+        Grammar(axiom="A", defines={"k": "uniform(0, 1)"})
+
+
+def test_toml_keys_of_the_dialects(tmp_path):
+    text = """
+dialect = "houdini"
+premise = "A"
+rules = ["A = AB"]
+homomorphism = ["B -> F"]
+homomorphism_depth = 2
+decomposition = ["C -> D"]
+decomposition_depth = 3
+consider = "AB"
+modules = ["Leaf"]
+functions = ["f(x) = x"]
+"""
+    g = Grammar.from_text(text)
+    assert g.axiom == "A" and g.dialect == "houdini" and g.homomorphism_depth == 2 and g.decomposition_depth == 3
+    for bad, message in [
+        ('axiom = "A"\npremise = "B"\n', "both 'axiom' and 'premise'"),
+        ('axiom = "A"\ndialect = "fractint"\n', "unknown dialect 'fractint' (known: lsys3d, abop, lpy"),
+        ('axiom = "A"\ndecomposition_depth = 0\n', "'decomposition_depth' must be a whole number from 1 to 1000"),
+        ('axiom = "A"\nhomomorphism = "B -> F"\n', "'homomorphism' must be a list"),
+    ]:
+        with pytest.raises(GrammarError, match=re.escape(message)):
+            Grammar.from_text(bad, source="plant.toml")

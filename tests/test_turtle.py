@@ -497,10 +497,10 @@ def test_skeleton_stats_empty():
 def test_command_table():
     symbols = [c.symbol for c in COMMANDS]
     assert len(symbols) == len(set(symbols))
-    assert set("Ff+-&^\\/|$[]!'\"{.}~") == set(symbols)
-    # one row per behaviour; every op the kernel knows has a row; rotations say their axis and sign
-    assert len({(c.op, c.axis, c.sign) for c in COMMANDS}) == len(COMMANDS)
-    assert {c.op for c in COMMANDS} == set(Op) - {Op.NONE}
+    assert set("Ff+-&^\\/|$[]!'\"{.}~") | {"@O", "@c", "@o"} == set(symbols)
+    # one row per behaviour; rotations say their axis and sign (the other ops are the dialects': test_dialects)
+    assert len({(c.op, c.axis, c.sign, c.organ) for c in COMMANDS}) == len(COMMANDS)
+    assert {c.op for c in COMMANDS} <= set(Op) - {Op.NONE}
     assert all((c.axis != Axis.NONE) == (c.op == Op.ROTATE) and c.sign in (1, -1) for c in COMMANDS)
     table = symbol_table(ASCII_ALPHABET, draw="FG", move="fg", leaf="L")
     assert (
@@ -538,3 +538,100 @@ def test_a_new_symbol_is_one_table_row():
     assert default.material.tolist() == [0] * 7  # ';' and '?' mean nothing in lsys3d's own dialect
     # '&' with the opposite sign pitches up instead of down
     assert sk.end[-1, 2] - sk.start[-1, 2] == pytest.approx(1.0) and default.end[-1, 2] - default.start[-1, 2] == -1.0
+
+
+# ---------------------------------------------------------------- the ops the dialects brought
+def _row(symbol, name, op, **kw):
+    from lsys3d.turtle.commands import Command
+
+    return Command(symbol, name, op, kw.pop("args", "x"), kw.pop("max_args", 1), name + ".", **kw)
+
+
+def test_organs_are_recorded_with_their_frame_and_segment():
+    from lsys3d.turtle import Organ
+
+    g = Grammar(axiom="F@O(0.5)F[+@c]@o!(0.3)@O", angle=90)
+    sk = interpret(derive(g, 0), g)
+    assert sk.organ_kind.tolist() == [Organ.SPHERE, Organ.DISC, Organ.CIRCLE, Organ.SPHERE]
+    assert sk.organ_size.tolist() == pytest.approx([0.5, 0.1, 0.1, 0.3])  # the width when not given
+    assert sk.organ_segment.tolist() == [0, 1, 1, 1] and sk.organ_module.tolist() == [1, 5, 7, 9]
+    assert sk.organ_position[0].tolist() == pytest.approx([0, 1, 0]) and sk.n_organs == 4
+    assert sk.organ_heading[1].tolist() == pytest.approx([-1, 0, 0])  # the frame of the turtle in its branch
+
+
+def test_width_unit_scales_the_widths_a_grammar_gives():
+    g = Grammar(axiom="!(2)F@O(4)", turtle={"width_unit": 0.5})
+    sk = interpret(derive(g, 0), g)
+    assert sk.width_start.tolist() == [1.0] and sk.organ_size.tolist() == [2.0]
+
+
+def test_moves_with_a_step_factor_and_without_a_vertex():
+    rows = (
+        *COMMANDS,
+        _row("Z", "half forward", Op.FORWARD, scale=0.5),
+        _row("G", "move, no vertex", Op.MOVE, vertex=False),
+    )
+    g = Grammar(axiom="FZ{.G+G+G.f.}", angle=90)
+    sk = interpret(derive(g, 0), g, commands=rows)
+    assert sk.lengths().tolist() == pytest.approx([1.0, 0.5])
+    # the polygon's vertices: the two dots and the f move, not the G moves
+    assert sk.polygon_offsets.tolist() == [0, 3]
+
+
+def test_width_and_angle_factors_and_steps():
+    rows = (
+        *COMMANDS,
+        _row("?", "thicker", Op.WIDTH_FACTOR, factor=1.4),
+        _row("_", "wider", Op.WIDTH_ADD, sign=+1),
+        _row(";", "angle up", Op.ANGLE_FACTOR, factor=2.0),
+        _row("a", "angle down", Op.ANGLE_FACTOR, sign=-1),
+        _row("*", "length down", Op.LENGTH, sign=-1, factor=2.0),
+    )
+    g = Grammar(axiom="F?F?(3)F_F_(0.5)F", turtle={"width_increment": 0.25})
+    sk = interpret(derive(g, 0), g, commands=rows)
+    assert sk.width_start.tolist() == pytest.approx([0.1, 0.14, 0.42, 0.67, 0.5])
+    g = Grammar(axiom=";+Fa(4)-F*F", angle=10, turtle={"heading": 0})
+    sk = interpret(derive(g, 0), g, commands=rows)
+    directions = np.degrees(np.arctan2(sk.heading[:, 1], sk.heading[:, 0]))
+    assert directions.tolist() == pytest.approx([20, 15, 15]) and sk.lengths().tolist() == pytest.approx([1, 1, 0.5])
+
+
+def test_turn_around_about_each_axis_and_a_branch_restores_the_angle():
+    rows = (*COMMANDS, _row("%", "roll around", Op.TURN_AROUND, axis=Axis.H, max_args=0, args=""))
+    g = Grammar(axiom="F%&F", angle=90)
+    sk = interpret(derive(g, 0), g, commands=rows)
+    assert sk.end[-1].tolist() == pytest.approx([0, 1, 1])  # the roll flipped U: '&' pitches toward +Z
+    rows += (_row(";", "angle up", Op.ANGLE_FACTOR, factor=2.0),)
+    g = Grammar(axiom="[;]+F", angle=45, turtle={"heading": 0})
+    sk = interpret(derive(g, 0), g, commands=rows)
+    assert sk.end[0].tolist() == pytest.approx([np.sqrt(0.5), np.sqrt(0.5), 0])
+
+
+def test_random_turns_depend_on_the_seed_only():
+    rows = (*COMMANDS, _row("~", "random turn", Op.RANDOM_TURN, factor=30.0))
+    g = Grammar(axiom="~F~F~F")
+    a = interpret(derive(g, 0), g, seed=1, commands=rows)
+    assert np.array_equal(a.end, interpret(derive(g, 0), g, seed=1, commands=rows).end)
+    b = interpret(derive(g, 0), g, seed=2, commands=rows)
+    assert not np.allclose(a.end, b.end)
+    # at most 30 degrees about each axis: the first heading stays within 60 degrees of up
+    assert a.heading[0, 1] > np.cos(np.radians(60))
+
+
+def test_one_shot_tropism_and_elasticity():
+    rows = (*COMMANDS, _row("t", "gravity", Op.TROPISM, factor=0.2), _row("E", "elasticity", Op.ELASTICITY))
+    g = Grammar(axiom="+(90)tF", turtle={"heading": 90})
+    sk = interpret(derive(g, 0), g, commands=rows)
+    assert sk.heading[0, 1] == pytest.approx(-np.sin(0.2))  # bent toward -Y by 0.2 rad
+    g = Grammar(axiom="+(90)FE(0.2)FE F", turtle={"heading": 90, "tropism": [0, -1, 0]})
+    sk = interpret(derive(g, 0), g, commands=rows)
+    assert sk.heading[0, 1] == pytest.approx(0, abs=1e-12) and sk.heading[1, 1] < 0
+    assert sk.heading[2].tolist() == pytest.approx(sk.heading[1].tolist())  # E without argument: 0
+
+
+def test_parameters_a_row_ignores_are_accepted():
+    rows = (*tuple(c for c in COMMANDS if c.symbol != "F"), _row("F", "forward", Op.FORWARD, ignored=("topradius",)))
+    g = Grammar(axiom="F(2, 0.1)")
+    assert interpret(derive(g, 0), g, commands=rows).lengths().tolist() == [2.0]
+    with pytest.raises(InterpretError, match="takes at most 2 argument"):
+        interpret(derive(Grammar(axiom="F(2, 0.1, 3)"), 0), g, commands=rows)

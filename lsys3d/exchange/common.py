@@ -8,23 +8,28 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..attributes import ATTRIBUTES
 from ..errors import ExportError
+from ..images import Image
 from ..mesh import Mesh
 from ..options import Options, option
 
 __all__ = [
     "ExportOptions",
     "MeshArrays",
+    "TextureFiles",
     "decompose_transforms",
     "file_frame",
     "frame_transforms",
     "gather_mesh",
+    "material_groups",
     "metadata_json",
+    "split_tangents",
     "to_float32",
 ]
 
@@ -320,6 +325,107 @@ def _unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
         inverse = inverse.reshape(-1)
     return first, inverse
+
+
+def split_tangents(arrays: MeshArrays) -> np.ndarray:
+    """Tangents of a gathered mesh's split vertices for normal maps, ``(s, 4) float32``: glTF's ``TANGENT``.
+
+    ``xyz`` is the direction in which ``u`` grows, made perpendicular to the
+    vertex normal (each face's share weighted by its size, the usual way of
+    summing them); ``w`` (+1 or -1) says on which side the direction in which
+    ``v`` grows lies (``bitangent = w * normal x tangent``), so mirrored uv
+    are right too.  A vertex whose faces have no usable uv gradient gets some
+    unit vector perpendicular to its normal.  Normal maps are read with +Y
+    toward growing ``v`` (the OpenGL convention glTF and UsdPreviewSurface use).
+    """
+    points = arrays.split_points.astype(np.float64)
+    normals = arrays.split_normals.astype(np.float64)
+    uv = arrays.split_uv.astype(np.float64) if arrays.split_uv is not None else np.zeros((len(points), 2))
+    tri = arrays.split_index.reshape(-1, 3).astype(np.int64)
+    e1 = points[tri[:, 1]] - points[tri[:, 0]]
+    e2 = points[tri[:, 2]] - points[tri[:, 0]]
+    d1 = uv[tri[:, 1]] - uv[tri[:, 0]]
+    d2 = uv[tri[:, 2]] - uv[tri[:, 0]]
+    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    # dP/du and dP/dv of each face, times |det| (so a face's weight grows with its uv and 3D size)
+    sign = np.sign(det)[:, None]
+    t = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * sign
+    b = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * sign
+    corner = tri.reshape(-1)
+    n = len(points)
+    tangent = np.stack([np.bincount(corner, np.repeat(t[:, c], 3), minlength=n) for c in range(3)], axis=1)
+    bitangent = np.stack([np.bincount(corner, np.repeat(b[:, c], 3), minlength=n) for c in range(3)], axis=1)
+    tangent -= normals * np.einsum("ij,ij->i", normals, tangent)[:, None]
+    length = np.linalg.norm(tangent, axis=1)
+    bad = ~(length > 1e-12 * (1.0 + np.abs(points).max(initial=0.0)))
+    if bad.any():  # any unit vector perpendicular to the normal
+        nb = normals[bad]
+        axis = np.where((np.abs(nb[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+        tangent[bad] = np.cross(axis, nb)
+        length[bad] = np.linalg.norm(tangent[bad], axis=1)
+    tangent /= np.where(length > 0, length, 1.0)[:, None]
+    w = np.where(np.einsum("ij,ij->i", np.cross(normals, tangent), bitangent) < 0, -1.0, 1.0)
+    return np.concatenate([tangent, w[:, None]], axis=1).astype(np.float32)
+
+
+def material_groups(index: np.ndarray | None, material_of) -> list[tuple[object, int, np.ndarray | None]]:
+    """The rows (faces, leaves) of each distinct material: ``(material, its first index, rows)``.
+
+    ``index`` holds the turtle's material index per row (None: every row the
+    default, ``material_of(-1)``); ``material_of`` maps an index to its
+    :class:`~lsys3d.materials.Material`.  Indices that map to the same material
+    share a group, in the order of their smallest index; a single group has
+    ``rows`` None (all of them).
+
+    >>> material_groups(np.array([0, 3, 0, 5]), lambda i: "red" if i == 5 else "bark")
+    [('bark', 0, array([0, 1, 2])), ('red', 5, array([3]))]
+    """
+    if index is None or not len(index):
+        return [(material_of(-1), -1, None)]
+    used = np.unique(index).tolist()
+    first: dict = {}
+    for i in used:
+        first.setdefault(material_of(i), i)
+    if len(first) == 1:
+        return [(next(iter(first)), used[0], None)]
+    rows = {m: np.flatnonzero(np.isin(index, [i for i in used if material_of(i) == m])) for m in first}
+    return [(m, i, rows[m]) for m, i in first.items()]
+
+
+class TextureFiles:
+    """Where a writer puts the texture images it references: one file each, in one folder.
+
+    ``prefix`` is the folder as the file refers to it (``./tree_textures/``
+    beside a USD layer, ``textures/`` inside a ``.usdz``).  :meth:`path_of`
+    names an image the first time it is asked (its file name, made safe, with
+    ``_2``, ``_3``... when two different images share it) and returns the same
+    path afterwards; :meth:`files` lists what to write, in that order.
+
+    >>> from lsys3d.images import Image
+    >>> files = TextureFiles("./tree_textures/")
+    >>> a, b = Image("bark.png", b"1", "image/png", 1, 1, False), Image("bark.png", b"2", "image/png", 1, 1, False)
+    >>> files.path_of(a), files.path_of(b), files.path_of(a)
+    ('./tree_textures/bark.png', './tree_textures/bark_2.png', './tree_textures/bark.png')
+    """
+
+    def __init__(self, prefix: str):
+        self.prefix = prefix
+        self._names: dict[Image, str] = {}
+
+    def path_of(self, image: Image) -> str:
+        if image not in self._names:
+            stem = re.sub(r"[^A-Za-z0-9_.-]", "_", image.name.rsplit(".", 1)[0]).strip(".") or "texture"
+            name, i = f"{stem}{image.suffix}", 1
+            taken = set(self._names.values())
+            while name in taken:
+                i += 1
+                name = f"{stem}_{i}{image.suffix}"
+            self._names[image] = name
+        return self.prefix + self._names[image]
+
+    def files(self) -> list[tuple[str, bytes]]:
+        """``(file name, bytes)`` of every image named so far."""
+        return [(name, image.data) for image, name in self._names.items()]
 
 
 def decompose_transforms(transforms: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -22,8 +22,9 @@ glTF (``.glb``)::
           node "leaf"  mesh, EXT_mesh_gpu_instancing (the same accessors)
         ...
 
-Each asset's meshes, accessors and materials are copied once from its own
-``.glb`` (identical materials are shared); its instances are three accessors.
+Each asset's meshes, accessors, materials and their images are copied once
+from its own ``.glb`` (identical materials are shared); its instances are
+three accessors.
 """
 
 from __future__ import annotations
@@ -167,7 +168,25 @@ def _read_glb(path: Path) -> tuple[dict, bytes]:
 
 
 _COPIED = {"asset", "scene", "scenes", "nodes", "meshes", "accessors", "bufferViews", "buffers", "materials"}
-_COPIED |= {"extensionsUsed", "extras"}
+_COPIED |= {"extensionsUsed", "extras", "images", "textures", "samplers"}
+_TEXTURE_SLOTS = ("normalTexture", "occlusionTexture", "emissiveTexture")
+_PBR_TEXTURE_SLOTS = ("baseColorTexture", "metallicRoughnessTexture")
+
+
+def _retextured(material: dict, textures: int) -> dict:
+    """``material`` with its texture indices moved by ``textures`` (the textures merged before its asset's)."""
+    if not textures:
+        return material
+    out = dict(material)
+    for slot in _TEXTURE_SLOTS:
+        if slot in out:
+            out[slot] = {**out[slot], "index": out[slot]["index"] + textures}
+    if "pbrMetallicRoughness" in out:
+        pbr = out["pbrMetallicRoughness"] = dict(out["pbrMetallicRoughness"])
+        for slot in _PBR_TEXTURE_SLOTS:
+            if slot in pbr:
+                pbr[slot] = {**pbr[slot], "index": pbr[slot]["index"] + textures}
+    return out
 
 
 class _Merged:
@@ -175,6 +194,7 @@ class _Merged:
 
     def __init__(self):
         self.doc = {"accessors": [], "bufferViews": [], "materials": [], "meshes": [], "nodes": []}
+        self.doc.update(images=[], textures=[], samplers=[])
         self.chunks: list[bytes | memoryview] = []
         self.size = 0
         self.material_index: dict[str, int] = {}
@@ -207,8 +227,21 @@ class _Merged:
         accessors = len(self.doc["accessors"])
         for acc in doc.get("accessors", []):
             self.doc["accessors"].append({**acc, "bufferView": acc["bufferView"] + views})
+        images, samplers = len(self.doc["images"]), len(self.doc["samplers"])
+        for image in doc.get("images", []):  # embedded in the asset's buffer (lsys3d writes no image URIs)
+            if "bufferView" not in image:
+                raise ForestError(f"{path}: an image is not in the asset's buffer")
+            self.doc["images"].append({**image, "bufferView": image["bufferView"] + views})
+        self.doc["samplers"] += doc.get("samplers", [])
+        textures = len(self.doc["textures"])
+        for texture in doc.get("textures", []):
+            moved = {**texture, "source": texture["source"] + images}
+            if "sampler" in texture:
+                moved["sampler"] = texture["sampler"] + samplers
+            self.doc["textures"].append(moved)
         materials = []
         for m in doc.get("materials", []):
+            m = _retextured(m, textures)
             key = json.dumps(m, sort_keys=True)
             if key not in self.material_index:
                 self.material_index[key] = len(self.doc["materials"])

@@ -8,6 +8,7 @@ Layout of the file::
         node "leaf"      mesh "leaf"      material "leaf"   (all leaves merged; or the leaf model
                                                              with EXT_mesh_gpu_instancing)
         node "leaf_polygons"                                (only with instanced leaves)
+        node "organ_<name>"                                 (organs of one kind: merged, or instanced)
         node "skeleton"  mesh "skeleton"  LINES             (only with skeleton_curves)
 
 glTF is metres and Y up by definition, so ``units`` and ``up_axis`` other
@@ -15,6 +16,10 @@ than the defaults are refused.  Vertices are split per unique (position,
 normal, uv) corner as glTF requires; texture ``v`` is flipped (glTF's origin
 is the top-left corner of the image).  A bark with vertex colours gets a
 ``COLOR_0`` attribute and a white base colour factor (glTF multiplies the two).
+A material's images (:attr:`lsys3d.materials.Material.images`) are embedded in
+the binary buffer (``images[].bufferView``; in the ``.bin`` of a ``.gltf``),
+each once, sampled with repeat and mipmaps; ``alpha_cutoff`` is
+``alphaMode: MASK``.
 """
 
 from __future__ import annotations
@@ -29,11 +34,21 @@ import numpy as np
 
 from ..attributes import branch_table, gltf_attributes
 from ..errors import ExportError
+from ..images import Image
 from ..materials import Material
 from ..tree import Tree
 from ..version import __version__
 from .atomic import atomic_path, check_target, write_bytes, write_chunks
-from .common import ExportOptions, MeshArrays, decompose_transforms, gather_mesh, metadata_json, to_float32
+from .common import (
+    ExportOptions,
+    MeshArrays,
+    decompose_transforms,
+    gather_mesh,
+    material_groups,
+    metadata_json,
+    split_tangents,
+    to_float32,
+)
 
 __all__ = ["check_options", "write_glb", "write_gltf"]
 
@@ -43,6 +58,9 @@ TRIANGLES, LINES = 4, 1
 INSTANCING = "EXT_mesh_gpu_instancing"
 _TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
 UNSIGNED_BYTE = 5121
+LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT = 9729, 9987, 10497
+SAMPLER = {"magFilter": LINEAR, "minFilter": LINEAR_MIPMAP_LINEAR, "wrapS": REPEAT, "wrapT": REPEAT}
+"""The one sampler of every texture: bark uv run past 1 (along a branch, in metres), so they repeat."""
 
 
 class _Buffer:
@@ -53,6 +71,10 @@ class _Buffer:
         self.size = 0
         self.views: list[dict] = []
         self.accessors: list[dict] = []
+
+    def image(self, data: bytes) -> int:
+        """A bufferView holding an image file's bytes (``images[].bufferView``)."""
+        return self._view(np.frombuffer(data, np.uint8), None)
 
     def _view(self, data: np.ndarray, target: int | None) -> int:
         pad = -self.size % 4
@@ -124,12 +146,14 @@ def quantized_weights(weights: np.ndarray) -> np.ndarray:
     return q.astype(np.uint8)
 
 
-def _vertex_attributes(buf: _Buffer, arrays: MeshArrays, joints: int | None = None) -> dict:
+def _vertex_attributes(buf: _Buffer, arrays: MeshArrays, joints: int | None = None, tangents: bool = False) -> dict:
     """The accessors of a gathered mesh's split vertices, shared by all its primitives."""
     attributes = {
         "POSITION": buf.accessor(arrays.split_points, bounds=True),
         "NORMAL": buf.accessor(arrays.split_normals),
     }
+    if tangents:  # a normal map needs them; generated at run time they may differ between viewers
+        attributes["TANGENT"] = buf.accessor(split_tangents(arrays))
     if arrays.split_uv is not None:
         uv = arrays.split_uv.copy()
         uv[:, 1] = np.float32(1.0) - uv[:, 1]
@@ -147,9 +171,11 @@ def _vertex_attributes(buf: _Buffer, arrays: MeshArrays, joints: int | None = No
     return attributes
 
 
-def _primitives(buf: _Buffer, arrays: MeshArrays, groups, joints: int | None = None) -> list[dict]:
+def _mesh_primitives(
+    buf: _Buffer, arrays: MeshArrays, groups, joints: int | None = None, tangents: bool = False
+) -> list[dict]:
     """One primitive per ``(material index, faces)`` group (faces None: all), sharing the vertex accessors."""
-    attributes = _vertex_attributes(buf, arrays, joints)
+    attributes = _vertex_attributes(buf, arrays, joints, tangents)
     index = _indices(arrays.split_index, len(arrays.split_points)).reshape(-1, 3)
     return [
         {
@@ -162,16 +188,22 @@ def _primitives(buf: _Buffer, arrays: MeshArrays, groups, joints: int | None = N
     ]
 
 
-def _material(m: Material) -> dict:
-    out = {
-        "name": m.name,
-        "pbrMetallicRoughness": {
-            "baseColorFactor": [float(c) for c in m.base_color],
-            "metallicFactor": float(m.metallic),
-            "roughnessFactor": float(m.roughness),
-        },
+def _material(m: Material, texture_index) -> dict:
+    """A glTF material; ``texture_index(image)`` gives the texture of each of its images."""
+    pbr = {
+        "baseColorFactor": [float(c) for c in m.base_color],
+        "metallicFactor": float(m.metallic),
+        "roughnessFactor": float(m.roughness),
     }
-    if m.base_color[3] < 1.0:
+    if m.texture is not None:
+        pbr["baseColorTexture"] = {"index": texture_index(m.texture)}
+    out = {"name": m.name, "pbrMetallicRoughness": pbr}
+    if m.normal_texture is not None:
+        out["normalTexture"] = {"index": texture_index(m.normal_texture)}
+    if m.alpha_cutoff is not None:
+        out["alphaMode"] = "MASK"
+        out["alphaCutoff"] = float(m.alpha_cutoff)
+    elif m.base_color[3] < 1.0:
         out["alphaMode"] = "BLEND"
     if m.double_sided:
         out["doubleSided"] = True
@@ -225,12 +257,26 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
             nodes[0]["children"].append(len(nodes) - 1)
 
     made: dict[Material, int] = {}
+    images, textures = [], []
+    texture_of: dict[Image, int] = {}
+
+    def texture_index(image: Image) -> int:
+        """The texture of an image, embedding the image once."""
+        if image not in texture_of:
+            images.append({"name": image.name, "bufferView": buf.image(image.data), "mimeType": image.mime})
+            textures.append({"sampler": 0, "source": len(images) - 1})
+            texture_of[image] = len(textures) - 1
+        return texture_of[image]
 
     def material_index(m: Material) -> int:
         if m not in made:
-            materials.append(_material(m))
+            materials.append(_material(m, texture_index))
             made[m] = len(materials) - 1
         return made[m]
+
+    def primitives_of(buf, arrays, groups, joints=None):  # with tangents when a material has a normal map
+        tangents = any("normalTexture" in materials[material] for material, _ in groups)
+        return _mesh_primitives(buf, arrays, groups, joints, tangents)
 
     table = tree.materials
 
@@ -240,50 +286,68 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         def index_of(m: Material) -> int:  # vertex colours: the colour is COLOR_0, glTF multiplies it by the factor
             return material_index(replace(m, base_color=(1.0, 1.0, 1.0, m.base_color[3])) if white else m)
 
-        if not table or face_material is None:
-            return [(index_of(material_of(-1)), None)]
-        return [
-            (index_of(material_of(i)), np.flatnonzero(face_material == i)) for i in np.unique(face_material).tolist()
-        ]
+        index = face_material if table else None
+        return [(index_of(m), faces) for m, _, faces in material_groups(index, material_of)]
 
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
         bark = gather_mesh(tree.bark, eye, f"{where}: bark")
         bark_groups = groups(tree.bark.face_material, table.for_bark, white=bark.split_colors is not None)
-        add_node("bark", _primitives(buf, bark, bark_groups, joints), skinned=rig is not None)
+        add_node("bark", primitives_of(buf, bark, bark_groups, joints), skinned=rig is not None)
 
-    leaves = tree.leaves
-    instanced = bool(options.instance_leaves) and leaves.instanced and rig is None  # skinned leaves are merged
-    if instanced:
-        model = gather_mesh(leaves.model, eye, f"{where}: leaf_model")
-        translation, quaternion, scale = decompose_transforms(leaves.transforms, where)
-        k = len(translation)
-        per_leaf = np.asarray(tree.skeleton.leaf_material, np.int64) if table else np.zeros(0, np.int64)
-        if len(per_leaf) != k:
-            per_leaf = np.zeros(k, np.int64)
-        extra = gltf_attributes(leaves.instance_attributes)  # the branch each leaf grows from
-        for n, i in enumerate(np.unique(per_leaf).tolist()):  # one instanced node per leaf material
-            sel = np.flatnonzero(per_leaf == i) if n or len(np.unique(per_leaf)) > 1 else slice(None)
+    def instanced_nodes(base: str, model_mesh, transforms, index, instance_attributes, material_of):
+        """One node per material of the instances, each drawing ``model_mesh`` at its instances' transforms."""
+        model = gather_mesh(model_mesh, eye, f"{where}: {base} model")
+        translation, quaternion, scale = decompose_transforms(transforms, where)
+        extra = gltf_attributes(instance_attributes)  # the branch each instance grows from
+        for n, (m, i, rows) in enumerate(material_groups(index, material_of)):
+            sel = slice(None) if rows is None else rows
             attributes = {
-                "TRANSLATION": buf.accessor(to_float32(translation[sel], "leaf positions", where), target=None),
+                "TRANSLATION": buf.accessor(to_float32(translation[sel], f"{base} positions", where), target=None),
                 "ROTATION": buf.accessor(quaternion[sel].astype(np.float32), target=None),
-                "SCALE": buf.accessor(to_float32(scale[sel], "leaf sizes", where), target=None),
+                "SCALE": buf.accessor(to_float32(scale[sel], f"{base} sizes", where), target=None),
             }
             for name, values in extra.items():
                 attributes[name] = buf.accessor(np.ascontiguousarray(values[sel]), target=None)
-            primitives = _primitives(buf, model, [(material_index(table.for_leaf(i)), None)])
-            add_node("leaf" if n == 0 else f"leaf_{i}", primitives, {INSTANCING: {"attributes": attributes}})
-        extensions_used.append(INSTANCING)
+            primitives = primitives_of(buf, model, [(material_index(m), None)])
+            add_node(base if n == 0 else f"{base}_{i}", primitives, {INSTANCING: {"attributes": attributes}})
+        if INSTANCING not in extensions_used:
+            extensions_used.append(INSTANCING)
+
+    def merged_node(name: str, mesh, material_of):
+        if mesh is None or not len(mesh.faces):
+            return
+        arrays = gather_mesh(mesh, eye, f"{where}: {name}")
+        skinned = rig is not None and "skin_joints" in mesh.attributes
+        mesh_groups = groups(mesh.face_material, material_of)
+        add_node(name, primitives_of(buf, arrays, mesh_groups, joints if skinned else None), skinned=skinned)
+
+    leaves = tree.leaves
+    instanced = bool(options.instance_leaves) and rig is None  # skinned leaves and organs are merged
+    if instanced and leaves.instanced:
+        k = len(leaves.transforms)
+        per_leaf = np.asarray(tree.skeleton.leaf_material, np.int64) if table else np.zeros(0, np.int64)
+        if len(per_leaf) != k:
+            per_leaf = np.zeros(k, np.int64)
+        instanced_nodes("leaf", leaves.model, leaves.transforms, per_leaf, leaves.instance_attributes, table.for_leaf)
         if leaves.polygons is not None and len(leaves.polygons.faces):
-            polygons = gather_mesh(leaves.polygons, eye, f"{where}: polygon_leaves")
-            add_node("leaf_polygons", _primitives(buf, polygons, groups(leaves.polygons.face_material, table.for_leaf)))
+            merged_node("leaf_polygons", leaves.polygons, table.for_leaf)
     else:
         # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
-        merged = leaves.merged if leaves.merged is not None else leaves.polygons
-        if merged is not None and len(merged.faces):
-            arrays = gather_mesh(merged, eye, f"{where}: leaves")
-            skinned = rig is not None and "skin_joints" in merged.attributes
-            leaf_groups = groups(merged.face_material, table.for_leaf)
-            add_node("leaf", _primitives(buf, arrays, leaf_groups, joints if skinned else None), skinned=skinned)
+        merged_node("leaf", leaves.merged if leaves.merged is not None else leaves.polygons, table.for_leaf)
+
+    organs = tree.organs
+    for p, proto in enumerate(organs.prototypes):  # a part per kind of organ: organ_sphere, organ_flower...
+        material_of = table.for_leaf if proto.material is None else (lambda i, m=proto.material: m)
+        if instanced:
+            mine = organs.of(p)
+            if len(mine):
+                attributes = {key: a[mine] for key, a in organs.instance_attributes.items()}
+                index = organs.material[mine] if table else None
+                instanced_nodes(
+                    f"organ_{proto.name}", proto.mesh, organs.transforms[mine], index, attributes, material_of
+                )
+        else:
+            merged_node(f"organ_{proto.name}", organs.merged[p], material_of)
 
     if tree.hierarchy is not None and len(tree.hierarchy):
         # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.attributes)
@@ -325,6 +389,18 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
             }
         )
 
+    animations = []
+    if rig is not None and tree.animation is not None:  # the wind: a rotation channel per joint but the root
+        anim = tree.animation
+        times = buf.accessor(anim.times.astype(np.float32), target=None, bounds=True)
+        samplers, channels = [], []
+        for i in range(1, len(rig)):
+            output = buf.accessor(np.ascontiguousarray(anim.rotations[:, i], np.float32), target=None)
+            samplers.append({"input": times, "interpolation": "LINEAR", "output": output})
+            channels.append({"sampler": len(samplers) - 1, "target": {"node": base + i, "path": "rotation"}})
+        if channels:
+            animations.append({"name": "wind", "channels": channels, "samplers": samplers})
+
     metadata = metadata_json(tree, where)
     doc = {"asset": {"version": "2.0", "generator": f"lsys3d {__version__}"}}
     if metadata:
@@ -336,7 +412,10 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         scene["extras"] = metadata
     doc.update(scene=0, scenes=[scene], nodes=nodes)
     # glTF arrays may not be empty: leave out what a tree without geometry lacks
-    for key, value in (("meshes", meshes), ("materials", materials), ("skins", skins), ("accessors", buf.accessors)):
+    samplers = [SAMPLER] if textures else []
+    parts = (("meshes", meshes), ("materials", materials), ("textures", textures), ("images", images))
+    parts += (("samplers", samplers), ("skins", skins), ("animations", animations), ("accessors", buf.accessors))
+    for key, value in parts:
         if value:
             doc[key] = value
     if buf.views:

@@ -11,9 +11,11 @@ The stage (``<asset>`` is the asset's name as an identifier: ``bush``, ``abop_1_
                 Prototypes      Scope
                     leaf_model  Mesh (model space)
             leaf_polygons       Mesh (leaves drawn as polygons; only with instancing)
+            organs              PointInstancer of Prototypes/<kind>...  -- or organ_<kind> Meshes, merged
             skeleton            BasisCurves, linear, widths, purpose guide (only with skeleton_curves)
         Looks                   Scope
-            bark, leaf          Material with a UsdPreviewSurface
+            bark, leaf          Material with a UsdPreviewSurface (and UsdUVTextures reading the images in
+                                <stem>_textures/ beside the layer, or textures/ inside a .usdz)
 
 The parts have the same names as in glTF (``bark``, ``leaf``, ``leaf_polygons``,
 ``skeleton``), so a DCC shows the same objects whichever format it read.
@@ -30,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import struct
 import zlib
 from collections.abc import Sequence
@@ -40,20 +43,22 @@ import numpy as np
 from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, UsdShade, UsdSkel, Vt
 
 from ..attributes import ATTRIBUTES, branch_table
-from ..errors import ExportError
+from ..errors import ExportError, os_reason
 from ..materials import Material
 from ..rig import INFLUENCES
 from ..tree import Tree
 from ..version import __version__
-from .atomic import atomic_path, check_target, scratch_path, write_bytes, write_failure
+from .atomic import atomic_path, check_target, scratch_path, write_bytes, write_chunks, write_failure
 from .common import (
     POINT_ATTRIBUTES,
     ExportOptions,
     MeshArrays,
+    TextureFiles,
     decompose_transforms,
     file_frame,
     frame_transforms,
     gather_mesh,
+    material_groups,
     metadata_json,
     to_float32,
 )
@@ -62,6 +67,7 @@ __all__ = [
     "VARIANT_SET",
     "build_stage",
     "build_variant_stage",
+    "texture_folder",
     "usdz_chunks",
     "write_usd",
     "write_usd_variants",
@@ -77,13 +83,50 @@ def _extent(points: np.ndarray) -> Vt.Vec3fArray:
     return Vt.Vec3fArray([Gf.Vec3f(*map(float, lo)), Gf.Vec3f(*map(float, hi))])
 
 
-def _material(stage: Usd.Stage, looks: str, name: str, m: Material, vertex_colors: bool = False) -> UsdShade.Material:
+def _texture(stage: Usd.Stage, path: str, st, file: str, color: bool, scale, bias=None) -> UsdShade.Shader:
+    """A ``UsdUVTexture`` reading ``file`` at the mesh's ``st``, repeating, ``scale * texel + bias``."""
+    texture = UsdShade.Shader.Define(stage, path)
+    texture.CreateIdAttr("UsdUVTexture")
+    texture.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(file))
+    texture.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(st)
+    for wrap in ("wrapS", "wrapT"):
+        texture.CreateInput(wrap, Sdf.ValueTypeNames.Token).Set("repeat")
+    texture.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set("sRGB" if color else "raw")
+    texture.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(*map(float, scale)))
+    if bias is not None:
+        texture.CreateInput("bias", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(*map(float, bias)))
+    return texture
+
+
+def _material(
+    stage: Usd.Stage,
+    looks: str,
+    name: str,
+    m: Material,
+    vertex_colors: bool = False,
+    textures: TextureFiles | None = None,
+) -> UsdShade.Material:
     material = UsdShade.Material.Define(stage, f"{looks}/{name}")
     shader = UsdShade.Shader.Define(stage, f"{looks}/{name}/PreviewSurface")
     shader.CreateIdAttr("UsdPreviewSurface")
     r, g, b, a = (float(c) for c in m.base_color)
     diffuse = shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f)
-    if vertex_colors:
+    st = None
+    if m.images:  # the mesh's uv, read once for every texture of the material
+        reader = UsdShade.Shader.Define(stage, f"{looks}/{name}/stReader")
+        reader.CreateIdAttr("UsdPrimvarReader_float2")
+        reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("st")
+        st = reader.CreateOutput("result", Sdf.ValueTypeNames.Float2)
+    if m.texture is not None:
+        # the image times the base colour, as glTF multiplies baseColorTexture by baseColorFactor
+        path = f"{looks}/{name}/baseColorTexture"
+        texture = _texture(stage, path, st, textures.path_of(m.texture), True, (r, g, b, a))
+        diffuse.ConnectToSource(texture.CreateOutput("rgb", Sdf.ValueTypeNames.Float3))
+        if m.alpha_cutoff is not None:
+            opacity = shader.CreateInput("opacity", Sdf.ValueTypeNames.Float)
+            opacity.ConnectToSource(texture.CreateOutput("a", Sdf.ValueTypeNames.Float))
+            shader.CreateInput("opacityThreshold", Sdf.ValueTypeNames.Float).Set(float(m.alpha_cutoff))
+    elif vertex_colors:
         # the mesh's displayColor primvar is the colour; the base colour is the fallback where it is missing
         reader = UsdShade.Shader.Define(stage, f"{looks}/{name}/displayColor")
         reader.CreateIdAttr("UsdPrimvarReader_float3")
@@ -92,10 +135,19 @@ def _material(stage: Usd.Stage, looks: str, name: str, m: Material, vertex_color
         diffuse.ConnectToSource(reader.CreateOutput("result", Sdf.ValueTypeNames.Float3))
     else:
         diffuse.Set(Gf.Vec3f(r, g, b))
+    if m.normal_texture is not None:  # a tangent-space map: texel * 2 - 1
+        path = f"{looks}/{name}/normalTexture"
+        file = textures.path_of(m.normal_texture)
+        normal = _texture(stage, path, st, file, False, (2, 2, 2, 1), (-1, -1, -1, 0))
+        shader.CreateInput("normal", Sdf.ValueTypeNames.Normal3f).ConnectToSource(
+            normal.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
+        )
     shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(m.roughness))
     shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(float(m.metallic))
-    if a < 1.0:
+    if a < 1.0 and not (m.texture is not None and m.alpha_cutoff is not None):
         shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(a)
+        if m.alpha_cutoff is not None:
+            shader.CreateInput("opacityThreshold", Sdf.ValueTypeNames.Float).Set(float(m.alpha_cutoff))
     material.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
     return material
 
@@ -103,8 +155,8 @@ def _material(stage: Usd.Stage, looks: str, name: str, m: Material, vertex_color
 class _Looks:
     """The stage's materials under ``Looks``, each authored once however many meshes use it (names kept distinct)."""
 
-    def __init__(self, stage: Usd.Stage, path: str):
-        self.stage, self.path = stage, path
+    def __init__(self, stage: Usd.Stage, path: str, textures: TextureFiles | None = None):
+        self.stage, self.path, self.textures = stage, path, textures
         self.made: dict[tuple[Material, bool], UsdShade.Material] = {}
         self.names: set[str] = set()
 
@@ -117,23 +169,29 @@ class _Looks:
                 i += 1
                 name = f"{base}_{i}"
             self.names.add(name)
-            self.made[key] = _material(self.stage, self.path, name, m, vertex_colors)
+            self.made[key] = _material(self.stage, self.path, name, m, vertex_colors, self.textures)
         return self.made[key]
 
 
 def _subsets(mesh: UsdGeom.Mesh, face_material: np.ndarray | None, material_of, looks: _Looks, colors: bool) -> None:
-    """One ``GeomSubset`` (family ``materialBind``) per material index of the faces, each bound to its material."""
-    if face_material is None:
+    """One ``GeomSubset`` (family ``materialBind``) per material of the faces, each bound to its material.
+
+    Indices that map to the same material share a subset (named after the smallest); faces of one material
+    alone need none (the mesh's own binding).
+    """
+    groups = material_groups(face_material, material_of)
+    if len(groups) == 1 and groups[0][0] == material_of(-1):
         return
-    indices = np.unique(face_material)
-    if len(indices) < 2 and material_of(int(indices[0])) == material_of(-1):
-        return  # one material, the mesh's own
-    for index in indices.tolist():
-        faces = np.flatnonzero(face_material == index).astype(np.int32)
+    for m, index, faces in groups:
+        faces = np.arange(len(face_material)) if faces is None else faces
         subset = UsdGeom.Subset.CreateGeomSubset(
-            mesh, f"material_{index}", UsdGeom.Tokens.face, Vt.IntArray.FromNumpy(faces), "materialBind"
+            mesh,
+            f"material_{index}",
+            UsdGeom.Tokens.face,
+            Vt.IntArray.FromNumpy(faces.astype(np.int32)),
+            "materialBind",
         )
-        UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(looks.get(material_of(index), colors))
+        UsdShade.MaterialBindingAPI.Apply(subset.GetPrim()).Bind(looks.get(m, colors))
     UsdGeom.Subset.SetFamilyType(mesh, "materialBind", UsdGeom.Tokens.partition)
 
 
@@ -217,47 +275,74 @@ def _skeleton(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray) -> Non
     curves.CreateExtentAttr(UsdGeom.Curves.ComputeExtent(pts, w))
 
 
-def _leaf_instancer(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, looks: _Looks, where: str) -> None:
-    """Leaves as a ``PointInstancer``: one prototype of the leaf model per leaf material used."""
+def _instancer(
+    stage: Usd.Stage, path: str, parts, transforms, index, instance_attributes, frame, looks: _Looks, where: str
+) -> None:
+    """A ``PointInstancer`` over ``parts``: one prototype per part and material used by its instances.
+
+    ``parts`` are ``(prototype name, model Mesh, the instances of it, material_of)``; ``index`` holds the
+    material index of every instance (None: all the default).
+    """
     instancer = UsdGeom.PointInstancer.Define(stage, path)
     UsdGeom.Scope.Define(stage, f"{path}/Prototypes")
-    model = gather_mesh(tree.leaves.model, np.eye(3), f"{where}: leaf_model")
-    k = len(tree.leaves.transforms)
-    index = np.asarray(tree.skeleton.leaf_material, np.int64) if tree.materials else np.zeros(0, np.int64)
-    if len(index) != k:
-        index = np.zeros(k, np.int64)
-    used, proto_index = np.unique(index, return_inverse=True)
+    proto_index = np.zeros(len(transforms), np.int32)
     prototypes = []
-    for n, i in enumerate(used.tolist()):
-        m = tree.materials.for_leaf(i)
-        name = "leaf_model" if n == 0 else f"leaf_model_{i}"
-        prototypes.append(_mesh(stage, f"{path}/Prototypes/{name}", model, looks.get(m), m.double_sided).GetPath())
+    for name, model_mesh, members, material_of in parts:
+        model = gather_mesh(model_mesh, np.eye(3), f"{where}: {name}")
+        own = None if index is None else index[members]
+        for n, (m, i, rows) in enumerate(material_groups(own, material_of)):
+            proto = name if n == 0 else f"{name}_{i}"
+            prototypes.append(_mesh(stage, f"{path}/Prototypes/{proto}", model, looks.get(m), m.double_sided).GetPath())
+            proto_index[members if rows is None else members[rows]] = len(prototypes) - 1
     instancer.CreatePrototypesRel().SetTargets(prototypes)
-    transforms = frame_transforms(tree.leaves.transforms, frame)
-    translation, quaternion, scale = decompose_transforms(transforms, where)
-    instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(proto_index.reshape(-1).astype(np.int32)))
-    instancer.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(to_float32(translation, "leaf positions", where)))
+    translation, quaternion, scale = decompose_transforms(frame_transforms(transforms, frame), where)
+    instancer.CreateProtoIndicesAttr(Vt.IntArray.FromNumpy(proto_index))
+    instancer.CreatePositionsAttr(Vt.Vec3fArray.FromNumpy(to_float32(translation, "instance positions", where)))
     # Gf.Quath is stored imaginary-first, so (x, y, z, w) rows are its memory layout
     instancer.CreateOrientationsAttr(Vt.QuathArray.FromNumpy(quaternion.astype(np.float16)))
-    instancer.CreateScalesAttr(Vt.Vec3fArray.FromNumpy(to_float32(scale, "leaf sizes", where)))
+    instancer.CreateScalesAttr(Vt.Vec3fArray.FromNumpy(to_float32(scale, "instance sizes", where)))
     per_instance = {
         k: (np.asarray(v, np.float64) @ frame.T).astype(np.float32) if k in POINT_ATTRIBUTES else v
-        for k, v in tree.leaves.instance_attributes.items()
+        for k, v in instance_attributes.items()
     }
     _attribute_primvars(UsdGeom.PrimvarsAPI(instancer), per_instance)
     extent = instancer.ComputeExtentAtTime(Usd.TimeCode.Default(), Usd.TimeCode.Default())
     instancer.CreateExtentAttr(extent)
 
 
-def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> Usd.Stage:
-    """Build the tree's stage in memory (see the module docstring for its layout)."""
+def _prim_names(names) -> list[str]:
+    """Valid, distinct prim names for ``names`` (``a-b`` -> ``a_b``; a repeat gets ``_2``...)."""
+    out: list[str] = []
+    for name in names:
+        valid = base = Tf.MakeValidIdentifier(name)
+        i = 1
+        while valid in out:
+            i += 1
+            valid = f"{base}_{i}"
+        out.append(valid)
+    return out
+
+
+def build_stage(
+    tree: Tree, options: ExportOptions, where: str = "<stage>", textures: TextureFiles | None = None
+) -> Usd.Stage:
+    """Build the tree's stage in memory (see the module docstring for its layout).
+
+    ``textures`` says where the materials' images are referenced from
+    (default ``./textures/<name>``); afterwards its :meth:`~TextureFiles.files`
+    are the images the stage refers to, for the caller to write.
+    """
     stage, prim = _new_stage(options, tree.identifier, tree.rig is not None)
-    _author_tree(stage, prim, tree, options, where)
+    _author_tree(stage, prim, tree, options, where, textures or TextureFiles("./textures/"))
     return stage
 
 
 def build_variant_stage(
-    trees: Sequence[Tree], names: Sequence[str], options: ExportOptions, where: str = "<stage>"
+    trees: Sequence[Tree],
+    names: Sequence[str],
+    options: ExportOptions,
+    where: str = "<stage>",
+    textures: TextureFiles | None = None,
 ) -> Usd.Stage:
     """One stage whose root prim holds every tree as a variant of the variant set ``seed``.
 
@@ -273,11 +358,12 @@ def build_variant_stage(
         raise ExportError(f"{where}: variant names must be distinct identifiers, not {list(names)!r}")
     stage, prim = _new_stage(options, trees[0].identifier, any(t.rig is not None for t in trees))
     variants = prim.GetVariantSets().AddVariantSet(VARIANT_SET)
+    textures = textures or TextureFiles("./textures/")
     for name, tree in zip(names, trees, strict=True):
         variants.AddVariant(name)
         variants.SetVariantSelection(name)
         with variants.GetVariantEditContext():
-            _author_tree(stage, prim, tree, options, f"{where}: variant {name}")
+            _author_tree(stage, prim, tree, options, f"{where}: variant {name}", textures)
     variants.SetVariantSelection(names[0])
     return stage
 
@@ -297,7 +383,9 @@ def _new_stage(options: ExportOptions, name: str, rigged: bool = False) -> tuple
     return stage, prim
 
 
-def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOptions, where: str) -> None:
+def _author_tree(
+    stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOptions, where: str, textures: TextureFiles
+) -> None:
     """Author the tree under the root prim at the stage's edit target: metadata, parts, materials."""
     frame = file_frame(options)
     root = prim.GetPath().pathString
@@ -309,7 +397,7 @@ def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOp
     )
     UsdGeom.Xform.Define(stage, geom)
     UsdGeom.Scope.Define(stage, looks)
-    shading = _Looks(stage, looks)
+    shading = _Looks(stage, looks, textures)
     table = tree.materials
     skeleton = _rig(stage, f"{root}/Rig", tree, frame, where) if tree.rig is not None else None
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
@@ -328,7 +416,14 @@ def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOp
     has_merged = merged is not None and len(merged.faces) > 0
     leaf_default = table.for_leaf(-1)
     if instanced:
-        _leaf_instancer(stage, f"{geom}/leaf", tree, frame, shading, where)
+        k = len(leaves.transforms)
+        index = np.asarray(tree.skeleton.leaf_material, np.int64) if table else None
+        if index is not None and len(index) != k:
+            index = None
+        parts = [("leaf_model", leaves.model, np.arange(k), table.for_leaf)]
+        _instancer(
+            stage, f"{geom}/leaf", parts, leaves.transforms, index, leaves.instance_attributes, frame, shading, where
+        )
         if has_polygons:
             polygons = gather_mesh(leaves.polygons, frame, f"{where}: polygon_leaves")
             mesh = _mesh(stage, f"{geom}/leaf_polygons", polygons, shading.get(leaf_default), True)
@@ -340,6 +435,30 @@ def _author_tree(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOp
         if table:
             _subsets(mesh, merged.face_material, table.for_leaf, shading, False)
         _bind(mesh, arrays, skeleton)
+
+    organs = tree.organs
+    if len(organs):
+        names = _prim_names(p.name for p in organs.prototypes)
+        materials = [table.for_leaf if p.material is None else (lambda i, m=p.material: m) for p in organs.prototypes]
+        if options.instance_leaves is not False and skeleton is None:  # one instancer, a prototype per kind
+            parts = [
+                (names[p], proto.mesh, organs.of(p), materials[p])
+                for p, proto in enumerate(organs.prototypes)
+                if len(organs.of(p))
+            ]
+            index = organs.material if table else None
+            transforms, attributes = organs.transforms, organs.instance_attributes
+            _instancer(stage, f"{geom}/organs", parts, transforms, index, attributes, frame, shading, where)
+        else:
+            for p, mesh_of in enumerate(organs.merged):
+                if mesh_of is None or not len(mesh_of.faces):
+                    continue
+                arrays = gather_mesh(mesh_of, frame, f"{where}: organ_{names[p]}")
+                material_of = materials[p]
+                mesh = _mesh(stage, f"{geom}/organ_{names[p]}", arrays, shading.get(material_of(-1)), True)
+                if table:
+                    _subsets(mesh, mesh_of.face_material, material_of, shading, False)
+                _bind(mesh, arrays, skeleton)
 
     if tree.hierarchy is not None and len(tree.hierarchy):
         _branch_table(prim, tree, frame)
@@ -368,7 +487,28 @@ def _rig(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, where: str)
     skeleton.CreateJointNamesAttr(Vt.TokenArray(list(rig.names)))
     skeleton.CreateBindTransformsAttr(translations(world))
     skeleton.CreateRestTransformsAttr(translations(local))
+    if tree.animation is not None:
+        _wind(stage, f"{path}/Wind", skeleton, names, local, tree.animation, frame)
     return skeleton
+
+
+def _wind(stage, path: str, skeleton, joints, local: np.ndarray, anim, frame: np.ndarray) -> None:
+    """The wind animation as a ``UsdSkel.Animation`` bound to ``skeleton``: rotations sampled at each frame."""
+    animation = UsdSkel.Animation.Define(stage, path)
+    animation.CreateJointsAttr(Vt.TokenArray(joints))
+    animation.CreateTranslationsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)))
+    animation.CreateScalesAttr(Vt.Vec3hArray.FromNumpy(np.ones((len(joints), 3), np.float16)))
+    rotation = frame / np.cbrt(np.linalg.det(frame))  # turns the axes of the rotations into the file's frame
+    quaternions = anim.rotations.astype(np.float64)
+    quaternions[..., :3] = quaternions[..., :3] @ rotation.T
+    attribute = animation.CreateRotationsAttr()
+    for k in range(len(anim)):  # Gf.Quatf is stored imaginary-first: (x, y, z, w) rows are its memory layout
+        attribute.Set(Vt.QuatfArray.FromNumpy(np.ascontiguousarray(quaternions[k], np.float32)), float(k))
+    UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
+    stage.SetTimeCodesPerSecond(anim.fps)
+    stage.SetFramesPerSecond(anim.fps)
+    stage.SetStartTimeCode(0)
+    stage.SetEndTimeCode(len(anim) - 1)
 
 
 def _bind(mesh: UsdGeom.Mesh, arrays: MeshArrays, skeleton: UsdSkel.Skeleton | None) -> None:
@@ -384,40 +524,86 @@ def _bind(mesh: UsdGeom.Mesh, arrays: MeshArrays, skeleton: UsdSkel.Skeleton | N
     binding.CreateGeomBindTransformAttr(Gf.Matrix4d(1.0))
 
 
+def texture_folder(path: Path) -> Path:
+    """Where a ``.usda``/``.usdc``/``.usd`` file's texture images go: the folder ``<stem>_textures`` beside it.
+
+    >>> texture_folder(Path("out/my oak.usdc")).as_posix()
+    'out/my_oak_textures'
+    """
+    return path.with_name(re.sub(r"[^A-Za-z0-9_.-]", "_", path.stem) + "_textures")
+
+
+def _textures_for(path: Path) -> TextureFiles:
+    """Images beside a layer (``./<stem>_textures/``) or inside a package (``textures/``)."""
+    if path.suffix.lower() == ".usdz":
+        return TextureFiles("textures/")
+    return TextureFiles(f"./{texture_folder(path).name}/")
+
+
 def write_usd(tree: Tree, path: Path, options: ExportOptions) -> Path:
-    """Write ``tree`` as ``.usda`` (text), ``.usdc`` (crate) or ``.usd`` (crate)."""
-    return _write_layer(build_stage(tree, options, str(path)), path, options)
+    """Write ``tree`` as ``.usda`` (text), ``.usdc`` or ``.usd`` (crate); its images go in :func:`texture_folder`."""
+    textures = _textures_for(path)
+    return _write_layer(build_stage(tree, options, str(path), textures), path, options, textures)
 
 
 def write_usd_variants(trees: Sequence[Tree], names: Sequence[str], path: Path, options: ExportOptions) -> Path:
     """Write the trees as the variants of one stage (:func:`build_variant_stage`), any USD suffix."""
-    stage = build_variant_stage(trees, names, options, str(path))
+    textures = _textures_for(path)
+    stage = build_variant_stage(trees, names, options, str(path), textures)
     if path.suffix.lower() == ".usdz":
-        return _write_package(stage, path, options)
-    return _write_layer(stage, path, options)
+        return _write_package(stage, path, options, textures)
+    return _write_layer(stage, path, options, textures)
 
 
 def write_usdz(tree: Tree, path: Path, options: ExportOptions) -> Path:
-    """Write ``tree`` as a ``.usdz`` package holding one ``.usdc`` layer (no external files)."""
-    return _write_package(build_stage(tree, options, str(path)), path, options)
+    """Write ``tree`` as a ``.usdz`` package holding one ``.usdc`` layer and its images (no external files)."""
+    textures = _textures_for(path)
+    return _write_package(build_stage(tree, options, str(path), textures), path, options, textures)
 
 
-def _write_layer(stage: Usd.Stage, path: Path, options: ExportOptions) -> Path:
-    if path.suffix.lower() == ".usda":  # text: built in memory, written by lsys3d (every OS error checked)
-        return write_bytes(path, [stage.GetRootLayer().ExportToString().encode("utf-8")], options.no_clobber)
-    with atomic_path(path, options.no_clobber) as tmp:
-        _export_crate(stage, tmp, path)
+def _write_layer(stage: Usd.Stage, path: Path, options: ExportOptions, textures: TextureFiles) -> Path:
+    """Write the layer, and its images into :func:`texture_folder`: every file complete before any is renamed."""
+    images = textures.files()
+    folder = texture_folder(path)
+    made_folder = False
+    if images:
+        check_target(path, options.no_clobber)  # the layer's folder first: a missing one is named as such
+        try:
+            folder.mkdir()
+            made_folder = True
+        except FileExistsError:
+            pass
+        except OSError as exc:
+            raise ExportError(f"{path}: cannot make the texture folder {str(folder)!r}: {os_reason(exc)}") from None
+    try:
+        with contextlib.ExitStack() as stack:
+            for name, data in images:
+                tmp = stack.enter_context(atomic_path(folder / name, options.no_clobber))
+                write_chunks(tmp, [data], folder / name)
+            if path.suffix.lower() == ".usda":  # text: built in memory, written by lsys3d (every OS error checked)
+                tmp = stack.enter_context(atomic_path(path, options.no_clobber))
+                write_chunks(tmp, [stage.GetRootLayer().ExportToString().encode("utf-8")], path)
+            else:
+                tmp = stack.enter_context(atomic_path(path, options.no_clobber))
+                _export_crate(stage, tmp, path)
+    except BaseException:
+        if made_folder:
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only when it is empty: nothing of ours is in it
+        raise
     return path
 
 
-def _write_package(stage: Usd.Stage, path: Path, options: ExportOptions) -> Path:
-    """A ``.usdz``: USD writes the crate beside the target, lsys3d packs it (:func:`usdz_chunks`) and writes that."""
+def _write_package(stage: Usd.Stage, path: Path, options: ExportOptions, textures: TextureFiles) -> Path:
+    """A ``.usdz``: USD writes the crate beside the target, lsys3d packs it (:func:`usdz_chunks`) with the
+    images and writes that."""
     check_target(path, options.no_clobber)
     inner = f"{Tf.MakeValidIdentifier(path.stem)}.usdc"
     with scratch_path(path, ".usdc") as crate:
         _export_crate(stage, crate, path)
         data = crate.read_bytes()
-    return write_bytes(path, usdz_chunks([(inner, data)], str(path)), options.no_clobber)
+    files = [(inner, data)] + [(f"{textures.prefix}{name}", image) for name, image in textures.files()]
+    return write_bytes(path, usdz_chunks(files, str(path)), options.no_clobber)
 
 
 def _export_crate(stage: Usd.Stage, tmp: Path, path: Path) -> None:

@@ -11,7 +11,7 @@ One module per job:
 
 from __future__ import annotations
 
-from .commands import COMMANDS, Axis, Command, Op, commands_markdown, symbol_table
+from .commands import COMMANDS, Axis, Command, Op, Organ, commands_markdown, symbol_table
 from .interpret import DEFAULT_MAX_SEGMENTS, interpret
 from .options import GRAMMAR_KEYS, JITTER_DISTRIBUTIONS, TurtleOptions, TurtleOverrides, options_markdown
 
@@ -23,6 +23,7 @@ __all__ = [
     "Axis",
     "Command",
     "Op",
+    "Organ",
     "TurtleOptions",
     "TurtleOverrides",
     "commands_markdown",

@@ -19,7 +19,7 @@ from enum import IntEnum
 
 import numpy as np
 
-__all__ = ["COMMANDS", "Axis", "Command", "Op", "SymbolTable", "commands_markdown", "symbol_table"]
+__all__ = ["COMMANDS", "Axis", "Command", "Op", "Organ", "SymbolTable", "commands_markdown", "symbol_table"]
 
 
 class Op(IntEnum):
@@ -40,9 +40,28 @@ class Op(IntEnum):
     POLYGON_VERTEX = 12
     POLYGON_END = 13
     LEAF = 14
+    ORGAN = 15  # record an organ (sphere, disc, surface...) in the skeleton: Command.organ says which
+    WIDTH_ADD = 16  # add Command.sign * width_increment to the width; with an argument, set it
+    WIDTH_FACTOR = 17  # multiply the width by the argument (or Command.factor, or width_scale), ** sign
+    ANGLE_FACTOR = 18  # multiply the rotation angle by the argument (or Command.factor, or angle_scale), ** sign
+    RANDOM_TURN = 19  # turn, pitch and roll by random angles up to the argument (or Command.factor, or angle)
+    TROPISM = 20  # bend the frame once toward the tropism vector by the argument (or Command.factor)
+    ELASTICITY = 21  # set the elasticity of the moves that follow (0 without an argument)
 
 
 N_OPS = len(Op)
+
+
+class Organ(IntEnum):
+    """What an :data:`Op.ORGAN` command records (the organ's kind in the skeleton)."""
+
+    NONE = 0
+    SPHERE = 1  # cpfg's and L-Py's @O
+    DISC = 2  # cpfg's @c: a filled disc in the plane of H and L
+    CIRCLE = 3  # L-Py's @o
+    SURFACE = 4  # a named surface: cpfg's and L-Py's ~l
+    INSTANCE = 5  # Houdini's J, K, M: a copy of an input geometry
+    BOX = 6  # L-Py's @B
 
 
 class Axis(IntEnum):
@@ -56,7 +75,7 @@ class Axis(IntEnum):
 
 @dataclass(frozen=True)
 class Command:
-    """One turtle command: a row of :data:`COMMANDS`.
+    """One turtle command: a row of :data:`COMMANDS` (or of a dialect's table).
 
     Attributes
     ----------
@@ -70,7 +89,7 @@ class Command:
     args : str
         The optional argument, as written in a grammar (empty if none).
     max_args : int
-        Most parameters the module may carry.
+        Most parameters the command uses.
     description : str
         What the command does.
     axis : Axis
@@ -79,7 +98,24 @@ class Command:
         For rotations: +1 turns the first axis of the pair toward the second
         (H toward L, H toward U, L toward U), -1 the other way.  For the
         material without an argument: the step of the index (+1 next, -1
-        previous; the index never goes below 0).
+        previous; the index never goes below 0).  For the factors (length,
+        width, angle): +1 multiplies, -1 divides; for ``WIDTH_ADD``: adds or takes away.
+    ignored : tuple of str
+        Parameters after the used ones that the command accepts and lsys3d
+        ignores (L-Py's ``F(length, topradius)``); a module carrying them is
+        named in a warning.
+    scale : float
+        For moves without an argument: the step length's factor (Lparser's ``Z``: 0.5).
+    vertex : bool
+        For moves inside a polygon: whether the position becomes a vertex (ABOP's ``G``: no).
+    factor : float
+        The default factor or amount when the module has no argument (0: the
+        options' ``length_scale``, ``width_scale``, ``angle_scale`` or ``angle``).
+    organ : Organ
+        For :data:`Op.ORGAN`: what is recorded.
+    prefix : bool
+        The row applies to every name that starts with ``symbol`` and is longer
+        (cpfg's surfaces: ``~l``, ``~k``...).
     """
 
     symbol: str
@@ -90,6 +126,17 @@ class Command:
     description: str
     axis: Axis = Axis.NONE
     sign: int = 1
+    ignored: tuple[str, ...] = ()
+    scale: float = 1.0
+    vertex: bool = True
+    factor: float = 0.0
+    organ: Organ = Organ.NONE
+    prefix: bool = False
+
+    @property
+    def accepts(self) -> int:
+        """Most parameters a module of this command may carry (used and ignored)."""
+        return self.max_args + len(self.ignored)
 
 
 COMMANDS: tuple[Command, ...] = (
@@ -126,6 +173,33 @@ COMMANDS: tuple[Command, ...] = (
     Command(
         "~", "leaf", Op.LEAF, "s", 1, "Place a leaf instance with the turtle's frame, size the step length (or `s`)."
     ),
+    Command(
+        "@O",
+        "sphere",
+        Op.ORGAN,
+        "d",
+        1,
+        "Place a sphere of diameter `d` (default: the width) at the turtle: an organ (`lsys3d.organs`).",
+        organ=Organ.SPHERE,
+    ),
+    Command(
+        "@c",
+        "disc",
+        Op.ORGAN,
+        "d",
+        1,
+        "Place a disc of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.organs`).",
+        organ=Organ.DISC,
+    ),
+    Command(
+        "@o",
+        "circle",
+        Op.ORGAN,
+        "d",
+        1,
+        "Place a circle of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.organs`).",
+        organ=Organ.CIRCLE,
+    ),
 )
 """The turtle's commands, in the order the documentation lists them."""
 
@@ -148,22 +222,28 @@ class SymbolTable:
 
     op: np.ndarray  # int8: Op
     axis: np.ndarray  # int8: Axis of rotations
-    sign: np.ndarray  # float64: +1 / -1 of rotations
-    max_args: np.ndarray  # int64
+    sign: np.ndarray  # float64: +1 / -1 of rotations and factors
+    max_args: np.ndarray  # int64: parameters accepted (used and ignored)
     commands: tuple  # the Command of each symbol id (None for no command)
+    scale: np.ndarray = None  # float64: step factor of moves without an argument
+    vertex: np.ndarray = None  # bool: moves inside a polygon record a vertex
+    factor: np.ndarray = None  # float64: default factor or amount (0: the options')
+    organ: np.ndarray = None  # int8: Organ
 
     def command(self, code: int) -> Command | None:
         return self.commands[code]
 
 
 def symbol_table(
-    alphabet: str, draw: str = "F", move: str = "f", leaf: str = "~", commands: tuple[Command, ...] = COMMANDS
+    alphabet, draw: str = "F", move: str = "f", leaf: str = "~", commands: tuple[Command, ...] = COMMANDS
 ) -> SymbolTable:
     """Compile a command table for the symbols of ``alphabet`` (``alphabet[code]`` is the symbol of id ``code``).
 
     ``draw``, ``move`` and ``leaf`` are the symbols the ``[turtle]`` table gives
     those commands; ``commands`` is the vocabulary (:data:`COMMANDS`, or a
-    dialect's own table built from rows of the same kind).
+    dialect's own table built from rows of the same kind).  A row of the
+    vocabulary with another symbol wins over a ``draw``, ``move`` or ``leaf``
+    symbol (Lparser's ``~`` turns at random, whatever ``leaf`` says).
 
     >>> from lsys3d.modules import ASCII_ALPHABET
     >>> p = symbol_table(ASCII_ALPHABET, draw="FG")
@@ -175,12 +255,25 @@ def symbol_table(
     axis = np.zeros(n, np.int8)
     sign = np.ones(n, np.float64)
     max_args = np.zeros(n, np.int64)
+    scale = np.ones(n, np.float64)
+    vertex = np.ones(n, np.bool_)
+    factor = np.zeros(n, np.float64)
+    organ = np.zeros(n, np.int8)
     per_code: list[Command | None] = [None] * n
     code_of = {ch: i for i, ch in enumerate(alphabet) if ch != "\0"}
-    renamed = {c.op: c for c in commands if c.op in RENAMEABLE.values()}
-    rows = [(c.symbol, c) for c in commands if c.op not in RENAMEABLE.values()]
+    defaults = {o: _BY_OP[o].symbol for o in RENAMEABLE.values()}
+    base = {c.op: c for c in commands if c.op in RENAMEABLE.values() and c.symbol == defaults[c.op]}
+    fixed = [c for c in commands if not (c.op in RENAMEABLE.values() and c.symbol == defaults[c.op])]
+    taken = {c.symbol for c in fixed if not c.prefix}
+    rows = []
     for symbols, o in ((draw, Op.FORWARD), (move, Op.MOVE), (leaf, Op.LEAF)):
-        rows += [(ch, renamed.get(o, _BY_OP[o])) for ch in symbols]
+        rows += [(ch, base.get(o, _BY_OP[o])) for ch in symbols if ch not in taken]
+    rows += [(c.symbol, c) for c in fixed if not c.prefix]
+    prefixed = [c for c in fixed if c.prefix]
+    if prefixed:
+        rows += [
+            (name, c) for name in code_of for c in prefixed if len(name) > len(c.symbol) and name.startswith(c.symbol)
+        ]
     for symbol, c in rows:
         code = code_of.get(symbol)
         if code is None:
@@ -188,9 +281,13 @@ def symbol_table(
         op[code] = c.op
         axis[code] = c.axis
         sign[code] = c.sign
-        max_args[code] = c.max_args
+        max_args[code] = c.accepts
+        scale[code] = c.scale
+        vertex[code] = c.vertex
+        factor[code] = c.factor
+        organ[code] = c.organ
         per_code[code] = c
-    return SymbolTable(op, axis, sign, max_args, tuple(per_code))
+    return SymbolTable(op, axis, sign, max_args, tuple(per_code), scale, vertex, factor, organ)
 
 
 def commands_markdown() -> str:

@@ -57,6 +57,7 @@ import time
 
 import numpy as np
 
+from .. import dialects
 from ..errors import InterpretError, LimitError
 from ..grammar import Grammar
 from ..modules import ModuleString
@@ -92,9 +93,14 @@ def unit_jitter(rng: np.random.Generator, m: int, distribution: str) -> np.ndarr
     return z
 
 
-def _variation(m: int, options: TurtleOptions, seed: int, table: SymbolTable, symbols) -> kernel.Variation:
+def _variation(
+    m: int, options: TurtleOptions, seed: int, table: SymbolTable, symbols, random_turns: int
+) -> kernel.Variation:
     """Per-module random arrays of the natural variation; an empty array for each kind that is off."""
     angle = length = width = roll = np.zeros(0)
+    turn = np.zeros((0, 3))
+    if m and random_turns:  # Lparser's and Houdini's '~': three numbers in [-1, 1] per module
+        turn = generator(seed, Stream.RANDOM_TURN).uniform(-1.0, 1.0, (m, 3))
     skipped = np.zeros(0, np.bool_)
     dist = options.jitter_distribution
     if m and options.angle_jitter > 0:
@@ -109,11 +115,13 @@ def _variation(m: int, options: TurtleOptions, seed: int, table: SymbolTable, sy
     if m and options.branch_drop > 0:
         drop = generator(seed, Stream.BRANCH_DROP).random(m) < options.branch_drop
         skipped = kernel.dropped_modules(_program(table), symbols, drop)
-    return kernel.Variation(angle, length, width, roll, skipped)
+    return kernel.Variation(angle, length, width, roll, skipped, turn)
 
 
 def _program(table: SymbolTable) -> kernel.Program:
-    return kernel.Program(table.op, table.axis, table.sign, table.max_args)
+    return kernel.Program(
+        table.op, table.axis, table.sign, table.max_args, table.scale, table.vertex, table.factor, table.organ
+    )
 
 
 def interpret(
@@ -122,7 +130,7 @@ def interpret(
     seed: int | None = None,
     *,
     max_segments: int = DEFAULT_MAX_SEGMENTS,
-    commands: tuple[Command, ...] = COMMANDS,
+    commands: tuple[Command, ...] | None = None,
 ) -> Skeleton:
     """Draw a module string with the 3D turtle.
 
@@ -137,8 +145,9 @@ def interpret(
         options); the options' (grammar's) seed if None.
     max_segments : int
         Refuse (before drawing) a string with more drawing modules than this.
-    commands : tuple of Command
-        The vocabulary (default :data:`~lsys3d.turtle.commands.COMMANDS`).
+    commands : tuple of Command, optional
+        The vocabulary: by default the grammar's dialect's when ``options`` is a
+        grammar, else :data:`~lsys3d.turtle.commands.COMMANDS`.
 
     Returns
     -------
@@ -168,11 +177,15 @@ def interpret(
     [-1.0, 1.0, 0.0]
     """
     if isinstance(options, Grammar):
+        if commands is None:
+            commands = dialects.get(options.dialect).commands
         options = TurtleOptions.from_grammar(options)
     elif not isinstance(options, TurtleOptions):
         raise TypeError(f"interpret: options must be TurtleOptions or Grammar, not {type(options).__name__}")
     if seed is None:
         seed = options.seed
+    if commands is None:
+        commands = COMMANDS
     t0 = time.perf_counter()
     m = len(modules)
     table = symbol_table(modules.alphabet, options.draw, options.move, options.leaf, commands)
@@ -193,6 +206,7 @@ def interpret(
     n_poly = int(counts[Op.POLYGON_BEGIN])
     n_pts = int(counts[Op.FORWARD] + counts[Op.MOVE] + counts[Op.POLYGON_VERTEX]) if n_poly else 0
     n_leaf = int(counts[Op.LEAF])
+    n_organ = int(counts[Op.ORGAN])
     tx, ty, tz = options.tropism
     config = kernel.Config(
         options.angle,
@@ -206,8 +220,11 @@ def interpret(
         ty,
         tz,
         MAX_COORDINATE,
+        options.width_unit,
+        options.width_increment,
+        options.angle_scale,
     )
-    variation = _variation(m, options, seed, table, modules.symbols)
+    variation = _variation(m, options, seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
 
     def frames(k: int, count: int):
         return tuple(np.empty((k, 3)) for _ in range(count))
@@ -227,8 +244,16 @@ def interpret(
     leaf = kernel.LeafArrays(
         *frames(n_leaf, 4), np.empty(n_leaf), np.empty(n_leaf, np.int32), np.empty(n_leaf, np.int64)
     )
-    status, bad, n_seg, n_pts, n_poly, n_leaf, dropped = kernel.run(
-        program, arrays, config, variation, max_depth, seg, poly, leaf
+    organ = kernel.OrganArrays(
+        np.empty(n_organ, np.int8),
+        *frames(n_organ, 4),
+        np.empty(n_organ),
+        np.empty(n_organ, np.int32),
+        np.empty(n_organ, np.int64),
+        np.empty(n_organ, np.int64),
+    )
+    status, bad, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped = kernel.run(
+        program, arrays, config, variation, max_depth, seg, poly, leaf, organ
     )
     if status != kernel.OK:
         raise _module_error(modules, table, int(bad), kernel.MESSAGES[status])
@@ -259,13 +284,24 @@ def interpret(
         leaf_size=leaf.size[:n_leaf],
         leaf_material=leaf.material[:n_leaf],
         leaf_segment=leaf.segment[:n_leaf],
+        organ_kind=organ.kind[:n_organ],
+        organ_position=organ.position[:n_organ],
+        organ_heading=organ.heading[:n_organ],
+        organ_left=organ.left[:n_organ],
+        organ_up=organ.up[:n_organ],
+        organ_size=organ.size[:n_organ],
+        organ_material=organ.material[:n_organ],
+        organ_segment=organ.segment[:n_organ],
+        organ_module=organ.module[:n_organ],
+        organ_name=np.array([modules.symbol(i) for i in organ.module[:n_organ]], dtype=str).reshape(n_organ),
     )
     log.debug(
-        "interpret: %d modules -> %d segments, %d polygons, %d leaves in %.3f s",
+        "interpret: %d modules -> %d segments, %d polygons, %d leaves, %d organs in %.3f s",
         m,
         n_seg,
         n_poly,
         n_leaf,
+        n_organ,
         time.perf_counter() - t0,
     )
     return skeleton

@@ -18,7 +18,7 @@ import numba
 import numpy as np
 
 from ..skeleton import MAX_COORDINATE
-from .commands import N_OPS, Axis, Op
+from .commands import N_OPS, Axis, Op, Organ
 
 __all__ = [
     "MESSAGES",
@@ -26,6 +26,7 @@ __all__ = [
     "Config",
     "LeafArrays",
     "Modules",
+    "OrganArrays",
     "PolygonArrays",
     "Program",
     "SegmentArrays",
@@ -35,19 +36,37 @@ __all__ = [
     "survey",
 ]
 
-Program = namedtuple("Program", ["op", "axis", "sign", "max_args"])
+Program = namedtuple("Program", ["op", "axis", "sign", "max_args", "scale", "vertex", "factor", "organ"])
 Modules = namedtuple("Modules", ["symbols", "arity", "offsets", "params"])
 Config = namedtuple(
     "Config",
-    ["angle", "heading", "step", "width", "width_scale", "length_scale", "elasticity", "tx", "ty", "tz", "far"],
+    [
+        "angle",
+        "heading",
+        "step",
+        "width",
+        "width_scale",
+        "length_scale",
+        "elasticity",
+        "tx",
+        "ty",
+        "tz",
+        "far",
+        "width_unit",
+        "width_increment",
+        "angle_scale",
+    ],
 )
-Variation = namedtuple("Variation", ["angle", "length", "width", "roll", "skipped"])
+Variation = namedtuple("Variation", ["angle", "length", "width", "roll", "skipped", "turn"])
 SegmentArrays = namedtuple(
     "SegmentArrays",
     ["start", "end", "heading", "left", "up", "width_start", "width_end", "parent", "module", "order", "material"],
 )
 PolygonArrays = namedtuple("PolygonArrays", ["points", "offsets", "material", "segment"])
 LeafArrays = namedtuple("LeafArrays", ["position", "heading", "left", "up", "size", "material", "segment"])
+OrganArrays = namedtuple(
+    "OrganArrays", ["kind", "position", "heading", "left", "up", "size", "material", "segment", "module"]
+)
 
 # numba sees the enums as plain integers
 _NONE = int(Op.NONE)
@@ -65,8 +84,18 @@ _POLYGON_BEGIN = int(Op.POLYGON_BEGIN)
 _POLYGON_VERTEX = int(Op.POLYGON_VERTEX)
 _POLYGON_END = int(Op.POLYGON_END)
 _LEAF = int(Op.LEAF)
+_ORGAN = int(Op.ORGAN)
+_WIDTH_ADD = int(Op.WIDTH_ADD)
+_WIDTH_FACTOR = int(Op.WIDTH_FACTOR)
+_ANGLE_FACTOR = int(Op.ANGLE_FACTOR)
+_RANDOM_TURN = int(Op.RANDOM_TURN)
+_TROPISM = int(Op.TROPISM)
+_ELASTICITY = int(Op.ELASTICITY)
 _AXIS_U = int(Axis.U)
 _AXIS_L = int(Axis.L)
+_AXIS_H = int(Axis.H)
+_SURFACE = int(Organ.SURFACE)
+_INSTANCE = int(Organ.INSTANCE)
 
 # status codes; the message says what went wrong at module `bad`
 OK = 0
@@ -82,6 +111,8 @@ MESSAGES = {
     8: "the material index must be >= 0",
     9: f"the leaf size must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
     10: f"the width with width_jitter is more than {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
+    11: "the rotation angle must be a finite number",
+    12: f"the organ's size must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
 }
 
 
@@ -148,6 +179,43 @@ def _add_vertex(points, n, first, x, y, z):
     return n + 1
 
 
+@numba.njit(cache=True, inline="always")
+def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e):
+    """Turn the frame about H x T by e |H x T| radians, so that H bends toward T (ABOP 2.8); unchanged if H // T."""
+    cx = hy * tz - hz * ty
+    cy = hz * tx - hx * tz
+    cz = hx * ty - hy * tx
+    norm = math.sqrt(cx * cx + cy * cy + cz * cz)
+    if norm <= 1e-12:
+        return hx, hy, hz, lx, ly, lz, ux, uy, uz
+    a = e * norm
+    kx, ky, kz = cx / norm, cy / norm, cz / norm
+    c, s = math.cos(a), math.sin(a)
+    # Rodrigues: v' = v c + (k x v) s + k (k.v)(1 - c), for H and L
+    d = (kx * hx + ky * hy + kz * hz) * (1.0 - c)
+    nhx = hx * c + (ky * hz - kz * hy) * s + kx * d
+    nhy = hy * c + (kz * hx - kx * hz) * s + ky * d
+    nhz = hz * c + (kx * hy - ky * hx) * s + kz * d
+    d = (kx * lx + ky * ly + kz * lz) * (1.0 - c)
+    nlx = lx * c + (ky * lz - kz * ly) * s + kx * d
+    nly = ly * c + (kz * lx - kx * lz) * s + ky * d
+    nlz = lz * c + (kx * ly - ky * lx) * s + kz * d
+    return _orthonormal(nhx, nhy, nhz, nlx, nly, nlz)
+
+
+@numba.njit(cache=True, inline="always")
+def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
+    """Rotate the frame about one of its own axes by the angle with cos c and sin s (already signed)."""
+    if axis == _AXIS_U:  # turn: H toward L
+        hx, hy, hz, lx, ly, lz = _pair(hx, hy, hz, lx, ly, lz, c, s)
+    elif axis == _AXIS_L:  # pitch: H toward U
+        hx, hy, hz, ux, uy, uz = _pair(hx, hy, hz, ux, uy, uz, c, s)
+        lx, ly, lz = uy * hz - uz * hy, uz * hx - ux * hz, ux * hy - uy * hx
+    else:  # roll: L toward U
+        lx, ly, lz, ux, uy, uz = _pair(lx, ly, lz, ux, uy, uz, c, s)
+    return _orthonormal(hx, hy, hz, lx, ly, lz)
+
+
 @numba.njit(cache=True, nogil=True)
 def survey(program, modules):
     """One pass before drawing: how many modules of each op, deepest bracket, bad arguments.
@@ -199,17 +267,17 @@ def dropped_modules(program, symbols, drop):
 
 
 @numba.njit(cache=True, nogil=True)
-def run(program, modules, config, variation, max_depth, seg, poly, leaf):
-    """Run the turtle over the modules, writing segments, polygons and leaves into the preallocated outputs.
+def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
+    """Run the turtle over the modules, writing segments, polygons, leaves and organs into the preallocated outputs.
 
-    Returns (status, bad module, segments, polygon points, polygons, leaves, dropped polygons).
+    Returns (status, bad module, segments, polygon points, polygons, leaves, organs, dropped polygons).
     """
     symbols, arity, offsets, params = modules
     n_cap = seg.start.shape[0]
     depth_of = np.empty(n_cap, np.int64)
     first_child = np.full(n_cap, -1, np.int64)
     same_child = np.full(n_cap, -1, np.int64)  # first child of the same order
-    stack_f = np.empty((max_depth, 14))
+    stack_f = np.empty((max_depth, 16))
     stack_i = np.empty((max_depth, 3), np.int64)
 
     angle = config.angle
@@ -218,10 +286,16 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
     width = config.width
     width_scale = config.width_scale
     length_scale = config.length_scale
+    angle_scale = config.angle_scale
+    width_unit = config.width_unit
+    width_increment = config.width_increment
     elasticity = config.elasticity
     far = config.far  # MAX_COORDINATE
     tx, ty, tz = config.tx, config.ty, config.tz
-    bend = elasticity != 0.0 and (tx != 0.0 or ty != 0.0 or tz != 0.0)
+    bend = tx != 0.0 or ty != 0.0 or tz != 0.0
+    # one-shot bends (Lparser's t, Houdini's T) pull toward T, or down when T is not set
+    gx, gy, gz = (tx, ty, tz) if bend else (0.0, -1.0, 0.0)
+    random_turn = variation.turn.shape[0] > 0
     jitter_angle = variation.angle.shape[0] > 0
     jitter_length = variation.length.shape[0] > 0
     jitter_width = variation.width.shape[0] > 0
@@ -241,6 +315,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
     n_pts = 0
     n_poly = 0
     n_leaf = 0
+    n_organ = 0
     dropped = 0
     poly_open = -1  # module that opened the polygon
     poly_start = 0
@@ -258,36 +333,19 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
         has_arg = arity[i] > 0
         arg = params[offsets[i]] if has_arg else 0.0
         if code in (_FORWARD, _MOVE):
-            if bend:
-                # H x T: rotate the frame about it by e * |H x T| so H bends toward T
-                cx = hy * tz - hz * ty
-                cy = hz * tx - hx * tz
-                cz = hx * ty - hy * tx
-                norm = math.sqrt(cx * cx + cy * cy + cz * cz)
-                if norm > 1e-12:
-                    a = elasticity * norm
-                    kx, ky, kz = cx / norm, cy / norm, cz / norm
-                    c, s = math.cos(a), math.sin(a)
-                    # Rodrigues: v' = v c + (k x v) s + k (k.v)(1 - c), for H and L
-                    d = (kx * hx + ky * hy + kz * hz) * (1.0 - c)
-                    nhx = hx * c + (ky * hz - kz * hy) * s + kx * d
-                    nhy = hy * c + (kz * hx - kx * hz) * s + ky * d
-                    nhz = hz * c + (kx * hy - ky * hx) * s + kz * d
-                    d = (kx * lx + ky * ly + kz * lz) * (1.0 - c)
-                    nlx = lx * c + (ky * lz - kz * ly) * s + kx * d
-                    nly = ly * c + (kz * lx - kx * lz) * s + ky * d
-                    nlz = lz * c + (kx * ly - ky * lx) * s + kz * d
-                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _orthonormal(nhx, nhy, nhz, nlx, nly, nlz)
-            length = arg if has_arg else step
+            if elasticity != 0.0 and bend:
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity)
+            length = arg if has_arg else step * program.scale[sym]
             if jitter_length:
                 length *= variation.length[i]
             qx = px + hx * length
             qy = py + hy * length
             qz = pz + hz * length
             if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):  # NaN fails too
-                return 5, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
             if poly_open >= 0:
-                n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
+                if program.vertex[sym]:
+                    n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
                 last = -1
             elif code == _FORWARD:
                 s_ = n_seg
@@ -298,7 +356,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
                 _put(seg.up, s_, ux, uy, uz)
                 drawn = width * variation.width[i] if jitter_width else width
                 if not drawn <= far:
-                    return 10, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                    return 10, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
                 seg.width_start[s_] = drawn
                 seg.width_end[s_] = drawn
                 if anchor >= 0:
@@ -330,18 +388,32 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
             else:
                 c, s = cos_angle, sin_angle
             s = s * program.sign[sym]
+            hx, hy, hz, lx, ly, lz, ux, uy, uz = _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, program.axis[sym], c, s)
+        elif code == _TURN_AROUND:  # 180 degrees about the row's axis (U: '|'; H: Lparser's '%', Houdini's '*')
             axis = program.axis[sym]
-            if axis == _AXIS_U:  # turn: H toward L
-                hx, hy, hz, lx, ly, lz = _pair(hx, hy, hz, lx, ly, lz, c, s)
-            elif axis == _AXIS_L:  # pitch: H toward U
-                hx, hy, hz, ux, uy, uz = _pair(hx, hy, hz, ux, uy, uz, c, s)
-                lx, ly, lz = uy * hz - uz * hy, uz * hx - ux * hz, ux * hy - uy * hx
-            else:  # roll: L toward U
-                lx, ly, lz, ux, uy, uz = _pair(lx, ly, lz, ux, uy, uz, c, s)
-            hx, hy, hz, lx, ly, lz, ux, uy, uz = _orthonormal(hx, hy, hz, lx, ly, lz)
-        elif code == _TURN_AROUND:
-            hx, hy, hz = -hx, -hy, -hz
-            lx, ly, lz = -lx, -ly, -lz
+            if axis == _AXIS_H:
+                lx, ly, lz, ux, uy, uz = -lx, -ly, -lz, -ux, -uy, -uz
+            elif axis == _AXIS_L:
+                hx, hy, hz, ux, uy, uz = -hx, -hy, -hz, -ux, -uy, -uz
+            else:
+                hx, hy, hz, lx, ly, lz = -hx, -hy, -hz, -lx, -ly, -lz
+        elif code == _RANDOM_TURN:
+            if random_turn:
+                most = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle)
+                for k in range(3):
+                    c, s = _cos_sin(most * variation.turn[i, k])
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, k + 1, c, s)
+        elif code == _TROPISM:
+            e = arg if has_arg else program.factor[sym]
+            hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, gx, gy, gz, e)
+        elif code == _ELASTICITY:
+            elasticity = arg if has_arg else 0.0
+        elif code == _ANGLE_FACTOR:
+            f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle_scale)
+            angle = angle * f ** program.sign[sym]
+            if not math.isfinite(angle):
+                return 11, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+            cos_angle, sin_angle = _cos_sin(angle)
         elif code == _ROLL_HORIZONTAL:
             # L = V x H with V = (0, 1, 0)
             norm = math.sqrt(hz * hz + hx * hx)
@@ -364,6 +436,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
             row[11] = uz
             row[12] = width
             row[13] = step
+            row[14] = angle
+            row[15] = elasticity
             stack_i[depth, 0] = material
             stack_i[depth, 1] = last
             stack_i[depth, 2] = anchor
@@ -374,7 +448,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
                 hx, hy, hz, lx, ly, lz, ux, uy, uz = _orthonormal(hx, hy, hz, lx, ly, lz)
         elif code == _POP:
             if depth == 0:
-                return 1, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                return 1, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
             depth -= 1
             row = stack_f[depth]
             px, py, pz = row[0], row[1], row[2]
@@ -383,29 +457,42 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
             ux, uy, uz = row[9], row[10], row[11]
             width = row[12]
             step = row[13]
+            if angle != row[14]:
+                angle = row[14]
+                cos_angle, sin_angle = _cos_sin(angle)
+            elasticity = row[15]
             material = stack_i[depth, 0]
             last = stack_i[depth, 1]
             anchor = stack_i[depth, 2]
-        elif code == _WIDTH:
-            width = arg if has_arg else width * width_scale
+        elif code in (_WIDTH, _WIDTH_ADD, _WIDTH_FACTOR):
+            if code == _WIDTH:
+                width = arg * width_unit if has_arg else width * width_scale
+            elif code == _WIDTH_ADD:  # L-Py's '_' and '!', cpfg's '#' and '!': a step, or the width given
+                width = (
+                    arg * width_unit if has_arg else max(0.0, width + program.sign[sym] * width_increment * width_unit)
+                )
+            else:  # Lparser's and Houdini's factors
+                f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else width_scale)
+                width = width * f ** program.sign[sym]
             if not (0.0 <= width <= far):
-                return 6, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
             if last >= 0 and depth_of[last] == depth:
                 seg.width_end[last] = width
         elif code == _MATERIAL:
             if has_arg:
                 if arg < -0.5:
-                    return 8, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                    return 8, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
                 material = round(arg)
             else:
                 material = max(0, material + int(program.sign[sym]))
         elif code == _LENGTH:
-            step = step * (arg if has_arg else length_scale)
+            f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else length_scale)
+            step = step * f ** program.sign[sym]
             if not (step >= 0.0 and math.isfinite(step)):
-                return 7, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                return 7, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
         elif code == _POLYGON_BEGIN:
             if poly_open >= 0:
-                return 2, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                return 2, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
             poly_open = i
             poly_start = n_pts
             poly_mat = material
@@ -415,7 +502,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
                 n_pts = _add_vertex(poly.points, n_pts, poly_start, px, py, pz)
         elif code == _POLYGON_END:
             if poly_open < 0:
-                return 3, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                return 3, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
             poly_open = -1
             k = n_pts - poly_start
             if k >= 2:
@@ -437,7 +524,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
         elif code == _LEAF:
             size = arg if has_arg else step
             if not (0.0 <= size <= far):
-                return 9, i, n_seg, n_pts, n_poly, n_leaf, dropped
+                return 9, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
             _put(leaf.position, n_leaf, px, py, pz)
             _put(leaf.heading, n_leaf, hx, hy, hz)
             _put(leaf.left, n_leaf, lx, ly, lz)
@@ -446,11 +533,29 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
             leaf.material[n_leaf] = material
             leaf.segment[n_leaf] = last
             n_leaf += 1
+        elif code == _ORGAN:
+            kind = program.organ[sym]
+            if kind in (_SURFACE, _INSTANCE):  # a scale
+                size = arg if has_arg else 1.0
+            else:  # a diameter (sphere, disc, circle, box), in width units; the width when not given
+                size = arg * width_unit if has_arg else width
+            if not (0.0 <= size <= far):
+                return 12, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+            organ.kind[n_organ] = kind
+            _put(organ.position, n_organ, px, py, pz)
+            _put(organ.heading, n_organ, hx, hy, hz)
+            _put(organ.left, n_organ, lx, ly, lz)
+            _put(organ.up, n_organ, ux, uy, uz)
+            organ.size[n_organ] = size
+            organ.material[n_organ] = material
+            organ.segment[n_organ] = last
+            organ.module[n_organ] = i
+            n_organ += 1
     if poly_open >= 0:
-        return 4, poly_open, n_seg, n_pts, n_poly, n_leaf, dropped
+        return 4, poly_open, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
     # width_end: where the chain goes on (the rule of Skeleton.chains), the next width; at a tip, the tip's
     for s_ in range(n_seg):
         nxt = same_child[s_] if same_child[s_] >= 0 else first_child[s_]
         if nxt >= 0:
             seg.width_end[s_] = seg.width_start[nxt]
-    return OK, -1, n_seg, n_pts, n_poly, n_leaf, dropped
+    return OK, -1, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped

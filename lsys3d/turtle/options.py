@@ -12,6 +12,7 @@ import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, fields
 
+from .. import dialects
 from ..errors import GrammarError, OptionsError, clip
 from ..grammar import Grammar, table_key_line
 from ..options import Options, check_value, option, spec_of
@@ -44,6 +45,17 @@ class TurtleOptions(Options):
     width: float = option(0.1, low=0, help="initial branch diameter")
     width_scale: float = option(0.7, low=0, low_open=True, help="factor of `!` without argument")
     length_scale: float = option(0.9, low=0, low_open=True, help='factor of `"` without argument')
+    width_unit: float = option(
+        1.0,
+        low=0,
+        low_open=True,
+        help="what a width given in the grammar (`!(w)`) is worth, as a diameter: 2 for a radius (L-Py), "
+        "0.01 for centimetres",
+    )
+    width_increment: float = option(
+        1.0, low=0, help="what L-Py's `_` and `!` (cpfg's `#` and `!`) add to or take from the width"
+    )
+    angle_scale: float = option(0.9, low=0, low_open=True, help="factor of the angle-scaling symbols without argument")
     draw: str = option("F", help='symbols that move drawing a segment, e.g. `"FLR"`')
     move: str = option("f", help="symbols that move without drawing")
     leaf: str = option("~", help="the leaf-instance symbol")
@@ -69,7 +81,7 @@ class TurtleOptions(Options):
 
     @classmethod
     def from_grammar(cls, grammar: Grammar, overrides: Mapping | None = None, **more) -> TurtleOptions:
-        """The options of a grammar: its ``[turtle]`` table, ``angle`` and ``seed``.
+        """The options of a grammar: its dialect's turtle, its ``[turtle]`` table, ``angle`` and ``seed``.
 
         Parameters
         ----------
@@ -94,6 +106,7 @@ class TurtleOptions(Options):
         0.0
         """
         values: dict = {"angle": grammar.angle, "seed": grammar.seed}
+        values.update(dialects.get(grammar.dialect).turtle)  # the tool's own turtle (L-Py's radii...)
         for key, value in grammar.turtle.items():
             if key not in GRAMMAR_KEYS:
                 known = ", ".join(sorted(GRAMMAR_KEYS))
@@ -132,7 +145,7 @@ class TurtleOverrides(Mapping):
     >>> TurtleOverrides({"colour": 3})  # doctest: +ELLIPSIS
     Traceback (most recent call last):
       ...
-    lsys3d.errors.OptionsError: turtle: unknown setting 'colour' (known: angle_jitter, branch_drop, ..., width_scale)
+    lsys3d.errors.OptionsError: turtle: unknown setting 'colour' (known: angle_jitter, angle_scale, ..., width_unit)
     """
 
     def __init__(self, values: Mapping | None = None):

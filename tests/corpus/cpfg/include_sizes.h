@@ -1,0 +1,2 @@
+#define STEPS 4
+#define LEN 0.5

@@ -1,0 +1,9 @@
+4
+25
+50
+[A]c[B]c[C]c[D]
+A=+FA
+B=-FB
+C=^FC
+D=&FD
+@

@@ -1,0 +1,10 @@
+8
+25
+50
+E
+E=[A][B][C][D]
+A=c+FAE
+B=c-FBE
+C=c^FCE
+D=c&FDE
+@

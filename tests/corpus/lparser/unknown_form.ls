@@ -1,0 +1,2 @@
+tree of life
+grow up and branch

@@ -1,0 +1,423 @@
+"""The dialects: their symbol tables against the tools' documentation, their readers, and mangled input.
+
+The expected tables below are transcribed from each tool's own documentation (cited per table) and
+compared with what the turtle compiles from the dialect's rows, so a row that drifts from the tool
+fails here.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import lsys3d
+from lsys3d import Grammar, GrammarError, dialects
+from lsys3d.derive import interpretation
+from lsys3d.modules import ASCII_ALPHABET
+from lsys3d.provenance import grammar_text
+from lsys3d.turtle import Axis, Op, Organ, interpret, symbol_table
+
+U, L, H = Axis.U, Axis.L, Axis.H
+
+# What each symbol does, as the tool's documentation says: (op, axis, sign) for rotations, op otherwise.
+# ABOP: The Algorithmic Beauty of Plants, sections 1.5, 2.2 (tropism), 5.1 (polygons: '{', '.', 'G', '}')
+ABOP = {
+    "F": Op.FORWARD, "f": Op.MOVE, "G": Op.MOVE,
+    "+": (Op.ROTATE, U, +1), "-": (Op.ROTATE, U, -1), "&": (Op.ROTATE, L, -1), "^": (Op.ROTATE, L, +1),
+    "\\": (Op.ROTATE, H, -1), "/": (Op.ROTATE, H, +1), "|": Op.TURN_AROUND, "$": Op.ROLL_HORIZONTAL,
+    "[": Op.PUSH, "]": Op.POP, "{": Op.POLYGON_BEGIN, ".": Op.POLYGON_VERTEX, "}": Op.POLYGON_END,
+    "!": Op.WIDTH, "'": Op.MATERIAL, "~l": Op.ORGAN,
+}  # fmt: skip
+# L-Py: doc/user/helpcard.rst and src/cpp/predefinedmodules.cpp of openalea/lpy (names and aliases)
+LPY = {
+    "F": Op.FORWARD, "f": Op.MOVE, "+": (Op.ROTATE, U, +1), "Left": (Op.ROTATE, U, +1),
+    "-": (Op.ROTATE, U, -1), "Right": (Op.ROTATE, U, -1), "^": (Op.ROTATE, L, +1), "Up": (Op.ROTATE, L, +1),
+    "&": (Op.ROTATE, L, -1), "Down": (Op.ROTATE, L, -1), "/": (Op.ROTATE, H, +1), "RollL": (Op.ROTATE, H, +1),
+    "\\": (Op.ROTATE, H, -1), "RollR": (Op.ROTATE, H, -1), "|": Op.TURN_AROUND, "TurnAround": Op.TURN_AROUND,
+    "@v": Op.ROLL_HORIZONTAL, "RollToVert": Op.ROLL_HORIZONTAL, "[": Op.PUSH, "SB": Op.PUSH, "]": Op.POP, "EB": Op.POP,
+    "{": Op.POLYGON_BEGIN, "BP": Op.POLYGON_BEGIN, "}": Op.POLYGON_END, "EP": Op.POLYGON_END,
+    ".": Op.POLYGON_VERTEX, "PP": Op.POLYGON_VERTEX, "_": Op.WIDTH_ADD, "IncWidth": Op.WIDTH_ADD,
+    "!": Op.WIDTH_ADD, "DecWidth": Op.WIDTH_ADD, "SetWidth": Op.WIDTH, ";": Op.MATERIAL, "IncColor": Op.MATERIAL,
+    ",": Op.MATERIAL, "DecColor": Op.MATERIAL, "SetColor": Op.MATERIAL, "@O": Op.ORGAN, "Sphere": Op.ORGAN,
+    "@o": Op.ORGAN, "Circle": Op.ORGAN, "@B": Op.ORGAN, "Box": Op.ORGAN, "~l": Op.ORGAN,
+    "@Ts": Op.ELASTICITY, "Elasticity": Op.ELASTICITY,
+}  # fmt: skip
+# cpfg: "Interpreted symbols", appendix of the cpfg 3.0 tutorial (algorithmicbotany.org), and its
+# circles-and-spheres page (@c, @O)
+CPFG = {
+    "F": Op.FORWARD, "f": Op.MOVE, "G": Op.FORWARD, "g": Op.MOVE,
+    "+": (Op.ROTATE, U, +1), "-": (Op.ROTATE, U, -1), "&": (Op.ROTATE, L, -1), "^": (Op.ROTATE, L, +1),
+    "\\": (Op.ROTATE, H, -1), "/": (Op.ROTATE, H, +1), "|": Op.TURN_AROUND, "@v": Op.ROLL_HORIZONTAL,
+    "[": Op.PUSH, "]": Op.POP, "{": Op.POLYGON_BEGIN, ".": Op.POLYGON_VERTEX, "}": Op.POLYGON_END,
+    ";": Op.MATERIAL, ",": Op.MATERIAL, "#": Op.WIDTH_ADD, "!": Op.WIDTH_ADD, "@O": Op.ORGAN, "@c": Op.ORGAN,
+    "~l": Op.ORGAN, "$": Op.ROLL_HORIZONTAL,
+}  # fmt: skip
+# Lparser: lparser.txt (L. Lapre), the symbol table reproduced in the Lparser ports
+LPARSER = {
+    "F": Op.FORWARD, "Z": Op.FORWARD, "f": Op.MOVE, "z": Op.MOVE, "g": Op.MOVE, ".": Op.POLYGON_VERTEX,
+    "+": (Op.ROTATE, U, +1), "-": (Op.ROTATE, U, -1), "&": (Op.ROTATE, L, -1), "^": (Op.ROTATE, L, +1),
+    "<": (Op.ROTATE, H, -1), ">": (Op.ROTATE, H, +1), "|": Op.TURN_AROUND, "%": Op.TURN_AROUND,
+    "$": Op.ROLL_HORIZONTAL, "~": Op.RANDOM_TURN, "t": Op.TROPISM, "[": Op.PUSH, "]": Op.POP,
+    "{": Op.POLYGON_BEGIN, "}": Op.POLYGON_END, '"': Op.LENGTH, "'": Op.LENGTH, ";": Op.ANGLE_FACTOR,
+    ":": Op.ANGLE_FACTOR, "?": Op.WIDTH_FACTOR, "!": Op.WIDTH_FACTOR, "c": Op.MATERIAL,
+}  # fmt: skip
+# Houdini: the L-System SOP's "Turtle command reference" (SideFX); '&' pitches up, '^' down
+HOUDINI = {
+    "F": Op.FORWARD, "H": Op.FORWARD, "G": Op.MOVE, "f": Op.MOVE, "h": Op.MOVE, "J": Op.ORGAN, "K": Op.ORGAN,
+    "M": Op.ORGAN, "T": Op.TROPISM, "+": (Op.ROTATE, U, +1), "-": (Op.ROTATE, U, -1),
+    "&": (Op.ROTATE, L, +1), "^": (Op.ROTATE, L, -1), "\\": (Op.ROTATE, H, -1), "/": (Op.ROTATE, H, +1),
+    "|": Op.TURN_AROUND, "*": Op.TURN_AROUND, "~": Op.RANDOM_TURN, '"': Op.LENGTH, "_": Op.LENGTH,
+    "!": Op.WIDTH_FACTOR, "?": Op.WIDTH_FACTOR, ";": Op.ANGLE_FACTOR, "@": Op.ANGLE_FACTOR, "'": Op.MATERIAL,
+    "$": Op.ROLL_HORIZONTAL, "[": Op.PUSH, "]": Op.POP, "{": Op.POLYGON_BEGIN, ".": Op.POLYGON_VERTEX,
+    "}": Op.POLYGON_END,
+}  # fmt: skip
+DOCUMENTED = {"abop": ABOP, "lpy": LPY, "cpfg": CPFG, "lparser": LPARSER, "houdini": HOUDINI}
+
+
+def compiled(name: str, symbols):
+    """The dialect's table compiled for ``symbols`` (multi-character names get ids from 128 up)."""
+    extra = [s for s in symbols if len(s) > 1 or ord(s) >= 128]
+    alphabet = ASCII_ALPHABET[:128] + tuple(extra) + ("\0",) * (128 - len(extra))
+    table = symbol_table(alphabet, commands=dialects.get(name).commands)
+    code = {s: (alphabet.index(s, 128) if s in extra else ord(s)) for s in symbols}
+    return table, code
+
+
+@pytest.mark.parametrize("name", sorted(DOCUMENTED))
+def test_symbol_tables_say_what_the_tools_documentation_says(name):
+    documented = DOCUMENTED[name]
+    table, code = compiled(name, list(documented))
+    for symbol, expected in documented.items():
+        c = code[symbol]
+        got = Op(table.op[c])
+        if isinstance(expected, tuple):
+            assert (got, Axis(table.axis[c]), int(table.sign[c])) == expected, symbol
+        else:
+            assert got == expected, symbol
+    # and the dialect has no row the documentation does not list (but the default draw/move/leaf symbols)
+    rows = {c.symbol for c in dialects.get(name).commands if not c.prefix}
+    assert rows - set(documented) <= {"F", "f", "~"}, rows - set(documented)
+
+
+def test_every_op_has_a_row_in_some_dialect():
+    ops = {c.op for name in dialects.DIALECTS for c in dialects.get(name).commands}
+    assert ops == set(Op) - {Op.NONE}
+
+
+def test_the_dialects_differences_are_where_the_tools_differ():
+    """The same symbols, drawn in each dialect: '&' pitches down in ABOP and up in Houdini; Lparser's '<' rolls."""
+
+    def tip(dialect, axiom, **turtle):
+        g = Grammar(axiom=axiom, dialect=dialect, angle=90, turtle=turtle)
+        return interpret(lsys3d.derive(g, 0), g).end[-1].round(6).tolist()
+
+    assert tip("abop", "F&F") == [0.0, 1.0, -1.0]
+    assert tip("houdini", "F&F") == [0.0, 1.0, 1.0]
+    assert tip("lparser", "F<+F") == tip("abop", "F\\+F")
+    assert tip("lpy", "F+F") == tip("abop", "F+(90)F")  # L-Py's default angle is 60 unless the file sets it
+    assert Grammar(axiom="F", dialect="lpy").angle == 60.0
+
+
+def test_widths_and_organs_in_each_dialects_units():
+    g = Grammar(axiom="_(0.05)F@O(0.2)", dialect="lpy")  # radii in L-Py
+    sk = interpret(lsys3d.derive(g, 0), g)
+    assert sk.width_start.tolist() == pytest.approx([0.1]) and sk.organ_size.tolist() == pytest.approx([0.4])
+    g = Grammar(axiom="F_F!F", dialect="lpy")  # '_' and '!' step the width by 1 (a radius)
+    assert interpret(lsys3d.derive(g, 0), g).width_start.tolist() == pytest.approx([0.2, 2.2, 0.2])
+    g = Grammar(axiom="F?F!(0.5)F", dialect="lparser", turtle={"width": 1.0})
+    assert interpret(lsys3d.derive(g, 0), g).width_start.tolist() == pytest.approx([1.0, 1.4, 0.7])
+    g = Grammar(axiom='FZF"F', dialect="lparser")
+    assert interpret(lsys3d.derive(g, 0), g).lengths().tolist() == pytest.approx([1.0, 0.5, 1.0, 1.1])
+    g = Grammar(axiom="F~l(2)J(3)", dialect="cpfg")
+    sk = interpret(lsys3d.derive(g, 0), g)
+    assert sk.organ_kind.tolist() == [Organ.SURFACE] and sk.organ_size.tolist() == [2.0]
+    assert sk.organ_name.tolist() == ["~l"]  # the surface's name, kept with the organ
+    assert lsys3d.derive(g, 0).symbol(1) == "~l"
+    g = Grammar(axiom="FA", dialect="lpy", modules=("A",), homomorphism=["A --> @O(0.1)~l(2)"])
+    sk = interpret(interpretation(g, lsys3d.derive(g, 0)), g)  # organs drawn by a homomorphism rule
+    assert sk.organ_name.tolist() == ["@O", "~l"] and sk.organ_kind.tolist() == [Organ.SPHERE, Organ.SURFACE]
+
+
+# ---------------------------------------------------------------- the readers
+def lpy(text: str, **overrides) -> Grammar:
+    return Grammar.from_text(text, source="plant.lpy", **overrides)
+
+
+def test_lpy_rule_bodies_become_rules_with_local_variables_and_tests():
+    g = lpy(
+        """
+N = 3
+def size(n): return n * 0.5
+module Apex, Leaf
+Axiom: Apex(0)
+derivation length: 4
+production:
+Apex(n) :
+    s = size(n)
+    if n < N:
+        nproduce F(s)
+        produce [+Leaf(n)]Apex(n + 1)
+    elif n == N:
+        produce F(s)Leaf(n)
+    # past N: no produce, the rule does not apply
+homomorphism:
+Leaf(n) --> ~l(1)
+endlsystem
+"""
+    )
+    assert len(g.rules) == 2 and g.modules == ("Apex", "Leaf") and g.defines["N"] == 3
+    result = lsys3d.derive(g)
+    assert str(result) == "F(0)[+Leaf(0)]F(0.5)[+Leaf(1)]F(1)[+Leaf(2)]F(1.5)Leaf(3)"
+    assert str(interpretation(g, result)) == "F(0)[+~l(1)]F(0.5)[+~l(1)]F(1)[+~l(1)]F(1.5)~l(1)"
+
+
+def test_lpy_random_draws_are_the_same_in_each_branch_of_an_if():
+    g = lpy(
+        """
+Axiom: A A A A A A A A
+derivation length: 1
+production:
+A :
+    r = random.random()
+    if r < 0.5: produce B(r)
+    else: produce C(r)
+endlsystem
+""",
+        seed=5,
+    )
+    result = lsys3d.derive(g)
+    values = [result.module(i) for i in range(len(result))]
+    assert {s for s, _ in values} == {"B", "C"}
+    assert all((s == "B") == (v[0] < 0.5) for s, v in values)
+
+
+def test_lpy_settings_scalars_decomposition_cut_and_editor_sections():
+    g = lpy(
+        """
+from math import *
+context().turtle.setAngleIncrement(90)
+A, B = range(2)
+Axiom: X(A)
+derivation length: 1
+production:
+X(k) --> X(k + 1)[F%F]
+decomposition:
+maximum depth: 3
+X(k) : produce I X(k - 1)
+endlsystem
+###### INITIALISATION ######
+__lpy_code_version__ = 1.1
+def __initialiseContext__(context):
+    scalars = [('STEP', 'Integer', 2, 0, 10), ('ON', 'Bool', True)]
+    context["__scalars__"] = scalars
+"""
+    )
+    assert g.angle == 90 and g.defines["B"] == 1 and g.defines["STEP"] == 2 and g.defines["ON"] == 1
+    assert g.decomposition_depth == 3
+    assert str(lsys3d.derive(g)) == "IIIX(-2)[F%F]"  # decomposed three times; cut at the next step
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("def Start():\n    global x\n    x = 1\nAxiom: A\n", "plant.lpy:1:1: L-Py's Start() hook runs Python code"),
+        ("import os\nAxiom: A\n", "plant.lpy:1:1: 'import os': the Python module 'os' is never run"),
+        ("Axiom: A\nproduction:\nA :\n    for i in range(3):\n        nproduce F\n", "plant.lpy:4:5: Python's 'for'"),
+        ("Axiom: A\nproduction:\nA :\n    print(1)\n    x.y = 3\n", "plant.lpy:5:5: this Python statement"),
+        ("v = [1, 2]\nAxiom: F(v)\n", "unknown name 'v': 'v' is Python that lsys3d does not run (line 1"),
+        ("Axiom: A\nproduction:\n?P(x,y,z) --> A\n", "query modules (?P, ?H...) need the turtle"),
+        ("Axiom: A\ngroup 1:\n", "plant.lpy:2:1: 'group 1:' (rules that Python code switches on"),
+        ("derivation length: 3\n", "plant.lpy:1:1: no 'Axiom:'"),
+        ("Axiom: A\nwhile True:\n    pass\n", "plant.lpy:2:1: Python code ('while True:') is never run"),
+        ("Axiom: A\nproduction:\nA << B --> C\n", "'<<' (L-Py's context of the string being built)"),
+    ],
+)
+def test_lpy_refusals_name_the_line_and_the_construct(text, message):
+    with pytest.raises(GrammarError, match=re.escape(message)):
+        lpy(text)
+
+
+def test_cpfg_preprocessor_blocks_include_and_view_file(tmp_path):
+    (tmp_path / "sizes.h").write_text("#define LEN 2\n")
+    (tmp_path / "plant.v").write_text("angle factor: 12\n")
+    path = tmp_path / "plant.l"
+    path.write_text(
+        """/* a cpfg model */
+#include "sizes.h"
+#ifdef LEN
+#define N 2
+#else
+#define N 5
+#endif
+Lsystem: 1
+define: { W = LEN * 0.5; }
+derivation length: N
+Axiom: A(1)
+ignore: +-
+A(x) : {y = x * LEN;} y < 8 {z = y;} --> F(z)[+A(y)]A(y) : 1
+homomorphism
+maximum depth: 1
+F(x) --> F(x)!(W)
+endlsystem
+"""
+    )
+    g = Grammar.from_file(path)
+    assert g.dialect == "cpfg" and g.iterations == 2 and g.angle == 30 and g.defines["W"] == 1
+    assert str(lsys3d.derive(g)) == "F(2)[+F(4)[+A(4)]A(4)]F(4)[+A(4)]A(4)"
+    for text, message in [
+        ('#include "../x.h"\n', "only files in the grammar's own folder"),
+        ("#define F(x) x\n", "macros with parameters are not supported"),
+        ("Lsystem: 1\naxiom: A\nendlsystem\nLsystem: 2\n", "more than one Lsystem"),
+        ("#ifdef X\naxiom: A\n", "#if or #ifdef without #endif"),
+        ("Lsystem: 1\nStart: {x = 1;}\naxiom: A\n", "cpfg's Start: block runs code"),
+        ("Lsystem: 1\naxiom: A\nA == B\n", "expected a production"),
+    ]:
+        bad = tmp_path / "bad.l"
+        bad.write_text(text)
+        with pytest.raises(GrammarError, match=re.escape(message)):
+            Grammar.from_file(bad)
+
+
+def test_lparser_layouts_and_the_ls_forms_are_recognised():
+    numeric = Grammar.from_text("# comment\n4\n25\n50\nAB\nA=+FA\nB=-FB\n@\nignored\n", source="x.ls")
+    assert numeric.dialect == "lparser" and str(lsys3d.derive(numeric)) == "+F+F+F+FA-F-F-F-FB"
+    keywords = Grammar.from_text("recursion 4\nangle 25\nthickness 50\naxiom AB\nrule A = +FA\nrule B=-FB\n", "x.ls")
+    assert str(lsys3d.derive(keywords)) == str(lsys3d.derive(numeric))
+    variables = Grammar.from_text("1\n30\n10\nL\na=30\nL={-(a)f+(a)f}\n@\n", source="x.ls")
+    assert variables.defines == {"a": 30.0} and str(lsys3d.derive(variables)) == "{-(30)f+(30)f}"
+    web = Grammar.from_text("#define R 2\naxiom: A(1)\ndlength: 2\np1: A(x) -> F(x)A(x*R)\n", source="x.ls")
+    assert web.dialect == "abop" and str(lsys3d.derive(web)) == "F(1)F(2)A(4)"
+    for text, message in [
+        ("hello\nworld\n", "cannot tell which .ls format this is"),
+        ("4\n25\n", "the file ends before the thickness"),
+        ("4\n25\n50\n", "no axiom after the recursion depth, the angle and the thickness"),
+        ("4\nX\n50\nA\n", "x.ls:2:1: expected the angle (a number), not 'X'"),
+        ("4\n25\n50\nA\nA=B\nA=C\n", "a second rule for 'A' (the first is on line 5)"),
+        ("4\n25\n50\nA\nAB=C\n", "expected a rule 'X=...'"),
+    ]:
+        with pytest.raises(GrammarError, match=re.escape(message)):
+            Grammar.from_text(text, source="x.ls")
+
+
+def test_houdini_premise_variables_and_signs():
+    g = Grammar.from_text(
+        'dialect = "houdini"\npremise = "FA(0)"\nrules = ["A(i) : i < 2 = F[&A(i+1)]"]\n', source="h.toml"
+    )
+    assert str(lsys3d.derive(g, 3)) == "FF[&F[&A(2)]]"
+    with pytest.raises(GrammarError, match=r"Houdini's predefined variable t: the age of the symbol"):
+        Grammar(axiom="A(1)", rules=["A(x) = F(t)"], dialect="houdini")
+
+
+def test_abop_labels_arrows_equality_and_empty_successors():
+    g = Grammar(
+        axiom="A(0)B",
+        rules=["p1 : A(t) : t = 2 → [F]", "p2 : A(t) : * → A(t+1)", "p3 : B → *"],
+        dialect="abop",
+    )
+    assert [str(s) for s in lsys3d.generations(g, 3)] == ["A(0)B", "A(1)", "A(2)", "[F]"]
+
+
+# ---------------------------------------------------------------- mangled input
+NATIVE = {
+    ".lpy": "from math import *\nR = 2\nAxiom: A(1)\nderivation length: 3\nproduction:\nA(x) :\n  if x < R:\n"
+    "    produce F(x)[+A(x*R)]\n  else:\n    produce F\nhomomorphism:\nF --> F\nendlsystem\n",
+    ".l": "#define N 3\nLsystem: 1\nderivation length: N\naxiom: A(1)\nA(x) : x < 4 {y = x;} --> F(y)[+A(x+1)]\n"
+    "homomorphism\nF --> F\nendlsystem\n",
+    ".ls": "4\n25\n50\nA\nA=F[+A]-A\n@\n",
+}
+PAYLOADS = ["__import__('os').system('touch {canary}')", "open('{canary}', 'w')", "exec('x')", "eval('1')"]
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.sampled_from(sorted(NATIVE)),
+    st.lists(
+        st.tuples(st.integers(0, 400), st.sampled_from([*"()[]{}:=<>-+%*#@!;,.\n \t'\"\\", "-->", "if ", "A("])),
+        max_size=8,
+    ),
+    st.integers(0, 400),
+)
+def test_mangled_native_files_raise_only_grammar_errors(suffix, edits, cut):
+    text = NATIVE[suffix]
+    for at, piece in edits:
+        at %= len(text) + 1
+        text = text[:at] + piece + text[at:]
+    text = text[: max(cut, len(text) // 2)]
+    try:
+        g = Grammar.from_text(text, source=f"mangled{suffix}")
+    except GrammarError as exc:
+        assert str(exc).startswith(f"mangled{suffix}") and "\n" not in str(exc)
+        return
+    try:
+        lsys3d.derive(g, min(g.iterations, 3), max_modules=10_000)
+    except lsys3d.LSystemError as exc:
+        assert "\n" not in str(exc)
+
+
+@pytest.mark.parametrize("suffix", sorted(NATIVE))
+@pytest.mark.parametrize("payload", PAYLOADS)
+def test_native_files_never_run_what_they_hold(tmp_path, suffix, payload):
+    canary = tmp_path / "canary"
+    code = payload.format(canary=canary)
+    texts = {
+        ".lpy": [f"{code}\nAxiom: A\n", f"x = {code}\nAxiom: F(x)\n", f"Axiom: A\nproduction:\nA :\n    {code}\n",
+                 f"def f(x): return {code}\nAxiom: F(f(1))\n", f"Axiom: F({code})\n"],
+        ".l": [f"#define X {code}\naxiom: A\n", f"axiom: A\nA : {{y = {code};}} --> B\n", f"axiom: F({code})\n"],
+        ".ls": [f"2\n30\n10\nF({code})\n@\n", f"2\n30\n10\nA\nA=F({code})\n@\n"],
+    }[suffix]  # fmt: skip
+    for text in texts:
+        try:
+            g = Grammar.from_text(text, source=f"x{suffix}")
+            lsys3d.derive(g, 1)
+        except lsys3d.LSystemError:
+            pass
+        assert not canary.exists()
+
+
+def test_the_readers_have_no_door_to_python():
+    for name in ("lpy", "cpfg", "lparser", "common"):
+        source = (Path(lsys3d.__file__).parent / "dialects" / f"{name}.py").read_text()
+        assert not re.search(r"(?<![\w.])(eval|exec|compile|getattr|__import__)\(|importlib|ast\.", source), name
+
+
+def test_rules_without_weights_are_alternatives_only_in_lsys3d_notation():
+    """In L-Py and cpfg the first rule that matches applies; lsys3d's own notation pools rules without weights."""
+    lpy_g = lpy("Axiom: A A A A A A A A\nderivation length: 1\nproduction:\nA --> B\nA --> C\nendlsystem\n")
+    assert str(lsys3d.derive(lpy_g)) == "BBBBBBBB"
+    cpfg = Grammar.from_text("axiom: AAAAAAAA\nA --> B : 1\nA --> C : 1\nA --> D\n", source="p.l")
+    assert set(str(lsys3d.derive(cpfg, 1, seed=2))) == {"B", "C"}  # weighted: stochastic; D never applies
+    own = Grammar(axiom="A" * 40, rules=["A -> B", "A -> C"])
+    assert set(str(lsys3d.derive(own, 1))) == {"B", "C"}
+
+
+@pytest.mark.parametrize(
+    ("dialect", "axiom"),
+    [
+        ("lpy", "F;F;(5)F,F@O(0.1)"),
+        ("cpfg", "F;F;(5)F,F@O(0.2)"),
+        ("lparser", "FcFc(5)F!(1)c(4)F"),
+        ("houdini", "F'F'(5)F'(4)F"),
+        ("abop", "F'F'(5)F'(4)F"),
+    ],
+)
+def test_colour_commands_pick_the_materials_table(dialect, axiom):
+    """Each dialect's colour symbols set the one material index of the turtle, which [materials] colours."""
+    text = f"""dialect = "{dialect}"
+axiom = "{axiom}"
+[materials]
+1 = {{ name = "one", base_color = [1, 0, 0] }}
+5 = {{ name = "five", base_color = [0, 1, 0] }}
+4 = {{ name = "four", base_color = [0, 0, 1] }}
+"""
+    grammar = Grammar.from_text(text, source=f"{dialect}.toml")
+    tree = lsys3d.generate(grammar, sides=6, union=False)
+    assert tree.skeleton.material.tolist() == [0, 1, 5, 4]
+    assert sorted(set(tree.bark.face_material.tolist())) == [0, 1, 4, 5]
+    assert [tree.materials.for_bark(i).name for i in (1, 5, 4)] == ["one", "five", "four"]
+    assert tree.skeleton.organ_material.tolist() == ([4] if "@O" in axiom else [])
+    again = Grammar.from_text(grammar_text(grammar))  # the provenance's TOML keeps the table
+    assert again.materials == grammar.materials and again.dialect == dialect
