@@ -1,17 +1,40 @@
-"""Array helpers shared by the stages: CSR offsets, index ranges, unit vectors, row grouping.
+"""Array helpers shared by the stages: CSR offsets, index ranges, unit vectors, row grouping and hashing,
+connected components.
 
 Every stage stores variable-length groups (the segments of a chain, the rings
 of a tube, the points of a polygon) as one flat array plus ``offsets``, like a
 CSR matrix: group ``i`` is ``flat[offsets[i]:offsets[i + 1]]``.  The helpers
 here build and walk such arrays without Python loops; they live in one place
 so that no stage keeps its own copy.
+
+Rows are matched exactly through a 64-bit hash (:func:`row_hash`): one 1-D
+sort instead of sorting rows (``np.unique(a, axis=0)`` and ``lexsort`` compare
+rows column by column and are several times slower).  Every match found
+through a hash is confirmed on the rows themselves, so a collision can only
+cost a match, never make a wrong one.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["dot", "first_equal_row", "gather", "local_index", "offsets", "ranges", "unit"]
+__all__ = [
+    "components",
+    "dot",
+    "find_rows",
+    "first_equal_row",
+    "gather",
+    "local_index",
+    "offsets",
+    "ranges",
+    "row_hash",
+    "unit",
+]
+
+_MIX = np.array(
+    [0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9, 0xD6E8FEB86659FD93, 0xFF51AFD7ED558CCD],
+    np.uint64,
+)
 
 
 def offsets(counts: np.ndarray) -> np.ndarray:
@@ -74,19 +97,88 @@ def unit(v: np.ndarray, eps: float = 0.0) -> np.ndarray:
     return v / np.where(n > eps, n, 1.0)
 
 
+def row_hash(rows: np.ndarray) -> np.ndarray:
+    """``(n,) uint64`` hash of each row of an ``(n, k)`` array of 4- or 8-byte numbers (``-0.0`` and ``0.0`` differ).
+
+    >>> a = np.array([[1.0, 2.0, 3.0], [1.0, 2.0, 3.0], [3.0, 2.0, 1.0]])
+    >>> h = row_hash(a); bool(h[0] == h[1]), bool(h[0] == h[2])
+    (True, False)
+    """
+    rows = np.ascontiguousarray(rows)
+    words = rows.view(np.uint64 if rows.dtype.itemsize == 8 else np.uint32).astype(np.uint64)
+    h = np.zeros(len(rows), np.uint64)
+    with np.errstate(over="ignore"):
+        for j in range(words.shape[1]):
+            h = (h ^ words[:, j]) * _MIX[j % len(_MIX)]
+            h ^= h >> np.uint64(29)
+    return h
+
+
+def find_rows(have: np.ndarray, want: np.ndarray) -> np.ndarray:
+    """For each row of ``want``, the index of an equal row of ``have`` (exact), or -1.
+
+    >>> find_rows(np.array([[0.0, 1.0], [2.0, 3.0]]), np.array([[2.0, 3.0], [5.0, 5.0]])).tolist()
+    [1, -1]
+    """
+    if not len(have):
+        return np.full(len(want), -1, np.int64)
+    hh, hw = row_hash(have), row_hash(want)
+    order = np.argsort(hh, kind="stable")
+    sorted_h = hh[order]
+    pos = np.minimum(np.searchsorted(sorted_h, hw), len(have) - 1)
+    found = order[pos]
+    ok = (sorted_h[pos] == hw) & (have[found] == want).all(axis=1)
+    return np.where(ok, found, -1)
+
+
 def first_equal_row(keys: np.ndarray) -> np.ndarray:
     """For each row of an integer array ``(n, k)``, the index of the first row equal to it.
 
     What ``np.unique(keys, axis=0, return_index=True, return_inverse=True)``
-    gives, from one stable ``lexsort`` of the columns (several times faster).
+    gives, from one stable sort of a 64-bit hash of the rows (several times
+    faster); should two different rows share a hash, the rows are sorted
+    themselves.
 
     >>> first_equal_row(np.array([[1, 2, 3], [0, 0, 0], [1, 2, 3], [0, 0, 0]])).tolist()
     [0, 1, 0, 1]
     """
-    order = np.lexsort(keys.T[::-1])  # stable: equal rows keep their order, the first comes first
+    h = row_hash(keys)
+    order = np.argsort(h, kind="stable")  # stable: equal rows keep their order, the first comes first
     ranked = keys[order]
+    same = (ranked[1:] == ranked[:-1]).all(axis=1)
+    if ((h[order][1:] == h[order][:-1]) & ~same).any():  # two rows share a hash: sort the rows
+        order = np.lexsort(keys.T[::-1])
+        ranked = keys[order]
+        same = (ranked[1:] == ranked[:-1]).all(axis=1)
     starts = np.ones(len(keys), bool)
-    starts[1:] = (ranked[1:] != ranked[:-1]).any(axis=1)
+    starts[1:] = ~same
     owner = np.empty(len(keys), np.int64)
     owner[order] = order[np.flatnonzero(starts)][np.cumsum(starts) - 1]
     return owner
+
+
+def components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Connected component of each of ``n`` nodes joined by edges ``a - b``: the smallest node index in it.
+
+    Label propagation with pointer jumping, in numpy: each pass hooks every
+    root under the smallest root it touches, then compresses the paths; a few
+    passes over the edges, whatever the graph's diameter.
+
+    >>> components(6, np.array([0, 4, 2]), np.array([1, 5, 1])).tolist()
+    [0, 0, 0, 3, 4, 4]
+    """
+    parent = np.arange(n, dtype=np.int64)
+    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    while len(a):
+        pa, pb = parent[a], parent[b]
+        differ = pa != pb
+        if not differ.any():
+            break
+        lo, hi = np.minimum(pa[differ], pb[differ]), np.maximum(pa[differ], pb[differ])
+        np.minimum.at(parent, hi, lo)  # hook each root under the smaller root it touches
+        while True:  # compress paths until every node points at a root
+            jumped = parent[parent]
+            if np.array_equal(jumped, parent):
+                break
+            parent = jumped
+    return parent

@@ -178,7 +178,10 @@ def run_job(job: Job, outdir: str | os.PathLike) -> dict:
         from .stats import report
 
         outdir = Path(outdir)
-        tree = generate(job.grammar(), job.iterations, job.seed, options=job.options)
+        options = job.options
+        if not options.union.workers:  # the batch runs a tree per core: each union in its own process
+            options = options.with_flat(workers=1)
+        tree = generate(job.grammar(), job.iterations, job.seed, options=options)
         counts = report(tree.modules, tree.skeleton, tree)
         files = []
         for rel in job.paths:

@@ -141,7 +141,7 @@ def _size(text: str) -> int:
 
 
 class _Progress:
-    """Stage names on stderr while attached to a terminal; silent when piped or with -q."""
+    """Stage names (and the union's percentage) on stderr while attached to a terminal; silent when piped or -q."""
 
     def __init__(self, enabled: bool):
         self.enabled = enabled
@@ -151,6 +151,8 @@ class _Progress:
             return
         if event == "start":
             sys.stderr.write(f"\rlsys3d: {stage}...\x1b[K")
+        elif event == "progress":  # `seconds` is the fraction done
+            sys.stderr.write(f"\rlsys3d: {stage} {seconds:.0%}\x1b[K")
         else:
             sys.stderr.write(f"\rlsys3d: {stage} {seconds:.2f} s\x1b[K")
         sys.stderr.flush()

@@ -135,7 +135,11 @@ class GenerateOptions(Options):
 
 
 def run_stage(name: str, fn: Callable, *args, progress: Callable[[str, str, float], None] | None = None, **kw):
-    """Call ``fn(*args, **kw)`` as stage ``name``: report it to ``progress`` and log its time."""
+    """Call ``fn(*args, **kw)`` as stage ``name``: report it to ``progress`` and log its time.
+
+    ``progress(name, "start", 0.0)`` comes first and ``progress(name, "done", seconds)`` last; a long stage
+    (the union) may report ``progress(name, "progress", fraction)`` between them, fraction in [0, 1].
+    """
     if progress:
         progress(name, "start", 0.0)
     t0 = time.perf_counter()
@@ -206,7 +210,8 @@ def generate(
     options : GenerateOptions, optional
         Defaults to ``GenerateOptions()``.
     progress : callable, optional
-        Called as ``progress(stage, "start" | "done", seconds)`` for each stage.
+        Called as ``progress(stage, "start" | "done", seconds)`` for each stage, and as
+        ``progress("union", "progress", fraction)`` while the union works (fraction from 0 to 1).
     **overrides
         Single options by their flat names, over ``options``: ``sides=5``,
         ``union=False``, ``max_modules=10**6``... (:meth:`GenerateOptions.from_flat`).
@@ -248,10 +253,22 @@ def generate(
             f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter than "
             f"min_length ({options.sweep.min_length:g}) and there is no leaf"
         )
+    counts = StageCounts(
+        modules=len(modules),
+        segments=len(skeleton),
+        tubes=len(tubes.sides),
+        tube_vertices=len(tubes.points),
+        tube_faces=len(tubes.faces),
+    )
     if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
         bark = stage("union", Mesh.empty)
     elif options.union.enabled:
-        bark = stage("union", union, tubes, options.union)
+
+        def report(fraction: float) -> None:
+            progress("union", "progress", fraction)
+
+        held, tubes = [tubes], None  # the union is given the only reference: it frees the soup once it is culled
+        bark = stage("union", _union_of_held, held, options.union, report if progress else None)
     else:
         bark = stage("union", concatenate, tubes)
     bark = stage("color", bark_stage.color, bark, options.color, table.bark.base_color, seed)
@@ -260,7 +277,7 @@ def generate(
     keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
     branches = hierarchy(skeleton, seed) if keys or table else None
     bulge = options.sweep.bark_displacement
-    if table and len(tubes):
+    if table and counts.tubes:
         bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
     if keys:
         bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
@@ -294,13 +311,6 @@ def generate(
             bark, leaves, organs = _keep(bark, leaves, organs, wanted + SKIN_KEYS)
         if options.wind.enabled:
             animation = stage("wind", sway, rig, branches, options.wind)
-    counts = StageCounts(
-        modules=len(modules),
-        segments=len(skeleton),
-        tubes=len(tubes.sides),
-        tube_vertices=len(tubes.points),
-        tube_faces=len(tubes.faces),
-    )
     return Tree(
         bark=bark,
         skeleton=skeleton,
@@ -315,6 +325,11 @@ def generate(
         materials=table,
         animation=animation,
     )
+
+
+def _union_of_held(held: list, options: UnionOptions, progress: Callable[[float], None] | None) -> Mesh:
+    """``union(held.pop(), options)``: the list is emptied, so the union holds the tube soup alone."""
+    return union(held.pop(), options, progress=progress)
 
 
 def _keep(bark: Mesh, leaves, organs, keys):

@@ -34,6 +34,7 @@ from pathlib import Path
 
 from .errors import BatchError
 from .jobs import Job, JobSize
+from .union_jobs import default_workers as cpu_count  # the cores this process may run on
 
 __all__ = ["MAX_ATTEMPTS", "STOP_SECONDS", "cpu_count", "run_dask", "run_local"]
 
@@ -47,14 +48,6 @@ STOP_SECONDS = 10.0
 
 CONNECT_TIMEOUT = "30s"
 """How long to try to reach a Dask scheduler."""
-
-
-def cpu_count() -> int:
-    """Cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
 
 
 # ---------------------------------------------------------------- local processes

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .arrays import components as _labels
 from .modules import ModuleString
 from .skeleton import Skeleton
 from .version import __version__
@@ -74,22 +75,8 @@ def components(faces: np.ndarray, n_vertices: int) -> int:
     faces = np.asarray(faces, dtype=np.int64)
     if len(faces) == 0:
         return 0
-    a = faces.ravel()
-    b = np.roll(faces, -1, axis=1).ravel()
-    parent = np.arange(n_vertices, dtype=np.int64)
-    while True:
-        pa, pb = parent[a], parent[b]
-        differ = pa != pb
-        if not differ.any():
-            break
-        lo, hi = np.minimum(pa[differ], pb[differ]), np.maximum(pa[differ], pb[differ])
-        np.minimum.at(parent, hi, lo)  # hook each root under the smaller root it touches
-        while True:  # compress paths until every vertex points at a root
-            jumped = parent[parent]
-            if np.array_equal(jumped, parent):
-                break
-            parent = jumped
-    return len(np.unique(parent[a]))
+    label = _labels(n_vertices, faces.ravel(), np.roll(faces, -1, axis=1).ravel())
+    return len(np.unique(label[faces[:, 0]]))
 
 
 def mesh_stats(tree) -> dict:

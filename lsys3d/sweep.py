@@ -39,9 +39,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
-from .arrays import dot, gather, offsets, unit
+from .arrays import dot, gather, local_index, offsets, unit
 from .bark import bark_noise
 from .errors import GeometryError, LimitError
 from .mesh import Mesh
@@ -67,7 +68,9 @@ class SweepOptions(Options):
     fraction of the local tube radius ``r``; ``n``
     (:func:`lsys3d.bark.bark_noise`, fBm with its contrast raised) lies in
     [-1, 1] and is evaluated at the undisplaced world position, so tubes that
-    meet at a junction carry the same bark pattern.
+    meet at a junction carry the same bark pattern.  Runs of segments shorter
+    than the tube is wide merge into one ring span while the merged axis stays
+    within ``merge_deviation`` of the radius of every joint it skips.
 
     Examples
     --------
@@ -87,6 +90,12 @@ class SweepOptions(Options):
         0.01, low=0, high=90, high_open=True, help="degrees: a straighter joint with a linear taper gets no ring"
     )
     merge_width: float = option(1e-6, low=0, help="relative tolerance of the linear taper of merge_angle", cli=False)
+    merge_deviation: float = option(
+        0.02,
+        low=0,
+        high=0.5,
+        help="steps shorter than the tube is wide merge while within this fraction of its radius (0: off)",
+    )
     bark_displacement: float = option(
         0.0, low=0, high=0.5, help="procedural bark: displace the tubes by noise up to this fraction of their radius"
     )
@@ -209,6 +218,102 @@ class Tubes:
             self.order[which],
         )
 
+    def insert_rings(self, tube: np.ndarray, ring: np.ndarray, t: np.ndarray) -> Tubes:
+        """These tubes with new rings between existing ones, each vertex interpolated along its wall edge.
+
+        A new ring goes into tube ``tube[i]`` between its rings ``ring[i]`` and
+        ``ring[i] + 1``, at the fraction ``0 < t[i] < 1`` of the way: vertex
+        ``j`` of the new ring lies on the wall edge joining vertex ``j`` of the
+        two rings, and its normal and uv are interpolated the same way.  On a
+        span whose wall quads are planar (a straight, linearly tapered piece of
+        tube, :func:`straight_spans`) the surface does not change; elsewhere it
+        moves by at most the quads' distance from planar.  The existing points
+        keep their exact values.
+        """
+        tube, ring, t = (np.asarray(x) for x in (tube, ring, t))
+        if not len(tube):
+            return self
+        nt, sides, rings = len(self), self.sides, self.rings
+        all_tube = np.concatenate([np.repeat(np.arange(nt), rings), tube.astype(np.int64)])
+        all_ring = np.concatenate([local_index(rings), ring.astype(np.int64)])
+        all_t = np.concatenate([np.zeros(int(rings.sum())), t.astype(np.float64)])
+        order = np.lexsort((all_t, all_ring, all_tube))
+        rt, rk, rf = all_tube[order], all_ring[order], all_t[order]
+        new_rings = np.bincount(rt, minlength=nt)
+        local = local_index(new_rings)
+        p_off = offsets(new_rings * sides + 2)
+        w_off = offsets((new_rings + 2) * (sides + 1))
+        f_off = offsets(2 * sides * new_rings)
+
+        points = np.empty((p_off[-1], 3))
+        s_ring = sides[rt]
+        vert_ring = np.repeat(np.arange(len(rt)), s_ring)
+        j = local_index(s_ring)
+        src = self.point_offsets[rt[vert_ring]] + rk[vert_ring] * s_ring[vert_ring] + j
+        f = rf[vert_ring]
+        moved = f > 0
+        dest = p_off[rt[vert_ring]] + local[vert_ring] * s_ring[vert_ring] + j
+        points[dest] = self.points[src]
+        a, b, fm = src[moved], src[moved] + s_ring[vert_ring[moved]], f[moved][:, None]
+        points[dest[moved]] = (1.0 - fm) * self.points[a] + fm * self.points[b]
+        points[p_off[1:] - 2] = self.points[self.point_offsets[1:] - 2]
+        points[p_off[1:] - 1] = self.points[self.point_offsets[1:] - 1]
+
+        nw = w_off[-1]
+        wedge_point = np.empty(nw, np.int64)
+        wedge_normal = np.empty((nw, 3), np.float32)
+        wedge_uv = np.empty((nw, 2), np.float32)
+        w_ring = s_ring + 1
+        wedge_ring = np.repeat(np.arange(len(rt)), w_ring)
+        jw = local_index(w_ring)
+        s_w = w_ring[wedge_ring]
+        src = self.wedge_offsets[rt[wedge_ring]] + rk[wedge_ring] * s_w + jw
+        dest = w_off[rt[wedge_ring]] + local[wedge_ring] * s_w + jw
+        wedge_point[dest] = p_off[rt[wedge_ring]] + local[wedge_ring] * (s_w - 1) + jw % (s_w - 1)
+        wedge_normal[dest] = self.wedge_normal[src]
+        wedge_uv[dest] = self.wedge_uv[src]
+        f = rf[wedge_ring]
+        moved = f > 0
+        a, b, fm = src[moved], src[moved] + s_w[moved], f[moved][:, None]
+        wedge_normal[dest[moved]] = unit(
+            (1.0 - fm) * self.wedge_normal[a].astype(np.float64) + fm * self.wedge_normal[b]
+        )
+        wedge_uv[dest[moved]] = (1.0 - fm) * self.wedge_uv[a].astype(np.float64) + fm * self.wedge_uv[b]
+        # caps: centre and rim, base then tip, as they were; the rims point at the first and last ring
+        cap_len = 2 * (sides + 1)
+        cap_tube = np.repeat(np.arange(nt), cap_len)
+        jc = local_index(cap_len)
+        src = self.wedge_offsets[cap_tube] + rings[cap_tube] * (sides[cap_tube] + 1) + jc
+        dest = w_off[cap_tube] + new_rings[cap_tube] * (sides[cap_tube] + 1) + jc
+        wedge_normal[dest] = self.wedge_normal[src]
+        wedge_uv[dest] = self.wedge_uv[src]
+        s_c = sides[cap_tube]
+        tip = jc > s_c
+        jj = np.where(tip, jc - s_c - 1, jc)  # 0: centre, 1..s: rim
+        rim_ring = np.where(tip, new_rings[cap_tube] - 1, 0)
+        wedge_point[dest] = np.where(
+            jj == 0, p_off[cap_tube + 1] - np.where(tip, 1, 2), p_off[cap_tube] + rim_ring * s_c + jj - 1
+        )
+
+        faces = np.empty((f_off[-1], 3), np.int64)
+        for s in np.unique(sides).tolist():
+            which = np.flatnonzero(sides == s)
+            _tube_faces(faces, s, new_rings[which], w_off[which], f_off[which])
+        return Tubes(
+            points,
+            wedge_point,
+            wedge_normal,
+            wedge_uv,
+            faces,
+            p_off,
+            w_off,
+            f_off,
+            self.chain,
+            self.sides,
+            new_rings,
+            self.order,
+        )
+
     def mesh(self, i: int | None = None) -> Mesh:
         """Tube ``i`` (or all tubes, as one tube soup) as a welded :class:`~lsys3d.mesh.Mesh`."""
         tubes = self if i is None else self.select([i])
@@ -309,6 +414,16 @@ def sweep(
     w0 = np.maximum(skeleton.width_start[seg], opt.min_width)
     w1 = np.maximum(skeleton.width_end[seg], opt.min_width)
     k = len(seg)
+    if opt.merge_deviation > 0 and k > 1:
+        group = _merge_groups(chain, p0, p1, v0, v1, w0, w1, opt.merge_deviation, 1e-9 * (np.abs(p1).max() + 1.0))
+        if group[-1] + 1 < k:
+            first = np.flatnonzero(np.concatenate([[True], group[1:] != group[:-1]]))
+            last = np.append(first[1:] - 1, k - 1)
+            seg, chain, p0, p1, v0, v1 = seg[first], chain[first], p0[first], p1[last], v0[first], v1[last]
+            w0, w1 = w0[first], w1[last]
+            length = np.linalg.norm(p1 - p0, axis=1)
+            d = (p1 - p0) / length[:, None]
+            k = len(seg)
 
     # ---- joints between consecutive kept segments: split where a ring cannot follow
     same = chain[1:] == chain[:-1]
@@ -473,6 +588,66 @@ def sweep(
     )
 
 
+@numba.njit(cache=True, nogil=True)
+def _merge_groups(chain, p0, p1, v0, v1, w0, w1, deviation, gap):  # pragma: no cover - compiled
+    """Group of each segment: runs of one chain whose joints stay near the straight line (SweepOptions.merge_deviation).
+
+    Only segments shorter than the tube is wide take part.  A run grows from
+    its first segment while every joint it would swallow lies within
+    ``deviation`` times the run's smallest radius of the segment from the
+    run's start to its new end, the width there within as much of the linear
+    taper, and no gap opens between segments.  At most 64 segments a run, so
+    the checks stay linear in the number of segments.
+    """
+    k = len(chain)
+    group = np.empty(k, np.int64)
+    g = 0
+    i = 0
+    while i < k:
+        group[i] = g
+        j = i
+        rmin = 0.5 * min(w0[i], w1[i])
+        while j + 1 < k and chain[j + 1] == chain[i] and j + 1 - i < 64 and v1[i] - v0[i] < 2.0 * rmin:
+            n = j + 1
+            if v1[n] - v0[n] >= min(w0[n], w1[n]):
+                break
+            step = 0.0
+            for c in range(3):
+                step += (p0[n, c] - p1[j, c]) ** 2
+            if step > gap * gap:
+                break
+            r = min(rmin, 0.5 * min(w0[n], w1[n]))
+            tol = deviation * r
+            ax = p1[n, 0] - p0[i, 0]
+            ay = p1[n, 1] - p0[i, 1]
+            az = p1[n, 2] - p0[i, 2]
+            aa = ax * ax + ay * ay + az * az
+            span = v1[n] - v0[i]
+            ok = aa > 0.0 and span > 0.0
+            m = i
+            while ok and m < n:  # the joint between m and m + 1
+                qx = p1[m, 0] - p0[i, 0]
+                qy = p1[m, 1] - p0[i, 1]
+                qz = p1[m, 2] - p0[i, 2]
+                t = min(max((qx * ax + qy * ay + qz * az) / aa, 0.0), 1.0)
+                dx, dy, dz = qx - t * ax, qy - t * ay, qz - t * az
+                if dx * dx + dy * dy + dz * dz > tol * tol:
+                    ok = False
+                f = (v1[m] - v0[i]) / span
+                taper = w0[i] + f * (w1[n] - w0[i])
+                if abs(w1[m] - taper) > 2.0 * tol or abs(w0[m + 1] - taper) > 2.0 * tol:
+                    ok = False
+                m += 1
+            if not ok:
+                break
+            rmin = r
+            j = n
+            group[j] = g
+        g += 1
+        i = j + 1
+    return group
+
+
 def _check_finite(skeleton: Skeleton) -> None:
     """A NaN or infinite coordinate would pass silently into every tube of its chain: refuse it by name.
 
@@ -489,6 +664,32 @@ def _check_finite(skeleton: Skeleton) -> None:
             f"sweep: segment {s} (module {int(skeleton.module[s])}) has a start, end, width or frame "
             f"that is not a finite number, or is beyond {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)"
         )
+
+
+def _tube_faces(faces: np.ndarray, s: int, rings: np.ndarray, wedge_start: np.ndarray, face_start: np.ndarray) -> None:
+    """Write the faces of tubes of ``s`` sides into ``faces`` (in place): the one layout every tube has.
+
+    Tube ``i`` has ``rings[i]`` rings of ``s + 1`` wedges from ``wedge_start[i]``, then the base and tip cap
+    (centre and rim, ``s + 1`` wedges each); its ``2 s (rings[i] - 1)`` wall faces (two per quad, ring after
+    ring) and ``2 s`` cap faces (base fan, tip fan) start at ``face_start[i]``.
+    """
+    if not len(rings):
+        return
+    js = np.arange(s)
+    template = np.empty((2 * s, 3), np.int64)
+    template[0::2] = np.stack([js, js + 1, js + s + 2], axis=1)
+    template[1::2] = np.stack([js, js + s + 2, js + s + 1], axis=1)
+    spans = rings - 1
+    tube = np.repeat(np.arange(len(rings)), spans)
+    k = local_index(spans)  # span within its tube
+    dest = (face_start[tube] + k * 2 * s)[:, None] + np.arange(2 * s)
+    faces[dest] = (wedge_start[tube] + k * (s + 1))[:, None, None] + template[None]
+    cap_f = face_start + 2 * s * spans
+    cap_w = wedge_start + rings * (s + 1)
+    fan = np.stack([np.zeros(s, np.int64), js + 2, js + 1], axis=1)
+    fan[-1, 1] = 1  # wrap the rim
+    faces[cap_f[:, None] + js] = cap_w[:, None, None] + fan[None]
+    faces[(cap_f + s)[:, None] + js] = (cap_w + s + 1)[:, None, None] + fan[None][:, :, [0, 2, 1]]
 
 
 def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch, bend_dir, displace=None) -> Tubes:
@@ -550,19 +751,7 @@ def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch,
         wedge_uv[rim, 1] = v[ring][:, None] + radius[ring][:, None] * si[None, :s]
 
     faces = np.empty((f_off[-1], 3), np.int64)
-    template = np.empty((2 * s, 3), np.int64)
-    js = np.arange(s)
-    template[0::2] = np.stack([js, js + 1, js + s + 2], axis=1)
-    template[1::2] = np.stack([js, js + s + 2, js + s + 1], axis=1)
-    body = np.flatnonzero(local < rings[tube_of_ring] - 1)  # rings followed by another ring
-    tb = tube_of_ring[body]
-    dest = (f_off[tb] + local[body] * 2 * s)[:, None] + np.arange(2 * s)
-    faces[dest] = ring_w[body, 0][:, None, None] + template[None]
-    cap_f = f_off[1:] - 2 * s
-    fan = np.stack([np.zeros(s, np.int64), js + 2, js + 1], axis=1)
-    fan[-1, 1] = 1  # wrap the rim
-    faces[cap_f[:, None] + js] = cap_w[:, 0][:, None, None] + fan[None]
-    faces[(cap_f + s)[:, None] + js] = cap_w[:, 1][:, None, None] + fan[None][:, :, [0, 2, 1]]
+    _tube_faces(faces, s, rings, w_off[:-1], f_off[:-1])
     if displace is not None:
         _surface_normals(points, wedge_point, wedge_normal, faces, f_off, 2 * s * (rings - 1), ring_w)
     z = np.zeros(nt, np.int64)

@@ -1,41 +1,43 @@
 """Union: tubes -> one watertight bark mesh, through manifold3d.
 
 This module is the boundary with manifold3d: every Manifold it builds or
-computes has its status checked here, and a problem raises
+computes has its status checked, and a problem raises
 :class:`~lsys3d.errors.GeometryError` naming the part and the status; an
 empty or broken mesh is never returned.
 
-How the union stays fast
-------------------------
+How the union's cost follows its result
+---------------------------------------
 A boolean in manifold costs time for every triangle it is given, touched or
-not, and more for every triangle an intersection cuts.  So the tubes are not
-unioned one by one, nor in one batch (manifold's own batch union groups
+not, and much more for every triangle an intersection cuts.  So the tubes are
+not unioned one by one, nor in one batch (manifold's own batch union groups
 operands by bounding box, and the box of a long branch overlaps nearly
 everything):
 
-1. *Which tubes can touch.*  Each tube is covered by capsules, one per span
-   (the piece between two neighbouring rings: the centroids of the two rings
-   and the farthest ring vertex as radius).  The span boxes are hashed into a
-   uniform grid and candidate pairs are confirmed with a segment-segment
-   distance.  In a tree this leaves little more than the junctions: a branch
-   meets its parent and its siblings.
-2. *Only junctions go through the boolean* (``UnionOptions.local``).  A
-   maximal run of spans of one tube that may touch another tube is closed
-   with a temporary cap on each ring where it meets an untouched span and
-   goes into the boolean; the untouched spans stay out.  Afterwards the
-   temporary caps (found by their face ids) are removed and the untouched
-   spans are welded back onto their rings (matched by exact position).  The
-   seam and the result are checked (every directed edge once, its reverse
-   once); if anything does not match, whole tubes are unioned instead.  When
-   most spans touch something (every joint of ``monopodial`` carries a
-   branch) the stitching would cost more than it saves and whole tubes go in.
-3. *Layers instead of many operands.*  The may-touch graph (of runs, or of
-   tubes) is coloured greedily; parts of one colour are pairwise disjoint, so
-   each colour becomes one Manifold built from one mesh with no boolean at
-   all (what ``Manifold.compose`` does, without building thousands of small
-   Manifolds first).  A tree needs few colours (three for the benchmark
-   trees); the layers are unioned with one ``Manifold.batch_boolean``, which
-   manifold runs on all cores.
+1. *Culling* (:mod:`lsys3d.touch`).  A tube equal to an earlier one, or wholly
+   inside a straight span of another (a short thick twig buried in its
+   parent), adds nothing and stays out.
+2. *Which pieces can touch.*  Each tube is cut into pieces (a span between two
+   rings, or about a diameter of tiny spans) covered by capsules; boxes in a
+   grid and a segment-segment distance find the pairs that may touch, a
+   bounded chunk at a time.  More than ``UnionOptions.max_pairs`` pairs (a
+   thousand branches from one point) is refused up front with
+   :class:`~lsys3d.errors.LimitError`, before the memory is taken.
+3. *Refinement.*  A long straight span touched only near one place (a twig on
+   a trunk whose straight joints were merged into one span) gets new rings
+   around the touched stretch; on a straight span they lie exactly on the wall.
+4. *Only junctions go through the boolean* (``UnionOptions.local``).  A
+   maximal run of busy pieces of one tube is closed with a temporary cap on
+   each ring where it meets an untouched piece; the untouched pieces stay out
+   and are welded back onto their rings afterwards (caps found by manifold
+   face ids, rings by exact position; the seam and the result are checked,
+   and whole tubes are unioned if anything does not match).
+5. *Jobs* (:mod:`lsys3d.union_jobs`).  Runs (or tubes) that touch form clusters;
+   small clusters are packed into jobs, a crowded cluster is split in space
+   and its halves merged back.  Within a job the touch graph is coloured
+   greedily and each colour becomes one Manifold of pairwise disjoint parts
+   (no boolean), unioned with one ``Manifold.batch_boolean``.  Big unions run
+   their jobs in worker processes on every core (``UnionOptions.workers``);
+   the result is the same bytes with any number of workers.
 
 Shading attributes ride through the boolean as manifold vertex properties
 (position, normal, uv: 8 channels).  The seam and cap wedges of each tube are
@@ -46,25 +48,39 @@ properties, and the normals are renormalised on the way out.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import logging
+import sys
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import manifold3d
 import numpy as np
 
+from . import booleans, repeats, union_jobs
+from .arrays import components, find_rows
 from .arrays import first_equal_row as _first_equal_row
-from .arrays import local_index as _local
 from .arrays import offsets as _offsets
+from .booleans import BooleanError, Part
 from .errors import GeometryError
 from .mesh import Mesh, face_normals
 from .options import Options, option
 from .sweep import Tubes
+from .touch import DEFAULT_MAX_PAIRS, buried_tubes, duplicate_tubes, free_stretches, pieces, touching
 
 __all__ = ["UnionOptions", "concatenate", "may_touch", "union"]
 
 log = logging.getLogger("lsys3d")
 
 _NUM_PROP = 8  # x y z, nx ny nz, u v
+try:  # glibc's malloc_trim, where there is one (Linux)
+    _LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6") if sys.platform.startswith("linux") else None
+    _LIBC.malloc_trim.argtypes = [ctypes.c_size_t] if _LIBC is not None else None
+except (OSError, AttributeError):  # pragma: no cover - not glibc
+    _LIBC = None
+_JOB_TRIANGLES = 60_000  # smallest job worth its own boolean (a few tenths of a second in manifold)
 
 
 @dataclass(frozen=True)
@@ -74,20 +90,42 @@ class UnionOptions(Options):
     ``layers`` groups pairwise-disjoint tubes into layers before the boolean
     (fast); off, every tube goes to ``Manifold.batch_boolean`` separately
     (manifold's own bounding-box grouping; slower, for comparison).
-    ``local`` sends only the spans that may touch another tube through the
+    ``local`` sends only the pieces that may touch another tube through the
     boolean and stitches the rest of each tube back on (needs ``layers``),
-    while at most ``local_max`` of the spans may touch.
+    while at most ``local_max`` of the pieces may touch.  ``workers`` is how
+    the work runs, not what it makes: the result is the same bytes with any
+    number of workers, so it is left out of :meth:`plain` (and of the
+    provenance of the files).
     """
 
     enabled: bool = option(
         True, name="union", help="the union of the tubes into one watertight mesh (off: the tube soup, a fast preview)"
     )
     layers: bool = option(True, help="group pairwise-disjoint tubes into layers before the boolean", cli=False)
-    local: bool = option(True, help="send only the spans that may touch through the boolean", cli=False)
+    local: bool = option(True, help="send only the pieces that may touch through the boolean", cli=False)
     local_max: float = option(
-        0.75, low=0, high=1, help="use the local path while at most this fraction of spans may touch", cli=False
+        0.75, low=0, high=1, help="use the local path while at most this fraction of pieces may touch", cli=False
     )
     margin: float = option(0.01, low=0, high=1, help="relative padding of the touch test", cli=False)
+    workers: int = option(
+        0,
+        low=0,
+        high=4096,
+        help="processes the union may use (0: one per core this process may run on; the result is the same)",
+    )
+    max_pairs: int = option(
+        DEFAULT_MAX_PAIRS,
+        low=1,
+        name="max_union_pairs",
+        help="most pairs of tube pieces that may touch in the union (more is a crowd of branches that would take "
+        "minutes; about 0.1 ms of boolean work each)",
+    )
+
+    def plain(self) -> dict:
+        """The options as plain data, without ``workers`` (how the work runs, not what it makes)."""
+        data = super().plain()
+        del data["workers"]
+        return data
 
 
 def concatenate(tubes: Tubes) -> Mesh:
@@ -98,138 +136,28 @@ def concatenate(tubes: Tubes) -> Mesh:
     return tubes.mesh()
 
 
-def _check(manifold: manifold3d.Manifold, where: str) -> manifold3d.Manifold:
-    status = manifold.status()
-    if status != manifold3d.Error.NoError:
-        raise GeometryError(f"{where}: manifold3d reported {status.name}")
-    return manifold
-
-
 def _manifold(tubes: Tubes, where: str) -> manifold3d.Manifold:
     """One Manifold of whole (pairwise disjoint) tubes, attributes as properties."""
-    return _manifold_of(tubes, tubes.faces, np.arange(len(tubes.faces)), where)
-
-
-class _Spans:
-    """The spans of a set of tubes (the piece between two neighbouring rings), tube after tube.
-
-    ``lo, hi (m, 3)`` box of the span's points; ``p, q (m, 3)`` centroids of its
-    two rings and ``radius (m,)`` the farthest ring point from them, so the
-    span lies inside the capsule ``p q`` of that radius; ``tube, local (m,)``.
-    """
-
-    def __init__(self, tubes: Tubes):
-        rings, sides = tubes.rings, tubes.sides
-        ring_sides = np.repeat(sides, rings)
-        # ring points are every point but the two cap centres closing each tube
-        mask = np.ones(len(tubes.points), bool)
-        mask[tubes.point_offsets[1:] - 1] = False
-        mask[tubes.point_offsets[1:] - 2] = False
-        pts = tubes.points[mask]
-        first = _offsets(ring_sides)[:-1]
-        lo = np.minimum.reduceat(pts, first, axis=0)
-        hi = np.maximum.reduceat(pts, first, axis=0)
-        centre = np.add.reduceat(pts, first, axis=0) / ring_sides[:, None]
-        dist = np.linalg.norm(pts - np.repeat(centre, ring_sides, axis=0), axis=1)
-        radius = np.maximum.reduceat(dist, first)
-        local_ring = _local(rings)
-        a = np.flatnonzero(local_ring < np.repeat(rings, rings) - 1)  # first ring of each span
-        self.lo = np.minimum(lo[a], lo[a + 1])
-        self.hi = np.maximum(hi[a], hi[a + 1])
-        self.p, self.q = centre[a], centre[a + 1]
-        self.radius = np.maximum(radius[a], radius[a + 1])
-        self.tube = np.repeat(np.arange(len(tubes)), rings)[a]
-        self.local = local_ring[a]
-
-    def __len__(self) -> int:
-        return len(self.tube)
-
-
-def _segment_distance(p1, q1, p2, q2) -> np.ndarray:
-    """Distance between segments ``p1 q1`` and ``p2 q2`` (rows)."""
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a = np.einsum("ij,ij->i", d1, d1)
-    e = np.einsum("ij,ij->i", d2, d2)
-    f = np.einsum("ij,ij->i", d2, r)
-    c = np.einsum("ij,ij->i", d1, r)
-    b = np.einsum("ij,ij->i", d1, d2)
-    tiny = 1e-300
-    denom = a * e - b * b
-    s = np.where(denom > tiny, np.clip((b * f - c * e) / np.maximum(denom, tiny), 0, 1), 0.0)
-    t = np.where(e > tiny, (b * s + f) / np.maximum(e, tiny), 0.0)
-    s = np.where(
-        t < 0, np.clip(-c / np.maximum(a, tiny), 0, 1), np.where(t > 1, np.clip((b - c) / np.maximum(a, tiny), 0, 1), s)
-    )
-    t = np.clip(t, 0, 1)
-    return np.linalg.norm(p1 + d1 * s[:, None] - p2 - d2 * t[:, None], axis=1)
+    try:
+        return booleans.manifold_of(_part(tubes, tubes.faces, np.arange(len(tubes.faces))), where)
+    except BooleanError as exc:
+        raise GeometryError(str(exc)) from None
 
 
 def may_touch(tubes: Tubes, margin: float = 0.01) -> np.ndarray:
     """Pairs of tubes that may touch, ``(m, 2) int64`` with ``i < j``.
 
-    Each tube is covered by capsules, one per span (the piece between two
-    neighbouring rings); two tubes may touch when two of their capsules
-    (radii padded by ``margin``) intersect.  Tubes that are not listed are
-    disjoint; listed ones may or may not touch.
+    Each tube is covered by capsules, one per piece (a span between two
+    neighbouring rings, or a run of short spans); two tubes may touch when two
+    of their capsules (radii padded by ``margin``) intersect.  Tubes that are
+    not listed are disjoint; listed ones may or may not touch.
     """
-    owner, a, b = _span_pairs(tubes, margin)
+    pcs = pieces(tubes)
+    a, b = touching(pcs, margin, max_pairs=np.iinfo(np.int64).max)
     if not len(a):
         return np.zeros((0, 2), np.int64)
-    ta, tb = owner[a], owner[b]
+    ta, tb = pcs.tube[a], pcs.tube[b]
     return np.unique(np.stack([np.minimum(ta, tb), np.maximum(ta, tb)], axis=1), axis=0)
-
-
-def _span_pairs(tubes: Tubes, margin: float, spans: _Spans | None = None):
-    """Spans of different tubes that may touch: ``owner (m,)`` (tube of each span), span pairs ``a, b``.
-
-    Broad phase: span boxes hashed into a grid; narrow phase: the capsules
-    around the spans (padded by ``margin``) intersect.
-    """
-    spans = _Spans(tubes) if spans is None else spans
-    lo, hi, owner = spans.lo, spans.hi, spans.tube
-    none = np.zeros(0, np.int64)
-    if len(tubes) < 2:
-        return owner, none, none
-    pad = margin * (hi - lo).max(axis=1, keepdims=True) + 1e-9 * (np.abs(hi).max() + 1.0)
-    lo, hi = lo - pad, hi + pad
-    size = (hi - lo).max(axis=1)
-    cell = max(float(np.median(size)), 1e-12)
-    origin = lo.min(axis=0)
-    for _ in range(20):  # grow the cells until the number of box-cell entries is modest
-        c0 = np.floor((lo - origin) / cell).astype(np.int64)
-        c1 = np.floor((hi - origin) / cell).astype(np.int64)
-        ext = c1 - c0 + 1
-        count = ext.prod(axis=1)
-        if count.sum() <= 8 * len(lo) + 1000:
-            break
-        cell *= 1.5
-    dims = c1.max(axis=0) + 1
-    box = np.repeat(np.arange(len(lo)), count)
-    k = _local(count)
-    ex = ext[box]
-    ix = c0[box, 0] + k % ex[:, 0]
-    iy = c0[box, 1] + (k // ex[:, 0]) % ex[:, 1]
-    iz = c0[box, 2] + k // (ex[:, 0] * ex[:, 1])
-    key = (iz * dims[1] + iy) * dims[0] + ix
-    srt = np.argsort(key, kind="stable")
-    key, box = key[srt], box[srt]
-    # every pair inside each cell: entry p pairs with the later entries of its cell
-    brk = np.flatnonzero(np.diff(key)) + 1
-    cell_end = np.repeat(np.append(brk, len(key)), np.diff(np.concatenate([[0], brk, [len(key)]])))
-    later = cell_end - np.arange(len(key)) - 1
-    a = np.repeat(np.arange(len(key)), later)
-    b = a + 1 + _local(later)
-    a, b = box[a], box[b]
-    ok = owner[a] != owner[b]
-    a, b = a[ok], b[ok]
-    ok = ((lo[a] <= hi[b]) & (lo[b] <= hi[a])).all(axis=1)
-    a, b = a[ok], b[ok]
-    # a pair found in several cells counts once
-    pair = np.unique(np.minimum(a, b) * len(lo) + np.maximum(a, b))
-    a, b = pair // len(lo), pair % len(lo)
-    reach = (spans.radius[a] + spans.radius[b]) * (1.0 + margin) + 1e-9 * (np.abs(hi).max() + 1.0)
-    ok = _segment_distance(spans.p[a], spans.q[a], spans.p[b], spans.q[b]) <= reach
-    return owner, a[ok], b[ok]
 
 
 def _colour(n: int, pairs: np.ndarray) -> np.ndarray:
@@ -253,7 +181,19 @@ def _colour(n: int, pairs: np.ndarray) -> np.ndarray:
     return np.asarray(col, np.int64)
 
 
-def union(tubes: Tubes, options: UnionOptions | None = None) -> Mesh:
+def _unique_pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(k, 2)`` distinct pairs ``(min, max)`` of ``a, b``, without self pairs."""
+    keep = a != b
+    lo, hi = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
+    if not len(lo):
+        return np.zeros((0, 2), np.int64)
+    key = np.unique(lo * (int(hi.max()) + 1) + hi)
+    return np.stack([key // (int(hi.max()) + 1), key % (int(hi.max()) + 1)], axis=1)
+
+
+def union(
+    tubes: Tubes, options: UnionOptions | None = None, *, progress: Callable[[float], None] | None = None
+) -> Mesh:
     """Union the tubes of one tree into one watertight, consistently oriented mesh.
 
     Parameters
@@ -261,41 +201,201 @@ def union(tubes: Tubes, options: UnionOptions | None = None) -> Mesh:
     tubes : Tubes
         Closed tubes from :func:`lsys3d.sweep.sweep`.
     options : UnionOptions, optional
+    progress : callable, optional
+        Called with the fraction of the boolean work done (0 to 1) as it goes.
 
     Returns
     -------
     Mesh
-        Welded, watertight 2-manifold with outward faces, unit corner normals
-        and corner uv (:mod:`lsys3d.mesh`).
+        Welded, watertight 2-manifold with outward faces and the
+        ``corner_normals`` (unit) / ``corner_uv`` face attributes of
+        :mod:`lsys3d.tree`.
 
     Raises
     ------
     GeometryError
         No tubes, a tube manifold3d rejects, a failed boolean, or an empty
         result; the message says which part and manifold3d's status.
+    LimitError
+        More than ``options.max_pairs`` pairs of tube pieces may touch.
     """
     opt = UnionOptions() if options is None else options
     where = f"union of {len(tubes)} tubes"
     if not len(tubes):
         raise GeometryError("union: no tubes to union (empty skeleton?)")
+    bad = ~np.isfinite(tubes.points).all(axis=1)
+    if bad.any():
+        t = int(np.searchsorted(tubes.point_offsets, np.flatnonzero(bad)[0], side="right") - 1)
+        raise GeometryError(f"union: tube {t} (chain {int(tubes.chain[t])}) has a point that is not a finite number")
+    workers = opt.workers or union_jobs.default_workers()
+    progress = _Progress(progress)
+    progress(0.0)
     if not opt.layers:
         parts = [_manifold(tubes.select([i]), f"union: tube {i} (chain {tubes.chain[i]})") for i in range(len(tubes))]
-        return _weld_float32(_to_mesh(_batch_union(parts, where), where))
-    spans = _Spans(tubes)
-    owner, a, b = _span_pairs(tubes, opt.margin, spans)
-    busy = np.zeros(len(spans), bool)
+        result = parts[0] if len(parts) == 1 else manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add)
+        if result.status() != manifold3d.Error.NoError:
+            raise GeometryError(f"{where}: manifold3d reported {result.status().name}")
+        if result.is_empty() or result.num_tri() == 0:
+            raise GeometryError(f"{where}: manifold3d returned an empty mesh")
+        mesh = _weld_float32([_drop_crumbs(_to_mesh([booleans.part_of(result)], where))])
+        progress(1.0)
+        return mesh
+    t0 = time.perf_counter()
+    tubes, pcs, a, b = _prepare(tubes, opt, progress)
+    _release_memory()
+    log.debug("union: %d pieces, %d touching pairs (%.2f s)", len(pcs), len(a), time.perf_counter() - t0)
+    progress(0.10)
+    busy = np.zeros(len(pcs), bool)
     busy[a] = True
     busy[b] = True
     if opt.local and len(a) and busy.mean() <= opt.local_max:
-        mesh = _local_union(tubes, spans, busy, a, b, where)
-        if mesh is not None:
-            return _weld_float32(mesh)
-    ta, tb = owner[a], owner[b]
-    pairs = np.unique(np.stack([np.minimum(ta, tb), np.maximum(ta, tb)], axis=1), axis=0)
+        held = [_local_union(tubes, pcs, busy, a, b, where, workers, progress)]
+        if held[0] is not None:
+            progress(0.90)
+            del tubes, pcs, a, b, busy  # the weld's memory: the stitched mesh is all that is needed now
+            mesh = _weld_float32(held)
+            progress(1.0)
+            return mesh
+    ta, tb = pcs.tube[a], pcs.tube[b]
+    pairs = _unique_pairs(ta, tb)
     colour = _colour(len(tubes), pairs)
-    parts = [_manifold(tubes.select(colour == c), f"union: layer {c}") for c in range(int(colour.max()) + 1)]
-    log.debug("union: %d tubes in %d layers", len(tubes), len(parts))
-    return _weld_float32(_to_mesh(_batch_union(parts, where), where))
+    weight = np.diff(tubes.face_offsets).astype(np.float64)
+    box = tubes.bounds()
+    jobs = union_jobs.plan(weight, box.mean(axis=1), pairs[:, 0], pairs[:, 1], _job_target(weight.sum()))
+
+    def leaf(i: int) -> list[Part]:
+        items = jobs.leaves[i]
+        out = []
+        for c in np.unique(colour[items]).tolist():
+            sel = tubes.select(np.sort(items[colour[items] == c]))
+            out.append(_part(sel, sel.faces, np.arange(len(sel.faces))))
+        return out
+
+    use = _use(workers, weight.sum(), jobs)
+    roots, stats = union_jobs.run(jobs, leaf, _namer(jobs, "layer"), use, progress.boolean)
+    log.debug("union: %d tubes in %d jobs, %d workers", len(tubes), stats["jobs"], stats["workers"])
+    held = [_to_mesh(roots, where)]
+    progress(0.85)
+    held.append(_drop_crumbs(held.pop()))
+    mesh = _weld_float32(held)
+    progress(1.0)
+    return mesh
+
+
+def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None]):
+    """Cull what adds nothing, find what may touch, refine long straight spans; returns tubes, pieces, pairs."""
+    dup = duplicate_tubes(tubes)
+    if dup.any():
+        log.debug("union: %d tubes equal to another left out", int(dup.sum()))
+        tubes = tubes.select(~dup)
+    pcs = pieces(tubes)
+    a, b = touching(pcs, opt.margin, opt.max_pairs)
+    progress(0.04)
+    buried = buried_tubes(tubes, pcs, a, b)
+    if buried.any():
+        log.debug("union: %d tubes buried inside another left out", int(buried.sum()))
+        tubes = tubes.select(~buried)
+        pcs = pieces(tubes)
+        a, b = touching(pcs, opt.margin, opt.max_pairs)
+    if opt.local:
+        tube, ring, t = free_stretches(tubes, pcs, a, b, opt.margin)
+        if len(tube):
+            log.debug("union: %d rings inserted around touched stretches", len(tube))
+            tubes = tubes.insert_rings(tube, ring, t)
+            progress(0.07)
+            pcs = pieces(tubes)
+            a, b = touching(pcs, opt.margin, opt.max_pairs)
+    return tubes, pcs, a, b
+
+
+class _Progress:
+    """The union's progress as one fraction: preparing (to 15%), the boolean jobs (to 75%), stitching and welding."""
+
+    def __init__(self, report: Callable[[float], None] | None):
+        self.report = report
+        self.last = -1.0
+
+    def __call__(self, fraction: float) -> None:
+        if self.report and fraction >= self.last + 0.01:
+            self.last = fraction
+            self.report(min(fraction, 1.0))
+
+    def boolean(self, fraction: float) -> None:
+        self(0.15 + 0.60 * fraction)
+
+
+def _release_memory() -> None:
+    """Hand the memory freed by the last stage back to the system (glibc keeps freed heap memory otherwise).
+
+    numpy's medium-sized arrays come from the C heap, and glibc returns freed
+    heap memory only from its top; after a stage of many temporaries the
+    process would keep hundreds of megabytes it no longer uses.
+    """
+    if _LIBC is not None:
+        _LIBC.malloc_trim(0)
+
+
+def _job_target(total: float) -> float:
+    """Triangles per job: about 16 jobs (for the workers and for progress), none too small to pay for itself.
+
+    The same for any number of workers: how the work is split decides the
+    result's bytes (manifold3d may triangulate a cut differently in another
+    grouping), the number of workers must not.
+    """
+    return max(total / 16, _JOB_TRIANGLES)
+
+
+def _use(workers: int, triangles: float, jobs: union_jobs.Plan) -> int:
+    """Worker processes for a plan: all of them for big unions, none (this process) for small ones."""
+    if workers > 1 and triangles >= union_jobs.POOL_MIN_TRIANGLES and len(jobs.weight) > 1:
+        return min(workers, len(jobs.weight))
+    return 1
+
+
+def _namer(jobs: union_jobs.Plan, what: str) -> Callable[[int], str]:
+    def name(node: int) -> str:
+        if len(jobs.weight) == 1:
+            return f"union: {what} 0"
+        kind = "job" if node < len(jobs.leaves) else "merge"
+        return f"union: {kind} {node} of {len(jobs.weight)}"
+
+    return name
+
+
+def _crumbs(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``(f,) bool``: the faces of the closed, flat crumbs a boolean can leave where many tubes meet.
+
+    Where several tubes cross at almost one point, manifold3d may return, beside
+    the tree, a few separate pieces of 4-6 triangles that enclose no volume
+    (seen on the ``tree`` preset: 17 of them, areas below 1e-6 m^2).  A piece is
+    a crumb when it is both tiny (area below 1e-6 of the whole) and flat (volume
+    below 1e-3 * area^1.5, where a thin tube's ratio is near 0.2 * sqrt(r/L)).
+    Real parts of a plant (a separate branch after an ``f`` move) are kept.
+    """
+    label = components(len(vertices), faces.ravel(), np.roll(faces, -1, axis=1).ravel())[faces[:, 0]]
+    piece = np.unique(label, return_inverse=True)[1].ravel()
+    if piece.max(initial=0) == 0:
+        return np.zeros(len(faces), bool)
+    tri = vertices[faces]
+    area = np.bincount(piece, 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1))
+    volume = np.abs(np.bincount(piece, np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0))
+    crumb = (area < 1e-6 * area.sum()) & (volume < 1e-3 * area**1.5)
+    if crumb.any():
+        log.debug("union: dropped %d flat crumbs of %d triangles", int(crumb.sum()), int(crumb[piece].sum()))
+    return crumb[piece]
+
+
+def _drop_crumbs(mesh: Mesh) -> Mesh:
+    """The mesh without its crumbs (:func:`_crumbs`)."""
+    faces = mesh.faces
+    crumb = _crumbs(mesh.vertices, faces)
+    if not crumb.any():
+        return mesh
+    keep = ~crumb
+    used = np.zeros(len(mesh.vertices), bool)
+    used[faces[keep]] = True
+    renumber = np.cumsum(used) - 1
+    return Mesh(mesh.vertices[used], renumber[faces[keep]], mesh.normals[keep], mesh.uv[keep])
 
 
 def _repair_corners(mesh: Mesh) -> None:
@@ -306,7 +406,7 @@ def _repair_corners(mesh: Mesh) -> None:
     own fresh arrays are repaired in place.
     """
     normals = mesh.normals
-    bad = ~np.isfinite(normals).all(axis=2) | (np.abs(normals).sum(axis=2) == 0)
+    bad = ~np.isfinite(normals).all(axis=2) | (normals == 0).all(axis=2)
     if bad.any():
         fn = np.nan_to_num(face_normals(mesh.vertices, mesh.faces).astype(np.float32))
         fn[np.abs(fn).sum(axis=1) == 0] = (0.0, 1.0, 0.0)
@@ -314,7 +414,7 @@ def _repair_corners(mesh: Mesh) -> None:
     mesh.uv[~np.isfinite(mesh.uv)] = 0.0
 
 
-def _weld_float32(mesh: Mesh) -> Mesh:
+def _weld_float32(held: list[Mesh]) -> Mesh:
     """Merge vertices that share a float32 position and drop the triangles that collapse, if it stays closed.
 
     Where tubes meet almost tangentially, manifold3d keeps distinct vertices a
@@ -325,23 +425,39 @@ def _weld_float32(mesh: Mesh) -> Mesh:
     two opposite faces; when it would not (crossings of coplanar tubes in the
     flat presets), the vertices are moved apart instead
     (:func:`_separate_float32`), and so are any left closer than readers weld.
+
+    ``held`` is a list holding the mesh alone; it is emptied, so that nothing
+    else keeps the mesh and each of its arrays goes as soon as it is replaced
+    (the 262,143-segment plant's bark is 6.4 million faces, 0.6 GB).
     """
+    mesh = held.pop()
     _repair_corners(mesh)
-    v32 = np.asarray(mesh.vertices, np.float32)
-    unique, first, point = np.unique(v32, axis=0, return_index=True, return_inverse=True)
-    if len(unique) == len(v32):
-        return _separate_float32(mesh)
-    point = point.ravel()
-    faces = point[np.asarray(mesh.faces)]
-    a, b, c = faces.T
+    vertices, faces, normals, uv = mesh.vertices, mesh.faces, mesh.normals, mesh.uv
+    del mesh
+    v32 = vertices.astype(np.float32) + np.float32(0.0)  # + 0.0: -0.0 and 0.0 are one position
+    owner = _first_equal_row(v32.view(np.int32))
+    first = owner == np.arange(len(v32))
+    if first.all():
+        return _separate_float32(Mesh(vertices, faces, normals, uv))
+    renumber = np.cumsum(first) - 1  # the points numbered in their first appearance
+    welded = renumber[owner][faces]
+    a, b, c = welded.T
     keep = (a != b) & (b != c) & (c != a)
-    order = np.argsort(first)  # number the points in their first appearance, as before
-    renumber = np.empty(len(order), np.int64)
-    renumber[order] = np.arange(len(order))
-    faces = renumber[faces[keep]]
-    if not _closed(faces, len(unique)):
-        return _separate_float32(mesh)
-    return _separate_float32(Mesh(unique[order].astype(np.float64), faces, mesh.normals[keep], mesh.uv[keep]))
+    del a, b, c
+    welded = welded[keep]
+    merged = np.zeros(int(first.sum()), bool)  # the points that several vertices became
+    merged[renumber[owner[~first]]] = True
+    if not _closed(welded, int(first.sum()), merged):
+        return _separate_float32(Mesh(vertices, faces, normals, uv))
+    # one array at a time: the old ones go as soon as they are replaced
+    faces = welded
+    del welded
+    vertices = v32[first].astype(np.float64)
+    del v32
+    if not keep.all():
+        normals = normals[keep]
+        uv = uv[keep]
+    return _separate_float32(Mesh(vertices, faces, normals, uv))
 
 
 def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
@@ -356,7 +472,7 @@ def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
     most on a plant metres tall; the faces do not change.  When no separation
     is found in ``rounds`` passes the mesh is returned as it was.
     """
-    v = np.asarray(mesh.vertices, np.float64)
+    v = np.array(mesh.vertices, np.float64)  # a copy: the mesh keeps its vertices unless a separation is found
     v32 = v.astype(np.float32)
     everything = np.arange(len(v32))
     direction = np.zeros(len(v32))
@@ -396,88 +512,64 @@ def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
         return mesh
     moved = (v32 != v.astype(np.float32)).any(axis=1)
     log.debug("union: %d vertices moved to positions of their own", int(moved.sum()))
-    points = np.where(moved[:, None], v32.astype(np.float64), v)
-    return Mesh(points, mesh.faces, mesh.normals, mesh.uv)
+    v[moved] = v32[moved]
+    return Mesh(v, mesh.faces, mesh.normals, mesh.uv)
 
 
-def _batch_union(parts: list[manifold3d.Manifold], where: str) -> manifold3d.Manifold:
-    result = parts[0] if len(parts) == 1 else manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add)
-    _check(result, where)
-    if result.is_empty() or result.num_tri() == 0:
-        raise GeometryError(f"{where}: manifold3d returned an empty mesh")
-    return _drop_slivers(result)
+def _local_union(
+    tubes: Tubes,
+    pcs,
+    busy: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    where: str,
+    workers: int,
+    progress: _Progress,
+):
+    """Union only the runs of pieces that may touch another tube; stitch the free pieces back on.
 
-
-def _drop_slivers(manifold: manifold3d.Manifold) -> manifold3d.Manifold:
-    """Remove the closed, flat crumbs a boolean can leave where many tubes meet.
-
-    Where several tubes cross at almost one point, manifold3d may return, beside
-    the tree, a few separate pieces of 4-6 triangles that enclose no volume
-    (seen on the ``tree`` preset: 17 of them, areas below 1e-6 m^2).  A piece is
-    dropped when it is both tiny (area below 1e-6 of the whole) and flat (volume
-    below 1e-3 * area^1.5, where a thin tube's ratio is near 0.2 * sqrt(r/L)).
-    Real parts of a plant (a separate branch after an ``f`` move) are kept.
-    """
-    parts = manifold.decompose()
-    if len(parts) < 2:
-        return manifold
-    area = np.array([p.surface_area() for p in parts])
-    volume = np.abs([p.volume() for p in parts])
-    crumb = (area < 1e-6 * area.sum()) & (volume < 1e-3 * area**1.5)
-    if not crumb.any():
-        return manifold
-    log.debug(
-        "union: dropped %d flat crumbs of %d triangles",
-        crumb.sum(),
-        sum(parts[i].num_tri() for i in np.flatnonzero(crumb)),
-    )
-    return manifold3d.Manifold.compose([p for p, c in zip(parts, crumb, strict=True) if not c])
-
-
-def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b: np.ndarray, where: str):
-    """Union only the runs of spans that may touch another tube; stitch the free spans back on.
-
-    A *run* is a maximal stretch of busy spans of one tube.  Each run goes
-    into the boolean as a closed piece: where it ends at a free span it is
+    A *run* is a maximal stretch of busy pieces of one tube.  Each run goes
+    into the boolean as a closed piece: where it ends at a free piece it is
     closed by a temporary cap on that ring.  No other tube comes near such a
-    ring (the free span's capsule touches nothing), so manifold leaves the cap
-    as it was; it is removed from the result, and the free spans of the tube
+    ring (the free piece's capsule touches nothing), so manifold leaves the cap
+    as it was; it is removed from the result, and the free pieces of the tube
     (kept out of the boolean) are welded onto the ring.  Returns None when the
     result does not stitch exactly (the caller then unions whole tubes).
     """
     nt = len(tubes)
     rings, sides = tubes.rings, tubes.sides
-    nspan = rings - 1
-    span_off = _offsets(nspan)
-    # runs of busy spans
-    prev_busy = np.zeros(len(busy), bool)
-    prev_busy[1:] = busy[:-1]
-    starts = busy & ((spans.local == 0) | ~prev_busy)
-    run_of_span = np.cumsum(starts) - 1
+    # runs of busy pieces (pieces are numbered tube after tube, in ring order)
+    prev_same = np.zeros(len(busy), bool)
+    prev_same[1:] = (pcs.tube[1:] == pcs.tube[:-1]) & busy[:-1]
+    starts = busy & ~prev_same
+    run_of_piece = np.cumsum(starts) - 1
     run_start = np.flatnonzero(starts)
-    nxt_busy = np.zeros(len(busy), bool)
-    nxt_busy[:-1] = busy[1:]
-    ends = busy & ((spans.local == nspan[spans.tube] - 1) | ~nxt_busy)
-    run_end = np.flatnonzero(ends)
-    run_tube = spans.tube[run_start]
-    k0, k1 = spans.local[run_start], spans.local[run_end]
+    next_same = np.zeros(len(busy), bool)
+    next_same[:-1] = (pcs.tube[1:] == pcs.tube[:-1]) & busy[1:]
+    run_end = np.flatnonzero(busy & ~next_same)
+    run_tube = pcs.tube[run_start]
+    k0, k1 = pcs.first[run_start], pcs.last[run_end]  # first and last ring of each run
 
-    # every face of every tube: its span and whether it goes into the boolean
+    # every face of every tube: its span, its piece and whether it goes into the boolean
     fo = tubes.face_offsets
     nf = len(tubes.faces)
+    nspan = rings - 1
     face_tube = np.repeat(np.arange(nt), np.diff(fo))
     lf = np.arange(nf) - fo[face_tube]
     s2 = 2 * sides[face_tube]
     body_faces = s2 * nspan[face_tube]
     face_span_local = np.where(lf < body_faces, lf // s2, np.where(lf < body_faces + s2 // 2, 0, nspan[face_tube] - 1))
-    face_span = span_off[face_tube] + face_span_local
-    face_busy = busy[face_span]
+    del lf, s2, body_faces
+    face_piece = pcs.span_piece[_offsets(nspan)[face_tube] + face_span_local]
+    del face_span_local
+    face_busy = busy[face_piece]
 
-    # temporary caps where a run meets a free span: a fan from ring vertex 0
-    cut_tube = np.concatenate([run_tube[k0 > 0], run_tube[k1 < nspan[run_tube] - 1]])
-    cut_ring = np.concatenate([k0[k0 > 0], k1[k1 < nspan[run_tube] - 1] + 1])
-    cut_run = np.concatenate([np.flatnonzero(k0 > 0), np.flatnonzero(k1 < nspan[run_tube] - 1)])
-    cut_tip = np.concatenate([np.zeros((k0 > 0).sum(), bool), np.ones((k1 < nspan[run_tube] - 1).sum(), bool)])
+    # temporary caps where a run meets a free piece: a fan from ring vertex 0
+    open_base, open_tip = k0 > 0, k1 < rings[run_tube] - 1
+    cut_tube = np.concatenate([run_tube[open_base], run_tube[open_tip]])
+    cut_ring = np.concatenate([k0[open_base], k1[open_tip]])
+    cut_run = np.concatenate([np.flatnonzero(open_base), np.flatnonzero(open_tip)])
+    cut_tip = np.concatenate([np.zeros(open_base.sum(), bool), np.ones(open_tip.sum(), bool)])
     cap_faces, cap_run = [], []
     for s in np.unique(sides[cut_tube]).tolist() if len(cut_tube) else []:
         c = np.flatnonzero(sides[cut_tube] == s)
@@ -490,28 +582,83 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
     cap_faces = np.concatenate(cap_faces) if cap_faces else np.zeros((0, 3), np.int64)
     cap_run = np.concatenate(cap_run) if cap_run else np.zeros(0, np.int64)
 
-    # colour the runs; one Manifold per colour; union
-    ra, rb = run_of_span[a], run_of_span[b]
-    run_pairs = np.unique(np.stack([np.minimum(ra, rb), np.maximum(ra, rb)], axis=1), axis=0)
-    colour = _colour(len(run_start), run_pairs)
+    # the runs' triangles (ids >= nf mark temporary caps), grouped by run
     bf = np.flatnonzero(face_busy)
-    tri = np.concatenate([tubes.faces[bf], cap_faces])
-    tri_id = np.concatenate([bf, nf + np.arange(len(cap_faces))])  # ids >= nf mark temporary caps
-    tri_colour = colour[np.concatenate([run_of_span[face_span[bf]], cap_run])]
-    parts = []
-    for c in range(int(colour.max()) + 1):
-        sel = np.flatnonzero(tri_colour == c)
-        parts.append(_manifold_of(tubes, tri[sel], tri_id[sel], f"union: layer {c} of the junction runs"))
-    result = _batch_union(parts, where)
-    log.debug("union: %d of %d spans in %d runs, %d layers", busy.sum(), len(busy), len(run_start), len(parts))
+    tri_run = np.concatenate([run_of_piece[face_piece[bf]], cap_run])
+    by_run = np.argsort(tri_run, kind="stable")
+    tri_id = np.concatenate([bf, nf + np.arange(len(cap_faces))])[by_run]
+    tri_off = np.searchsorted(tri_run[by_run], np.arange(len(run_start) + 1))
+    del tri_run, by_run, bf
 
-    out = result.to_mesh64()
-    props = np.asarray(out.vert_properties)
-    otri = np.asarray(out.tri_verts, np.int64)
-    fid = np.asarray(out.face_id, np.int64)
-    if props.shape[1] != _NUM_PROP or len(fid) != len(otri):
-        raise GeometryError(f"{where}: manifold3d returned {props.shape[1]} properties, {len(fid)} face ids")
-    point_of, npts = _weld(len(props), out)
+    def faces_of(ids: np.ndarray) -> np.ndarray:
+        out = np.empty((len(ids), 3), np.int64)
+        tube_face = ids < nf
+        out[tube_face] = tubes.faces[ids[tube_face]]
+        out[~tube_face] = cap_faces[ids[~tube_face] - nf]
+        return out
+
+    # clusters of runs that touch; congruent clusters are unioned once
+    run_pairs = _unique_pairs(run_of_piece[a], run_of_piece[b])
+    label = components(len(run_start), run_pairs[:, 0], run_pairs[:, 1])
+    by_label = np.argsort(label, kind="stable")
+    cluster_runs = np.split(by_label, np.flatnonzero(np.diff(label[by_label])) + 1)
+    clusters = repeats.find(tubes, cluster_runs, tri_id, tri_off, faces_of, nf)
+    progress(0.15)
+    is_rep = clusters.rep == np.arange(len(clusters))
+    todo = np.flatnonzero(np.repeat(is_rep, [len(c) for c in cluster_runs])[np.argsort(by_label)])  # their runs
+    index = np.full(len(run_start), -1, np.int64)
+    index[todo] = np.arange(len(todo))
+    todo_pairs = index[run_pairs]
+    todo_pairs = todo_pairs[(todo_pairs >= 0).all(axis=1)]
+    colour = _colour(len(todo), todo_pairs)
+    weight = np.diff(tri_off)[todo].astype(np.float64)
+    centre = 0.5 * (pcs.p[run_start[todo]] + pcs.q[run_end[todo]])
+    jobs = union_jobs.plan(weight, centre, todo_pairs[:, 0], todo_pairs[:, 1], _job_target(weight.sum()))
+
+    def leaf(i: int) -> list[Part]:
+        items = jobs.leaves[i]
+        out = []
+        for c in np.unique(colour[items]).tolist():
+            runs = todo[np.sort(items[colour[items] == c])]
+            ids = np.concatenate([tri_id[tri_off[r] : tri_off[r + 1]] for r in runs.tolist()])
+            out.append(_part(tubes, faces_of(ids), ids))
+        return out
+
+    use = _use(workers, weight.sum(), jobs)
+    roots, stats = union_jobs.run(jobs, leaf, _namer(jobs, "layer"), use, progress.boolean)
+    log.debug(
+        "union: %d of %d pieces in %d runs, %d clusters (%d unioned, %d triangles, %d colours), %d jobs, "
+        "%d workers, %.2f s boolean CPU",
+        busy.sum(),
+        len(busy),
+        len(run_start),
+        len(clusters),
+        is_rep.sum(),
+        weight.sum(),
+        colour.max(initial=0) + 1,
+        stats["jobs"],
+        stats["workers"],
+        stats["boolean_cpu"],
+    )
+    done = _concat(roots)
+    del roots
+    point_of, _ = _weld(len(done.props), done.merge_from, done.merge_to)
+    positions = np.empty((int(point_of.max(initial=-1)) + 1, 3))
+    positions[point_of] = done.props[:, :3]
+    crumb = _crumbs(positions, point_of[done.tri])  # before the copies: a representative's crumbs are its copies'
+    if crumb.any():
+        done = Part(done.props, done.tri[~crumb], done.merge_from, done.merge_to, done.face_id[~crumb])
+    del point_of, positions
+    roots = [done]
+    if not is_rep.all():
+        roots.extend(repeats.copies(clusters, tubes, done, nf, len(cap_faces)))
+    del done, clusters
+    progress(0.80)
+    props, otri, fid, point_of, npts = _join(roots, where)
+    del roots
+    _release_memory()
+    seam_pos = np.empty((npts, 3), np.float64)
+    seam_pos[point_of] = props[:, :3]
     temp = fid >= nf
     if temp.sum() != len(cap_faces):
         log.debug("union: a temporary cap was changed by the boolean; unioning whole tubes")
@@ -526,37 +673,65 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
     if len(seam) != len(cut_points):
         log.debug("union: the temporary caps do not meet the boolean at their rings; unioning whole tubes")
         return None
-    seam_pos = np.empty((npts, 3), np.float64)
-    seam_pos[point_of] = props[:, :3]
     found = _match_rows(seam_pos[seam], tubes.points[cut_points])
     if found is None:
         log.debug("union: the rings of the temporary caps moved in the boolean; unioning whole tubes")
         return None
-    # free spans: their faces, their points (ring points on a cut map onto the seam)
-    ff = np.flatnonzero(~face_busy)
-    free_pts = tubes.wedge_point[tubes.faces[ff]]
-    new_index = np.full(len(tubes.points), -1, np.int64)
+    # the stitched mesh, written in place part by part (no full-size temporaries): first the boolean's output
+    kept = otri[keep]
+    del otri, fid
+    ff = np.flatnonzero(~face_busy)  # the free pieces' faces
+    del face_busy
+    nb = len(kept)
+    faces = np.empty((nb + len(ff), 3), np.int64)
+    np.take(point_of, kept, out=faces[:nb])
+    normals = np.empty((len(faces), 3, 3), np.float32)
+    uv = np.empty((len(faces), 3, 2), np.float32)
+    for lo in range(0, nb, 1 << 18):
+        corner = props[kept[lo : lo + (1 << 18)]]
+        normals[lo : lo + len(corner)] = _unit_rows(corner[..., 3:6])
+        uv[lo : lo + len(corner)] = corner[..., 6:]
+    del props, kept, corner, point_of, face_tube, face_piece
+    # then the free pieces: their points (ring points on a cut map onto the seam) and attributes
+    wedges = tubes.faces[ff]
+    del ff
+    np.take(tubes.wedge_normal, wedges, axis=0, out=normals[nb:])
+    np.take(tubes.wedge_uv, wedges, axis=0, out=uv[nb:])
+    free_pts = np.take(tubes.wedge_point, wedges)
+    del wedges
     used = np.zeros(len(tubes.points), bool)
     used[free_pts] = True
     used[cut_points] = False
     fresh = np.flatnonzero(used)
+    del used
+    new_index = np.full(len(tubes.points), -1, np.int64)
     new_index[fresh] = npts + np.arange(len(fresh))
     new_index[cut_points] = seam[found]
+    np.take(new_index, free_pts, out=faces[nb:])
+    del free_pts, new_index
     vertices = np.concatenate([seam_pos, tubes.points[fresh]])
-    faces = np.concatenate([point_of[otri[keep]], new_index[free_pts]])
-    normals = np.concatenate([_unit_rows(props[otri[keep], 3:6]), tubes.wedge_normal[tubes.faces[ff]]])
-    uv = np.concatenate([props[otri[keep], 6:], tubes.wedge_uv[tubes.faces[ff]]])
-    if not _closed(faces, len(vertices)):
-        log.debug("union: the stitched mesh is not closed; unioning whole tubes")
+    del seam_pos, fresh
+    near = np.zeros(len(vertices), bool)  # the seams: the rings where untouched pieces meet the boolean's output
+    near[seam] = True
+    used = np.zeros(len(vertices), bool)
+    used[faces] = True
+    if not used.all():  # the vertices of dropped crumbs, and property vertices manifold left unused
+        renumber = np.cumsum(used) - 1
+        for lo in range(0, len(faces), 1 << 20):  # in place, a slice at a time
+            faces[lo : lo + (1 << 20)] = renumber[faces[lo : lo + (1 << 20)]]
+        vertices, near = vertices[used], near[used]
+    if not _closed(faces, len(vertices), near):
+        log.debug("union: the stitched mesh is not closed at a seam; unioning whole tubes")
         return None
     return Mesh(vertices, faces, normals, uv)
 
 
-def _manifold_of(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, where: str) -> manifold3d.Manifold:
-    """One Manifold of the wedge-indexed triangles ``tri`` of ``tubes``, ``tri_id`` as face ids."""
+def _part(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray) -> Part:
+    """The wedge-indexed triangles ``tri`` of ``tubes`` as one manifold3d mesh, ``tri_id`` as face ids."""
     used = np.zeros(len(tubes.wedge_point), bool)
     used[tri] = True
     wedges = np.flatnonzero(used)
+    del used
     remap = np.empty(len(tubes.wedge_point), np.int64)
     remap[wedges] = np.arange(len(wedges))
     w = len(wedges)
@@ -569,20 +744,57 @@ def _manifold_of(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, where: str) 
     rep[wp] = np.arange(w)
     merge_to = rep[wp]
     merge_from = np.flatnonzero(merge_to != np.arange(w))
-    mesh = manifold3d.Mesh64(
-        vert_properties=props,
-        tri_verts=remap[tri].astype(np.uint64),
-        merge_from_vert=merge_from.astype(np.uint64),
-        merge_to_vert=merge_to[merge_from].astype(np.uint64),
-        face_id=tri_id.astype(np.uint64),
+    return Part(props, remap[tri], merge_from, merge_to[merge_from], np.asarray(tri_id, np.int64))
+
+
+def _concat(parts: list[Part]) -> Part:
+    """Meshes side by side as one :class:`Part` (indices shifted).
+
+    The list is emptied as its meshes are copied, so that at most one of them
+    exists twice at any time.
+    """
+    if len(parts) == 1:
+        return parts.pop()
+    nv = np.array([len(p.props) for p in parts])
+    nt = np.array([len(p.tri) for p in parts])
+    nm = np.array([len(p.merge_from) for p in parts])
+    v_off, t_off, m_off = _offsets(nv), _offsets(nt), _offsets(nm)
+    out = Part(
+        np.empty((v_off[-1], parts[0].props.shape[1])),
+        np.empty((t_off[-1], 3), np.int64),
+        np.empty(m_off[-1], np.int64),
+        np.empty(m_off[-1], np.int64),
+        np.empty(t_off[-1], np.int64),
     )
-    return _check(manifold3d.Manifold(mesh), where)
+    for i in range(len(parts)):
+        p = parts[i]
+        parts[i] = None
+        out.props[v_off[i] : v_off[i + 1]] = p.props
+        out.tri[t_off[i] : t_off[i + 1]] = p.tri + v_off[i]
+        out.merge_from[m_off[i] : m_off[i + 1]] = p.merge_from + v_off[i]
+        out.merge_to[m_off[i] : m_off[i + 1]] = p.merge_to + v_off[i]
+        out.face_id[t_off[i] : t_off[i + 1]] = p.face_id
+        del p
+    parts.clear()
+    return out
 
 
-def _weld(nprops: int, mesh: manifold3d.Mesh):
-    """Point index of every property vertex of a manifold3d Mesh (merge vectors applied)."""
+def _join(parts: list[Part], where: str):
+    """The disjoint meshes side by side (the list is emptied): properties, triangles, face ids, point of each vertex."""
+    for part in parts:
+        if part.props.shape[1] != _NUM_PROP or len(part.face_id) != len(part.tri):
+            raise GeometryError(
+                f"{where}: manifold3d returned {part.props.shape[1]} properties, {len(part.face_id)} face ids"
+            )
+    whole = _concat(parts)
+    point_of, npts = _weld(len(whole.props), whole.merge_from, whole.merge_to)
+    return whole.props, whole.tri, whole.face_id, point_of, npts
+
+
+def _weld(nprops: int, merge_from: np.ndarray, merge_to: np.ndarray):
+    """Point index of every property vertex (merge vectors applied) and the number of points."""
     rep = np.arange(nprops)
-    rep[np.asarray(mesh.merge_from_vert, np.int64)] = np.asarray(mesh.merge_to_vert, np.int64)
+    rep[merge_from] = merge_to
     while (rep[rep] != rep).any():  # follow chains, should manifold ever write one
         rep = rep[rep]
     root = np.zeros(nprops, bool)
@@ -598,38 +810,36 @@ def _unit_rows(v: np.ndarray) -> np.ndarray:
 
 def _match_rows(have: np.ndarray, want: np.ndarray):
     """Index into ``have`` of every row of ``want`` (exact match), or None if any is missing or twice."""
-    void = np.dtype((np.void, have.dtype.itemsize * 3))
-    hk = np.ascontiguousarray(have).view(void).ravel()
-    wk = np.ascontiguousarray(want).view(void).ravel()
-    order = np.argsort(hk)
-    hs = hk[order]
-    if len(hs) > 1 and (hs[1:] == hs[:-1]).any():
+    found = find_rows(have, want)
+    if (found < 0).any() or len(np.unique(found)) != len(found):
         return None
-    pos = np.searchsorted(hs, wk)
-    pos = np.minimum(pos, len(hs) - 1)
-    if not (hs[pos] == wk).all() or len(np.unique(pos)) != len(pos):
-        return None
-    return order[pos]
+    return found
 
 
-def _closed(faces: np.ndarray, nverts: int) -> bool:
-    """Every directed edge once, and its reverse once: closed and consistently oriented."""
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    fwd = np.sort(e[:, 0] * nverts + e[:, 1])
+def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> bool:
+    """Every directed edge once, and its reverse once: closed and consistently oriented.
+
+    With ``near`` (a mask of vertices), only the edges with an end among them
+    are checked: the rest of the mesh is known to be closed (a boolean's output,
+    whole tube pieces) and only the seams where the parts were joined need it.
+    """
+    if near is not None:
+        faces = faces[near[faces].any(axis=1)]
+    a, b = faces.ravel(), np.roll(faces, -1, axis=1).ravel()
+    if near is not None:
+        mine = near[a] | near[b]
+        a, b = a[mine], b[mine]
+    fwd = a * nverts + b
+    fwd.sort()
     if len(fwd) > 1 and (fwd[1:] == fwd[:-1]).any():
         return False
-    rev = e[:, 1] * nverts + e[:, 0]
-    pos = np.minimum(np.searchsorted(fwd, rev), len(fwd) - 1)
-    return bool((fwd[pos] == rev).all())
+    rev = b * nverts + a
+    rev.sort()
+    return bool(np.array_equal(fwd, rev))
 
 
-def _to_mesh(manifold: manifold3d.Manifold, where: str) -> Mesh:
-    mesh = manifold.to_mesh64()
-    props = np.asarray(mesh.vert_properties)
-    if props.shape[1] != _NUM_PROP:
-        raise GeometryError(f"{where}: expected {_NUM_PROP} vertex properties, manifold3d returned {props.shape[1]}")
-    tri = np.asarray(mesh.tri_verts, np.int64)
-    point_of, npts = _weld(len(props), mesh)
+def _to_mesh(parts: list[Part], where: str) -> Mesh:
+    props, tri, _, point_of, npts = _join(parts, where)
     vertices = np.empty((npts, 3))
     vertices[point_of] = props[:, :3]
     return Mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:])

@@ -152,3 +152,26 @@ def test_quiet_and_verbose_after_the_subcommand(tmp_path, capsys):
     assert capsys.readouterr().out == ""
     out = run("generate", "koch", "-n", "1", "-o", str(tmp_path / "k.glb"), "--verbose")
     assert out.returncode == 0 and "lsys3d: union" in out.stderr
+
+
+def test_union_settings_from_the_command_line(tmp_path, capsys):
+    assert main(["generate", "tree3d", "-n", "3", "--workers", "1", "-o", str(tmp_path / "t.glb")]) == 0
+    assert main(["generate", "tree3d", "-n", "3", "--max-union-pairs", "5", "-o", str(tmp_path / "u.glb")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("lsys3d: error: union: more than 5 pairs of tube pieces may touch")
+    assert not (tmp_path / "u.glb").exists()
+    out = run("generate", "tree3d", "--workers", "-1")
+    assert out.returncode == 2 and "--workers" in out.stderr
+
+
+def test_the_union_shows_a_percentage_on_a_terminal(capsys):
+    from lsys3d.cli import _Progress
+
+    shown = _Progress(True)
+    shown("union", "start", 0.0)
+    shown("union", "progress", 0.25)
+    shown("union", "done", 3.0)
+    err = capsys.readouterr().err
+    assert "lsys3d: union 25%" in err and "lsys3d: union 3.00 s" in err
+    _Progress(False)("union", "progress", 0.5)
+    assert capsys.readouterr().err == ""

@@ -172,6 +172,33 @@ def test_thick_tube_with_short_segments_splits_where_it_would_fold():
     assert len(tubes) == 1 and tubes.rings.tolist() == [3]
 
 
+def curl(m: int, step: float, turn: float) -> np.ndarray:
+    """``m + 1`` points of steps ``step`` long, turning ``turn`` degrees each (a circle arc in the XY plane)."""
+    a = np.radians(90 + turn * np.arange(m))
+    return np.concatenate([[[0.0, 0.0, 0.0]], np.cumsum(step * np.stack([np.cos(a), np.sin(a), 0 * a], axis=1), 0)])
+
+
+def test_steps_shorter_than_the_width_merge_into_fewer_rings():
+    # a curl of 200 steps of 0.5 mm turning 1 degree each, 1 cm wide: a ring every 0.5 mm adds nothing
+    points = curl(200, 0.0005, 1.0)
+    sk = polyline(points, width=0.01)
+    every = sweep(sk, SweepOptions(merge_deviation=0.0))
+    fewer = sweep(sk)
+    assert every.rings.sum() == 201
+    assert fewer.rings.sum() < every.rings.sum() / 4
+    # the axis stays within 2% of the radius of the skeleton: ring centres lie on it, joints near the chords
+    centres = fewer.points[: fewer.rings[0] * 8].reshape(-1, 8, 3).mean(axis=1)
+    dist = np.linalg.norm(points[:, None, :2] - centres[None, :, :2], axis=2).min(axis=0)
+    assert dist.max() < 1e-9  # every ring sits on a skeleton point
+    assert fewer.volumes().sum() == pytest.approx(every.volumes().sum(), rel=2e-3)
+    assert fewer.mesh().is_watertight
+
+
+def test_steps_longer_than_the_width_keep_their_rings():
+    sk = polyline(curl(30, 0.05, 0.2), width=0.01)  # nearly straight, but 5 times longer than wide
+    assert sweep(sk).rings.sum() == sweep(sk, SweepOptions(merge_deviation=0.0)).rings.sum() == 31
+
+
 def test_mitre_ring_keeps_the_width():
     # a 90 degree elbow: the joint ring lies on both cylinders (radius 0.1 about
     # the Y axis and about the line y = 2, z = 0)
@@ -311,6 +338,8 @@ def test_gap_in_a_chain_splits_without_extension():
         {"min_length": -1},
         {"merge_angle": float("nan")},
         {"sides_step": True},
+        {"merge_deviation": -0.1},
+        {"merge_deviation": 0.6},
     ],
 )
 def test_bad_options(bad):

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import re
+import sys
 
 import numpy as np
 import pytest
@@ -164,7 +166,7 @@ def test_local_path_stitches_free_spans(caplog):
     tubes = sweep(chainy_tree(11, 400))
     with caplog.at_level("DEBUG", logger="lsys3d"):
         local = union(tubes)
-    assert "spans in" in caplog.text  # the junction-only boolean ran and stitched
+    assert "pieces in" in caplog.text  # the junction-only boolean ran and stitched
     check_union(tubes, local)
     whole = union(tubes, UnionOptions(local=False))
     assert local.volume == pytest.approx(whole.volume, rel=1e-6)
@@ -274,7 +276,7 @@ def test_non_finite_tube_raises():
     points = tubes.points.copy()
     points[0] = np.nan
     broken = Tubes(**{**{f: getattr(tubes, f) for f in tubes.__dataclass_fields__}, "points": points})
-    with pytest.raises(GeometryError, match="manifold3d reported NonFiniteVertex"):
+    with pytest.raises(GeometryError, match=r"union: tube 0 \(chain 0\) has a point that is not a finite number"):
         union(broken)
 
 
@@ -314,7 +316,7 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
 
     weld = sys.modules["lsys3d.union"]._weld_float32
     mesh = _face_touching_boxes(gap)
-    out = weld(mesh)
+    out = weld([mesh])
     v32 = np.asarray(out.vertices, np.float32)
     assert len(out.vertices) == 16 and np.array_equal(out.faces, mesh.faces)
     assert len(np.unique(v32, axis=0)) == 16
@@ -324,4 +326,219 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
     welded = trimesh.Trimesh(v32.astype(np.float64), out.faces, process=False)
     welded.merge_vertices()
     assert len(welded.vertices) == 16 and welded.is_watertight
-    assert weld(_face_touching_boxes(1e-3)).vertices.tolist() == _face_touching_boxes(1e-3).vertices.tolist()
+    assert weld([_face_touching_boxes(1e-3)]).vertices.tolist() == _face_touching_boxes(1e-3).vertices.tolist()
+
+
+# ---------------------------------------------------------------- at scale: culling, refinement, repeats, workers
+
+
+def whorl(n: int, width: float = 0.08, length: float = 0.6) -> Skeleton:
+    """A trunk and ``n`` branches from one node of it (a crowded junction)."""
+    k = np.arange(n) + 0.5
+    phi = np.arccos(1 - k / n)  # the upper half sphere
+    th = np.pi * (1 + 5**0.5) * k
+    d = np.stack([np.cos(th) * np.sin(phi), np.cos(phi), np.sin(th) * np.sin(phi)], axis=1)
+    node = np.array([0.0, 1.0, 0.0])
+    start = np.concatenate([[[0.0, 0.0, 0.0], node], np.tile(node, (n, 1))])
+    end = np.concatenate([[node, [0.0, 2.0, 0.0]], node + length * d])
+    w = np.concatenate([[0.2, 0.2], np.full(n, width)])
+    return make_skeleton(start, end, w, parent=[-1, 0, *[0] * n], order=[0, 0, *[1] * n])
+
+
+def test_fifty_branches_at_one_node_stay_closed():
+    tubes = sweep(whorl(50))
+    mesh = union(tubes)
+    check_union(tubes, mesh)
+    from lsys3d.stats import components
+
+    assert components(mesh.faces, len(mesh.vertices)) == 1
+
+
+def test_a_twig_buried_in_its_parent_stays_out_and_changes_nothing(caplog):
+    # a short thin twig whose every point lies inside the trunk, and one that pokes out
+    sk = make_skeleton(
+        [[0, 0, 0], [0, 0.5, 0], [0, 0.5, 0]],
+        [[0, 1, 0], [0.02, 0.55, 0.0], [0.5, 0.9, 0]],
+        [0.3, 0.05, 0.05],
+        parent=[-1, 0, 0],
+        order=[0, 1, 1],
+    )
+    tubes = sweep(sk)
+    from lsys3d.touch import buried_tubes, pieces, touching
+
+    pcs = pieces(tubes)
+    buried = buried_tubes(tubes, pcs, *touching(pcs))
+    assert buried.tolist() == [False, True, False]
+    with caplog.at_level("DEBUG", logger="lsys3d"):
+        mesh = union(tubes)
+    assert "1 tubes buried inside another left out" in caplog.text
+    check_union(tubes, mesh)
+    without = union(tubes.select([0, 2]))
+    assert mesh.volume == pytest.approx(without.volume, rel=1e-9)
+    assert len(mesh.faces) == len(without.faces)
+
+
+def test_coincident_branches_are_unioned_once(caplog):
+    sk = make_skeleton(np.zeros((300, 3)), np.tile([[0.0, 1.0, 0.0]], (300, 1)), 0.1, parent=[-1] * 300)
+    tubes = sweep(sk)
+    with caplog.at_level("DEBUG", logger="lsys3d"):
+        mesh = union(tubes)
+    assert "299 tubes equal to another left out" in caplog.text
+    assert mesh.volume == pytest.approx(tubes.volumes()[0], rel=1e-9)
+    assert len(mesh.faces) == len(tubes.faces) // 300
+
+
+def test_a_crowd_of_branches_is_refused_up_front():
+    # 1,000 branches from one point: half a million touching pairs, minutes of boolean work
+    k = np.arange(1000) + 0.5
+    phi, th = np.arccos(1 - 2 * k / 1000), np.pi * (1 + 5**0.5) * k
+    d = np.stack([np.cos(th) * np.sin(phi), np.cos(phi), np.sin(th) * np.sin(phi)], axis=1)
+    tubes = sweep(make_skeleton(np.zeros((1000, 3)), d, 0.1, parent=[-1] * 1000))
+    with pytest.raises(lsys3d.LimitError, match=r"union: more than 400,000 pairs of tube pieces .*--max-union-pairs"):
+        union(tubes)
+    with pytest.raises(lsys3d.LimitError, match=r"more than 50 pairs .* over 0 s\)"):
+        union(tubes.select(np.arange(20)), UnionOptions(max_pairs=50))
+
+
+def test_long_straight_spans_get_rings_around_their_junctions_only(caplog):
+    # a trunk of 40 unit segments (one straight span) with twigs at 5, 20 and 35
+    n = 40
+    trunk_start = [[0.0, float(i), 0.0] for i in range(n)]
+    trunk_end = [[0.0, float(i + 1), 0.0] for i in range(n)]
+    twigs = [5, 20, 35]
+    start = trunk_start + [trunk_end[i - 1] for i in twigs]
+    end = trunk_end + [[0.6, float(i) + 0.8, 0.0] for i in twigs]
+    sk = make_skeleton(
+        start,
+        end,
+        [0.06] * n + [0.04] * 3,
+        parent=[-1, *range(n - 1), *[i - 1 for i in twigs]],
+        order=[0] * n + [1] * 3,
+    )
+    tubes = sweep(sk)
+    assert tubes.rings.tolist() == [2, 2, 2, 2]  # the trunk is one span
+    with caplog.at_level("DEBUG", logger="lsys3d"):
+        mesh = union(tubes)
+    assert "6 rings inserted around touched stretches" in caplog.text  # two on each side of each junction
+    check_union(tubes, mesh)
+    whole = union(tubes, UnionOptions(local=False))
+    assert mesh.volume == pytest.approx(whole.volume, rel=1e-9)
+    assert mesh.area == pytest.approx(whole.area, rel=1e-9)
+
+
+def test_inserted_rings_lie_on_a_straight_wall():
+    tubes = sweep(make_skeleton([[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [0, 3, 0]], [0.3, 0.25], [0.25, 0.15]))
+    assert tubes.rings.tolist() == [2]
+    more = tubes.insert_rings(np.array([0, 0]), np.array([0, 0]), np.array([0.2, 0.7]))
+    assert more.rings.tolist() == [4]
+    assert more.mesh().is_watertight and more.mesh().is_winding_consistent
+    assert more.volumes()[0] == pytest.approx(tubes.volumes()[0], rel=1e-12)
+    assert np.array_equal(more.points[:8], tubes.points[:8])  # the old rings keep their exact points
+    from lsys3d.touch import straight_spans
+
+    assert straight_spans(more, [0, 0, 0], [0, 1, 2]).tolist() == [True, True, True]
+    bent = sweep(make_skeleton([[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [0.5, 1.8, 0]], 0.1))
+    assert straight_spans(bent, [0, 0], [0, 1]).tolist() == [False, False]
+
+
+def plant(n: int):
+    g = lsys3d.Grammar(axiom="X", rules=["X -> F[!+X][!&X]F[!-X]/X", "F -> FF"], angle=22.5, iterations=n)
+    return interpret(lsys3d.derive(g), g)
+
+
+@pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
+def test_repeated_junctions_are_unioned_once_and_copied_exactly(caplog, monkeypatch):
+    tubes = sweep(plant(5))
+    with caplog.at_level("DEBUG", logger="lsys3d"):
+        mesh = union(tubes)
+    clusters, unioned = map(int, re.search(r"(\d+) clusters \((\d+) unioned", caplog.text).groups())
+    assert unioned < clusters / 4
+    check_union(tubes, mesh)
+    from lsys3d import repeats
+
+    find = repeats.find
+
+    def no_repeats(*args):
+        found = find(*args)
+        found.rep = np.arange(len(found))
+        found.shift[:] = 0.0
+        return found
+
+    monkeypatch.setattr(repeats, "find", no_repeats)
+    each = union(tubes)
+    assert len(mesh.faces) == len(each.faces)
+    assert mesh.volume == pytest.approx(each.volume, rel=1e-9)
+    assert mesh.area == pytest.approx(each.area, rel=1e-9)
+
+    # the copies' corners carry the copies' own texture coordinates: the same range of (u, v) at every position
+    def uv_range_by_position(m):
+        key = np.ascontiguousarray(m.vertices[m.faces].reshape(-1, 3)).view(np.dtype((np.void, 24))).ravel()
+        uv = m.uv.reshape(-1, 2).astype(np.float64)
+        positions, which = np.unique(key, return_inverse=True)
+        lo = np.full((len(positions), 2), np.inf)
+        hi = np.full((len(positions), 2), -np.inf)
+        np.minimum.at(lo, which.ravel(), uv)
+        np.maximum.at(hi, which.ravel(), uv)
+        return positions, lo, hi
+
+    (pa, la, ha), (pb, lb, hb) = uv_range_by_position(mesh), uv_range_by_position(each)
+    common, ia, ib = np.intersect1d(pa, pb, return_indices=True)
+    assert len(common) > len(mesh.vertices) / 2
+    np.testing.assert_allclose(la[ia], lb[ib], atol=1e-5)
+    np.testing.assert_allclose(ha[ia], hb[ib], atol=1e-5)
+
+
+@pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
+def test_the_result_does_not_depend_on_the_number_of_workers(monkeypatch, caplog):
+    from lsys3d import union_jobs
+
+    monkeypatch.setattr(union_jobs, "POOL_MIN_TRIANGLES", 1)  # worker processes even for a small union
+    monkeypatch.setattr(sys.modules["lsys3d.union"], "_JOB_TRIANGLES", 300)  # and several jobs
+    tubes = sweep(random_tree(8, 150, spread=0.4))
+
+    def digest(m):
+        arrays = (m.vertices, m.faces, m.normals, m.uv)
+        return [np.ascontiguousarray(a).tobytes() for a in arrays]
+
+    one = union(tubes, UnionOptions(workers=1, local=False))
+    with caplog.at_level("DEBUG", logger="lsys3d"):
+        two = union(tubes, UnionOptions(workers=2, local=False))
+    assert re.search(r"in \d+ jobs, 2 workers", caplog.text)
+    assert digest(one) == digest(two)
+    check_union(tubes, two)
+
+
+def test_a_failing_worker_job_raises_a_geometry_error(monkeypatch):
+    from lsys3d import union_jobs
+
+    monkeypatch.setattr(union_jobs, "POOL_MIN_TRIANGLES", 1)
+    monkeypatch.setattr(sys.modules["lsys3d.union"], "_JOB_TRIANGLES", 300)
+    tubes = sweep(random_tree(8, 150, spread=0.4))
+    faces = tubes.faces.copy()
+    faces[0] = faces[0, [0, 2, 1]]
+    broken = Tubes(**{**{f: getattr(tubes, f) for f in tubes.__dataclass_fields__}, "faces": faces})
+    with pytest.raises(GeometryError, match=r"manifold3d reported NotManifold"):
+        union(broken, UnionOptions(workers=2, local=False))
+
+
+def test_progress_goes_from_0_to_1():
+    seen = []
+    union(sweep(chainy_tree(4, 300)), progress=seen.append)
+    assert seen[0] == 0.0 and seen[-1] == 1.0
+    assert seen == sorted(seen)
+
+
+def test_union_options_are_checked():
+    for bad in ({"workers": -1}, {"workers": 1.5}, {"max_pairs": 0}, {"max_pairs": True}):
+        with pytest.raises(lsys3d.OptionsError, match="UnionOptions"):
+            UnionOptions(**bad)
+
+
+def test_the_worker_count_is_not_part_of_the_recipe():
+    # how the work runs, not what it makes: the files' provenance is the same with any number of workers
+    from lsys3d.pipeline import GenerateOptions
+
+    assert "workers" not in UnionOptions(workers=3).plain()
+    assert UnionOptions(max_pairs=7).plain()["max_pairs"] == 7
+    assert GenerateOptions.from_flat(workers=1).plain() == GenerateOptions().plain()
+    assert GenerateOptions.from_flat(workers=2, max_union_pairs=9).union.max_pairs == 9

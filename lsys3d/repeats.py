@@ -1,0 +1,233 @@
+"""Junctions that repeat: unioned once, the others placed by a rigid motion.
+
+An L-system draws the same junction over and over: the 3D plant of the
+union benchmark has 10,926 junction clusters at 8 generations and only 192
+different ones.  A cluster (runs of tube pieces that touch each other, see
+:mod:`lsys3d.union`) is compared with the others in its own frame: origin at
+the centre of its first ring, axes from that ring's first two points.  Clusters
+with the same triangles (the same faces on the same local points, ring after
+ring) whose points, normals and ``u`` agree in that frame within a tight
+tolerance (points: ``1e-7`` of the cluster's size and a hundredth of a float32
+step at the tree's coordinates, finer than any file lsys3d writes can store),
+and whose ``v`` differs by one constant per run, are congruent: only the first
+of them goes through the boolean, and its result is moved onto the others.
+
+On a copy, every vertex that is one of the cluster's own input points (all
+that the boolean did not cut) gets that point's exact coordinates, so the
+copies stitch onto their untouched tube pieces exactly; the new vertices on
+the intersection curves are the representative's, moved (they differ from a boolean
+of the copy itself by no more than the copy's points differ from the
+representative's).  Shading moves along: normals are rotated, ``v`` shifted by the run's
+offset, and face ids renumbered to the copy's own triangles.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .arrays import find_rows, row_hash
+from .arrays import local_index as _local_counts
+from .arrays import offsets as _offsets
+from .booleans import Part
+
+__all__ = ["Clusters", "copies", "find"]
+
+_KEY = 1e-6  # relative size of the grid that buckets candidate clusters
+_POINTS = 1e-7  # relative tolerance of congruent points (and 1/100 of a float32 step at the coordinates' size)
+_SHADING = 1e-5  # tolerance of congruent normals (unit) and u (0..1), and of the per-run v offset (metres)
+
+
+class Clusters:
+    """The clusters of one local union, each a list of triangle ids and of input points.
+
+    Attributes
+    ----------
+    tri, tri_off : triangle ids (tube faces, or ``nf + k`` for temporary cap ``k``) of every cluster, CSR
+    point, point_off : the tube points its triangles use, ascending, CSR
+    rep : (c,) int64
+        The cluster whose boolean result this one reuses (itself for a representative).
+    origin : (c, 3), frame : (c, 3, 3)
+        Each cluster's frame: local coordinates are ``(x - origin) @ frame.T``.
+    shift : v offset of every run of the cluster against its representative (CSR by ``run_off``)
+    """
+
+    def __init__(self, tri, tri_off, point, point_off, run_len, run_off, rep, origin, frame, shift):
+        self.tri, self.tri_off = tri, tri_off
+        self.point, self.point_off = point, point_off
+        self.run_len, self.run_off = run_len, run_off
+        self.rep, self.origin, self.frame, self.shift = rep, origin, frame, shift
+
+    def __len__(self) -> int:
+        return len(self.rep)
+
+
+def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: int) -> Clusters:
+    """Describe the clusters and find the congruent ones.
+
+    ``cluster_runs[c]`` are the runs of cluster ``c`` (ascending); run ``r``'s
+    triangle ids are ``tri_id[tri_off[r]:tri_off[r + 1]]``; ``faces_of(ids)``
+    gives their wedge-indexed faces.
+    """
+    nc = len(cluster_runs)
+    runs = np.concatenate(cluster_runs)
+    n_runs_of = np.array([len(c) for c in cluster_runs], np.int64)
+    run_off = _offsets(n_runs_of)
+    run_len = (tri_off[runs + 1] - tri_off[runs]).astype(np.int64)
+    tri = tri_id[np.repeat(tri_off[runs], run_len) + _local_counts(run_len)]
+    per_cluster = np.add.reduceat(run_len, run_off[:-1]) if nc else np.zeros(0, np.int64)
+    tri_off_c = _offsets(per_cluster)
+    cluster_of_tri = np.repeat(np.arange(nc), per_cluster)
+    corners = tubes.wedge_point[faces_of(tri)]  # (n, 3) points
+    # the points of each cluster, ascending
+    npts = len(tubes.points)
+    key = np.unique(cluster_of_tri[:, None] * npts + corners)
+    point = key % npts
+    point_cluster = key // npts
+    point_off = np.searchsorted(point_cluster, np.arange(nc + 1))
+    local_of_point = np.empty(npts, np.int64)
+    local_of_point[point] = np.arange(len(point)) - point_off[point_cluster]
+    n_points = np.diff(point_off)
+
+    # every cluster's frame: centre of its first ring, the ring's first two points
+    first = point[point_off[:-1]]
+    s = tubes.sides[np.searchsorted(tubes.point_offsets, first, side="right") - 1]
+    ring = point[np.repeat(point_off[:-1], s) + _local_counts(s)]
+    origin = np.add.reduceat(tubes.points[ring], _offsets(s)[:-1], axis=0) / s[:, None]
+    a = tubes.points[point[point_off[:-1]]] - origin
+    b = tubes.points[point[point_off[:-1] + 1]] - origin
+    e1 = a / np.linalg.norm(a, axis=1, keepdims=True)
+    n = np.cross(a, b)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    frame = np.stack([e1, np.cross(n, e1), n], axis=1)  # rows: the local axes
+
+    rep = np.arange(nc)
+    shift = np.zeros(len(runs))
+    # and never more than a hundredth of what float32 (the files' precision) can tell apart at these coordinates
+    stored = 0.01 * float(np.spacing(np.float32(np.abs(tubes.points).max())))
+    # candidates: same numbers of triangles, points and runs, and run sizes
+    sig = np.stack([per_cluster, n_points, n_runs_of, s], axis=1)
+    groups: dict[tuple, list[int]] = {}
+    run_sig = [tuple(run_len[run_off[c] : run_off[c + 1]].tolist()) for c in range(nc)]
+    for c in range(nc):
+        groups.setdefault((*sig[c].tolist(), run_sig[c]), []).append(c)
+    wedge_uv = tubes.wedge_uv
+    for members in groups.values():
+        if len(members) < 2:
+            continue
+        m = np.asarray(members)
+        g, t, v = len(m), int(per_cluster[m[0]]), int(n_points[m[0]])
+        tris = tri_off_c[m][:, None] + np.arange(t)  # (g, t) rows of `tri`
+        local_faces = local_of_point[corners[tris]]  # (g, t, 3)
+        pts = tubes.points[point[point_off[m][:, None] + np.arange(v)]]  # (g, v, 3)
+        loc = np.einsum("gvj,gkj->gvk", pts - origin[m][:, None, :], frame[m])
+        size = np.abs(loc).max(axis=(1, 2)) + 1e-300
+        bucket = np.round(loc / (_KEY * size[:, None, None])).astype(np.int64).reshape(g, -1)
+        faces_key = local_faces.reshape(g, -1)
+        # candidates: equal faces and bucketed points (a hash; the checks below confirm every match)
+        key = row_hash(np.concatenate([faces_key, bucket], axis=1))
+        by_key = np.argsort(key, kind="stable")
+        head = np.ones(g, bool)
+        head[1:] = key[by_key][1:] != key[by_key][:-1]
+        r = np.empty(g, np.int64)
+        r[by_key] = by_key[np.flatnonzero(head)][np.cumsum(head) - 1]  # the first member with the same key
+        cand = np.flatnonzero(r != np.arange(g))
+        if not len(cand):
+            continue
+        rr = r[cand]
+        ok = np.abs(loc[cand] - loc[rr]).max(axis=(1, 2)) <= np.minimum(_POINTS * size[rr], stored) + 1e-300
+        wedges = faces_of(tri[tris].ravel()).reshape(g, t, 3)
+        normal = np.einsum("gtcj,gkj->gtck", tubes.wedge_normal[wedges].astype(np.float64), frame[m])
+        ok &= np.abs(normal[cand] - normal[rr]).max(axis=(1, 2, 3)) <= _SHADING
+        uv = wedge_uv[wedges].astype(np.float64)  # (g, t, 3, 2)
+        ok &= np.abs(uv[cand, ..., 0] - uv[rr, ..., 0]).max(axis=(1, 2)) <= _SHADING
+        dv = uv[cand, ..., 1] - uv[rr, ..., 1]  # (k, t, 3)
+        # one v offset per run: the runs split the triangle list the same way in every member
+        lens = np.asarray(run_sig[members[0]], np.int64)
+        run_of = np.repeat(np.arange(len(lens)), lens)
+        first_tri = _offsets(lens)[:-1]
+        offset = dv[:, first_tri, 0]  # (k, runs)
+        ok &= np.abs(dv - offset[:, run_of, None]).max(axis=(1, 2)) <= _SHADING
+        take = cand[ok]
+        rep[m[take]] = m[r[take]]
+        for row, k in zip(take.tolist(), np.flatnonzero(ok).tolist(), strict=True):
+            c = int(m[row])
+            shift[run_off[c] : run_off[c + 1]] = offset[k]
+    return Clusters(tri, tri_off_c, point, point_off, run_len, run_off, rep, origin, frame, shift)
+
+
+def copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> list[Part]:
+    """The representatives' boolean results (``out``, face ids as given to the boolean) moved onto their copies.
+
+    Returns one :class:`Part` per representative that has copies: all its
+    copies side by side, with their own face ids.
+    """
+    nc = len(cl)
+    cluster_of_id = np.full(nf + n_caps, -1, np.int64)
+    pos_of_id = np.zeros(nf + n_caps, np.int64)
+    per = np.diff(cl.tri_off)
+    cluster_of_id[cl.tri] = np.repeat(np.arange(nc), per)
+    pos_of_id[cl.tri] = _local_counts(per)
+    out_cluster = cluster_of_id[out.face_id]
+    members = np.flatnonzero(cl.rep != np.arange(nc))
+    if not len(members):
+        return []
+    order = np.argsort(cl.rep[members], kind="stable")
+    members = members[order]
+    reps, starts = np.unique(cl.rep[members], return_index=True)
+    bounds = np.append(starts, len(members))
+    tri_order = np.argsort(out_cluster, kind="stable")
+    tri_bounds = np.searchsorted(out_cluster[tri_order], np.concatenate([reps, reps + 1]))
+    # every output vertex belongs to one cluster (the roots are disjoint): group vertices and merge pairs by it
+    vert_cluster = np.full(len(out.props), -1, np.int64)
+    vert_cluster[out.tri.ravel()] = np.repeat(out_cluster, 3)
+    vert_order = np.argsort(vert_cluster, kind="stable")
+    vert_bounds = np.searchsorted(vert_cluster[vert_order], np.concatenate([reps, reps + 1]))
+    merge_cluster = vert_cluster[out.merge_from]
+    merge_order = np.argsort(merge_cluster, kind="stable")
+    merge_bounds = np.searchsorted(merge_cluster[merge_order], np.concatenate([reps, reps + 1]))
+    parts = []
+    for i, r in enumerate(reps.tolist()):
+        mine = members[bounds[i] : bounds[i + 1]]
+        sel = tri_order[tri_bounds[i] : tri_bounds[len(reps) + i]]  # the representative's output triangles
+        used = vert_order[vert_bounds[i] : vert_bounds[len(reps) + i]]  # ascending: the sort was stable
+        tri = np.searchsorted(used, out.tri[sel])
+        props = out.props[used]
+        msel = merge_order[merge_bounds[i] : merge_bounds[len(reps) + i]]
+        mfrom = np.searchsorted(used, out.merge_from[msel])
+        mto = np.searchsorted(used, out.merge_to[msel])
+        # the representative's own input points among the output vertices (exact positions)
+        rp = cl.point[cl.point_off[r] : cl.point_off[r + 1]]
+        j = find_rows(tubes.points[rp], props[:, :3])
+        # the run of each output vertex (for its v offset): from the first triangle using it
+        pos = pos_of_id[out.face_id[sel]]
+        run_bounds = np.cumsum(cl.run_len[cl.run_off[r] : cl.run_off[r + 1]])
+        run_of_tri = np.searchsorted(run_bounds, pos, side="right")
+        vertex_run = np.zeros(len(used), np.int64)
+        vertex_run[tri[::-1].ravel()] = np.repeat(run_of_tri[::-1], 3)
+        # into every copy's frame
+        loc = (props[:, :3] - cl.origin[r]) @ cl.frame[r].T
+        xyz = np.einsum("vk,gkj->gvj", loc, cl.frame[mine]) + cl.origin[mine][:, None, :]
+        hit = np.flatnonzero(j >= 0)
+        mp = cl.point[cl.point_off[mine][:, None] + j[hit][None, :]]  # (g, hits)
+        xyz[:, hit] = tubes.points[mp]
+        nrm = np.einsum("vk,gkj->gvj", props[:, 3:6] @ cl.frame[r].T, cl.frame[mine])
+        g = len(mine)
+        new = np.empty((g, len(used), props.shape[1]))
+        new[:, :, :3] = xyz
+        new[:, :, 3:6] = nrm
+        new[:, :, 6:] = props[None, :, 6:]
+        shift = cl.shift[cl.run_off[mine][:, None] + np.arange(len(run_bounds))]  # (g, runs)
+        new[:, :, 7] += shift[:, vertex_run]
+        ids = cl.tri[cl.tri_off[mine][:, None] + pos[None, :]]  # (g, t): each copy's own triangle ids
+        nv = len(used)
+        step = (np.arange(g) * nv)[:, None]
+        parts.append(
+            Part(
+                new.reshape(-1, props.shape[1]),
+                (tri[None, :, :] + step[:, :, None]).reshape(-1, 3),
+                (mfrom[None, :] + step).ravel(),
+                (mto[None, :] + step).ravel(),
+                ids.ravel(),
+            )
+        )
+    return parts
