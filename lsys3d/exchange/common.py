@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..arrays import first_equal_row
 from ..attributes import ATTRIBUTES
 from ..errors import ExportError
 from ..images import Image
@@ -287,14 +288,11 @@ def _split(points, corner_v, normals, uv, colors=None):
         cols = [corner_v[extra, None].astype(np.uint32), normals[extra].view(np.uint32)]
         if uv is not None:
             cols.append(uv[extra].view(np.uint32))
-        key = np.concatenate(cols, axis=1)
-        first, inverse = _unique_rows(key)
-        # number the new vertices in order of first use, so the output does not depend on the sort
-        by_use = np.argsort(first, kind="stable")
-        rank = np.empty(first.size, np.int64)
-        rank[by_use] = np.arange(first.size)
-        split_index[extra] = (n + rank[inverse.reshape(-1)]).astype(np.uint32)
-        new_corners = extra[first[by_use]]
+        owner = first_equal_row(np.concatenate(cols, axis=1))
+        # the new vertices numbered in order of first use, so the output does not depend on the sort
+        first = np.flatnonzero(owner == np.arange(len(owner)))
+        split_index[extra] = (n + np.searchsorted(first, owner)).astype(np.uint32)
+        new_corners = extra[first]
         corners = np.concatenate([rep, new_corners])
         vertex_of_split = np.concatenate([np.arange(n), corner_v[new_corners]])
     split_points = points if vertex_of_split is None else points[vertex_of_split]
@@ -304,27 +302,6 @@ def _split(points, corner_v, normals, uv, colors=None):
     if colors is not None:  # a colour belongs to the point: split vertices copy their point's
         split_colors = colors if vertex_of_split is None else colors[vertex_of_split]
     return split_index, split_points, split_normals, split_uv, split_colors, vertex_of_split
-
-
-def _unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Group equal rows of ``key`` (``(m, c) uint32``): the first row of each group and each row's group.
-
-    Rows are hashed to 64 bits and the hashes sorted (much faster than
-    sorting whole rows); the grouping is then checked row by row, and in the
-    unlikely case of a hash collision the rows themselves are sorted.
-    """
-    h = np.full(len(key), 0x9E3779B97F4A7C15, np.uint64)
-    for c in range(key.shape[1]):
-        h ^= key[:, c].astype(np.uint64)
-        h *= np.uint64(0xBF58476D1CE4E5B9)
-        h ^= h >> np.uint64(31)
-    _, first, inverse = np.unique(h, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    if not (key == key[first[inverse]]).all():  # pragma: no cover - a 64-bit collision
-        rows = np.ascontiguousarray(key).view(np.dtype((np.void, key.shape[1] * 4))).reshape(-1)
-        _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
-        inverse = inverse.reshape(-1)
-    return first, inverse
 
 
 def split_tangents(arrays: MeshArrays) -> np.ndarray:
