@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 import lsys3d
-from lsys3d import GrammarError
+from lsys3d import GrammarError, LSystemError
 from lsys3d.derive import interpretation
 from lsys3d.turtle import interpret
 
@@ -23,10 +23,12 @@ EXPECTED = tomllib.loads((CORPUS / "expected.toml").read_text(encoding="utf-8"))
 GRAMMARS = sorted(
     p.relative_to(CORPUS).as_posix() for p in CORPUS.glob("*/*") if p.suffix in (".lpy", ".l", ".ls", ".toml")
 )
+# files gathered verbatim from public repositories (README.md: where each comes from, and its licence)
+REAL = sorted(p.relative_to(CORPUS).as_posix() for p in CORPUS.glob("*/real/*") if p.suffix in (".lpy", ".l", ".ls"))
 
 
 def test_every_file_has_its_expectations_and_the_corpus_is_large_enough():
-    assert sorted(EXPECTED) == GRAMMARS
+    assert sorted(EXPECTED) == sorted(GRAMMARS + REAL)
     assert len(GRAMMARS) >= 40
     refused = [name for name in GRAMMARS if "refused" in EXPECTED[name][0]]
     assert len(refused) <= 0.1 * len(GRAMMARS), refused
@@ -84,3 +86,108 @@ def test_random_draws_do_not_depend_on_where_the_rule_stands():
     a = lsys3d.Grammar.from_text(text, source="a.lpy")
     b = lsys3d.Grammar.from_text("\n\n# moved down\n" + text, source="b.lpy")
     assert str(lsys3d.derive(a, seed=9)) == str(lsys3d.derive(b, seed=9))
+
+
+def naive_derive(axiom: str, rules: dict[str, str], n: int, names=()) -> list[str]:
+    """Parallel rewriting of module names, written for these checks and nothing else.
+
+    A module is one of ``names`` (longest first) or one character; an argument list after it is
+    dropped, so the counts are exact only for unconditional rules, which is what it is used for.
+    """
+    names = sorted(names, key=len, reverse=True)
+
+    def tokens(text: str) -> list[str]:
+        out, i = [], 0
+        while i < len(text):
+            if text[i].isspace():
+                i += 1
+                continue
+            name = next((m for m in names if text.startswith(m, i)), text[i])
+            out.append(name)
+            i += len(name)
+            if text.startswith("(", i):
+                depth = 0
+                while True:
+                    depth += {"(": 1, ")": -1}.get(text[i], 0)
+                    i += 1
+                    if depth == 0:
+                        break
+        return out
+
+    successors = {k: tokens(v) for k, v in rules.items()}
+    string = tokens(axiom)
+    for _ in range(n):
+        string = [t for m in string for t in successors.get(m, [m])]
+    return string
+
+
+def test_the_naive_rewriter_knows_a_textbook_count():
+    dragon = naive_derive("FX", {"X": "X+YF+", "Y": "-FX-Y"}, 10)
+    assert (dragon.count("F"), dragon.count("X"), len(dragon)) == (1024, 512, 4094)
+    assert naive_derive("F(1)Frame(2)", {}, 0, names=["Frame"]) == ["F", "Frame"]
+
+
+def _outcome(name: str) -> str:
+    expected = EXPECTED[name][0]
+    if "refused" in expected or "interpret_refused" in expected:
+        return "refused"
+    return "warns" if "warns" in expected else "match"
+
+
+def test_the_gathered_files_are_counted_honestly():
+    """Issue 14's goal is 90% of real files read and matching; this is where the corpus stands."""
+    outcomes = [_outcome(name) for name in REAL]
+    assert len(REAL) >= 40
+    for dialect in ("lpy", "cpfg", "lparser"):
+        assert sum(name.startswith(dialect + "/real/") for name in REAL) >= 10, dialect
+    # measured: see README.md; a regression (one more file refused) fails here
+    assert outcomes.count("match") >= 47, outcomes.count("match")
+
+
+@pytest.mark.parametrize("name", REAL)
+def test_each_gathered_file_reads_unmodified_and_matches(name, caplog):
+    expected = EXPECTED[name][0]
+    path = CORPUS / name
+    if "refused" in expected:
+        with pytest.raises(GrammarError) as info:
+            lsys3d.Grammar.from_file(path)
+        message = str(info.value)
+        assert expected["refused"] in message and "\n" not in message, message
+        return
+    grammar = lsys3d.Grammar.from_file(path)
+    assert grammar.text == path.read_bytes().decode("utf-8")  # byte for byte, CRLF kept
+    derived = lsys3d.derive(grammar)
+    if "naive" in expected:
+        naive = expected["naive"]
+        string = naive_derive(naive["axiom"], naive["rules"], naive["n"], naive.get("names", ()))
+        assert len(derived) == len(string)
+        for symbol in set(string):
+            assert derived.count(symbol) == string.count(symbol), symbol
+        segments = sum(string.count(symbol) for symbol in expected["draws"]) if "draws" in expected else None
+    elif "string" in expected:
+        assert str(derived) == expected["string"]
+        segments = None
+    else:
+        assert len(derived) == expected["modules"]
+        for symbol, count in expected["counts"].items():
+            assert derived.count(symbol) == count, symbol
+        segments = None
+    segments = expected.get("segments", segments)
+    if "interpret_refused" in expected:
+        with pytest.raises(LSystemError) as info:
+            interpret(interpretation(grammar, derived), grammar)
+        assert expected["interpret_refused"] in str(info.value) and "\n" not in str(info.value)
+        return
+    with caplog.at_level(logging.WARNING, logger="lsys3d"):
+        skeleton = interpret(interpretation(grammar, derived), grammar)
+    if "warns" in expected:
+        from lsys3d.pipeline import draw
+
+        with caplog.at_level(logging.WARNING, logger="lsys3d"):
+            draw(grammar, grammar.iterations, 0)
+        assert any(expected["warns"] in r.getMessage() for r in caplog.records), caplog.text
+        return
+    if segments is not None:
+        assert len(skeleton) == segments
+    if "polygons" in expected:
+        assert skeleton.n_polygons == expected["polygons"]

@@ -241,6 +241,25 @@ def test_lpy_refusals_name_the_line_and_the_construct(text, message):
         lpy(text)
 
 
+def test_cpfg_productions_go_on_over_lines():
+    """The vlab cpfg course writes the arrow on the next line, and successors over several lines."""
+    text = """Lsystem: 1
+derivation length: 2
+Axiom: A(0)
+A(t) : t < 1 {u = t + 1;}
+\t--> B(u)
+\t[+A(u)]
+\tA(u)
+B(x) --> F(x)
+endlsystem
+"""
+    g = Grammar.from_text(text, source="p.l")
+    assert list(g.rules) == ["A(t) : t < 1 {u = t + 1;} --> B(u) [+A(u)] A(u)", "B(x) --> F(x)"]
+    assert str(lsys3d.derive(g)) == "F(1)[+A(1)]A(1)"
+    with pytest.raises(GrammarError, match=r"p.l:2:1: expected a production"):
+        Grammar.from_text("Axiom: A\nB C\nA --> B\n", source="p.l")
+
+
 def test_cpfg_preprocessor_blocks_include_and_view_file(tmp_path):
     (tmp_path / "sizes.h").write_text("#define LEN 2\n")
     (tmp_path / "plant.v").write_text("angle factor: 12\n")

@@ -276,9 +276,13 @@ class _Reader:
         depth = None
         systems = 0
         lines = self.joined()
-        for text, number in lines:
+        head = None  # a predecessor and condition whose arrow is on the next line
+        for index, (text, number) in enumerate(lines):
             code = text.strip()
             col = len(text) - len(text.lstrip()) + 1
+            if head is not None:
+                code, number, col = f"{head[0]} {code}", head[1], head[2]
+                head = None
             m = _KEY.match(code)
             if m and not _is_rule(code):
                 key = m.group("key")
@@ -311,9 +315,18 @@ class _Reader:
                 continue
             if section is None:
                 raise self.error(number, f"{clip(code, 40)!r} after endlsystem")
-            if "-->" not in code and "->" not in code:
-                raise self.error(number, f"expected a production ('predecessor --> successor'), not {clip(code, 40)!r}")
             group = groups[section]
+            if not _is_rule(code):
+                # cpfg reads a production across lines: its arrow may open the next line, and a
+                # successor may go on over the lines that follow (the vlab course's files do both)
+                following = lines[index + 1][0].strip() if index + 1 < len(lines) else ""
+                if re.match(r"-?->", following):
+                    head = (code, number, col)
+                    continue
+                if group and not _KEY.match(code):
+                    group[-1] = f"{group[-1]} {code}"
+                    continue
+                raise self.error(number, f"expected a production ('predecessor --> successor'), not {clip(code, 40)!r}")
             where[(section, len(group))] = line_where(number, col)
             group.append(code)
         if "axiom" not in fields:
