@@ -19,6 +19,11 @@ duplicated vertex:
     Where present it is the surface colour in place of the material's base
     colour: glTF ``COLOR_0`` with a white base colour factor, USD
     ``primvars:displayColor`` read by the material.
+``face_source`` : (f,) int64 or None
+    For a bark: the face of :attr:`lsys3d.sweep.Tubes.faces` each triangle is a
+    piece of (the union carries manifold3d's face ids through the boolean), so
+    later stages know the tube, span and branch of every triangle
+    (:mod:`lsys3d.cleanup` finds the junction seams by it).  None when unknown.
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ class Mesh:
     normals : (f, 3, 3) float32
     uv : (f, 3, 2) float32
     colors : (v, 3) float32 or None
+    face_source : (f,) int64 or None
 
     Examples
     --------
@@ -55,6 +61,7 @@ class Mesh:
     normals: np.ndarray
     uv: np.ndarray
     colors: np.ndarray | None = None
+    face_source: np.ndarray | None = None
 
     def __post_init__(self):
         v = np.asarray(self.vertices, np.float64).reshape(-1, 3)
@@ -70,6 +77,11 @@ class Mesh:
             if c.shape != (len(v), 3):
                 raise ValueError(f"Mesh.colors has shape {c.shape}, expected ({len(v)}, 3)")
             object.__setattr__(self, "colors", c)
+        if self.face_source is not None:
+            s = np.asarray(self.face_source, np.int64)
+            if s.shape != (len(f),):
+                raise ValueError(f"Mesh.face_source has shape {s.shape}, expected ({len(f)},)")
+            object.__setattr__(self, "face_source", s)
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -98,7 +110,7 @@ class Mesh:
 
     @classmethod
     def concatenate(cls, meshes) -> Mesh:
-        """Several meshes as one (indices shifted; colours kept only when every part has them)."""
+        """Several meshes as one (indices shifted; colours kept only when every part has them, face sources never)."""
         meshes = [m for m in meshes if m is not None]
         if not meshes:
             return cls.empty()

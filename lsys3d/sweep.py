@@ -210,9 +210,16 @@ class Tubes:
         )
 
     def mesh(self, i: int | None = None) -> Mesh:
-        """Tube ``i`` (or all tubes, as one tube soup) as a welded :class:`~lsys3d.mesh.Mesh`."""
-        tubes = self if i is None else self.select([i])
-        return Mesh(tubes.points, tubes.face_points, tubes.wedge_normal[tubes.faces], tubes.wedge_uv[tubes.faces])
+        """Tube ``i`` (or all tubes, as one tube soup) as a welded :class:`~lsys3d.mesh.Mesh`.
+
+        Its ``face_source`` is each triangle's index in :attr:`faces`.
+        """
+        if i is None:
+            tubes, source = self, np.arange(len(self.faces))
+        else:
+            tubes, source = self.select([i]), np.arange(self.face_offsets[i], self.face_offsets[i + 1])
+        normals, uv = tubes.wedge_normal[tubes.faces], tubes.wedge_uv[tubes.faces]
+        return Mesh(tubes.points, tubes.face_points, normals, uv, face_source=source)
 
 
 def _reflect_transport(u: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -47,12 +47,13 @@ properties, and the normals are renormalised on the way out.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import manifold3d
 import numpy as np
 
 from .arrays import first_equal_row as _first_equal_row
+from .arrays import gather
 from .arrays import local_index as _local
 from .arrays import offsets as _offsets
 from .errors import GeometryError
@@ -105,9 +106,15 @@ def _check(manifold: manifold3d.Manifold, where: str) -> manifold3d.Manifold:
     return manifold
 
 
-def _manifold(tubes: Tubes, where: str) -> manifold3d.Manifold:
-    """One Manifold of whole (pairwise disjoint) tubes, attributes as properties."""
-    return _manifold_of(tubes, tubes.faces, np.arange(len(tubes.faces)), where)
+def _manifold(tubes: Tubes, where: str, which=None) -> manifold3d.Manifold:
+    """One Manifold of the whole (pairwise disjoint) tubes ``which`` (default all), attributes as properties.
+
+    Each triangle's face id is its index in ``tubes.faces``, so the result can
+    say which tube face every output triangle came from (``Mesh.face_source``).
+    """
+    which = np.arange(len(tubes))[slice(None) if which is None else which]
+    part = tubes.select(which)
+    return _manifold_of(part, part.faces, gather(tubes.face_offsets, which)[0], where)
 
 
 class _Spans:
@@ -279,7 +286,7 @@ def union(tubes: Tubes, options: UnionOptions | None = None) -> Mesh:
     if not len(tubes):
         raise GeometryError("union: no tubes to union (empty skeleton?)")
     if not opt.layers:
-        parts = [_manifold(tubes.select([i]), f"union: tube {i} (chain {tubes.chain[i]})") for i in range(len(tubes))]
+        parts = [_manifold(tubes, f"union: tube {i} (chain {tubes.chain[i]})", [i]) for i in range(len(tubes))]
         return _weld_float32(_to_mesh(_batch_union(parts, where), where))
     spans = _Spans(tubes)
     owner, a, b = _span_pairs(tubes, opt.margin, spans)
@@ -293,7 +300,7 @@ def union(tubes: Tubes, options: UnionOptions | None = None) -> Mesh:
     ta, tb = owner[a], owner[b]
     pairs = np.unique(np.stack([np.minimum(ta, tb), np.maximum(ta, tb)], axis=1), axis=0)
     colour = _colour(len(tubes), pairs)
-    parts = [_manifold(tubes.select(colour == c), f"union: layer {c}") for c in range(int(colour.max()) + 1)]
+    parts = [_manifold(tubes, f"union: layer {c}", colour == c) for c in range(int(colour.max()) + 1)]
     log.debug("union: %d tubes in %d layers", len(tubes), len(parts))
     return _weld_float32(_to_mesh(_batch_union(parts, where), where))
 
@@ -341,7 +348,10 @@ def _weld_float32(mesh: Mesh) -> Mesh:
     faces = renumber[faces[keep]]
     if not _closed(faces, len(unique)):
         return _separate_float32(mesh)
-    return _separate_float32(Mesh(unique[order].astype(np.float64), faces, mesh.normals[keep], mesh.uv[keep]))
+    source = None if mesh.face_source is None else mesh.face_source[keep]
+    return _separate_float32(
+        Mesh(unique[order].astype(np.float64), faces, mesh.normals[keep], mesh.uv[keep], face_source=source)
+    )
 
 
 def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
@@ -397,7 +407,7 @@ def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
     moved = (v32 != v.astype(np.float32)).any(axis=1)
     log.debug("union: %d vertices moved to positions of their own", int(moved.sum()))
     points = np.where(moved[:, None], v32.astype(np.float64), v)
-    return Mesh(points, mesh.faces, mesh.normals, mesh.uv)
+    return replace(mesh, vertices=points)
 
 
 def _batch_union(parts: list[manifold3d.Manifold], where: str) -> manifold3d.Manifold:
@@ -549,7 +559,8 @@ def _local_union(tubes: Tubes, spans: _Spans, busy: np.ndarray, a: np.ndarray, b
     if not _closed(faces, len(vertices)):
         log.debug("union: the stitched mesh is not closed; unioning whole tubes")
         return None
-    return Mesh(vertices, faces, normals, uv)
+    # the tube face each triangle came from: manifold3d carries the face ids through the boolean
+    return Mesh(vertices, faces, normals, uv, face_source=np.concatenate([fid[keep], ff]))
 
 
 def _manifold_of(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, where: str) -> manifold3d.Manifold:
@@ -632,4 +643,8 @@ def _to_mesh(manifold: manifold3d.Manifold, where: str) -> Mesh:
     point_of, npts = _weld(len(props), mesh)
     vertices = np.empty((npts, 3))
     vertices[point_of] = props[:, :3]
-    return Mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:])
+    # manifold3d keeps each input triangle's face id (its index in Tubes.faces) on every piece of it
+    face_source = np.asarray(mesh.face_id, np.int64)
+    if len(face_source) != len(tri):
+        raise GeometryError(f"{where}: manifold3d returned {len(face_source)} face ids for {len(tri)} triangles")
+    return Mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:], face_source=face_source)
