@@ -1,4 +1,4 @@
-"""Array helpers shared by the stages: CSR offsets, index ranges, unit vectors, row grouping.
+"""Array helpers shared by the stages: CSR offsets, index ranges, unit vectors, row grouping, mesh pieces.
 
 Every stage stores variable-length groups (the segments of a chain, the rings
 of a tube, the points of a polygon) as one flat array plus ``offsets``, like a
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["dot", "first_equal_row", "gather", "local_index", "offsets", "ranges", "unit"]
+__all__ = ["component_labels", "dot", "first_equal_row", "gather", "local_index", "offsets", "ranges", "unit"]
 
 
 def offsets(counts: np.ndarray) -> np.ndarray:
@@ -90,3 +90,33 @@ def first_equal_row(keys: np.ndarray) -> np.ndarray:
     owner = np.empty(len(keys), np.int64)
     owner[order] = order[np.flatnonzero(starts)][np.cumsum(starts) - 1]
     return owner
+
+
+def component_labels(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """For each vertex, the smallest vertex index of the connected piece it is in (vertices joined by edges).
+
+    Label propagation with pointer jumping, in numpy: a few passes over the
+    edges, whatever the mesh's diameter.  An unused vertex is its own piece.
+
+    >>> component_labels(np.array([[0, 1, 2], [2, 3, 4], [5, 6, 7]]), 9).tolist()
+    [0, 0, 0, 0, 0, 5, 5, 5, 8]
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    parent = np.arange(n_vertices, dtype=np.int64)
+    if len(faces) == 0:
+        return parent
+    a = faces.ravel()
+    b = np.roll(faces, -1, axis=1).ravel()
+    while True:
+        pa, pb = parent[a], parent[b]
+        differ = pa != pb
+        if not differ.any():
+            break
+        lo, hi = np.minimum(pa[differ], pb[differ]), np.maximum(pa[differ], pb[differ])
+        np.minimum.at(parent, hi, lo)  # hook each root under the smaller root it touches
+        while True:  # compress paths until every vertex points at a root
+            jumped = parent[parent]
+            if np.array_equal(jumped, parent):
+                break
+            parent = jumped
+    return parent

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .arrays import component_labels
 from .modules import ModuleString
 from .skeleton import Skeleton
 from .version import __version__
@@ -63,9 +64,6 @@ def skeleton_stats(modules: ModuleString, skeleton: Skeleton) -> dict:
 def components(faces: np.ndarray, n_vertices: int) -> int:
     """Number of connected pieces of a triangle mesh (vertices joined by its edges; unused vertices ignored).
 
-    Label propagation with pointer jumping, in numpy: a few passes over the
-    edges, whatever the mesh's diameter.
-
     Examples
     --------
     >>> components(np.array([[0, 1, 2], [2, 3, 4], [5, 6, 7]]), 9)
@@ -74,22 +72,7 @@ def components(faces: np.ndarray, n_vertices: int) -> int:
     faces = np.asarray(faces, dtype=np.int64)
     if len(faces) == 0:
         return 0
-    a = faces.ravel()
-    b = np.roll(faces, -1, axis=1).ravel()
-    parent = np.arange(n_vertices, dtype=np.int64)
-    while True:
-        pa, pb = parent[a], parent[b]
-        differ = pa != pb
-        if not differ.any():
-            break
-        lo, hi = np.minimum(pa[differ], pb[differ]), np.maximum(pa[differ], pb[differ])
-        np.minimum.at(parent, hi, lo)  # hook each root under the smaller root it touches
-        while True:  # compress paths until every vertex points at a root
-            jumped = parent[parent]
-            if np.array_equal(jumped, parent):
-                break
-            parent = jumped
-    return len(np.unique(parent[a]))
+    return len(np.unique(component_labels(faces, n_vertices)[faces.ravel()]))
 
 
 def mesh_stats(tree) -> dict:
