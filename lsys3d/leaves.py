@@ -31,9 +31,17 @@ import numpy as np
 
 from .errors import GeometryError
 from .mesh import Mesh
+from .options import Options, option
 from .skeleton import Skeleton
 
-__all__ = ["Leaves", "default_leaf", "instance_leaves", "leaf_transforms", "leaves", "polygon_leaves"]
+__all__ = ["LeafOptions", "Leaves", "default_leaf", "instance_leaves", "leaf_transforms", "leaves", "polygon_leaves"]
+
+
+@dataclass(frozen=True)
+class LeafOptions(Options):
+    """The leaves stage: the shape of the built-in leaf (every default, range and help is in its field)."""
+
+    rows: int = option(7, low=1, high=256, name="leaf_rows", help="rows across the built-in leaf (4 triangles a row)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,15 +247,18 @@ def polygon_leaves(skeleton: Skeleton) -> Mesh | None:
     return Mesh(points[used], remap[faces], normals, uv[faces])
 
 
-def leaves(skeleton: Skeleton, model: Mesh | None = None) -> Leaves:
+def leaves(skeleton: Skeleton, model: Mesh | None = None, options: LeafOptions | None = None) -> Leaves:
     """Every leaf of a skeleton: polygons, instances (model + transforms) and all merged.
 
     Parameters
     ----------
     skeleton : Skeleton
     model : Mesh or trimesh.Trimesh, optional
-        Leaf model in the convention of this module (default :func:`default_leaf`).
+        Leaf model in the convention of this module (default :func:`default_leaf`
+        with ``options.rows`` rows).
+    options : LeafOptions, optional
     """
+    options = LeafOptions() if options is None else options
     if model is not None and not isinstance(model, Mesh):
         model = Mesh.from_trimesh(model)
     polygons = polygon_leaves(skeleton)
@@ -255,7 +266,7 @@ def leaves(skeleton: Skeleton, model: Mesh | None = None) -> Leaves:
     leaf_model = None
     baked = None
     if len(transforms):
-        leaf_model = default_leaf() if model is None else model
+        leaf_model = default_leaf(options.rows) if model is None else model
         baked = instance_leaves(leaf_model, transforms)
     parts = [m for m in (polygons, baked) if m is not None]
     merged = Mesh.concatenate(parts) if parts else None

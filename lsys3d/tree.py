@@ -9,7 +9,7 @@ corner normals and uv, optional vertex colours).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 from .leaves import Leaves
 from .materials import BARK, LEAF, Material
@@ -57,6 +57,9 @@ class Tree:
     modules : ModuleString or None
         The derived string the turtle read (None for trees built by hand).
     bark_material, leaf_material : Material
+    lods : tuple of lsys3d.lod.Lod
+        Its levels of detail when asked for (``lod=(0, 1, 2, 3)``), level 0
+        being ``bark`` and ``leaves`` themselves; empty otherwise.
     """
 
     bark: Mesh
@@ -68,6 +71,7 @@ class Tree:
     modules: ModuleString | None = None
     bark_material: Material = BARK
     leaf_material: Material = LEAF
+    lods: tuple = ()
 
     @property
     def name(self) -> str:
@@ -80,7 +84,18 @@ class Tree:
         return asset_identifier(self.name)
 
     def metadata(self) -> dict:
-        """The ``lsys3d`` block every writer records: provenance and counts, JSON-ready (empty without provenance)."""
+        """The ``lsys3d`` block every writer records: provenance and counts, JSON-ready (empty without provenance).
+
+        With levels of detail, ``lods`` lists each level's number and triangles.
+        """
         if self.provenance is None:
             return {}
-        return {**self.provenance.to_json(), "counts": self.counts.to_json()}
+        out = {**self.provenance.to_json(), "counts": self.counts.to_json()}
+        if self.lods:
+            out["lods"] = [{"level": lod.level, "triangles": lod.triangles} for lod in self.lods]
+        return out
+
+    def at_level(self, index: int) -> Tree:
+        """The tree with the bark and leaves of ``lods[index]`` and no levels: what a writer writes per level."""
+        lod = self.lods[index]
+        return replace(self, bark=lod.bark, leaves=lod.leaves, lods=())

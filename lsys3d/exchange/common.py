@@ -24,6 +24,7 @@ __all__ = [
     "frame_transforms",
     "gather_mesh",
     "metadata_json",
+    "tangents",
 ]
 
 log = logging.getLogger("lsys3d")
@@ -282,6 +283,60 @@ def _unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         _, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
         inverse = inverse.reshape(-1)
     return first, inverse
+
+
+def tangents(points: np.ndarray, index: np.ndarray, normals: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Tangent frames of split vertices for normal mapping, ``(s, 4) float32`` as glTF's ``TANGENT``.
+
+    Parameters
+    ----------
+    points, normals : (s, 3)
+        Split vertices and their unit normals.
+    index : (f * 3,)
+        Split vertex of each face corner.
+    uv : (s, 2)
+        Texture coordinates in the file's convention (glTF: ``v`` down).
+
+    Returns
+    -------
+    (s, 4) float32
+        ``xyz``: the direction of increasing ``u`` in the surface, made
+        perpendicular to the normal and unit; ``w``: +1 or -1, the handedness,
+        so that ``cross(normal, xyz) * w`` is the direction of increasing
+        ``v``.  Each triangle's frame (Lengyel's) is summed, area-weighted,
+        over the corners of a vertex; a vertex whose triangles have no uv area
+        gets any unit vector perpendicular to its normal.
+    """
+    idx = np.asarray(index, np.int64).reshape(-1, 3)
+    p = np.asarray(points, np.float64)[idx]
+    t = np.asarray(uv, np.float64)[idx]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    ok = np.abs(det) > 1e-20
+    sign = np.where(det < 0, -1.0, 1.0)
+    # (e1 dv2 - e2 dv1) / det is du-direction; scaling by |det| (the uv area, twice) keeps the sign and
+    # weights each triangle by its uv area, so that tiny uv triangles do not blow up
+    tu = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * (sign * ok)[:, None]
+    tv = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * (sign * ok)[:, None]
+    n_split = len(points)
+    su = np.zeros((n_split, 3))
+    sv = np.zeros((n_split, 3))
+    corner = idx.reshape(-1)
+    for c in range(3):
+        su[:, c] = np.bincount(corner, weights=np.repeat(tu[:, c], 3), minlength=n_split)
+        sv[:, c] = np.bincount(corner, weights=np.repeat(tv[:, c], 3), minlength=n_split)
+    n = np.asarray(normals, np.float64)
+    su -= np.einsum("ij,ij->i", su, n)[:, None] * n
+    length = np.linalg.norm(su, axis=1)
+    bad = length < 1e-12
+    if bad.any():  # no uv to follow: any direction in the tangent plane
+        helper = np.where(np.abs(n[bad, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+        su[bad] = np.cross(n[bad], helper)
+        length[bad] = np.linalg.norm(su[bad], axis=1)
+    su /= np.maximum(length, 1e-300)[:, None]
+    w = np.where(np.einsum("ij,ij->i", np.cross(n, su), sv) < 0, -1.0, 1.0)
+    return np.concatenate([su, w[:, None]], axis=1).astype(np.float32)
 
 
 def decompose_transforms(transforms: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -10,6 +10,10 @@ Layout of the file::
         node "leaf_polygons"                                (only with instanced leaves)
         node "skeleton"  mesh "skeleton"  LINES             (only with skeleton_curves)
 
+With levels of detail the root node is ``<asset name>_LOD0`` with the
+extension ``MSFT_lod`` naming the nodes ``<asset name>_LOD1`` ... (outside the
+scene), each holding its level's ``bark`` and ``leaf`` (see :func:`build`).
+
 glTF is metres and Y up by definition, so ``units`` and ``up_axis`` other
 than the defaults are refused.  Vertices are split per unique (position,
 normal, uv) corner as glTF requires; texture ``v`` is flipped (glTF's origin
@@ -32,7 +36,7 @@ from ..materials import Material
 from ..tree import Tree
 from ..version import __version__
 from .atomic import atomic_path, check_target, write_bytes, write_chunks
-from .common import ExportOptions, MeshArrays, decompose_transforms, gather_mesh, metadata_json
+from .common import ExportOptions, MeshArrays, decompose_transforms, gather_mesh, metadata_json, tangents
 
 __all__ = ["write_glb", "write_gltf"]
 
@@ -109,6 +113,9 @@ def _primitive(buf: _Buffer, arrays: MeshArrays, material: int) -> dict:
     if arrays.split_uv is not None:
         uv = arrays.split_uv.copy()
         uv[:, 1] = np.float32(1.0) - uv[:, 1]
+        attributes["TANGENT"] = buf.accessor(
+            tangents(arrays.split_points, arrays.split_index, arrays.split_normals, uv)
+        )
         attributes["TEXCOORD_0"] = buf.accessor(uv)
     if arrays.split_colors is not None:  # multiplies the base colour factor, which is white then
         attributes["COLOR_0"] = buf.accessor(arrays.split_colors)
@@ -150,17 +157,75 @@ def _skeleton_lines(tree: Tree) -> tuple[np.ndarray, np.ndarray] | None:
     return points, pairs
 
 
+LOD = "MSFT_lod"
+SCREEN_COVERAGE = (0.4, 0.15, 0.05, 0.01)
+"""``MSFT_screencoverage`` hint per level of detail: level ``k`` is drawn while the tree covers more than
+this share of the screen (and less than the level before's)."""
+
+
 def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer]:
-    """Gather ``tree`` into a glTF JSON document and its binary buffer (not yet serialised)."""
+    """Gather ``tree`` into a glTF JSON document and its binary buffer (not yet serialised).
+
+    A tree with levels of detail gets one node per level, ``<name>_LOD0`` ..
+    ``<name>_LOD<n>`` (the name convention Unity's and Unreal's importers
+    group), each holding that level's parts; the scene holds ``_LOD0``, which
+    lists the others with ``MSFT_lod`` and their switching hints in
+    ``extras.MSFT_screencoverage``.  A viewer that does not know the
+    extension shows level 0 alone.
+    """
     if options.units != "m" or options.up_axis != "Y":
         raise ExportError(
             f"{where}: glTF is always metres and Y up; units={options.units!r} and "
             f"up_axis={options.up_axis!r} apply to USD (.usda/.usdc/.usdz) only"
         )
-    eye = np.eye(3)
     buf = _Buffer()
-    meshes, nodes, materials = [], [{"name": tree.name, "children": []}], []
+    meshes, nodes, materials = [], [], []
     extensions_used = []
+    material_cache: dict = {}
+
+    def material_index(m: Material) -> int:
+        if m not in material_cache:
+            materials.append(_material(m))
+            material_cache[m] = len(materials) - 1
+        return material_cache[m]
+
+    if tree.lods:
+        roots = []
+        for i, lod in enumerate(tree.lods):
+            nodes.append({"name": f"{tree.name}_LOD{lod.level}", "children": []})
+            roots.append(len(nodes) - 1)
+            part = tree.at_level(i)
+            _add_parts(part, roots[-1], buf, meshes, nodes, material_index, extensions_used, options, where)
+        if len(roots) > 1:
+            nodes[roots[0]]["extensions"] = {LOD: {"ids": roots[1:]}}
+            nodes[roots[0]]["extras"] = {"MSFT_screencoverage": [SCREEN_COVERAGE[lod.level] for lod in tree.lods]}
+            extensions_used.append(LOD)
+    else:
+        nodes.append({"name": tree.name, "children": []})
+        _add_parts(tree, 0, buf, meshes, nodes, material_index, extensions_used, options, where)
+
+    metadata = metadata_json(tree, where)
+    doc = {"asset": {"version": "2.0", "generator": f"lsys3d {__version__}"}}
+    if metadata:
+        doc["asset"]["extras"] = metadata
+    if extensions_used:
+        doc["extensionsUsed"] = sorted(set(extensions_used))
+    scene = {"name": tree.name, "nodes": [0]}
+    if metadata:
+        scene["extras"] = metadata
+    doc.update(scene=0, scenes=[scene], nodes=nodes)
+    # glTF arrays may not be empty: leave out what a tree without geometry lacks
+    for key, value in (("meshes", meshes), ("materials", materials), ("accessors", buf.accessors)):
+        if value:
+            doc[key] = value
+    if buf.views:
+        doc.update(bufferViews=buf.views, buffers=[{"byteLength": buf.size + (-buf.size % 4)}])
+    return doc, buf
+
+
+def _add_parts(tree: Tree, parent: int, buf, meshes, nodes, material_index, extensions_used, options, where) -> None:
+    """The tree's bark, leaves and skeleton as child nodes of node ``parent``."""
+    eye = np.eye(3)
 
     def add_node(name: str, primitives: list[dict], extensions: dict | None = None):
         meshes.append({"name": name, "primitives": primitives})
@@ -168,11 +233,7 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         if extensions:
             node["extensions"] = extensions
         nodes.append(node)
-        nodes[0]["children"].append(len(nodes) - 1)
-
-    def material_index(m: Material) -> int:
-        materials.append(_material(m))
-        return len(materials) - 1
+        nodes[parent]["children"].append(len(nodes) - 1)
 
     if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
         bark = gather_mesh(tree.bark, eye, f"{where}: bark")
@@ -214,24 +275,6 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
                 "mode": LINES,
             }
             add_node("skeleton", [primitive])
-
-    metadata = metadata_json(tree, where)
-    doc = {"asset": {"version": "2.0", "generator": f"lsys3d {__version__}"}}
-    if metadata:
-        doc["asset"]["extras"] = metadata
-    if extensions_used:
-        doc["extensionsUsed"] = extensions_used
-    scene = {"name": tree.name, "nodes": [0]}
-    if metadata:
-        scene["extras"] = metadata
-    doc.update(scene=0, scenes=[scene], nodes=nodes)
-    # glTF arrays may not be empty: leave out what a tree without geometry lacks
-    for key, value in (("meshes", meshes), ("materials", materials), ("accessors", buf.accessors)):
-        if value:
-            doc[key] = value
-    if buf.views:
-        doc.update(bufferViews=buf.views, buffers=[{"byteLength": buf.size + (-buf.size % 4)}])
-    return doc, buf
 
 
 def _json_bytes(doc: dict, indent: int | None = None) -> bytes:

@@ -21,7 +21,10 @@ The parts have the same names as in glTF (``bark``, ``leaf``, ``leaf_polygons``,
 the geometry is turned and scaled to match, so every DCC sees the tree upright
 at its true size.  Siblings (the same grammar grown with several seeds) go into
 one stage as the variants of the variant set ``seed`` on the root prim, each
-holding the whole layout above (:func:`build_variant_stage`).  Points are numbered in the order faces first use them,
+holding the whole layout above (:func:`build_variant_stage`).  Levels of detail
+are the variants ``LOD0`` .. ``LOD3`` of the variant set ``lod`` on the root
+prim (``LOD0`` selected), each holding the layout above for its level.
+Points are numbered in the order faces first use them,
 which keeps the crate file's integer compression fast.
 """
 
@@ -52,10 +55,22 @@ from .common import (
     metadata_json,
 )
 
-__all__ = ["VARIANT_SET", "build_stage", "build_variant_stage", "write_usd", "write_usd_variants", "write_usdz"]
+__all__ = [
+    "LOD_SET",
+    "VARIANT_SET",
+    "build_stage",
+    "build_variant_stage",
+    "write_usd",
+    "write_usd_variants",
+    "write_usdz",
+]
 
 VARIANT_SET = "seed"
 """The variant set of a stage of siblings (:func:`build_variant_stage`)."""
+
+LOD_SET = "lod"
+"""The variant set of a tree's levels of detail (``LOD0`` .. ``LOD3``, the first selected); siblings with levels
+hold it inside each ``seed`` variant."""
 
 
 def _extent(points: np.ndarray) -> Vt.Vec3fArray:
@@ -168,8 +183,23 @@ def _names(materials: list[Material]) -> list[str]:
 def build_stage(tree: Tree, options: ExportOptions, where: str = "<stage>") -> Usd.Stage:
     """Build the tree's stage in memory (see the module docstring for its layout)."""
     stage, prim = _new_stage(options, tree.identifier)
-    _author_tree(stage, prim, tree, options, where)
+    _author_levels(stage, prim, tree, options, where)
     return stage
+
+
+def _author_levels(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOptions, where: str) -> None:
+    """The tree, or with levels of detail each level as a variant ``LOD<k>`` of the variant set ``lod``."""
+    if not tree.lods:
+        _author_tree(stage, prim, tree, options, where)
+        return
+    levels = prim.GetVariantSets().AddVariantSet(LOD_SET)
+    names = [f"LOD{lod.level}" for lod in tree.lods]
+    for i, name in enumerate(names):
+        levels.AddVariant(name)
+        levels.SetVariantSelection(name)
+        with levels.GetVariantEditContext():
+            _author_tree(stage, prim, tree.at_level(i), options, f"{where}: {name}")
+    levels.SetVariantSelection(names[0])
 
 
 def build_variant_stage(
@@ -193,7 +223,7 @@ def build_variant_stage(
         variants.AddVariant(name)
         variants.SetVariantSelection(name)
         with variants.GetVariantEditContext():
-            _author_tree(stage, prim, tree, options, f"{where}: variant {name}")
+            _author_levels(stage, prim, tree, options, f"{where}: variant {name}")
     variants.SetVariantSelection(names[0])
     return stage
 
