@@ -3,21 +3,25 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> color -> leaves
+    derive -> interpret -> sweep -> union -> cleanup -> color -> leaves (-> lod)
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from . import bark as bark_stage
+from .cleanup import CleanupOptions, cleanup
 from .derive import DEFAULT_MAX_MODULES, derive
 from .errors import GeometryError
 from .grammar import Grammar
+from .leaves import LeafOptions
 from .leaves import leaves as build_leaves
+from .lod import LEVELS, Lod, LodOptions, fit_budget, level_options, lod_leaves, prune
 from .materials import BARK
 from .mesh import Mesh
 from .modules import ModuleString
@@ -30,11 +34,20 @@ from .tree import StageCounts, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret
 from .union import UnionOptions, concatenate, union
 
-__all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage"]
+__all__ = [
+    "STAGES",
+    "GenerateOptions",
+    "Limits",
+    "draw",
+    "generate",
+    "run_stage",
+    "seed_dependence",
+    "warn_if_identical",
+]
 
 log = logging.getLogger("lsys3d")
 
-STAGES = ("derive", "interpret", "sweep", "union", "color", "leaves")
+STAGES = ("derive", "interpret", "sweep", "union", "cleanup", "color", "leaves", "lod")
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
 
@@ -68,8 +81,14 @@ class GenerateOptions(Options):
         Tube sides, minimum width, bend splitting, bark displacement...
     union : UnionOptions
         Whether (``union=False``: the tube soup, a fast preview) and how the tubes are unioned.
+    cleanup : CleanupOptions
+        Removing the union's needles and slivers (``cleanup=False``: the raw boolean).
     color : BarkColorOptions
         Bark colour variation written as vertex colours after the union.
+    leaves : LeafOptions
+        The built-in leaf's shape.
+    lod : LodOptions
+        Levels of detail to build as well, or a triangle budget to fit.
 
     Every field below these has a flat name (``sides``, ``union``,
     ``max_modules``, ``bark_color_variation``...) for :meth:`from_flat`,
@@ -80,12 +99,67 @@ class GenerateOptions(Options):
     turtle: TurtleOverrides = field(default_factory=TurtleOverrides)
     sweep: SweepOptions = option(factory=SweepOptions, help="tubes")
     union: UnionOptions = option(factory=UnionOptions, help="the union")
+    cleanup: CleanupOptions = option(factory=CleanupOptions, help="the cleanup of the union")
     color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
+    leaves: LeafOptions = option(factory=LeafOptions, help="leaves")
+    lod: LodOptions = option(factory=LodOptions, help="levels of detail")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
             object.__setattr__(self, "turtle", TurtleOverrides(self.turtle))
         super().__post_init__()
+
+
+_JITTERS = ("angle_jitter", "length_jitter", "width_jitter", "branch_roll", "branch_drop")
+
+
+def seed_dependence(grammar: Grammar, options: GenerateOptions | None = None) -> tuple[str, ...]:
+    """What the seed changes in a plant grown from ``grammar`` with ``options``; empty when nothing does.
+
+    The seed drives stochastic rules (two or more alternatives for one
+    predecessor), the turtle's jitters, branch roll and drop, and the bark's
+    noise (displacement and colour).
+
+    Examples
+    --------
+    >>> from lsys3d import load_preset
+    >>> seed_dependence(load_preset("tree3d")), seed_dependence(load_preset("koch-stochastic"))
+    ((), ('stochastic rules',))
+    >>> seed_dependence(load_preset("tree3d"), GenerateOptions.from_flat(bark_displacement=0.2))
+    ('bark_displacement',)
+    """
+    options = options or GenerateOptions()
+    found = []
+    pools = Counter(p.pool_key() for p in grammar.productions)
+    if any(n > 1 for n in pools.values()):
+        found.append("stochastic rules")
+    turtle = TurtleOptions.from_grammar(grammar, options.turtle)
+    found += [name for name in _JITTERS if getattr(turtle, name) > 0]
+    if options.sweep.bark_displacement > 0:
+        found.append("bark_displacement")
+    if options.color.variation > 0:
+        found.append("bark_color_variation")
+    return tuple(found)
+
+
+def warn_if_identical(grammar: Grammar, options: GenerateOptions | None, count: int) -> bool:
+    """Warn (through the ``lsys3d`` logger) that ``count`` siblings would be identical; whether it did.
+
+    Siblings differ only by their seed: when nothing depends on it
+    (:func:`seed_dependence`) they are copies, and the warning names the
+    settings that would make them differ.
+    """
+    if count < 2 or seed_dependence(grammar, options):
+        return False
+    name = grammar.name or grammar.source
+    log.warning(
+        "%s grows the same plant from every seed (no stochastic rules, turtle jitter or bark noise): its %d "
+        "variants are identical; vary them with e.g. --turtle angle_jitter=5 --turtle width_jitter=0.1 "
+        "--turtle branch_roll=30, --bark-displacement 0.2 or --bark-color-variation 0.3",
+        name,
+        count,
+    )
+    return True
 
 
 def run_stage(name: str, fn: Callable, *args, progress: Callable[[str, str, float], None] | None = None, **kw):
@@ -139,7 +213,7 @@ def generate(
     progress: Callable[[str, str, float], None] | None = None,
     **overrides,
 ) -> Tree:
-    """Grow a plant: derive, interpret, sweep, union, colour and build the leaves.
+    """Grow a plant: derive, interpret, sweep, union, clean up, colour and build the leaves.
 
     Parameters
     ----------
@@ -188,14 +262,13 @@ def generate(
             f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter than "
             f"min_length ({options.sweep.min_length:g}) and there is no leaf"
         )
-    if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
-        bark = stage("union", Mesh.empty)
-    elif options.union.enabled:
-        bark = stage("union", union, tubes, options.union)
-    else:
-        bark = stage("union", concatenate, tubes)
-    bark = stage("color", bark_stage.color, bark, options.color, BARK.base_color, seed)
-    leaves = stage("leaves", build_leaves, skeleton)
+    bark = _bark(tubes, options, seed, stage)
+    leaves = stage("leaves", build_leaves, skeleton, options=options.leaves)
+    lods = ()
+    if options.lod.levels or options.lod.target_triangles:
+        lods = stage("lod", _levels, skeleton, options, seed, Lod(0, bark, leaves))
+        if options.lod.target_triangles:  # the tree is the level that fits; it has no others
+            bark, leaves, lods = lods[0].bark, lods[0].leaves, ()
     counts = StageCounts(
         modules=len(modules),
         segments=len(skeleton),
@@ -211,4 +284,52 @@ def generate(
         counts=counts,
         unioned=options.union.enabled,
         modules=modules,
+        lods=lods,
     )
+
+
+def _bark(tubes, options: GenerateOptions, seed: int, stage) -> Mesh:
+    """The union (and its cleanup) or the tube soup, coloured: the bark of one set of tubes."""
+    if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
+        bark = stage("union", Mesh.empty)
+    elif options.union.enabled:
+        bark = stage("union", union, tubes, options.union)
+        bark = stage("cleanup", cleanup, bark, tubes, options.cleanup)
+    else:
+        bark = stage("union", concatenate, tubes)
+    return stage("color", bark_stage.color, bark, options.color, BARK.base_color, seed)
+
+
+def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod) -> tuple[Lod, ...]:
+    """The levels of detail asked for (:mod:`lsys3d.lod`), from one skeleton; ``first`` is level 0, built already.
+
+    With a triangle budget, the one level that fits: the most detailed one
+    whose bark and leaves stay within it (levels are built until one does).
+    """
+
+    def quiet(name, fn, *args, **kw):
+        return fn(*args, **kw)
+
+    def build(level: int) -> Lod:
+        if level == 0:
+            return first
+        spec = LEVELS[level]
+        opts = level_options(options, level)
+        pruned = prune(skeleton, spec.prune)
+        tubes = sweep(pruned, opts.sweep, max_triangles=options.limits.max_triangles, seed=seed)
+        bark = _bark(tubes, opts, seed, quiet)
+        leaves = lod_leaves(skeleton, level, opts.leaves)
+        settings = {"sides": opts.sweep.sides, "prune": spec.prune, "merge_angle": opts.sweep.merge_angle}
+        return Lod(level, bark, leaves, settings)
+
+    budget = options.lod.target_triangles
+    if budget:
+        built: dict[int, Lod] = {}
+
+        def counts():
+            for level in range(len(LEVELS)):
+                built[level] = build(level)
+                yield level, built[level].triangles
+
+        return (built[fit_budget(counts(), budget)],)
+    return tuple(build(level) for level in options.lod.levels)

@@ -10,9 +10,12 @@ import pytest
 
 import lsys3d
 from lsys3d.bark import BarkColorOptions
+from lsys3d.cleanup import CleanupOptions
 from lsys3d.cli import build_parser, main
 from lsys3d.errors import OptionsError
 from lsys3d.exchange import ExportOptions
+from lsys3d.leaves import LeafOptions
+from lsys3d.lod import LodOptions
 from lsys3d.options import Options, add_arguments, check_value, flat_fields, from_arguments, spec_of
 from lsys3d.pipeline import GenerateOptions, Limits
 from lsys3d.preview import PreviewOptions
@@ -36,7 +39,7 @@ def test_every_field_is_declared_with_its_spec(cls):
 
 def test_generate_options_nest_one_class_per_stage():
     names = {f.name: f.type for f in dataclasses.fields(GenerateOptions)}
-    assert list(names) == ["limits", "turtle", "sweep", "union", "color"]
+    assert list(names) == ["limits", "turtle", "sweep", "union", "cleanup", "color", "leaves", "lod"]
     flat = flat_fields(GenerateOptions)
     assert flat["sides"] == ("sweep", "sides") and flat["union"] == ("union", "enabled")
     assert flat["max_modules"] == ("limits", "max_modules") and flat["bark_color_variation"] == ("color", "variation")
@@ -95,12 +98,12 @@ def test_cli_flags_come_from_the_fields():
     add_arguments(parser, GenerateOptions)
     flags = {a.option_strings[0] for a in parser._actions if a.option_strings and a.dest.startswith("opt__")}
     expected = set()
-    for cls in (Limits, SweepOptions, UnionOptions, BarkColorOptions):
+    for cls in (Limits, SweepOptions, UnionOptions, CleanupOptions, BarkColorOptions, LeafOptions, LodOptions):
         for f in dataclasses.fields(cls):
             spec = spec_of(f)
             if spec.cli:
-                flag = "--" + (spec.name or f.name).replace("_", "-")
-                expected.add(flag.replace("--union", "--no-union"))
+                name = (spec.name or f.name).replace("_", "-")
+                expected.add(f"--no-{name}" if f.default is True else f"--{name}")
     assert flags == expected
     help_text = " ".join(parser.format_help().split())
     assert "in [3, 1024]; default 8" in help_text  # range and default from the declaration
