@@ -406,8 +406,9 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
     """Whether the faces around half-edge ``h``'s ends, with both at ``x, y, z``, keep their side and shapes.
 
     Every face keeps within 80 degrees of its ``reference`` normal (the tube
-    face it lies on, exact even for a sliver), and the worst aspect around
-    stays under ``limit`` or improves.
+    face it lies on, exact even for a sliver), or turns no farther from it
+    than it is already turned, and the worst aspect around stays under
+    ``limit`` or improves.
     """
     faces, p = he.faces, he.points
     a = _org(faces, h)
@@ -427,8 +428,15 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
                 qx, qy, qz = _normal_xyz(*corners)
                 q = np.sqrt(qx * qx + qy * qy + qz * qz)
                 r = he.reference[f]
-                if qx * r[0] + qy * r[1] + qz * r[2] <= 0.17 * q:
-                    return False
+                turned = qx * r[0] + qy * r[1] + qz * r[2]
+                if turned <= 0.17 * q:
+                    # turned away: allowed only for a face that was turned as far already (a fold left by the
+                    # boolean must not block every collapse around it), and not further
+                    ox, oy, oz = _normal(p, f0, f1, f2)
+                    o = np.sqrt(ox * ox + oy * oy + oz * oz)
+                    was = ox * r[0] + oy * r[1] + oz * r[2]
+                    if q <= 0.0 or o <= 0.0 or was > 0.17 * o or turned / q < was / o:
+                        return False
                 worst_old = max(worst_old, _aspect(p, f0, f1, f2))
                 worst_new = max(worst_new, _aspect_xyz(*corners))
             g = he.opp[_prv(g)]
@@ -618,9 +626,10 @@ def _flip_ok(he, h, tolerance):
     """Whether flipping the edge of half-edge ``h`` improves its two faces without changing the shape much.
 
     The surface moves by at most the distance between the old and the new
-    diagonal, which must stay under ``tolerance``; the new faces keep the old
-    faces' side, and their worse aspect must be better than the old worse
-    one.  Seam and rim edges are never flipped.
+    diagonal, which must stay under ``tolerance``; the new faces keep the
+    side of the old pair, and their worse aspect must be better than the old
+    worse one.
+    Seam and rim edges are never flipped.
     """
     faces, p = he.faces, he.points
     t = he.opp[h]
@@ -1003,18 +1012,21 @@ def clean(he, rules, region):
 
 
 @numba.njit(cache=True)
-def rescue(he, worst, height):
+def rescue(he, worst, height, flip):
     """The last resort for faces still worse than aspect ``worst`` or lower than ``height``; returns the count fixed.
 
-    First, an edge so short that readers would weld its ends (float32 files,
-    trimesh's 1e-8 grid) merges whenever the topology allows.
-
-    Any edge of such a face may collapse, either way, whatever the ranks of
-    its ends, when every face around keeps its side and the worst aspect
-    around becomes better than this face's (for a face lower than ``height``:
+    First, on every face, an edge so short that readers would weld its ends
+    (float32 files, trimesh's 1e-8 grid) merges whenever the topology allows.
+    Then such a face may flip an edge that moves the surface by up to
+    ``flip`` local scales (more than :func:`clean` allows); failing that, any
+    of its edges may collapse, either way or to a point between (a quarter,
+    half or three quarters along), whatever the ranks of its ends,
+    when every face around keeps its side and the worst aspect around
+    becomes better than this face's (for a face lower than ``height``:
     whatever the aspects); a vertex of three neighbours on it, or across one
     of its edges (which blocks the collapse of that edge), may merge into any
-    of them on the same terms.
+    of them on the same terms (whatever the aspects, into one nearer than a
+    tenth of a side: the next round collapses the face's edge).
     """
     faces, p = he.faces, he.points
     buf_a = np.empty(_MAX_RING, np.int64)
@@ -1048,8 +1060,17 @@ def rescue(he, worst, height):
             # a sliver goes whatever it leaves around (as long as nothing turns over)
             allowed = 1e300 if low else 0.999 * bad
             done = False
+            # a flip that moves the surface by up to ``flip`` local scales
+            s = min(he.scale[a], min(he.scale[b], he.scale[c]))
+            lengths = np.array([_length(p, a, b), _length(p, b, c), _length(p, c, a)])
+            for k in np.argsort(-lengths):
+                g = 3 * f + k
+                if _flip_ok(he, g, flip * s):
+                    _flip(he, g)
+                    done = True
+                    break
             # candidate half-edges: the face's own (both ways), then those leaving a corner of three neighbours
-            for k in range(6):
+            for k in range(6 if not done else 0):
                 g = 3 * f + k % 3
                 if k >= 3:
                     g = he.opp[g]
@@ -1060,6 +1081,19 @@ def rescue(he, worst, height):
                     _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
                     done = True
                     break
+                # or both ends meet on the edge (on a crease, either end may turn a face over, a point between not)
+                u = _org(faces, g)
+                if k < 3 and not (he.flags[w] & (LOCKED | FEATURE)):
+                    for t in (0.5, 0.25, 0.75):
+                        x = p[u, 0] + t * (p[w, 0] - p[u, 0])
+                        y = p[u, 1] + t * (p[w, 1] - p[u, 1])
+                        z = p[u, 2] + t * (p[w, 2] - p[u, 2])
+                        if _collapse_ok(he, g, x, y, z, allowed, buf_a, buf_b):
+                            _collapse(he, g, x, y, z)
+                            done = True
+                            break
+                    if done:
+                        break
             if not done:
                 for k in range(6):  # its corners, then the corners across its edges
                     v = faces[f, k] if k < 3 else _apex(faces, he.opp[3 * f + k - 3])
@@ -1069,7 +1103,10 @@ def rescue(he, worst, height):
                     g = g0
                     while True:
                         w = _dst(faces, g)
-                        if _collapse_ok(he, g, p[w, 0], p[w, 1], p[w, 2], allowed, buf_a, buf_b):
+                        # a merge along an edge of a tenth of a side moves nothing that counts: whatever the
+                        # aspects (the face being fixed, unchanged by it, may be the worst around)
+                        near = _length(p, v, w) < 0.1 * he.scale[v]
+                        if _collapse_ok(he, g, p[w, 0], p[w, 1], p[w, 2], 1e300 if near else allowed, buf_a, buf_b):
                             _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
                             done = True
                             break
@@ -1288,6 +1325,34 @@ def fair(he, closeness, iterations, step, reach, inward):
         v = members[i]
         moves += p[v, 0] != start[i, 0] or p[v, 1] != start[i, 1] or p[v, 2] != start[i, 2]
     return moves
+
+
+@numba.njit(cache=True)
+def settle(he, closeness):
+    """Make the faired collars' own normals their faces' reference normals; returns how many changed.
+
+    A faired collar face turns, by design, up to nearly 80 degrees from the
+    tube face it lies on; measured against the tube, the operations after the
+    fairing (:func:`clean` of the collars, :func:`rescue`) could hardly move
+    its vertices.  :func:`fair` leaves no face turned that far, so its normal
+    now is the side to keep.  Faces without area keep their tube's.
+    """
+    faces, p = he.faces, he.points
+    n = 0
+    for f in range(he.counts[1]):
+        if not he.face_alive[f]:
+            continue
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        if closeness[a] <= 0.0 and closeness[b] <= 0.0 and closeness[c] <= 0.0:
+            continue
+        qx, qy, qz = _normal(p, a, b, c)
+        q = np.sqrt(qx * qx + qy * qy + qz * qz)
+        r = he.reference[f]
+        if q <= 0.0 or qx * r[0] + qy * r[1] + qz * r[2] <= 0.17 * q:
+            continue
+        r[0], r[1], r[2] = qx / q, qy / q, qz / q
+        n += 1
+    return n
 
 
 # ---------------------------------------------------------------------------------------- per-corner helpers
