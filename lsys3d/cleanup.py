@@ -209,7 +209,10 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     for mask, bit in ((seam, remesh.SEAM), (rim, remesh.FEATURE)):
         he.flags[org[mask]] |= bit
         he.flags[dst[mask]] |= bit
-    rules = remesh.Rules(opt.short, opt.limit, opt.bad, opt.flip_tolerance, opt.long, opt.step, opt.fallback, 50 * nf)
+    # a budget of operations: the presets need under one per face; where flips cycle (seen on the flat
+    # abop-1.24a, cause not yet found) it bounds the time, and the result says so
+    budget = 4 * nf
+    rules = remesh.Rules(opt.short, opt.limit, opt.bad, opt.flip_tolerance, opt.long, opt.step, opt.fallback, budget)
     done = remesh.clean(he, rules, np.zeros(0, bool))
     faired = 0
     if opt.smooth:
@@ -219,6 +222,8 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
         remesh.settle(he, closeness)  # the faired surface is now the side to keep
         done += remesh.clean(he, rules, closeness > 0)  # the faired collars may have made a few needles
     rescued = remesh.rescue(he, opt.rescue, opt.sliver, 10 * opt.flip_tolerance)
+    if done.sum() >= budget:
+        log.warning("cleanup: stopped after %d operations (%d flips); some needles may remain", done.sum(), done[1])
     operations = {
         "collapses": int(done[0] + done[4]),
         "flips": int(done[1]),
