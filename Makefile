@@ -33,7 +33,7 @@ node_modules/.package-lock.json: package.json package-lock.json
 
 $(BPY_STAMP):
 	$(BPY_PYTHON) -m venv $(BPY_VENV)
-	$(BPY_VENV)/bin/pip install --quiet bpy==$(BPY_VERSION)
+	$(BPY_VENV)/bin/pip install --quiet bpy==$(BPY_VERSION) > $(BPY_VENV)/install.log 2>&1 || { cat $(BPY_VENV)/install.log; exit 1; }
 	$(BPY_VENV)/bin/python -c "import bpy" || { echo "bpy does not import: install the X11/GL libraries it links (see README)"; exit 1; }
 	touch $(BPY_STAMP)
 

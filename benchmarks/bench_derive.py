@@ -8,6 +8,9 @@ Prints modules per second for lsys3d and for two baselines:
   table of successors, the fastest pure-string rewriter in Python.
 * Parametric (ABOP figure 2.6 monopodial tree): a per-module Python rewriter
   with the rules written as Python lambdas (no parsing cost at all).
+* Context (``B < A -> AA`` with ``A`` in the ignore set, the string ``B[AAA...]``):
+  the textbook per-module walk of ABOP section 1.8, whose walks here cross the
+  whole branch (quadratic), against lsys3d's skip tables (linear).
 """
 
 from __future__ import annotations
@@ -74,6 +77,20 @@ def monopodial_python(n: int):
     return s
 
 
+def context_textbook(axiom: str, n: int) -> str:
+    """``B < A -> AA``, ``A`` ignored: each module walks left over ignored symbols and brackets to find B."""
+    s = axiom
+    for _ in range(n):
+        out = []
+        for i, c in enumerate(s):
+            j = i - 1
+            while j >= 0 and s[j] in "A[":  # A is ignored, '[' steps out to the parent
+                j -= 1
+            out.append("AA" if c == "A" and j >= 0 and s[j] == "B" else c)
+        s = "".join(out)
+    return s
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smaller sizes")
@@ -100,6 +117,19 @@ def main():
         assert len(ours) == len(base)
         m = len(ours)
         print(f"{n:>3} {m:>12,} {m / t_ours / 1e6:>14.2f} {m / t_base / 1e6:>14.2f} {t_base / t_ours:>6.1f}x")
+
+    print()
+    print("Context: B < A -> AA with A ignored (every walk crosses the branch)")
+    print(f"{'n':>3} {'modules':>12} {'lsys3d Mmod/s':>14} {'textbook Mmod/s':>16} {'ratio':>7}")
+    g = lsys3d.Grammar(axiom="B[A]", rules=["B < A -> AA", "A -> A"], ignore="A")
+    for n in (9, 11) if args.quick else (10, 12, 13):
+        t_ours, ours = best_of(lambda n=n: lsys3d.derive(g, n), repeat=2)
+        t_base, base = best_of(lambda n=n: context_textbook(g.axiom, n), repeat=1)
+        assert str(ours) == base
+        m = len(ours)
+        print(f"{n:>3} {m:>12,} {m / t_ours / 1e6:>14.2f} {m / t_base / 1e6:>16.3f} {t_base / t_ours:>6.0f}x")
+    t_big, big = best_of(lambda: lsys3d.derive(g, 24), repeat=1)
+    print(f" 24 {len(big):>12,} {len(big) / t_big / 1e6:>14.2f} {'(textbook: hours)':>16}")
 
 
 if __name__ == "__main__":

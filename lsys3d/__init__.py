@@ -9,10 +9,13 @@ The pipeline, one stage per module (``docs/architecture.md``)::
 from __future__ import annotations
 
 from .bark import BarkColorOptions
+from .batch import batch
 from .derive import DEFAULT_MAX_MODULES, derive, generations, predict_length
 from .errors import (
+    BatchError,
     DerivationError,
     ExportError,
+    ForestError,
     GeometryError,
     GrammarError,
     InterpretError,
@@ -22,6 +25,7 @@ from .errors import (
     PreviewError,
 )
 from .exchange import ExportOptions, export
+from .forest import ForestOptions, forest
 from .grammar import Grammar
 from .leaves import Leaves
 from .materials import Material
@@ -43,9 +47,12 @@ __all__ = [
     "DEFAULT_MAX_MODULES",
     "DEFAULT_PRESET",
     "BarkColorOptions",
+    "BatchError",
     "DerivationError",
     "ExportError",
     "ExportOptions",
+    "ForestError",
+    "ForestOptions",
     "GenerateOptions",
     "GeometryError",
     "Grammar",
@@ -68,8 +75,10 @@ __all__ = [
     "TurtleOptions",
     "UnionOptions",
     "__version__",
+    "batch",
     "derive",
     "export",
+    "forest",
     "generate",
     "generations",
     "interpret",

@@ -3,14 +3,21 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
+import math
+import os
+import signal
 import sys
+import threading
 import time
+import warnings
 
 from .derive import derive
-from .errors import LSystemError, OptionsError, clip
+from .errors import LSystemError, OptionsError, clip, printable
 from .exchange.common import ExportOptions
+from .forest import ForestOptions
 from .options import add_arguments, from_arguments
 from .pipeline import GenerateOptions
 from .presets import DEFAULT_PRESET, describe, list_presets, load
@@ -33,9 +40,9 @@ def _at_least(lowest: int):
         try:
             value = int(text.replace("_", ""))
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a whole number, not {text!r}") from None
+            raise argparse.ArgumentTypeError(f"expected a whole number, not {clip(repr(text))}") from None
         if value < lowest:
-            raise argparse.ArgumentTypeError(f"must be at least {lowest}, not {value}")
+            raise argparse.ArgumentTypeError(f"must be at least {lowest}, not {clip(str(value))}")
         return value
 
     parse.__name__ = "whole number"  # argparse names the type in its messages
@@ -80,6 +87,20 @@ def _generate_options(args) -> GenerateOptions:
     return options
 
 
+def _tolerance(text: str) -> float:
+    """An argparse type: a finite number >= 0 (``-1`` or ``nan`` would make every comparison fail or pass)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, not {clip(repr(text))}") from None
+    if not 0 <= value < math.inf:
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, not {clip(text)}")
+    return value
+
+
+_tolerance.__name__ = "number"
+
+
 def _turtle_setting(text: str) -> tuple[str, object]:
     """``KEY=VALUE`` with a TOML value (``0.2``, ``"normal"``, ``[0, -1, 0]``); a bare word is a string."""
     import tomllib
@@ -99,6 +120,24 @@ def _turtle_setting(text: str) -> tuple[str, object]:
     except OptionsError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return key, parsed
+
+
+def _shard(text: str) -> tuple[int, int]:
+    from .jobs import parse_shard
+
+    try:
+        return parse_shard(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _size(text: str) -> int:
+    from .batch import parse_bytes
+
+    try:
+        return parse_bytes(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 class _Progress:
@@ -126,7 +165,7 @@ class _Parser(argparse.ArgumentParser):
     """Usage errors in one line, like every other error (subcommand parsers inherit the class)."""
 
     def error(self, message: str):
-        self.exit(EXIT_USAGE, f"lsys3d: error: {message} (see '{self.prog} --help')\n")
+        self.exit(EXIT_USAGE, printable(f"lsys3d: error: {_one_line(message)} (see '{self.prog} --help')") + "\n")
 
 
 def _output_flags(p: argparse.ArgumentParser, default) -> None:
@@ -198,8 +237,48 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("check", help="regrow the assets of golden files and compare their counts")
     p.add_argument("golden", nargs="+", metavar="GOLDEN.json", help="golden files written by 'stats --golden'")
     p.add_argument("--update", action="store_true", help="rewrite the golden files that changed, and say what changed")
-    p.add_argument("--rtol", type=float, default=None, help="relative tolerance of floating values (default 1e-6)")
+    p.add_argument(
+        "--rtol",
+        type=_tolerance,
+        default=None,
+        help="relative tolerance of floating values (default 1e-6)",
+    )
     p.set_defaults(func=cmd_check)
+
+    p = add("batch", help="grow every job of a jobs file into a folder, with a manifest and library.usda")
+    p.add_argument("jobs", metavar="JOBS.toml", help="the jobs file (see docs/batch.md)")
+    p.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="the folder of the assets (made if missing)")
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=os.environ.get("DASK_SCHEDULER_ADDRESS") or None,
+        help="run on the Dask cluster of this scheduler, e.g. tcp://10.0.0.5:8786 (default: $DASK_SCHEDULER_ADDRESS, "
+        "else processes on this machine)",
+    )
+    p.add_argument(
+        "--shard", type=_shard, metavar="I/N", help="run only the I-th of N slices of the jobs (1 <= I <= N)"
+    )
+    p.add_argument("--workers", type=_at_least(1), metavar="N", help="local worker processes (default: one per core)")
+    p.add_argument(
+        "--memory",
+        type=_size,
+        metavar="SIZE",
+        help="memory the local workers may use in all, e.g. 8G (default: what is available at the start)",
+    )
+    p.add_argument("--no-library", action="store_true", help="do not write OUTDIR/library.usda")
+    p.add_argument("--dry-run", action="store_true", help="list the jobs, whether each would run, its predicted size")
+    p.set_defaults(func=cmd_batch)
+
+    p = add("forest", help="scatter a library's assets over an area: USD PointInstancer or one .glb with instancing")
+    p.add_argument("library", metavar="LIBRARY", help="a library.usda written by 'lsys3d batch' (or its folder)")
+    p.add_argument(
+        "-o", "--output", default="forest.usdc", help="the forest: .usdc, .usda, .usd or .glb (default forest.usdc)"
+    )
+    add_arguments(p, ForestOptions)
+    p.add_argument(
+        "--species", action="append", default=[], help="scatter only this species (repeatable; default: all)"
+    )
+    p.set_defaults(func=cmd_forest)
 
     p = add("presets", help="list the bundled presets")
     p.set_defaults(func=cmd_presets)
@@ -211,7 +290,8 @@ def cmd_derive(args) -> int:
     options = from_arguments(GenerateOptions, args)
     result = derive(grammar, args.iterations, args.seed, max_modules=options.limits.max_modules)
     out = sys.stdout
-    out.write(str(result))
+    for piece in result.iter_text():  # never the whole text at once: it can be gigabytes
+        out.write(piece)
     out.write("\n")
     return 0
 
@@ -237,13 +317,13 @@ def cmd_generate(args) -> int:
         progress.clear()
     if not args.quiet and drawing:
         segments, leaves = len(tree.skeleton), tree.skeleton.n_leaves
-        print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
+        _print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
     elif not args.quiet:
         bark, leaves = tree.bark, tree.skeleton.n_leaves
         levels = "".join(f", LOD{lod.level} {lod.triangles:,}" for lod in tree.lods)
         if levels:
             levels = f"; triangles of the levels of detail{levels}"
-        print(
+        _print(
             f"wrote {path}: {len(bark.vertices):,} vertices, {len(bark.faces):,} faces, {leaves:,} leaves{levels} "
             f"({time.perf_counter() - t0:.1f} s)"
         )
@@ -272,18 +352,18 @@ def _generate_siblings(args, options, export_options) -> int:
         progress.clear()
     if not args.quiet:
         if len(paths) == 1:
-            print(
+            _print(
                 f"wrote {paths[0]}: {len(trees)} variants seed_{first} .. seed_{first + len(trees) - 1} of the "
                 f"variant set 'seed' ({time.perf_counter() - t0:.1f} s)"
             )
         else:
             for path, tree in zip(paths, trees, strict=True):
                 bark = tree.bark
-                print(
+                _print(
                     f"wrote {path}: seed {tree.provenance.seed}, {len(bark.vertices):,} vertices, "
                     f"{len(bark.faces):,} faces, {tree.skeleton.n_leaves:,} leaves"
                 )
-            print(f"{len(paths)} files in {time.perf_counter() - t0:.1f} s")
+            _print(f"{len(paths)} files in {time.perf_counter() - t0:.1f} s")
     return 0
 
 
@@ -304,7 +384,7 @@ def cmd_preview(args) -> int:
         progress.clear()
     if not args.quiet:
         width, height = options.size
-        print(f"wrote {path}: {width}x{height}, {options.view} view ({time.perf_counter() - t0:.1f} s)")
+        _print(f"wrote {path}: {width}x{height}, {options.view} view ({time.perf_counter() - t0:.1f} s)")
     return 0
 
 
@@ -336,7 +416,7 @@ def cmd_stats(args) -> int:
         recipe = recipe_for(grammar, n, seed, options, mesh=args.mesh, golden_path=args.golden)
         write_golden(args.golden, recipe, result)
     if args.json:
-        print(json.dumps(result, sort_keys=True))
+        _print(json.dumps(result, sort_keys=True))
     else:
         print_table(flatten(result))
     return 0
@@ -349,7 +429,7 @@ def print_table(stats: dict) -> None:
             value = f"{value:.6g}"
         elif isinstance(value, list):
             value = "  ".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in value)
-        print(f"{key:<{width}}  {value}")
+        _print(f"{key:<{width}}  {value}")
 
 
 def cmd_check(args) -> int:
@@ -361,28 +441,142 @@ def cmd_check(args) -> int:
             result = check(path, update=args.update, rtol=RTOL if args.rtol is None else args.rtol)
         except LSystemError as exc:  # one bad file does not stop the others
             failed += 1
-            print(f"lsys3d: error: {exc}", file=sys.stderr)
+            _print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
             continue
         for warning in result.warnings:
-            print(f"{path}: warning: {warning}")
+            _print(f"{path}: warning: {warning}")
         if result.updated:
             what = ", ".join(d.key for d in result.differences) or "only the versions that produced it"
-            print(f"updated {path} ({result.recipe.describe()}): {what}")
+            _print(f"updated {path} ({result.recipe.describe()}): {what}")
             if result.differences:
-                print(format_differences(result.differences))
+                _print(format_differences(result.differences))
         elif result.ok:
             within = sum(not d.failed for d in result.differences)
             extra = f" ({within} within tolerance)" if within else ""
             if not args.quiet:
-                print(f"ok      {path} ({result.recipe.describe()}){extra}")
+                _print(f"ok      {path} ({result.recipe.describe()}){extra}")
         else:
             failed += 1
             n = sum(d.failed for d in result.differences)
-            print(f"FAILED  {path} ({result.recipe.describe()}): {n} difference{'s' if n > 1 else ''}")
-            print(format_differences(result.differences))
+            _print(f"FAILED  {path} ({result.recipe.describe()}): {n} difference{'s' if n > 1 else ''}")
+            _print(format_differences(result.differences))
     if failed:
-        print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
+        _print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
         return EXIT_USER_ERROR
+    return 0
+
+
+class _BatchProgress:
+    """A batch's progress bar on stderr while attached to a terminal; failures are always printed, one line each."""
+
+    WIDTH = 24
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.t0 = time.perf_counter()
+        self.shown = False
+
+    def __call__(self, event) -> None:
+        if event.kind == "failed":
+            self.clear()
+            print(f"lsys3d: {event.job_id} failed: {_one_line(event.error or '')}", file=sys.stderr)
+        if not self.enabled:
+            return
+        finished = event.done + event.failed
+        remaining = event.total - event.skipped - finished
+        elapsed = time.perf_counter() - self.t0
+        eta = f", ETA {_duration(elapsed / finished * remaining)}" if finished and remaining else ""
+        filled = round(self.WIDTH * (finished + event.skipped) / max(event.total, 1))
+        bar = "#" * filled + "." * (self.WIDTH - filled)
+        skipped = f", {event.skipped} skipped" if event.skipped else ""
+        failed = f", {event.failed} failed" if event.failed else ""
+        sys.stderr.write(f"\rlsys3d batch [{bar}] {finished + event.skipped}/{event.total}{failed}{skipped}{eta}\x1b[K")
+        sys.stderr.flush()
+        self.shown = True
+
+    def clear(self) -> None:
+        if self.enabled and self.shown:
+            sys.stderr.write("\r\x1b[K")
+            sys.stderr.flush()
+            self.shown = False
+
+
+def _duration(seconds: float) -> str:
+    seconds = round(seconds)
+    if seconds < 60:
+        return f"{seconds}s"
+    if seconds < 3600:
+        return f"{seconds // 60}m{seconds % 60:02d}s"
+    return f"{seconds // 3600}h{seconds % 3600 // 60:02d}m"
+
+
+def cmd_batch(args) -> int:
+    from .batch import batch, plan
+
+    the = plan(args.jobs, args.output, args.shard)
+    if args.dry_run:
+        return _print_plan(the)
+    bar = _BatchProgress(sys.stderr.isatty() and not args.quiet)
+    t0 = time.perf_counter()
+    try:
+        result = batch(
+            the,
+            args.output,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            memory=args.memory,
+            library=not args.no_library,
+            progress=bar,
+        )
+    finally:
+        bar.clear()
+    total = len(result.done) + len(result.skipped) + len(result.failed)
+    if not args.quiet:
+        print(
+            f"{total} jobs: {len(result.done)} done, {len(result.skipped)} skipped, {len(result.failed)} failed "
+            f"({time.perf_counter() - t0:.1f} s); manifest {result.manifest}"
+        )
+        if result.library:
+            print(f"library {result.library}: {result.library_variants} assets")
+    if result.failed:
+        shown = ", ".join(result.failed[:10]) + (
+            f" and {len(result.failed) - 10} more" if len(result.failed) > 10 else ""
+        )
+        print(f"lsys3d: error: {len(result.failed)} of {total} jobs failed: {shown}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    return 0
+
+
+def _print_plan(the) -> int:
+    skipped = set(the.skipped)
+    width = max((len(job.id) for job in the.jobs), default=2)
+    for job in the.jobs:
+        if job.id in skipped:
+            what = "done, skip"
+        elif job.grammar_error:
+            what = f"fails: {_one_line(job.grammar_error)}"
+        else:
+            size = the.size_of(job)
+            what = (
+                f"run  {size.modules:,} modules, {size.segments:,} segments, ~{size.tube_triangles:,} tube "
+                f"triangles, ~{size.bytes / 1e6:,.0f} MB"
+            )
+        print(f"{job.id:<{width}}  {' '.join(job.paths)}  {what}")
+    print(f"{len(the.jobs)} jobs: {len(the.to_run)} to run, {len(the.skipped)} done")
+    return 0
+
+
+def cmd_forest(args) -> int:
+    from .forest import forest
+
+    options = from_arguments(ForestOptions, args).replace(species=tuple(args.species))
+    t0 = time.perf_counter()
+    path = forest(args.library, args.output, options)
+    if not args.quiet:
+        width, depth = options.area
+        _print(
+            f"wrote {path}: {options.count:,} instances on {width:g} x {depth:g} m ({time.perf_counter() - t0:.1f} s)"
+        )
     return 0
 
 
@@ -390,8 +584,52 @@ def cmd_presets(args) -> int:
     names = list_presets()
     width = max(map(len, names))
     for name in names:
-        print(f"{name:<{width}}  {describe(name)}")
+        _print(f"{name:<{width}}  {describe(name)}")
     return 0
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the program is so that every cleanup (``finally``, temporary files) runs,
+    exactly as for Ctrl-C (SIGINT, Python's KeyboardInterrupt)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _signals_interrupt():
+    """SIGTERM and SIGHUP end the command like Ctrl-C, with its cleanup (a signal left ignored stays ignored).
+
+    Only the first one interrupts: a second one while the first unwinds would cut its cleanup short.
+    """
+    if threading.current_thread() is not threading.main_thread():  # only the main thread may set handlers
+        yield
+        return
+    raised = []
+
+    def interrupt(signum, frame):
+        if not raised:
+            raised.append(signum)
+            raise Interrupted(signum)
+
+    previous = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        signum = getattr(signal, name, None)
+        if signum is not None and signal.getsignal(signum) is not signal.SIG_IGN:
+            previous[signum] = signal.signal(signum, interrupt)
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """A Python warning (numpy's RuntimeWarning...) as one log line, not the three of ``warnings``' default."""
+    logging.getLogger("lsys3d").warning(
+        "warning: %s (%s, %s:%d)", _one_line(str(message)), category.__name__, os.path.basename(filename), lineno
+    )
 
 
 def main(argv=None) -> int:
@@ -399,25 +637,36 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     level = logging.INFO if args.verbose else logging.ERROR if args.quiet else logging.WARNING
     logging.basicConfig(format="lsys3d: %(message)s", level=level)
-    try:
-        return args.func(args)
-    except LSystemError as exc:
-        print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
-        return EXIT_USER_ERROR
-    except MemoryError:
-        print(
-            "lsys3d: error: out of memory; use fewer iterations, or lower --max-modules, --max-segments or "
-            "--max-triangles",
-            file=sys.stderr,
-        )
-        return EXIT_USER_ERROR
-    except KeyboardInterrupt:
-        print("lsys3d: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except BrokenPipeError:
-        return 0
+    with _signals_interrupt(), warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        try:
+            return args.func(args)
+        except LSystemError as exc:
+            _print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
+            return EXIT_USER_ERROR
+        except MemoryError:
+            _print(
+                "lsys3d: error: out of memory; use fewer iterations, or lower --max-modules, --max-segments or "
+                "--max-triangles",
+                file=sys.stderr,
+            )
+            return EXIT_USER_ERROR
+        except Interrupted as exc:
+            _print(f"lsys3d: interrupted ({signal.Signals(exc.signum).name})", file=sys.stderr)
+            return 128 + exc.signum
+        except KeyboardInterrupt:
+            _print("lsys3d: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except BrokenPipeError:
+            return 0
 
 
 def _one_line(message: str) -> str:
     """An error message on one line, even when it quotes a rule written over several (TOML multi-line strings)."""
     return " ".join(part.strip() for part in message.splitlines() if part.strip())
+
+
+def _print(*values, file=None) -> None:
+    """``print`` for every line the command writes: whatever it echoes from the user (a file name, a preset, a
+    golden file's keys) is escaped, so it cannot drive the terminal or fail to encode."""
+    print(*(printable(str(v)) for v in values), file=file)

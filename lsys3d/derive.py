@@ -11,7 +11,15 @@ Two engines, one result:
   conditional, context-sensitive): one generation at a time, modules are
   grouped by predecessor, conditions and successor parameters are evaluated
   with numpy over all matching modules at once, and the output is scattered
-  into preallocated arrays.  Only context matching walks module by module.
+  into preallocated arrays.  Context is matched through skip tables built
+  once per generation (bracket matches, the next module that is not ignored,
+  the end of the current branch), so each module's context costs the length
+  of its pattern, not of the string.
+
+Size: each generation's module and parameter counts are known before its
+arrays are allocated (for grammars whose lengths depend on nothing but the
+symbols, before any work, from the modules the axiom can reach), and only
+one generation is alive at a time.
 
 Stochastic choice draws, for generation ``g`` and rule pool ``p`` of symbol
 ``s``, a stream seeded with ``(seed, g, s, p)``: the k-th module rewritten by a
@@ -22,9 +30,12 @@ leaves every other pool's choices alone.
 from __future__ import annotations
 
 import logging
+import math
+from collections import Counter, deque
 from collections.abc import Iterator
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .errors import DerivationError, LimitError, clip
@@ -33,12 +44,23 @@ from .grammar import Grammar, PatternModule, Production
 from .modules import ModuleString
 from .streams import rule_generator
 
-__all__ = ["DEFAULT_MAX_MODULES", "MAX_ITERATIONS", "derive", "generations", "predict_length"]
+__all__ = [
+    "DEFAULT_MAX_MODULES",
+    "MAX_ITERATIONS",
+    "PARAMETER_COST",
+    "derive",
+    "generations",
+    "predict_counts",
+    "predict_length",
+]
 
 log = logging.getLogger("lsys3d")
 
 DEFAULT_MAX_MODULES = 50_000_000
 """Largest module string derivation builds (about 50 bytes a module at the peak)."""
+PARAMETER_COST = 0.4
+"""What one parameter counts for against ``max_modules``, in modules (measured peak bytes per parameter
+over peak bytes per module): ``modules + PARAMETER_COST * parameters`` may not exceed the limit."""
 MAX_ITERATIONS = 10_000
 """Most generations one derivation runs: a string that stops growing would otherwise rewrite forever.
 
@@ -91,7 +113,10 @@ class _Plan:
         for pool in pools.values():
             if len(pool.alternatives) > 1:
                 w = np.array([p.weight if p.weight is not None else 1.0 for p in pool.alternatives])
-                pool.cumulative = np.cumsum(w)
+                # scaled by a power of two (exact, so the choices are those of the unscaled weights) to
+                # the largest in [0.5, 1): finite weights whose sum would overflow stay finite
+                pool.cumulative = np.cumsum(np.ldexp(w, -math.frexp(float(w.max()))[1]))
+        self.stochastic = any(p.cumulative is not None for p in pools.values())
         self.context = any(p.left or p.right for p in pools.values())
         # every module's successor length is known from its symbol and arity alone
         self.predictable = not self.context and all(
@@ -110,8 +135,9 @@ def predict_length(grammar: Grammar, iterations: int | None = None) -> int | Non
 
     Known for grammars without contexts, conditions and stochastic choice
     (parameters allowed: a successor's length does not depend on their values).
-    Computed with Python integers from the growth (Parikh) matrix, so it costs
-    nothing even when the answer is astronomically large.
+    Computed from the growth (Parikh) matrix of the modules the axiom can
+    reach, so it costs nothing even when the answer is astronomically large;
+    counts from ``2**53`` up are not exact and are returned as ``2**53``.
 
     >>> from lsys3d import Grammar
     >>> predict_length(Grammar(axiom="A(1)", rules=["A(x) -> A(x)A(x + 1)"]), 40)
@@ -120,8 +146,33 @@ def predict_length(grammar: Grammar, iterations: int | None = None) -> int | Non
     plan = _Plan(grammar)
     if not plan.predictable:
         return None
-    n = grammar.iterations if iterations is None else iterations
-    return _d0l_lengths(plan, n)[1]
+    n = _check_iterations(grammar, iterations)
+    return int(_growth(plan, n).modules[-1])
+
+
+def predict_counts(grammar: Grammar, iterations: int | None = None) -> dict[str, int] | None:
+    """How many modules of each symbol ``iterations`` steps make, or None when it depends on the derivation.
+
+    Known for the same grammars as :func:`predict_length`, from the same growth
+    (Parikh) matrix of the (symbol, arity) pairs the axiom reaches, in floating
+    point: exact while a count stays below 2**53, then capped, so it costs next
+    to nothing for any size.
+
+    >>> from lsys3d import Grammar
+    >>> predict_counts(Grammar(axiom="X", rules=["X -> F[+X]F[-X]+X", "F -> FF"]), 2)
+    {'+': 8, '-': 4, 'F': 10, 'X': 9, '[': 8, ']': 8}
+    """
+    plan = _Plan(grammar)
+    if not plan.predictable:
+        return None
+    n = _check_iterations(grammar, iterations)
+    growth = _growth(plan, n)
+    out: dict[str, int] = {}
+    for code, count in zip(growth.last_code.tolist(), growth.last.tolist(), strict=True):
+        if count:
+            symbol = plan.alphabet[code]
+            out[symbol] = out.get(symbol, 0) + int(count)
+    return dict(sorted(out.items()))
 
 
 def derive(
@@ -161,12 +212,17 @@ def derive(
     """
     n = _check_iterations(grammar, iterations)
     plan = _Plan(grammar)
-    if plan.d0l and start is None:
-        return _derive_d0l(plan, n, max_modules)
     if plan.predictable and start is None:  # fail at once, not after building the generations below the limit
-        _check_size(_d0l_lengths(plan, n)[1], max_modules, grammar, n)
-    *_, result = generations(grammar, n, seed, start=start, max_modules=max_modules)
-    return result
+        growth = _growth(plan, n, presence=plan.d0l)
+        _check_size(growth.modules[n], growth.params[n], max_modules, grammar, n)
+        if plan.d0l:  # builds no generation but the last
+            return _derive_d0l(plan, n, growth)
+        cost = growth.modules + PARAMETER_COST * growth.params
+        if (cost > max_modules).any():
+            g = int(np.argmax(cost > max_modules))
+            _check_size(growth.modules[g], growth.params[g], max_modules, grammar, g)
+    # the last generation; a deque of one keeps no other alive
+    return deque(generations(grammar, n, seed, start=start, max_modules=max_modules), maxlen=1).pop()
 
 
 def generations(
@@ -186,28 +242,34 @@ def generations(
     n = _check_iterations(grammar, iterations)
     seed = grammar.seed if seed is None else seed
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise DerivationError(f"seed must be a whole number >= 0, not {seed!r}")
+        raise DerivationError(f"seed must be a whole number >= 0, not {clip(repr(seed))}")
     plan = _Plan(grammar)
     current = grammar.axiom_modules if start is None else start
     if current.alphabet != plan.alphabet and current.alphabet[128:] != plan.alphabet[128:]:
         raise DerivationError("the start string uses symbols this grammar does not know")
-    _check_size(len(current), max_modules, grammar, 0)
+    _check_size(len(current), len(current.params), max_modules, grammar, 0)
     if start is not None:
         _check_finite_start(current)
     yield current
+    fixed = False
     for g in range(1, n + 1):
-        current = _step(plan, current, g, int(seed), max_modules)
-        log.debug("generation %d: %d modules", g, len(current))
+        if not fixed:
+            previous = current
+            current = _step(plan, previous, g, int(seed), max_modules)
+            log.debug("generation %d: %d modules", g, len(current))
+            # without chance, a string that rewrites to itself stays itself: the rest is this string
+            fixed = not plan.stochastic and current == previous
+            del previous
         yield current
 
 
 def _check_iterations(grammar: Grammar, iterations) -> int:
     n = grammar.iterations if iterations is None else iterations
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
-        raise DerivationError(f"{grammar.source}: iterations must be a whole number >= 0, not {n!r}")
+        raise DerivationError(f"{grammar.source}: iterations must be a whole number >= 0, not {clip(repr(n))}")
     if n > MAX_ITERATIONS:
         raise LimitError(
-            f"{grammar.source}: {n:,} iterations, more than the limit of {MAX_ITERATIONS:,} "
+            f"{grammar.source}: {clip(f'{n:,}')} iterations, more than the limit of {MAX_ITERATIONS:,} "
             "(lsys3d.derive.MAX_ITERATIONS)"
         )
     return int(n)
@@ -222,56 +284,109 @@ def _check_finite_start(ms: ModuleString):
         )
 
 
-def _check_size(total: int, max_modules: int, grammar: Grammar, generation: int):
-    if total > max_modules:
-        raise LimitError(
-            f"{grammar.source}: generation {generation} would have {total:,} modules, more than the limit of "
-            f"{max_modules:,}; use fewer iterations, or raise the limit (--max-modules, or max_modules=)"
-        )
+_CAP = float(2**53)  # counts are exact below; from here on they only need to be known as too large
+
+
+def _count(x: float) -> str:
+    return f"{int(x):,}" if x < _CAP else f"more than {int(_CAP):,}"
+
+
+def _check_size(modules: float, params: float, max_modules: int, grammar: Grammar, generation: int):
+    """Refuse a generation of ``modules`` modules holding ``params`` parameters when it costs more than the limit."""
+    if modules + PARAMETER_COST * params <= max_modules:
+        return
+    what = f"{_count(modules)} modules"
+    if modules <= max_modules:  # the parameters tipped it over
+        what += f" with {_count(params)} parameters (each counts as {PARAMETER_COST:g} of a module)"
+    raise LimitError(
+        f"{grammar.source}: generation {generation} would have {what}, more than the limit of "
+        f"{max_modules:,} modules; use fewer iterations, or raise the limit (--max-modules, or max_modules=)"
+    )
 
 
 # ---------------------------------------------------------------- D0L engine
-def _d0l_lengths(plan: _Plan, n: int):
-    """Module counts per (symbol, arity) after each step, and the final total (Python ints).
+@dataclass(frozen=True)
+class _Growth:
+    """Module and parameter counts of every generation of a predictable grammar (exact below 2**53, then capped).
+
+    ``present[g]`` (only when asked for) holds the codes of the modules generation ``g`` contains.
+    """
+
+    modules: np.ndarray  # (n + 1,) float64
+    params: np.ndarray  # (n + 1,) float64
+    present: list[np.ndarray] | None
+    last: np.ndarray  # (k,) float64: modules of each reachable (symbol, arity) state in the last generation
+    last_code: np.ndarray  # (k,) int64: the symbol code of each state
+
+
+def _growth(plan: _Plan, n: int, presence: bool = False) -> _Growth:
+    """Count the modules of each generation from the growth matrix of the (symbol, arity) pairs the axiom reaches.
 
     Needs ``plan.predictable``: the first pool of each symbol and arity is the
-    one that rewrites every such module.
+    one that rewrites every such module.  A pair the axiom never reaches costs
+    nothing, however fast it would grow.
     """
-    succ = {}
+    succ: dict[tuple[int, int], list[tuple[int, int]]] = {}
     for code, pools in plan.pools_by_code.items():
         for pool in pools:
-            key = (code, pool.arity)
-            if key not in succ:
-                succ[key] = [(plan.code[m.symbol], len(m.args)) for m in pool.alternatives[0].successor]
+            succ.setdefault(
+                (code, pool.arity), [(plan.code[m.symbol], len(m.args)) for m in pool.alternatives[0].successor]
+            )
     ms = plan.grammar.axiom_modules
     axiom = list(zip(ms.symbols.tolist(), ms.arity.tolist(), strict=True))
-    lengths = {c: 1 for c in set(axiom) | set(succ) | {t for s in succ.values() for t in s}}
-    history = [lengths]
-    for _ in range(n):
-        lengths = {c: (sum(lengths[t] for t in succ[c]) if c in succ else 1) for c in lengths}
-        history.append(lengths)
-        if sum(lengths[c] for c in axiom) > 1 << 62:  # no need to count further
-            return history, sum(lengths[c] for c in axiom)
-    return history, sum(lengths[c] for c in axiom)
+    index: dict[tuple[int, int], int] = {}
+    todo = list(dict.fromkeys(axiom))
+    while todo:
+        state = todo.pop()
+        if state not in index:
+            index[state] = len(index)
+            todo.extend(t for t in succ.get(state, [state]) if t not in index)
+    src, dst, mult = [], [], []
+    for state, i in index.items():
+        for target, k in Counter(index[t] for t in succ.get(state, [state])).items():
+            src.append(i)
+            dst.append(target)
+            mult.append(k)
+    src, dst, mult = np.array(src, np.int64), np.array(dst, np.int64), np.array(mult, np.float64)
+    k = len(index)
+    code_of = np.array([state[0] for state in index], np.int64)
+    arity_of = np.array([state[1] for state in index], np.float64)
+    v = np.bincount(np.array([index[a] for a in axiom], np.int64), minlength=k).astype(np.float64)
+    modules, params = np.empty(n + 1), np.empty(n + 1)
+    present = [] if presence else None
+    for g in range(n + 1):
+        if g:
+            v = np.minimum(np.bincount(dst, weights=v[src] * mult, minlength=k), _CAP)
+        modules[g] = min(v.sum(), _CAP)
+        params[g] = min(v @ arity_of, _CAP)
+        if presence:
+            present.append(code_of[v > 0])
+    return _Growth(modules, params, present, v, code_of)
 
 
-def _derive_d0l(plan: _Plan, n: int, max_modules: int) -> ModuleString:
+def _derive_d0l(plan: _Plan, n: int, growth: _Growth) -> ModuleString:
+    """Expand each symbol once per step, reusing the expansion wherever it occurs.
+
+    After ``k`` steps only the symbols present in generation ``n - k`` need
+    their expansion, and those expansions are disjoint pieces of the result:
+    no step holds more than the result's size (twice, while the next is built).
+    """
     grammar = plan.grammar
-    history, total = _d0l_lengths(plan, n)
-    _check_size(total, max_modules, grammar, n)
-    axiom = grammar.axiom_modules.symbols.tolist()
     succ = {c: _succ_codes(plan, pools[0].alternatives[0]).tolist() for c, pools in plan.pools_by_code.items()}
-    constant = {c: np.array([c], dtype=np.uint8) for c, _ in history[0]}  # D0L: every arity is 0
-    blocks = dict(constant)
-    for _ in range(n):
-        blocks = {
-            c: (np.concatenate([blocks[t] for t in succ[c]]) if succ[c] else np.zeros(0, np.uint8))
-            if c in succ
-            else constant[c]
-            for c in blocks
-        }
-    pieces = [blocks[c] for c in axiom]
-    symbols = np.concatenate(pieces) if pieces else np.zeros(0, np.uint8)
+    empty = np.zeros(0, np.uint8)
+    blocks = {c: np.array([c], dtype=np.uint8) for c in growth.present[n].tolist()}
+    for k in range(1, n + 1):
+        previous, blocks = blocks, {}
+        for c in growth.present[n - k].tolist():
+            if c not in succ:
+                blocks[c] = previous[c]
+            elif succ[c]:
+                blocks[c] = np.concatenate([previous[t] for t in succ[c]])
+            else:
+                blocks[c] = empty
+        del previous
+    pieces = [blocks[c] for c in grammar.axiom_modules.symbols.tolist()]
+    symbols = np.concatenate(pieces) if pieces else empty
     m = len(symbols)
     return ModuleString(symbols, np.zeros(m, np.uint8), np.zeros(0, np.float64), grammar.alphabet)
 
@@ -292,94 +407,125 @@ def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     return np.cumsum(out)
 
 
-def _bracket_match(symbols: np.ndarray) -> np.ndarray:
-    """``match[i]`` is the index of the bracket matching bracket ``i`` (else -1)."""
-    is_open = symbols == _OPEN
-    is_close = symbols == _CLOSE
-    depth = np.cumsum(is_open.astype(np.int64) - is_close)
-    idx = np.flatnonzero(is_open | is_close)
-    key = np.where(is_open[idx], depth[idx], depth[idx] + 1)
-    order = idx[np.lexsort((idx, key))]
-    match = np.full(len(symbols), -1, np.int64)
-    match[order[0::2]] = order[1::2]
-    match[order[1::2]] = order[0::2]
-    return match
+@numba.njit(cache=True, nogil=True)
+def _skip_tables(symbols, ignored):
+    """Where a context walk lands from each position of a bracketed string, in one pass each way.
+
+    ``ignored[code]`` is True for symbols in the grammar's ignore set.  Each
+    table has an extra last entry (index ``m``) for a walk that starts past
+    the end.  An unmatched ``[`` or ``]`` ends a walk (no context).
+
+    Returns
+    -------
+    left : (m + 1,) int64
+        The module a left-context walk finds starting at ``p`` and going left:
+        ignored symbols and ``[`` (into the parent) are stepped over, a
+        ``[...]`` lateral branch ending at ``p`` is skipped; -1 if none.
+    right : (m + 1,) int64
+        The module a right-context walk finds starting at ``p``: ignored
+        symbols and whole ``[...]`` branches are skipped; ``m`` if none.
+    kept : (m + 1,) int64
+        The first position at or after ``p`` whose symbol is not ignored.
+    close : (m + 1,) int64
+        The ``]`` that ends the branch holding ``p`` (nested branches
+        skipped); ``m`` if the branch runs to the end.
+    """
+    m = symbols.shape[0]
+    match = np.full(m, -1, np.int64)
+    stack = np.empty(m, np.int64)
+    top = 0
+    for i in range(m):
+        s = symbols[i]
+        if s == _OPEN:
+            stack[top] = i
+            top += 1
+        elif s == _CLOSE and top > 0:
+            top -= 1
+            match[i] = stack[top]
+            match[stack[top]] = i
+    left = np.empty(m + 1, np.int64)
+    for p in range(m):
+        s = symbols[p]
+        if s == _CLOSE:
+            j = match[p]
+            left[p] = left[j - 1] if j > 0 else -1
+        elif s == _OPEN or ignored[s]:
+            left[p] = left[p - 1] if p > 0 else -1
+        else:
+            left[p] = p
+    left[m] = left[m - 1] if m > 0 else -1
+    right = np.empty(m + 1, np.int64)
+    kept = np.empty(m + 1, np.int64)
+    close = np.empty(m + 1, np.int64)
+    right[m] = kept[m] = close[m] = m
+    for p in range(m - 1, -1, -1):
+        s = symbols[p]
+        j = match[p]
+        kept[p] = kept[p + 1] if ignored[s] else p
+        if s == _OPEN:
+            right[p] = right[j + 1] if j >= 0 else m
+            close[p] = close[j + 1] if j >= 0 else m
+        else:
+            right[p] = right[p + 1] if ignored[s] else p
+            close[p] = p if s == _CLOSE else close[p + 1]
+    return left, right, kept, close
 
 
 class _Context:
-    """Context matching on one bracketed string (ABOP section 1.8)."""
+    """Context matching on one bracketed string (ABOP section 1.8), for all candidate modules at once."""
 
     def __init__(self, plan: _Plan, ms: ModuleString):
-        self.sym = ms.symbols.tolist()
-        self.arity = ms.arity.tolist()
-        self.offsets = ms.offsets
-        self.params = ms.params
-        self.match = _bracket_match(ms.symbols).tolist()
-        self.ignore = plan.ignore
+        ignored = np.zeros(256, np.bool_)
+        ignored[list(plan.ignore)] = True
+        self.ms = ms
+        self.m = len(ms)
         self.code = plan.code
+        self.left_of, self.right_of, self.kept, self.close = _skip_tables(ms.symbols, ignored)
 
-    def _bind(self, j, pm, values):
-        if self.sym[j] != self.code[pm.symbol] or self.arity[j] != len(pm.formals):
-            return False
-        o = int(self.offsets[j])
-        values.extend(self.params[o : o + len(pm.formals)].tolist())
-        return True
+    def _bind(self, j: np.ndarray, ok: np.ndarray, pm: PatternModule, values: list) -> None:
+        """Narrow ``ok`` to the candidates whose module ``j`` is ``pm``; append its parameters to ``values``."""
+        ms = self.ms
+        jj = np.where(ok, j, 0)
+        ok &= (ms.symbols[jj] == self.code[pm.symbol]) & (ms.arity[jj] == len(pm.formals))
+        for c in range(len(pm.formals)):
+            at = np.where(ok, ms.offsets[jj] + c, 0)
+            values.append(ms.params[at] if len(ms.params) else np.zeros(len(j)))
 
-    def left(self, i: int, pattern) -> list | None:
-        sym, match, ignore = self.sym, self.match, self.ignore
-        j = i - 1
+    def left(self, sel: np.ndarray, pattern) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Which modules ``sel`` have the left context ``pattern``, and the values of its formals."""
+        ok = np.ones(len(sel), np.bool_)
+        j = sel - 1
         found = []
         for pm in reversed(pattern):
-            while j >= 0:
-                s = sym[j]
-                if s == _CLOSE:  # skip a complete lateral branch
-                    j = match[j] - 1
-                elif s == _OPEN or s in ignore:  # step out to the parent / skip
-                    j -= 1
-                else:
-                    break
-            if j < 0:
-                return None
+            j = np.where(j >= 0, self.left_of[np.maximum(j, 0)], -1)
+            ok &= j >= 0
             values: list = []
-            if not self._bind(j, pm, values):
-                return None
+            self._bind(j, ok, pm, values)
             found.append(values)
-            j -= 1
-        return [v for vals in reversed(found) for v in vals]
+            j = j - 1
+        return ok, [v for values in reversed(found) for v in values]
 
-    def right(self, i: int, pattern) -> list | None:
-        sym, match, ignore = self.sym, self.match, self.ignore
-        m = len(sym)
-        j = i + 1
+    def right(self, sel: np.ndarray, pattern) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Which modules ``sel`` have the right context ``pattern`` (``[`` and ``]`` allowed), and its values."""
+        m = self.m
+        ok = np.ones(len(sel), np.bool_)
+        j = sel + 1
         values: list = []
         for pm in pattern:
-            if pm.symbol == "[":
-                while j < m and sym[j] in ignore:
-                    j += 1
-                if j >= m or sym[j] != _OPEN:
-                    return None
-                j += 1
+            j = np.minimum(j, m)
+            if pm.symbol == "[":  # a branch starts here (ignored symbols before it skipped)
+                j = self.kept[j]
+                ok &= (j < m) & (self.ms.symbols[np.minimum(j, m - 1)] == _OPEN)
             elif pm.symbol == "]":  # the rest of the current branch is skipped
-                while j < m and sym[j] != _CLOSE:
-                    j = match[j] + 1 if sym[j] == _OPEN else j + 1
-                if j >= m:
-                    return None
-                j += 1
+                j = self.close[j]
+                ok &= j < m
             else:
-                while j < m:
-                    s = sym[j]
-                    if s == _OPEN:  # skip a lateral branch
-                        j = match[j] + 1
-                    elif s in ignore:
-                        j += 1
-                    else:
-                        break
-                if j >= m or sym[j] == _CLOSE:  # the end of a branch has no right context
-                    return None
-                if not self._bind(j, pm, values):
-                    return None
-                j += 1
-        return values
+                j = self.right_of[j]
+                ok &= j < m  # the end of the string, or of a branch, has no right context
+                ok &= self.ms.symbols[np.minimum(j, m - 1)] != _CLOSE
+                self._bind(j, ok, pm, values)
+            j = j + 1
+        return ok, values
 
 
 def _fail(prod: Production, where: str, exc: EvalError, ms: ModuleString, idx: np.ndarray, generation: int):
@@ -410,29 +556,22 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
             prod0 = pool.alternatives[0]
             env: dict[str, np.ndarray] = {}
             if pool.left or pool.right:
-                keep = np.zeros(len(sel), dtype=bool)
-                lvals, rvals = [], []
-                for k, i in enumerate(sel.tolist()):
-                    lv = context.left(i, pool.left) if pool.left else []
-                    if lv is None:
-                        continue
-                    rv = context.right(i, pool.right) if pool.right else []
-                    if rv is None:
-                        continue
-                    keep[k] = True
-                    lvals.append(lv)
-                    rvals.append(rv)
+                keep = np.ones(len(sel), np.bool_)
+                values: list[np.ndarray] = []
+                for side, pattern in ((context.left, pool.left), (context.right, pool.right)):
+                    if pattern:
+                        ok, found = side(sel, pattern)
+                        keep &= ok
+                        values += found
+                names = [n for pm in (*pool.left, *pool.right) for n in pm.formals]
+                env.update({name: v[keep] for name, v in zip(names, values, strict=True)})
                 sel = sel[keep]
-                lnames = [n for pm in pool.left for n in pm.formals]
-                rnames = [n for pm in pool.right for n in pm.formals]
-                for names, vals in ((lnames, lvals), (rnames, rvals)):
-                    if names:
-                        arr = np.array(vals, dtype=np.float64).reshape(len(sel), len(names))
-                        env.update({name: arr[:, c] for c, name in enumerate(names)})
                 if not len(sel):
                     continue
-            for c, name in enumerate(prod0.predecessor.formals):
-                env[name] = params[offsets[sel] + c]
+            if prod0.predecessor.formals:
+                base = offsets[sel]
+                for c, name in enumerate(prod0.predecessor.formals):
+                    env[name] = params[base + c]
             if pool.condition is not None:
                 try:
                     ok = pool.condition.evaluate(env, len(sel)) != 0
@@ -450,22 +589,24 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
             rng = rule_generator(seed, generation, code, pool.pool_id)
             u = rng.random(len(sel)) * pool.cumulative[-1]
             pick = np.minimum(np.searchsorted(pool.cumulative, u, side="right"), len(pool.alternatives) - 1)
-            for a, prod in enumerate(pool.alternatives):
-                take = pick == a
-                if take.any():
-                    chosen.append((prod, sel[take], {k: v[take] for k, v in env.items()}))
+            # group the modules by the alternative they drew: one sort, not one pass per alternative
+            order = np.argsort(pick, kind="stable")  # stable: each group keeps the modules in string order
+            bounds = np.concatenate([[0], np.cumsum(np.bincount(pick, minlength=len(pool.alternatives)))])
+            for a in np.flatnonzero(np.diff(bounds)).tolist():
+                take = order[bounds[a] : bounds[a + 1]]
+                chosen.append((pool.alternatives[a], sel[take], {k: v[take] for k, v in env.items()}))
 
     out_len = np.ones(m, dtype=np.int64)
     out_arity = ms.arity.astype(np.int64)
     for prod, idx, _ in chosen:
         out_len[idx] = len(prod.successor)
         out_arity[idx] = sum(len(s.args) for s in prod.successor)
-    total = int(out_len.sum())
-    _check_size(total, max_modules, plan.grammar, generation)
     mod_off = np.zeros(m + 1, dtype=np.int64)
     np.cumsum(out_len, out=mod_off[1:])
     par_off = np.zeros(m + 1, dtype=np.int64)
     np.cumsum(out_arity, out=par_off[1:])
+    total = int(mod_off[-1])
+    _check_size(total, int(par_off[-1]), max_modules, plan.grammar, generation)
 
     new_sym = np.empty(total, dtype=np.uint8)
     new_arity = np.empty(total, dtype=np.uint8)
@@ -481,8 +622,9 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
     for prod, idx, env in chosen:
         n = len(idx)
         p = 0
+        first_module, first_param = mod_off[idx], par_off[idx]
         for j, smod in enumerate(prod.successor):
-            pos = mod_off[idx] + j
+            pos = first_module + j
             new_sym[pos] = plan.code[smod.symbol]
             new_arity[pos] = len(smod.args)
             for expr in smod.args:
@@ -491,7 +633,7 @@ def _step(plan: _Plan, ms: ModuleString, generation: int, seed: int, max_modules
                 except EvalError as exc:
                     what = f"parameter '{clip(expr.text)}' of {smod.symbol}"
                     raise _fail(prod, what, exc, ms, idx, generation) from None
-                new_params[par_off[idx] + p] = values
+                new_params[first_param + p] = values
                 p += 1
     # Overflow (A(x) -> A(x*1e300)) or NaN: one pass over the whole generation.  The sum is
     # finite exactly when every parameter is, unless finite values overflow it; only then (and

@@ -6,9 +6,14 @@ message on one line and exits 1.  Messages read ``where: what``.
 
 from __future__ import annotations
 
+import re
+
 __all__ = [
+    "AssetError",
+    "BatchError",
     "DerivationError",
     "ExportError",
+    "ForestError",
     "GeometryError",
     "GoldenError",
     "GrammarError",
@@ -20,17 +25,57 @@ __all__ = [
 ]
 
 
+# C0 and C1 controls (terminal escape sequences start with ESC, 0x1b, or CSI, 0x9b) but tab and newline,
+# invisible direction marks and overrides (text that reads differently than it is), and lone surrogates
+# (undecodable bytes of a file name, which a UTF-8 terminal cannot print)
+_UNPRINTABLE = re.compile(
+    "[\x00-\x08\x0b-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028-\u202e\u2066-\u2069\ud800-\udfff\ufffe\uffff]"
+)
+
+
+def _escape(match: re.Match) -> str:
+    code = ord(match.group())
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
+
+
+def printable(text: str) -> str:
+    r"""``text`` safe to echo on a terminal: control characters, direction overrides and lone surrogates escaped.
+
+    Every message that quotes user input (a key, a file or preset name, a rule) goes through this, so a
+    grammar cannot clear the screen or retitle the terminal of whoever reads its error.  Tabs and line breaks
+    stay (the CLI folds lines itself).
+
+    >>> print(printable("tree\x1b[2J.toml"))
+    tree\x1b[2J.toml
+    """
+    return _UNPRINTABLE.sub(_escape, str(text))
+
+
 def clip(text: str, width: int = 60) -> str:
     """``text`` short enough to quote in a one-line message: at most ``width`` characters, the middle elided.
+
+    Control characters are escaped (:func:`printable`).
 
     >>> clip("F(" + "x+" * 50 + "1)", 20)
     'F(x+x+x+x...x+x+x+1)'
     """
-    text = str(text)
+    text = printable(text)
     if len(text) <= width:
         return text
     head = (width - 3 + 1) // 2
     return text[:head] + "..." + text[len(text) - (width - 3 - head) :]
+
+
+def os_reason(exc: BaseException) -> str:
+    """What an operating-system error means, in one line and lower case, without the file name (callers name it).
+
+    >>> os_reason(OSError(28, "No space left on device", "tree.glb"))
+    'no space left on device'
+    """
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror[:1].lower() + exc.strerror[1:]
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
 
 
 class LSystemError(Exception):
@@ -61,6 +106,14 @@ class GrammarError(LSystemError, ValueError):
             if col is not None:
                 where += f":{col}"
         super().__init__(f"{where}: {message}")
+
+
+class AssetError(LSystemError, ValueError):
+    """A file a grammar names (a texture, a leaf or organ model) that cannot be used: ``path: what``.
+
+    Read through :mod:`lsys3d.external`; the grammar's tables report it as a
+    :class:`GrammarError` at the line of the entry that names the file.
+    """
 
 
 class OptionsError(LSystemError, ValueError):
@@ -96,3 +149,36 @@ class PreviewError(LSystemError):
 
 class GoldenError(LSystemError):
     """A golden file that cannot be read or used (the message names the file)."""
+
+
+class BatchError(LSystemError, ValueError):
+    """A jobs file that cannot be read, or a batch that cannot run: the message starts ``file:line:col:``.
+
+    Jobs that fail (a grammar that does not parse, a limit hit, a lost worker)
+    are not errors of the batch: they are recorded in its manifest.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong.
+    source : str
+        The jobs file (or the output folder).
+    line, col : int
+        1-based position of the offending value, when known.
+    """
+
+    def __init__(self, message: str, source: str = "<jobs>", line: int | None = None, col: int | None = None):
+        self.reason = message
+        self.source = source
+        self.line = line
+        self.col = col
+        where = source
+        if line is not None:
+            where += f":{line}"
+            if col is not None:
+                where += f":{col}"
+        super().__init__(f"{where}: {message}")
+
+
+class ForestError(LSystemError):
+    """A library that cannot be read or a forest that cannot be scattered (the message names the file)."""

@@ -21,6 +21,7 @@ the version that recorded them.
 from __future__ import annotations
 
 import dataclasses
+import errno
 import hashlib
 import json
 import math
@@ -28,7 +29,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import GoldenError, LSystemError
+from .errors import GoldenError, LSystemError, OptionsError, clip, os_reason
 from .exchange.atomic import write_bytes
 from .grammar import Grammar
 from .pipeline import GenerateOptions, draw, generate
@@ -52,6 +53,9 @@ __all__ = [
 ]
 
 GOLDEN_FORMAT = 1
+
+MAX_GOLDEN_BYTES = 16 << 20
+"""Largest golden file read, in bytes (a recipe may hold a grammar's whole text)."""
 
 RTOL = 1e-6
 """Relative tolerance of floating values (volume, area, lengths, bounding boxes)."""
@@ -160,6 +164,19 @@ def _sha256(text: str) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
+# what each recipe field holds, checked before anything is grown (a golden file is data from anywhere)
+_RECIPE_FIELDS = {
+    "iterations": (int, "a whole number >= 0"),
+    "seed": (int, "a whole number >= 0"),
+    "preset": (str, "a preset's name"),
+    "file": (str, "a file name (without NUL characters)"),
+    "text": (str, "the grammar's text"),
+    "mesh": (bool, "true or false"),
+    "options": (dict, "a table of options"),
+    "grammar_sha256": (str, "a text"),
+}
+
+
 # ---------------------------------------------------------------- options <-> plain dicts
 
 
@@ -239,8 +256,16 @@ def grow(recipe: Recipe, folder: str | os.PathLike = ".") -> dict:
     return _grow(recipe, _grammar(recipe, Path(folder)))
 
 
-def _grow(recipe: Recipe, grammar) -> dict:
-    options = GenerateOptions.from_plain(recipe.options, "options")
+def _generate_options(recipe: Recipe, where: str):
+    try:
+        return GenerateOptions.from_plain(recipe.options, "recipe options")
+    except OptionsError as exc:  # the option classes' own checks
+        what = str(exc) if str(exc).startswith("recipe options") else f"recipe options: {exc}"
+        raise GoldenError(f"{where}: {what}") from None
+
+
+def _grow(recipe: Recipe, grammar, where: str = "recipe") -> dict:
+    options = _generate_options(recipe, where)
     if recipe.mesh:
         tree = generate(grammar, recipe.iterations, recipe.seed, options=options)
         return report(tree.modules, tree.skeleton, tree)
@@ -260,13 +285,22 @@ def read_golden(path: str | os.PathLike) -> tuple[Recipe, dict]:
     """
     path = Path(path)
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        if "\0" in str(path):
+            raise OSError(errno.EINVAL, "a file name cannot hold a NUL character")
+        with path.open("rb") as f:  # a device has no end: read no more than the limit
+            raw_bytes = f.read(MAX_GOLDEN_BYTES + 1)
     except FileNotFoundError:
         raise GoldenError(f"{path}: no such golden file") from None
     except OSError as exc:
-        raise GoldenError(f"{path}: {exc.strerror or exc}") from None
+        raise GoldenError(f"{path}: {os_reason(exc)}") from None
+    if len(raw_bytes) > MAX_GOLDEN_BYTES:
+        raise GoldenError(f"{path}: larger than {MAX_GOLDEN_BYTES:,} bytes (lsys3d.golden.MAX_GOLDEN_BYTES)")
+    try:
+        data = json.loads(raw_bytes.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise GoldenError(f"{path}: not a golden file: {exc}") from None
+    except RecursionError:  # the json module reads nested arrays and objects recursively
+        raise GoldenError(f"{path}: not a golden file: arrays or objects nested too deeply") from None
     if not isinstance(data, dict) or data.get("lsys3d_golden") != GOLDEN_FORMAT:
         raise GoldenError(f'{path}: not a golden file (no "lsys3d_golden": {GOLDEN_FORMAT})')
     raw, recorded = data.get("recipe"), data.get("report")
@@ -274,16 +308,21 @@ def read_golden(path: str | os.PathLike) -> tuple[Recipe, dict]:
         raise GoldenError(f'{path}: a golden file needs a "recipe" and a "report" table')
     known = {f.name for f in dataclasses.fields(Recipe)}
     if unknown := sorted(set(raw) - known):
-        raise GoldenError(f"{path}: unknown recipe key {unknown[0]!r} (known: {', '.join(sorted(known))})")
+        raise GoldenError(f"{path}: unknown recipe key {clip(repr(unknown[0]))} (known: {', '.join(sorted(known))})")
     if sum(raw.get(k) is not None for k in ("preset", "file", "text")) != 1:
         raise GoldenError(f'{path}: the recipe needs exactly one of "preset", "file", "text"')
-    try:
-        recipe = Recipe(**raw)
-    except TypeError as exc:
-        raise GoldenError(f"{path}: bad recipe: {exc}") from None
-    if not isinstance(recipe.iterations, int) or not isinstance(recipe.seed, int):
-        raise GoldenError(f"{path}: recipe iterations and seed must be integers")
-    return recipe, recorded
+    for key, (kind, what) in _RECIPE_FIELDS.items():
+        value = raw.get(key)
+        if value is None and key not in ("iterations", "seed"):
+            continue
+        ok = isinstance(value, kind) and (kind is bool or not isinstance(value, bool))
+        if kind is int:
+            ok = ok and value >= 0
+        elif key in ("preset", "file"):
+            ok = ok and value != "" and "\0" not in value
+        if not ok:
+            raise GoldenError(f"{path}: recipe {key!r} must be {what}, not {clip(json.dumps(value))}")
+    return Recipe(**raw), recorded
 
 
 def write_golden(path: str | os.PathLike, recipe: Recipe, recorded: dict) -> Path:
@@ -391,10 +430,13 @@ def check(path: str | os.PathLike, update: bool = False, rtol: float = RTOL) -> 
         that no longer parses, say) are re-raised prefixed with the file's name.
     """
     path = Path(path)
+    if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 <= rtol < math.inf:
+        raise GoldenError(f"{path}: rtol must be a finite number >= 0, not {clip(repr(rtol))}")
     recipe, recorded = read_golden(path)
+    _generate_options(recipe, str(path))  # a bad option fails before the work
     try:
         grammar = _grammar(recipe, path.parent)
-        actual = _grow(recipe, grammar)
+        actual = _grow(recipe, grammar, str(path))
         text = grammar.text or ""
     except GoldenError:
         raise

@@ -18,6 +18,7 @@ names, in successors and the axiom they are expressions (:mod:`lsys3d.expr`).
 
 from __future__ import annotations
 
+import errno
 import math
 import re
 import tomllib
@@ -28,7 +29,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .errors import GrammarError, clip
+from .errors import GrammarError, clip, os_reason
 from .expr import CONSTANTS, FUNCTIONS, Expr, ExprSyntaxError, parse_expression
 from .modules import ASCII_ALPHABET, ModuleString
 
@@ -41,7 +42,21 @@ MAX_PARAMETERS = 32
 
 _RESERVED = set("(),:=")
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z_0-9]*\Z")
-_KEYS = {"name", "description", "axiom", "rules", "iterations", "angle", "seed", "ignore", "defines", "turtle"}
+_SURROGATE = re.compile("[\ud800-\udfff]")
+_KEYS = {
+    "name",
+    "description",
+    "axiom",
+    "rules",
+    "iterations",
+    "angle",
+    "seed",
+    "ignore",
+    "defines",
+    "turtle",
+    "materials",
+    "surfaces",
+}
 
 # maps an offset in a piece of text to (line, col); line None when unknown
 Where = Callable[[int], tuple[int | None, int | None]]
@@ -124,6 +139,8 @@ class Grammar:
     ignore: str = ""
     defines: Mapping[str, float] = field(default_factory=dict)
     turtle: Mapping[str, object] = field(default_factory=dict)
+    materials: Mapping[str, object] = field(default_factory=dict)
+    surfaces: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
     # parsed, filled in by __post_init__
@@ -136,7 +153,7 @@ class Grammar:
         if isinstance(self.rules, str):
             raise GrammarError("'rules' must be a list of rule strings, not one string", self.source)
         set_ = object.__setattr__
-        for key in ("defines", "turtle"):
+        for key in ("defines", "turtle", "materials", "surfaces"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         if not isinstance(self.rules, (list, tuple)):
@@ -152,6 +169,8 @@ class Grammar:
             MappingProxyType(_check_defines(dict(self.defines), self.source, self._where.get("defines"))),
         )
         set_(self, "turtle", MappingProxyType(dict(self.turtle)))
+        set_(self, "materials", MappingProxyType(dict(self.materials)))
+        set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
         self._check_scalars()
         where_axiom = self._where.get("axiom") or _api_where("axiom")
         if not self.axiom.strip():
@@ -186,12 +205,18 @@ class Grammar:
         if isinstance(it, bool) or not isinstance(it, int) or it < 0:
             raise bad("iterations", f"must be a whole number >= 0, not {clip(repr(it))}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise bad("seed", f"must be a whole number >= 0, not {self.seed!r}")
-        if isinstance(self.angle, bool) or not isinstance(self.angle, (int, float)) or not math.isfinite(self.angle):
+            raise bad("seed", f"must be a whole number >= 0, not {clip(repr(self.seed))}")
+        if not _finite_number(self.angle):
             raise bad("angle", f"must be a number of degrees, not {clip(repr(self.angle))}")
         for key in ("name", "description", "axiom", "ignore"):
             if not isinstance(getattr(self, key), str):
                 raise bad(key, f"must be a string, not {type(getattr(self, key)).__name__}")
+        for key, text in [(k, getattr(self, k)) for k in ("name", "description", "axiom", "ignore")] + [
+            (f"rules[{i}]", r) for i, r in enumerate(self.rules) if isinstance(r, str)
+        ]:
+            bad_char = _SURROGATE.search(text)
+            if bad_char:  # only from Python: TOML text cannot hold one; every file format would refuse it
+                raise bad(key, f"is not valid Unicode text (a lone surrogate at character {bad_char.start() + 1})")
 
     # ---------------------------------------------------------------- readers
     @classmethod
@@ -205,6 +230,8 @@ class Grammar:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise _toml_error(exc, source) from None
+        except RecursionError:  # tomllib reads nested arrays and tables recursively
+            raise GrammarError("TOML syntax error: arrays or tables nested too deeply", source) from None
         unknown = sorted(set(data) - _KEYS)
         if unknown:
             line = _key_line(text, unknown[0])
@@ -216,7 +243,8 @@ class Grammar:
             )
         if "axiom" not in data:
             raise GrammarError("missing 'axiom' (the start string, e.g. axiom = \"F\")", source, 1, 1)
-        for key, kind in (("rules", list), ("defines", dict), ("turtle", dict)):
+        tables = (("defines", dict), ("turtle", dict), ("materials", dict), ("surfaces", dict))
+        for key, kind in (("rules", list), *tables):
             if key in data and not isinstance(data[key], kind):
                 line = _key_line(text, key)
                 raise GrammarError(
@@ -232,6 +260,8 @@ class Grammar:
         """Read a grammar file (TOML)."""
         path = Path(path)
         try:
+            if "\0" in str(path):
+                raise OSError(errno.EINVAL, "a file name cannot hold a NUL character")
             size = path.stat().st_size
             if size > MAX_GRAMMAR_BYTES:
                 raise GrammarError(
@@ -245,8 +275,10 @@ class Grammar:
                     f"grammar file is larger than {MAX_GRAMMAR_BYTES} bytes (lsys3d.grammar.MAX_GRAMMAR_BYTES)",
                     str(path),
                 )
-        except OSError as exc:
-            raise GrammarError(f"cannot read grammar file: {exc.strerror or exc}", str(path)) from None
+        except FileNotFoundError:
+            raise GrammarError("no such grammar file", str(path)) from None
+        except OSError as exc:  # a folder, a symlink loop, a name too long, no permission...
+            raise GrammarError(f"cannot read grammar file: {os_reason(exc)}", str(path)) from None
         try:
             text = raw.decode("utf-8")
         except UnicodeDecodeError as exc:
@@ -268,6 +300,8 @@ class Grammar:
                 "ignore",
                 "defines",
                 "turtle",
+                "materials",
+                "surfaces",
                 "source",
                 "text",
             )
@@ -334,6 +368,22 @@ def _toml_error(exc: tomllib.TOMLDecodeError, source: str) -> GrammarError:
     m = re.search(r"\(at end of document\)", msg)
     reason = msg[: m.start()].strip() if m else msg
     return GrammarError(f"TOML syntax error: {reason} (at end of file)", source)
+
+
+def table_key_line(text: str, table: str, key: str) -> int | None:
+    """Line of ``key`` inside the TOML table ``[table]`` (or of the table itself), for error positions."""
+    start = _key_line(text, table)
+    if start is None:
+        return None
+    lines = text.splitlines()
+    pattern = re.compile(rf"^[ \t]*[\"']?{re.escape(key)}[\"']?[ \t]*=")
+    for number in range(start + 1, len(lines) + 1):
+        line = lines[number - 1]
+        if re.match(r"^[ \t]*\[", line):
+            break
+        if pattern.match(line):
+            return number
+    return start
 
 
 def _key_line(text: str, key: str) -> int | None:
@@ -422,48 +472,65 @@ def _string_tokens(text: str):
     return out
 
 
-def _text_where(text: str, positions: list[int]) -> Where:
-    line_starts = [0] + [m.end() for m in re.finditer("\n", text)]
+def _line_starts(text: str) -> np.ndarray:
+    """Offsets at which the lines of ``text`` start."""
+    return np.array([0] + [m.end() for m in re.finditer("\n", text)], np.int64)
+
+
+def _text_where(line_starts: np.ndarray, positions: list[int]) -> Where:
+    """Positions in a string literal of the file: ``positions[k]`` is where its k-th character stands."""
 
     def where(offset: int):
         idx = positions[min(max(offset, 0), len(positions) - 1)]
         line = int(np.searchsorted(line_starts, idx, side="right"))
-        return line, idx - line_starts[line - 1] + 1
+        return line, idx - int(line_starts[line - 1]) + 1
 
     return where
 
 
 def _locate_strings(text: str, data: dict) -> dict:
-    """Find where the axiom and each rule string stand in the file, for error positions."""
+    """Find where the axiom and each rule string stand in the file, for error positions.
+
+    One pass over the file's string literals; the rules are looked for in order, each after the last one
+    found, so the time is linear in the size of the file however many rules there are.
+    """
     tokens = _string_tokens(text)
+    line_starts = _line_starts(text)
+    first = np.array([pos[0] for _, pos in tokens], np.int64)
+    token_line = np.searchsorted(line_starts, first, side="right")  # line of each literal's first character
     where: dict = {}
     for key in _KEYS:
         line = _key_line(text, key)
         if line is not None:
             where[("key", key)] = lambda offset, line=line: (line, 1)
+    used: set[int] = set()
 
-    def find(value, start_line):
-        for t, (val, pos) in enumerate(tokens):
-            if val == value and _text_where(text, pos)(0)[0] >= start_line and t not in used:
+    def find(value, start: int) -> int | None:
+        """The first unused literal from ``start`` on that reads ``value``."""
+        for t in range(start, len(tokens)):
+            if tokens[t][0] == value and t not in used:
                 used.add(t)
-                return _text_where(text, pos)
+                return t
         return None
 
-    used: set[int] = set()
+    def after_line(line: int) -> int:
+        return int(np.searchsorted(token_line, line, side="left"))
+
     axiom = data.get("axiom")
     if isinstance(axiom, str):
-        w = find(axiom, _key_line(text, "axiom") or 1)
-        if w:
-            where["axiom"] = w
+        t = find(axiom, after_line(_key_line(text, "axiom") or 1))
+        if t is not None:
+            where["axiom"] = _text_where(line_starts, tokens[t][1])
     rules = data.get("rules")
     if isinstance(rules, list):
-        start = _key_line(text, "rules") or 1
+        cursor = after_line(_key_line(text, "rules") or 1)
         for i, rule in enumerate(rules):
             if isinstance(rule, str):
-                w = find(rule, start)
-                if w:
-                    where[("rules", i)] = w
-                    start = w(0)[0]
+                t = find(rule, cursor)
+                if t is None:  # a form the scanner does not follow: the rest keep their list positions
+                    break
+                where[("rules", i)] = _text_where(line_starts, tokens[t][1])
+                cursor = t + 1
     if isinstance(data.get("defines"), dict):
         line = _key_line(text, "defines")
         where["defines"] = (lambda offset, line=line: (line, 1)) if line else None
@@ -471,6 +538,16 @@ def _locate_strings(text: str, data: dict) -> dict:
 
 
 # ------------------------------------------------------------------ defines
+def _finite_number(value) -> bool:
+    """An int or float (not a bool) that is a finite float: TOML integers have no size limit."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)  # converts an int to float: 10**400 overflows
+    except OverflowError:
+        return False
+
+
 def _check_defines(defines: dict, source: str, where) -> dict:
     source_where = where or _api_where("defines")
     out = {}
@@ -484,9 +561,10 @@ def _check_defines(defines: dict, source: str, where) -> dict:
                 value = float(parse_expression(value, defines=out).evaluate({})[0])
             except (ExprSyntaxError, ArithmeticError) as exc:
                 raise GrammarError(f"define {name!r}: {exc}", *_loc(source, source_where, 0)) from None
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if not _finite_number(value):
             raise GrammarError(
-                f"define {name!r} must be a finite number, not {clip(repr(value))}", *_loc(source, source_where, 0)
+                f"define {clip(repr(name))} must be a finite number, not {clip(repr(value))}",
+                *_loc(source, source_where, 0),
             )
         out[name] = float(value)
     return out

@@ -24,24 +24,29 @@ normal (leaves are flat), ``uv`` maps the leaf's box onto [0, 1] x [0, 1].
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import manifold3d
 import numpy as np
 
-from .errors import GeometryError
+from .errors import GeometryError, LimitError
+from .hierarchy import Hierarchy
 from .mesh import Mesh
 from .options import Options, option
 from .skeleton import Skeleton
+from .sweep import DEFAULT_MAX_TRIANGLES
 
 __all__ = ["LeafOptions", "Leaves", "default_leaf", "instance_leaves", "leaf_transforms", "leaves", "polygon_leaves"]
 
 
 @dataclass(frozen=True)
 class LeafOptions(Options):
-    """The leaves stage: the shape of the built-in leaf (every default, range and help is in its field)."""
+    """How the leaves stage builds the built-in leaf (a grammar's ``[surfaces] leaf`` replaces it)."""
 
-    rows: int = option(7, low=1, high=256, name="leaf_rows", help="rows across the built-in leaf (4 triangles a row)")
+    leaf_points: int = option(
+        7, low=1, high=256, help="rows across the built-in leaf blade between base and tip (4 triangles each)"
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,12 +64,17 @@ class Leaves:
         One transform per leaf instance (see :func:`leaf_transforms`).
     polygons : Mesh or None
         The ``{ . }`` polygons; None without polygons.
+    instance_attributes : dict of str to (k,) or (k, 3) float32
+        Per-instance attributes (the hierarchy and wind attributes of
+        :mod:`lsys3d.attributes`; empty unless asked for).  The merged and
+        polygon meshes carry the same attributes per vertex.
     """
 
     merged: Mesh | None = None
     model: Mesh | None = None
     transforms: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
     polygons: Mesh | None = None
+    instance_attributes: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def instanced(self) -> bool:
@@ -135,12 +145,15 @@ def leaf_transforms(skeleton: Skeleton) -> np.ndarray:
     return out
 
 
-def instance_leaves(model: Mesh, transforms: np.ndarray) -> Mesh | None:
+def instance_leaves(
+    model: Mesh, transforms: np.ndarray, attributes: Mapping | None = None, material: np.ndarray | None = None
+) -> Mesh | None:
     """Copies of ``model`` baked in place by each transform (None when there are none).
 
     Corner normals follow the rotation (inverse transpose, renormalised); uv
     are copied.  Transforms with a zero scale give degenerate copies, which
-    are dropped.
+    are dropped.  ``attributes`` (per transform) become per-vertex attributes
+    of the copies, ``material`` (per transform) their faces' material index.
     """
     transforms = np.asarray(transforms, np.float64)
     if transforms.ndim != 3 or transforms.shape[1:] != (4, 4):
@@ -160,11 +173,15 @@ def instance_leaves(model: Mesh, transforms: np.ndarray) -> Mesh | None:
     wfaces = faces[None] + (np.arange(k) * nv)[:, None, None]
     if (det < 0).any():  # a mirroring transform turns the winding around
         wfaces[det < 0] = wfaces[det < 0][:, :, ::-1]
+    per_vertex = {name: np.repeat(np.asarray(a)[ok], nv, axis=0) for name, a in (attributes or {}).items()}
+    per_face = None if material is None else np.repeat(np.asarray(material)[ok], len(faces))
     return Mesh(
         world.reshape(-1, 3),
         wfaces.reshape(-1, 3),
         wn.reshape(-1, 3, 3),
         np.broadcast_to(np.asarray(uv), (k, *np.shape(uv))).reshape(-1, 3, 2),
+        attributes=per_vertex,
+        face_material=per_face,
     )
 
 
@@ -186,13 +203,14 @@ def _plane_frames(points: np.ndarray, offsets: np.ndarray):
     return normal, x, np.cross(normal, x), area2 * 0.5, poly
 
 
-def polygon_leaves(skeleton: Skeleton) -> Mesh | None:
+def polygon_leaves(skeleton: Skeleton, attributes: Mapping | None = None) -> Mesh | None:
     """The ``{ . }`` polygons of a skeleton as one flat mesh (None when there are none).
 
     Each polygon is projected onto its best-fit plane (Newell normal) and
     triangulated (ear clipping by manifold3d, so concave outlines are fine);
     polygons of zero area are dropped.  Vertices are shared within a polygon,
-    not between polygons.
+    not between polygons.  ``attributes`` (per polygon) become per-vertex
+    attributes.
     """
     offsets = np.asarray(skeleton.polygon_offsets, np.int64)
     points = np.asarray(skeleton.polygon_points, np.float64)
@@ -200,8 +218,8 @@ def polygon_leaves(skeleton: Skeleton) -> Mesh | None:
     keep = counts >= 3
     if not keep.any():
         return None
+    sel = np.flatnonzero(keep)  # the skeleton's polygon of each kept one
     if not keep.all():
-        sel = np.flatnonzero(keep)
         idx = np.concatenate([np.arange(offsets[i], offsets[i + 1]) for i in sel])
         points, counts = points[idx], counts[sel]
         offsets = np.concatenate([[0], np.cumsum(counts)])
@@ -244,10 +262,19 @@ def polygon_leaves(skeleton: Skeleton) -> Mesh | None:
     used = np.unique(faces)
     remap = np.full(len(points), -1, np.int64)
     remap[used] = np.arange(len(used))
-    return Mesh(points[used], remap[faces], normals, uv[faces])
+    per_vertex = {name: np.asarray(a)[sel[poly[used]]] for name, a in (attributes or {}).items()}
+    material = np.asarray(skeleton.polygon_material)[sel[fpoly]] if len(skeleton.polygon_material) else None
+    return Mesh(points[used], remap[faces], normals, uv[faces], attributes=per_vertex, face_material=material)
 
 
-def leaves(skeleton: Skeleton, model: Mesh | None = None, options: LeafOptions | None = None) -> Leaves:
+def leaves(
+    skeleton: Skeleton,
+    model: Mesh | None = None,
+    hierarchy: Hierarchy | None = None,
+    attributes=None,
+    options: LeafOptions | None = None,
+    max_triangles: int = DEFAULT_MAX_TRIANGLES,
+) -> Leaves:
     """Every leaf of a skeleton: polygons, instances (model + transforms) and all merged.
 
     Parameters
@@ -255,19 +282,63 @@ def leaves(skeleton: Skeleton, model: Mesh | None = None, options: LeafOptions |
     skeleton : Skeleton
     model : Mesh or trimesh.Trimesh, optional
         Leaf model in the convention of this module (default :func:`default_leaf`
-        with ``options.rows`` rows).
+        with ``options.leaf_points`` rows; a grammar's ``[surfaces] leaf``,
+        :mod:`lsys3d.surfaces`).
+    hierarchy : Hierarchy, optional
+        The skeleton's branch hierarchy: when given, every leaf carries the
+        attributes of the branch it grows from (:mod:`lsys3d.attributes`), per
+        instance and per vertex.
+    attributes : sequence of str, optional
+        Which attributes (default: all of :data:`lsys3d.attributes.ATTRIBUTES`).
     options : LeafOptions, optional
+    max_triangles : int
+        Most triangles of the leaves baked in place (instances times the model's triangles).
+
+    Raises
+    ------
+    LimitError
+        The baked leaves would have more than ``max_triangles`` triangles (counted before they are built).
     """
-    options = LeafOptions() if options is None else options
+    options = options or LeafOptions()
     if model is not None and not isinstance(model, Mesh):
         model = Mesh.from_trimesh(model)
-    polygons = polygon_leaves(skeleton)
+    instance_attrs = polygon_attrs = {}
+    if hierarchy is not None:
+        k = len(skeleton.leaf_position)
+        instance_attrs = _grown_from(hierarchy, skeleton.leaf_segment, k, skeleton.leaf_position, attributes)
+        firsts = skeleton.polygon_points[skeleton.polygon_offsets[:-1]] if skeleton.n_polygons else np.zeros((0, 3))
+        polygon_attrs = _grown_from(hierarchy, skeleton.polygon_segment, skeleton.n_polygons, firsts, attributes)
+    polygons = polygon_leaves(skeleton, polygon_attrs)
     transforms = leaf_transforms(skeleton)
     leaf_model = None
     baked = None
     if len(transforms):
-        leaf_model = default_leaf(options.rows) if model is None else model
-        baked = instance_leaves(leaf_model, transforms)
+        leaf_model = default_leaf(options.leaf_points) if model is None else model
+        total = len(transforms) * len(leaf_model.faces)
+        if total > max_triangles:
+            raise LimitError(
+                f"leaves: {len(transforms):,} leaves of {len(leaf_model.faces):,} triangles make {total:,} triangles, "
+                f"more than the limit of {max_triangles:,}; use a smaller leaf model or fewer leaves, or raise the "
+                "limit (--max-triangles, or max_triangles=)"
+            )
+        baked = instance_leaves(leaf_model, transforms, instance_attrs, skeleton.leaf_material)
     parts = [m for m in (polygons, baked) if m is not None]
     merged = Mesh.concatenate(parts) if parts else None
-    return Leaves(merged, leaf_model, transforms, polygons)
+    return Leaves(merged, leaf_model, transforms, polygons, instance_attrs)
+
+
+def _grown_from(h: Hierarchy, segment, count: int, where: np.ndarray, keys=None) -> dict:
+    """The attributes of ``count`` leaves growing from ``segment`` (at its end); no branch: pivot at ``where``."""
+    from .attributes import KEYS, branch_values
+
+    keys = KEYS if keys is None else keys
+
+    if segment is None or len(segment) != count:
+        segment = np.full(count, -1, np.int64)
+    segment = np.asarray(segment, np.int64)
+    has = segment >= 0
+    s = np.where(has, segment, 0)
+    branch = np.where(has, h.branch_of[s] if len(h.branch_of) else -1, -1)
+    t = np.where(has, h.t_end[s] if len(h.t_end) else 0.0, 0.0)
+    values = branch_values(h, branch, t, fallback_pivot=where)
+    return {key: values[key] for key in keys}

@@ -168,7 +168,7 @@ def level_options(options, level: int):
         )
     leaves = options.leaves
     if spec.leaf_rows:
-        leaves = leaves.replace(rows=min(leaves.rows, spec.leaf_rows))
+        leaves = leaves.replace(leaf_points=min(leaves.leaf_points, spec.leaf_rows))
     return options.replace(sweep=sweep, leaves=leaves)
 
 
@@ -319,14 +319,18 @@ def cards(leaves: Mesh | None, trunk_axis_point: np.ndarray, count: int = CARDS)
     return Mesh.flat(corners.reshape(-1, 3), faces, np.broadcast_to(uv, (k, 2, 3, 2)).reshape(-1, 3, 2))
 
 
-def lod_leaves(skeleton: Skeleton, level: int, options: LeafOptions) -> Leaves:
-    """The leaves of one level: thinned (levels 1, 2) or as cards (level 3), from the full skeleton's leaves."""
+def lod_leaves(skeleton: Skeleton, level: int, options: LeafOptions, model: Mesh | None = None) -> Leaves:
+    """The leaves of one level: thinned (levels 1, 2) or as cards (level 3), from the full skeleton's leaves.
+
+    ``model`` is the leaf model (None: the built-in leaf of ``options``; a
+    grammar's ``[surfaces] leaf`` keeps its shape at every level).
+    """
     from .leaves import leaves as build_leaves
 
     spec = LEVELS[level]
     if not spec.cards:
-        return build_leaves(thin_leaves(skeleton, spec.leaf_keep), options=options)
-    full = build_leaves(skeleton, options=options)
+        return build_leaves(thin_leaves(skeleton, spec.leaf_keep), model=model, options=options)
+    full = build_leaves(skeleton, model=model, options=options)
     axis = skeleton.start[0] if len(skeleton) else np.zeros(3)
     merged = cards(full.merged if full.merged is not None else full.polygons, axis)
     return Leaves(merged=merged, polygons=merged)

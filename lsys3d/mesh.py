@@ -19,6 +19,13 @@ duplicated vertex:
     Where present it is the surface colour in place of the material's base
     colour: glTF ``COLOR_0`` with a white base colour factor, USD
     ``primvars:displayColor`` read by the material.
+``face_material`` : (f,) int32 or None
+    The turtle's material index of each face (:mod:`lsys3d.materials`); None
+    when the tree has one material per mesh.
+``attributes`` : mapping of name to (v,) or (v, 3) float32
+    Per-vertex data the writers carry as they are: the hierarchy and wind
+    attributes of :mod:`lsys3d.attributes` (glTF ``_BRANCH_ID``..., USD
+    ``primvars:branch_id``...).  Empty by default.
 ``face_source`` : (f,) int64 or None
     For a bark: the face of :attr:`lsys3d.sweep.Tubes.faces` each triangle is a
     piece of (the union carries manifold3d's face ids through the boolean), so
@@ -28,7 +35,9 @@ duplicated vertex:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 
 import numpy as np
 
@@ -47,6 +56,8 @@ class Mesh:
     normals : (f, 3, 3) float32
     uv : (f, 3, 2) float32
     colors : (v, 3) float32 or None
+    attributes : dict of str to (v,) or (v, 3) float32
+    face_material : (f,) int32 or None
     face_source : (f,) int64 or None
 
     Examples
@@ -61,6 +72,8 @@ class Mesh:
     normals: np.ndarray
     uv: np.ndarray
     colors: np.ndarray | None = None
+    attributes: Mapping[str, np.ndarray] = field(default_factory=dict)
+    face_material: np.ndarray | None = None
     face_source: np.ndarray | None = None
 
     def __post_init__(self):
@@ -77,6 +90,20 @@ class Mesh:
             if c.shape != (len(v), 3):
                 raise ValueError(f"Mesh.colors has shape {c.shape}, expected ({len(v)}, 3)")
             object.__setattr__(self, "colors", c)
+        attributes = {}
+        for name, values in dict(self.attributes).items():
+            a = np.ascontiguousarray(values, np.float32)
+            if a.shape[:1] != (len(v),) or a.ndim > 2:
+                raise ValueError(
+                    f"Mesh.attributes[{name!r}] has shape {a.shape}, expected ({len(v)},) or ({len(v)}, k)"
+                )
+            attributes[name] = a
+        object.__setattr__(self, "attributes", MappingProxyType(attributes))
+        if self.face_material is not None:
+            fm = np.asarray(self.face_material, np.int32)
+            if fm.shape != (len(f),):
+                raise ValueError(f"Mesh.face_material has shape {fm.shape}, expected ({len(f)},)")
+            object.__setattr__(self, "face_material", fm)
         if self.face_source is not None:
             s = np.asarray(self.face_source, np.int64)
             if s.shape != (len(f),):
@@ -120,12 +147,20 @@ class Mesh:
         colors = None
         if all(m.colors is not None for m in meshes):
             colors = np.concatenate([m.colors for m in meshes])
+        shared = set.intersection(*(set(m.attributes) for m in meshes))
+        face_material = None
+        if any(m.face_material is not None for m in meshes):
+            face_material = np.concatenate(
+                [m.face_material if m.face_material is not None else np.zeros(len(m.faces), np.int32) for m in meshes]
+            )
         return cls(
             np.concatenate([m.vertices for m in meshes]),
             np.concatenate([m.faces + s for m, s in zip(meshes, shift, strict=True)]),
             np.concatenate([m.normals for m in meshes]),
             np.concatenate([m.uv for m in meshes]),
             colors,
+            {k: np.concatenate([m.attributes[k] for m in meshes]) for k in sorted(shared)},
+            face_material,
         )
 
     @classmethod
@@ -151,6 +186,14 @@ class Mesh:
     def with_colors(self, colors) -> Mesh:
         """A copy with vertex colours (arrays are shared, not copied)."""
         return replace(self, colors=colors)
+
+    def with_attributes(self, attributes: Mapping[str, np.ndarray]) -> Mesh:
+        """A copy with these per-vertex attributes added (arrays are shared, not copied)."""
+        return replace(self, attributes={**self.attributes, **attributes})
+
+    def keeping(self, keys) -> Mesh:
+        """A copy with only the attributes ``keys`` (of those it has)."""
+        return replace(self, attributes={k: a for k, a in self.attributes.items() if k in keys})
 
     # ---------------------------------------------------------------- measures
     @property

@@ -15,6 +15,7 @@ A string of ``m`` modules is stored as arrays, never as Python objects per modul
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -85,28 +86,57 @@ class ModuleString:
         code = ord(symbol) if ord(symbol) < 128 else self.alphabet.find(symbol)
         return int(np.count_nonzero(self.symbols == code)) if code >= 0 else 0
 
-    def symbol_text(self) -> str:
-        """The symbols alone, without parameters."""
-        raw = self.symbols.tobytes().decode("latin-1")
+    def symbol_text(self, start: int = 0, stop: int | None = None) -> str:
+        """The symbols alone, without parameters (of modules ``start`` to ``stop``)."""
+        raw = self.symbols[start:stop].tobytes().decode("latin-1")
         if self.alphabet is ASCII_ALPHABET or self.alphabet[128:] == ASCII_ALPHABET[128:]:
             return raw
         return raw.translate({i: self.alphabet[i] for i in range(128, 256)})
 
-    def __str__(self) -> str:
-        text = self.symbol_text()
+    def iter_text(self, chunk: int = 1 << 16) -> Iterator[str]:
+        """The text of :meth:`__str__` in pieces of ``chunk`` modules, to write a long string without holding it.
+
+        Each distinct parameter value of a piece is formatted once; the piece is then assembled from tokens
+        (``F(``, ``1.5,``, ``2)``) gathered by numpy, with no Python loop over modules.
+
+        >>> s = ModuleString.from_symbols("F+F")
+        >>> list(s.iter_text(chunk=2))
+        ['F+', 'F']
+        """
+        if chunk < 1:
+            raise ValueError(f"chunk must be at least 1, not {chunk}")
+        m = len(self)
         if not len(self.params):
-            return text
-        pieces = []
-        has = np.flatnonzero(self.arity)
-        values = [format_number(x) for x in self.params.tolist()]
-        off = self.offsets
-        last = 0
-        for i in has.tolist():
-            pieces.append(text[last : i + 1])
-            pieces.append("(" + ",".join(values[off[i] : off[i + 1]]) + ")")
-            last = i + 1
-        pieces.append(text[last:])
-        return "".join(pieces)
+            for a in range(0, m, chunk):
+                yield self.symbol_text(a, min(a + chunk, m))
+            return
+        offsets = self.offsets
+        # the token of each symbol code without and with parameters: "F", "F("
+        opening = np.array([c for c in self.alphabet] + [c + "(" for c in self.alphabet], dtype=object)
+        for a in range(0, m, chunk):
+            b = min(a + chunk, m)
+            p0, p1 = int(offsets[a]), int(offsets[b])
+            symbols = self.symbols[a:b].astype(np.intp) + 256 * (self.arity[a:b] > 0)
+            if p0 == p1:
+                yield "".join(opening[symbols].tolist())
+                continue
+            values, inverse = np.unique(self.params[p0:p1], return_inverse=True)
+            names = [format_number(x) for x in values.tolist()]
+            # each distinct value followed by "," and by ")"; a module's last parameter takes the ")"
+            endings = np.array([n + "," for n in names] + [n + ")" for n in names], dtype=object)
+            local = offsets[a : b + 1] - p0
+            last = np.zeros(p1 - p0, np.intp)
+            last[local[1:][self.arity[a:b] > 0] - 1] = len(names)
+            tokens = np.empty(b - a + p1 - p0, dtype=object)
+            at = np.arange(b - a) + local[:-1]  # each module's symbol, then its parameters
+            tokens[at] = opening[symbols]
+            rest = np.ones(len(tokens), bool)
+            rest[at] = False
+            tokens[rest] = endings[inverse.reshape(-1) + last]
+            yield "".join(tokens.tolist())
+
+    def __str__(self) -> str:
+        return "".join(self.iter_text())
 
     def __repr__(self) -> str:
         s = str(self) if len(self) <= 60 else str(self[:60]) + "..."

@@ -59,8 +59,8 @@ class Spec:
     ----------
     kind : type or str
         ``bool``, ``int``, ``float``, ``str``, ``"vector"`` (a tuple of
-        ``length`` floats), ``"ints"`` (a tuple of ``length`` ints) or
-        ``"options"`` (a nested :class:`Options`).
+        ``length`` floats), ``"ints"`` (a tuple of ``length`` ints), ``"strings"``
+        (a tuple of strings) or ``"options"`` (a nested :class:`Options`).
     help : str
         One line for ``--help`` and the docs.
     low, high : float or None
@@ -132,7 +132,8 @@ def option(
 
     ``kind`` is inferred from the default when not given: ``bool``, ``int``,
     ``float``, ``str``, a tuple of floats (``"vector"``) or of ints (``"ints"``),
-    an :class:`Options` instance (``"options"``, give ``factory`` instead).
+    an :class:`Options` instance (``"options"``, give ``factory`` instead);
+    ``"strings"`` (a tuple of strings) is given explicitly.
     """
     sample = factory() if factory is not None else default
     length = 0
@@ -254,9 +255,12 @@ def check_value(spec: Spec, value, where: str):
             what = "whole numbers" if kind == "ints" else "numbers"
             count = f"{n} " if n else ""
             raise OptionsError(f"{where}: must be a list of {count}{what}, not {clip(repr(value))}")
-        if kind == "ints":
-            return tuple(check_value(Spec(int, "", spec.low, spec.high), v, where) for v in value)
-        return tuple(check_value(Spec(float, "", spec.low, spec.high), v, where) for v in value)
+        one = dataclasses.replace(spec, kind=int if kind == "ints" else float, length=0)
+        return tuple(check_value(one, v, where) for v in value)
+    if kind == "strings":
+        if isinstance(value, str) or not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+            raise OptionsError(f"{where}: must be a list of strings, not {clip(repr(value))}")
+        return tuple(value)
     if kind == "options":
         return value
     raise TypeError(f"check_value: unknown kind {kind!r}")  # pragma: no cover - a declaration mistake
@@ -444,7 +448,7 @@ def _parser_for(spec: Spec, where: str):
                     raise OptionsError(f"expected a number, not {clip(repr(text))}") from None
             elif spec.kind in ("vector", "ints"):
                 shape = spec.metavar or _metavar(spec)
-                parts = re.split(r"[xX,]", text) if spec.kind == "ints" else text.split(",")
+                parts = re.split(r"[xX,]", text)
                 convert = int if spec.kind == "ints" else float
                 try:
                     value = [convert(p) for p in parts]

@@ -3,7 +3,8 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> cleanup -> color -> leaves (-> lod)
+    derive -> interpret -> sweep -> union -> cleanup -> color -> materials -> attributes -> leaves -> rig -> wind
+    (-> lod)
 """
 
 from __future__ import annotations
@@ -15,24 +16,29 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from . import bark as bark_stage
+from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
 from .cleanup import CleanupOptions, cleanup
 from .derive import DEFAULT_MAX_MODULES, derive
-from .errors import GeometryError
+from .errors import GeometryError, OptionsError
 from .grammar import Grammar
+from .hierarchy import hierarchy
 from .leaves import LeafOptions
 from .leaves import leaves as build_leaves
 from .lod import LEVELS, Lod, LodOptions, fit_budget, level_options, lod_leaves, prune
-from .materials import BARK
+from .materials import material_table, with_face_materials
 from .mesh import Mesh
 from .modules import ModuleString
 from .options import Options, option
 from .presets import load
 from .provenance import Provenance
+from .rig import SKIN_KEYS, RigOptions, bind, build_rig
 from .skeleton import Skeleton
+from .surfaces import surface_table, with_cards
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret
 from .union import UnionOptions, concatenate, union
+from .wind import WindOptions, sway
 
 __all__ = [
     "STAGES",
@@ -47,7 +53,20 @@ __all__ = [
 
 log = logging.getLogger("lsys3d")
 
-STAGES = ("derive", "interpret", "sweep", "union", "cleanup", "color", "leaves", "lod")
+STAGES = (
+    "derive",
+    "interpret",
+    "sweep",
+    "union",
+    "cleanup",
+    "color",
+    "materials",
+    "attributes",
+    "leaves",
+    "rig",
+    "wind",
+    "lod",
+)
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
 
@@ -60,7 +79,9 @@ class Limits(Options):
     )
     max_segments: int = option(DEFAULT_MAX_SEGMENTS, low=1, help="most segments the turtle draws")
     max_triangles: int = option(
-        DEFAULT_MAX_TRIANGLES, low=1, help="most tube triangles before the union (counted before the sweep allocates)"
+        DEFAULT_MAX_TRIANGLES,
+        low=1,
+        help="most tube triangles before the union, and most leaf triangles baked in place (counted before allocating)",
     )
 
 
@@ -85,8 +106,14 @@ class GenerateOptions(Options):
         Removing the union's needles and slivers (``cleanup=False``: the raw boolean).
     color : BarkColorOptions
         Bark colour variation written as vertex colours after the union.
+    attributes : AttributeOptions
+        Hierarchy and wind attributes on the bark's vertices and the leaves (off by default).
     leaves : LeafOptions
-        The built-in leaf's shape.
+        The built-in leaf's resolution (a grammar's ``[surfaces] leaf`` replaces the built-in leaf).
+    rig : RigOptions
+        Joints along the branches and the skin that binds bark and leaves to them (off by default).
+    wind : WindOptions
+        A sample wind animation keyed on the rig's joints (off by default; needs the rig).
     lod : LodOptions
         Levels of detail to build as well, or a triangle budget to fit.
 
@@ -101,13 +128,26 @@ class GenerateOptions(Options):
     union: UnionOptions = option(factory=UnionOptions, help="the union")
     cleanup: CleanupOptions = option(factory=CleanupOptions, help="the cleanup of the union")
     color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
+    attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
     leaves: LeafOptions = option(factory=LeafOptions, help="leaves")
+    rig: RigOptions = option(factory=RigOptions, help="the rig")
+    wind: WindOptions = option(factory=WindOptions, help="the wind animation")
     lod: LodOptions = option(factory=LodOptions, help="levels of detail")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
             object.__setattr__(self, "turtle", TurtleOverrides(self.turtle))
         super().__post_init__()
+        if (self.lod.levels or self.lod.target_triangles) and (self.rig.enabled or self.attributes.enabled):
+            raise OptionsError(
+                "LodOptions (--lod, --target-triangles): the levels of detail carry no attributes or rig yet; "
+                "drop --attributes / --rig, or build the levels without them"
+            )
+        if self.wind.enabled and not self.rig.enabled:
+            raise OptionsError(
+                "WindOptions.seconds (--wind-animation): the wind animation moves the rig's joints: "
+                "it needs the rig (--rig)"
+            )
 
 
 _JITTERS = ("angle_jitter", "length_jitter", "width_jitter", "branch_roll", "branch_drop")
@@ -250,6 +290,10 @@ def generate(
     def stage(name, fn, *args, **kw):
         return run_stage(name, fn, *args, progress=progress, **kw)
 
+    table = material_table(grammar)  # a bad [materials] or [surfaces] table fails before the work
+    surfaces = surface_table(grammar)
+    table = with_cards(table, surfaces, grammar)
+
     modules, skeleton = draw(grammar, n, seed, options, progress=progress)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
@@ -262,11 +306,38 @@ def generate(
             f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter than "
             f"min_length ({options.sweep.min_length:g}) and there is no leaf"
         )
-    bark = _bark(tubes, options, seed, stage)
-    leaves = stage("leaves", build_leaves, skeleton, options=options.leaves)
+    bark = _bark(tubes, options, seed, stage, table.bark.base_color)
+    wanted = options.attributes.keys
+    # the rig binds by branch and t, so it needs those two whatever the attributes' layout
+    keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
+    branches = hierarchy(skeleton, seed) if keys or table else None
+    bulge = options.sweep.bark_displacement
+    if table and len(tubes):
+        bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
+    if keys:
+        bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
+    leaf_model = surfaces.leaf.mesh if surfaces.leaf is not None else None
+    leaves = stage(
+        "leaves",
+        build_leaves,
+        skeleton,
+        model=leaf_model,
+        hierarchy=branches,
+        attributes=keys,
+        options=options.leaves,
+        max_triangles=options.limits.max_triangles,
+    )
+    rig = animation = None
+    if options.rig.enabled:
+        rig = build_rig(branches, skeleton, options.rig)
+        bark, leaves = stage("rig", bind, bark, leaves, rig, branches)
+        if keys != wanted:  # the rig's own use of them: not the user's attributes
+            bark, leaves = _keep(bark, leaves, wanted + SKIN_KEYS)
+        if options.wind.enabled:
+            animation = stage("wind", sway, rig, branches, options.wind)
     lods = ()
     if options.lod.levels or options.lod.target_triangles:
-        lods = stage("lod", _levels, skeleton, options, seed, Lod(0, bark, leaves))
+        lods = stage("lod", _levels, skeleton, options, seed, Lod(0, bark, leaves), table, leaf_model)
         if options.lod.target_triangles:  # the tree is the level that fits; it has no others
             bark, leaves, lods = lods[0].bark, lods[0].leaves, ()
     counts = StageCounts(
@@ -284,11 +355,15 @@ def generate(
         counts=counts,
         unioned=options.union.enabled,
         modules=modules,
+        hierarchy=branches if options.attributes.enabled else None,
+        rig=rig,
+        materials=table,
+        animation=animation,
         lods=lods,
     )
 
 
-def _bark(tubes, options: GenerateOptions, seed: int, stage) -> Mesh:
+def _bark(tubes, options: GenerateOptions, seed: int, stage, base_color) -> Mesh:
     """The union (and its cleanup) or the tube soup, coloured: the bark of one set of tubes."""
     if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
         bark = stage("union", Mesh.empty)
@@ -297,10 +372,10 @@ def _bark(tubes, options: GenerateOptions, seed: int, stage) -> Mesh:
         bark = stage("cleanup", cleanup, bark, tubes, options.cleanup)
     else:
         bark = stage("union", concatenate, tubes)
-    return stage("color", bark_stage.color, bark, options.color, BARK.base_color, seed)
+    return stage("color", bark_stage.color, bark, options.color, base_color, seed)
 
 
-def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod) -> tuple[Lod, ...]:
+def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod, table, leaf_model) -> tuple[Lod, ...]:
     """The levels of detail asked for (:mod:`lsys3d.lod`), from one skeleton; ``first`` is level 0, built already.
 
     With a triangle budget, the one level that fits: the most detailed one
@@ -317,8 +392,10 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod)
         opts = level_options(options, level)
         pruned = prune(skeleton, spec.prune)
         tubes = sweep(pruned, opts.sweep, max_triangles=options.limits.max_triangles, seed=seed)
-        bark = _bark(tubes, opts, seed, quiet)
-        leaves = lod_leaves(skeleton, level, opts.leaves)
+        bark = _bark(tubes, opts, seed, quiet, table.bark.base_color)
+        if table and len(tubes):
+            bark = with_face_materials(bark, pruned, hierarchy(pruned, seed), opts.sweep.bark_displacement)
+        leaves = lod_leaves(skeleton, level, opts.leaves, leaf_model)
         settings = {"sides": opts.sweep.sides, "prune": spec.prune, "merge_angle": opts.sweep.merge_angle}
         return Lod(level, bark, leaves, settings)
 
@@ -333,3 +410,13 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod)
 
         return (built[fit_budget(counts(), budget)],)
     return tuple(build(level) for level in options.lod.levels)
+
+
+def _keep(bark: Mesh, leaves, keys):
+    """``bark`` and ``leaves`` with only the attributes ``keys``."""
+    from dataclasses import replace
+
+    merged = leaves.merged.keeping(keys) if leaves.merged is not None else None
+    polygons = leaves.polygons.keeping(keys) if leaves.polygons is not None else None
+    instance = {k: a for k, a in leaves.instance_attributes.items() if k in keys}
+    return bark.keeping(keys), replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance)

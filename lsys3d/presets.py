@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import os
 import tomllib
 from importlib import resources
 from pathlib import Path
 
-from .errors import GrammarError
+from .errors import GrammarError, clip
 from .grammar import Grammar
 
 __all__ = ["DEFAULT_PRESET", "list_presets", "load", "load_preset", "preset_text"]
@@ -26,10 +27,9 @@ def list_presets() -> list[str]:
 
 def preset_text(name: str) -> str:
     """The TOML text of a bundled preset."""
-    entry = _folder() / f"{name}.toml"
-    if not entry.is_file():
-        raise GrammarError(f"no bundled preset named {name!r} (see 'lsys3d presets')", name)
-    return entry.read_text(encoding="utf-8")
+    if not isinstance(name, str) or name not in list_presets():  # never a path out of the presets folder
+        raise GrammarError(f"no bundled preset named {clip(repr(name))} (see 'lsys3d presets')", clip(name))
+    return (_folder() / f"{name}.toml").read_text(encoding="utf-8")
 
 
 def load_preset(name: str, **overrides) -> Grammar:
@@ -48,8 +48,7 @@ def load(spec, **overrides) -> Grammar:
     if isinstance(spec, Grammar):
         return spec.replace(**overrides) if overrides else spec
     path = Path(spec)
-    if path.suffix == ".toml" or path.exists() or "/" in str(spec):
-        if not path.exists():
-            raise GrammarError("no such grammar file", str(spec))
+    # lexists() is False for a name too long, and True for a symlink loop: from_file says what is wrong
+    if path.suffix == ".toml" or "/" in str(spec) or os.sep in str(spec) or os.path.lexists(path):
         return Grammar.from_file(path, **overrides)
     return load_preset(str(spec), **overrides)

@@ -24,6 +24,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import logging
+import math
 import os
 import re
 import shutil
@@ -36,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import PreviewError
+from .errors import OptionsError, PreviewError, clip
 from .exchange import export
 from .exchange.atomic import atomic_path, check_target
 from .options import Options, option
@@ -105,6 +106,34 @@ class PreviewOptions(Options):
         600.0, kind=float, optional=True, low=0, low_open=True, help="seconds before Blender is stopped", cli=False
     )
     no_clobber: bool = option(False, help="refuse to overwrite an existing file")
+    pose: tuple[str, ...] = option(
+        (),
+        kind="strings",
+        help="joints of a rigged tree to bend for the picture, as JOINT=DEGREES (about the joint's X axis)",
+        cli=False,
+    )
+
+    def __post_init__(self):
+        super().__post_init__()
+        self.bends()  # a malformed pose is refused here, before any work
+
+    def bends(self) -> dict[str, float]:
+        """The ``pose`` as ``{joint: degrees}``.
+
+        >>> PreviewOptions(pose=("b3_j0=30", "b5_j1=-12.5")).bends()
+        {'b3_j0': 30.0, 'b5_j1': -12.5}
+        """
+        out = {}
+        for item in self.pose:
+            name, _, degrees = item.partition("=")
+            try:
+                value = float(degrees)
+            except ValueError:
+                value = math.nan
+            if not name.strip() or not math.isfinite(value):
+                raise OptionsError(f"PreviewOptions.pose: expected JOINT=DEGREES, not {clip(repr(item))}")
+            out[name.strip()] = value
+        return out
 
 
 def _is_python(executable: str) -> bool:
@@ -297,6 +326,7 @@ def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None 
                 "threads": options.threads,
                 "material": options.material,
                 "bark_material": tree.bark_material.name,
+                "pose": options.bends(),
             }
             if options.view == "junction":
                 job["focus"] = junction_focus(tree)

@@ -13,8 +13,10 @@ is one object: ``glb`` (the scene), ``png`` (the image to write), ``width``,
 ``background`` (sRGB, 3 floats in [0, 1]), ``margin`` (fraction of the frame
 left around the object), ``threads`` (0: all cores), ``material`` (``asset``,
 or ``checker``: the material named ``bark_material`` becomes glossy with a UV
-checker), and for a close-up ``focus``: ``target``, ``direction`` (towards the
-camera) and ``size`` (the picture's width), in glTF's frame.
+checker), for a close-up ``focus``: ``target``, ``direction`` (towards the
+camera) and ``size`` (the picture's width), in glTF's frame, and ``pose``
+(optional: joint name -> degrees, each pose bone of a rigged tree turned about
+its X axis before the camera is fitted).
 
 The scene: the glTF import (Blender turns glTF's Y up into its Z up, so the
 tree stands on the XY plane), a perspective camera fitted to every mesh vertex
@@ -191,6 +193,21 @@ def _sun(bpy, scene):
     sun.rotation_euler = (-Vector(SUN_DIRECTION)).to_track_quat("-Z", "Y").to_euler()
 
 
+def _pose(bpy, bends):
+    """Turn the pose bones named in ``bends`` (name -> degrees about the bone's X axis)."""
+    bones = {}
+    for armature in (o for o in bpy.data.objects if o.type == "ARMATURE"):
+        for bone in armature.pose.bones:
+            bones[bone.name] = bone
+    missing = sorted(set(bends) - set(bones))
+    if missing:
+        raise RuntimeError(f"preview_blender: no joint named {', '.join(missing)} (is the tree rigged?)")
+    for name, degrees in bends.items():
+        bones[name].rotation_mode = "XYZ"
+        bones[name].rotation_euler = (math.radians(degrees), 0.0, 0.0)
+    bpy.context.view_layer.update()
+
+
 def render(job):
     import bpy
 
@@ -199,6 +216,8 @@ def render(job):
     bpy.ops.import_scene.gltf(filepath=job["glb"])
     if not any(o.type == "MESH" for o in scene.objects):
         raise RuntimeError(f"preview_blender: {job['glb']}: Blender imported no mesh")
+    if job.get("pose"):
+        _pose(bpy, job["pose"])
 
     render = scene.render
     render.engine = "CYCLES"

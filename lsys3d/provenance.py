@@ -141,4 +141,24 @@ def grammar_text(grammar) -> str:
     if grammar.turtle:
         lines.append("[turtle]")
         lines.extend(f"{k} = {json.dumps(v)}" for k, v in grammar.turtle.items())
+    for table in ("materials", "surfaces"):
+        entries = getattr(grammar, table, None)
+        if entries:
+            lines.append(f"[{table}]")
+            lines.extend(f"{json.dumps(str(k))} = {_toml_value(v)}" for k, v in entries.items())
     return "\n".join(lines) + "\n"
+
+
+def _toml_value(value) -> str:
+    """A value of a grammar's table as TOML: strings, numbers, booleans, arrays and inline tables.
+
+    >>> _toml_value({"model": "leaf.glb", "rotate": [90, 0, 0], "normalize": False})
+    '{ "model" = "leaf.glb", "rotate" = [90, 0, 0], "normalize" = false }'
+    """
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, dict) or hasattr(value, "items"):
+        return "{ " + ", ".join(f"{json.dumps(str(k))} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return json.dumps(value)

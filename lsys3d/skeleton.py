@@ -13,7 +13,15 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["Chains", "Skeleton"]
+__all__ = ["MAX_COORDINATE", "Chains", "Skeleton"]
+
+MAX_COORDINATE = 1e9
+"""Largest distance from the origin along any axis, and largest width or leaf size, a skeleton may hold.
+
+A million kilometres: far beyond any plant, and far inside what the mesh stages compute with (the sweep squares
+lengths, the union welds on a 1e-8 grid of 64-bit integers, the files store 32-bit floats).  The turtle refuses
+to go past it, naming the module; the sweep refuses a skeleton built some other way that does.
+"""
 
 
 @dataclass(frozen=True)
@@ -64,6 +72,9 @@ class Skeleton:
     polygon_offsets : (p + 1,) int64
         Points of polygon ``i`` are ``polygon_points[polygon_offsets[i]:polygon_offsets[i+1]]``.
     polygon_material : (p,) int32
+    polygon_segment : (p,) int64 or None
+        The segment the polygon grows from (the last segment drawn in its
+        branch when ``{`` opened it), -1 for none; None when unknown.
 
     Leaf instances (``k``, placed by the leaf symbol):
 
@@ -71,6 +82,8 @@ class Skeleton:
     leaf_size : (k,) float64
         Scale of the leaf model (the step length in force).
     leaf_material : (k,) int32
+    leaf_segment : (k,) int64 or None
+        The segment (twig) the leaf grows from, -1 for none; None when unknown.
     """
 
     start: np.ndarray
@@ -93,6 +106,8 @@ class Skeleton:
     leaf_up: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     leaf_size: np.ndarray = field(default_factory=lambda: np.zeros(0))
     leaf_material: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    polygon_segment: np.ndarray | None = None
+    leaf_segment: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.start.shape[0])
@@ -237,13 +252,13 @@ class Skeleton:
 
     def save_npz(self, path) -> None:
         """Write every array to a NumPy ``.npz`` file."""
-        arrays = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        arrays = {k: getattr(self, k) for k in self.__dataclass_fields__ if getattr(self, k) is not None}
         np.savez(path, **arrays)
 
     @classmethod
     def load_npz(cls, path) -> Skeleton:
         with np.load(path) as data:
-            return cls(**{k: data[k] for k in cls.__dataclass_fields__})
+            return cls(**{k: data[k] for k in cls.__dataclass_fields__ if k in data})
 
     def polylines(self) -> list[np.ndarray]:
         """Each chain as a polyline of points ``(segments + 1, 3)``."""

@@ -36,6 +36,8 @@ class Stream(IntEnum):
     """Sweep: the noise pattern that displaces the bark (``bark_displacement``)."""
     BARK_COLOR = 7
     """Bark colour: the noise pattern of the vertex colours (``bark_color_variation``)."""
+    WIND_PHASE = 8
+    """Hierarchy: the wind phase of each branch (:mod:`lsys3d.hierarchy`)."""
 
 
 def generator(seed: int, stream: Stream) -> np.random.Generator:

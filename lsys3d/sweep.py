@@ -46,7 +46,7 @@ from .bark import bark_noise
 from .errors import GeometryError, LimitError
 from .mesh import Mesh
 from .options import Options, option
-from .skeleton import Skeleton
+from .skeleton import MAX_COORDINATE, Skeleton
 from .streams import Stream
 
 __all__ = ["DEFAULT_MAX_TRIANGLES", "SweepOptions", "Tubes", "sweep"]
@@ -730,14 +730,20 @@ def _subdivide(spacing, sides_of_piece, center, tangent, axis_a, width, v, tv, s
 
 
 def _check_finite(skeleton: Skeleton) -> None:
-    """A NaN or infinite coordinate would pass silently into every tube of its chain: refuse it by name."""
-    ok = np.isfinite(skeleton.start).all(axis=1) & np.isfinite(skeleton.end).all(axis=1)
-    ok &= np.isfinite(skeleton.left).all(axis=1) & np.isfinite(skeleton.width_start) & np.isfinite(skeleton.width_end)
+    """A NaN or infinite coordinate would pass silently into every tube of its chain: refuse it by name.
+
+    So would one too large for the arithmetic of the mesh stages (squared lengths, the union's weld grid,
+    32-bit floats in the files): coordinates and widths are bounded by ``MAX_COORDINATE``.
+    """
+    with np.errstate(invalid="ignore"):  # NaN compares False: refused below
+        ok = (np.abs(skeleton.start) <= MAX_COORDINATE).all(axis=1) & (np.abs(skeleton.end) <= MAX_COORDINATE).all(1)
+        ok &= np.isfinite(skeleton.left).all(axis=1)
+        ok &= (np.abs(skeleton.width_start) <= MAX_COORDINATE) & (np.abs(skeleton.width_end) <= MAX_COORDINATE)
     if not ok.all():
         s = int(np.flatnonzero(~ok)[0])
         raise GeometryError(
             f"sweep: segment {s} (module {int(skeleton.module[s])}) has a start, end, width or frame "
-            "that is not a finite number"
+            f"that is not a finite number, or is beyond {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)"
         )
 
 

@@ -11,12 +11,16 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
+from .hierarchy import Hierarchy
 from .leaves import Leaves
-from .materials import BARK, LEAF, Material
+from .materials import BARK, LEAF, Material, MaterialTable
 from .mesh import Mesh
 from .modules import ModuleString
+from .organs import Organs
 from .provenance import DEFAULT_NAME, Provenance, asset_identifier
+from .rig import Rig
 from .skeleton import Skeleton
+from .wind import Animation
 
 __all__ = ["BARK", "LEAF", "Material", "StageCounts", "Tree"]
 
@@ -56,7 +60,21 @@ class Tree:
         Whether ``bark`` went through the manifold union.
     modules : ModuleString or None
         The derived string the turtle read (None for trees built by hand).
-    bark_material, leaf_material : Material
+    materials : MaterialTable
+        The bark's and the leaves' materials, by the turtle's material index
+        (:mod:`lsys3d.materials`; the two defaults unless the grammar has a
+        ``[materials]`` table).
+    hierarchy : Hierarchy or None
+        The branch hierarchy, when the tree carries hierarchy and wind
+        attributes (the writers write its per-branch table).
+    rig : Rig or None
+        The joints, when the tree is rigged; the bark and the merged leaves
+        then carry their skins (:data:`lsys3d.rig.SKIN_KEYS`).
+    organs : Organs
+        Spheres, discs, boxes and named surfaces (:mod:`lsys3d.organs`): their
+        prototypes and instances, and each prototype's organs merged.
+    animation : Animation or None
+        The sample wind animation of the rig's joints (:mod:`lsys3d.wind`), when asked for.
     lods : tuple of lsys3d.lod.Lod
         Its levels of detail when asked for (``lod=(0, 1, 2, 3)``), level 0
         being ``bark`` and ``leaves`` themselves; empty otherwise.
@@ -69,9 +87,22 @@ class Tree:
     counts: StageCounts = field(default_factory=StageCounts)
     unioned: bool = True
     modules: ModuleString | None = None
-    bark_material: Material = BARK
-    leaf_material: Material = LEAF
+    materials: MaterialTable = field(default_factory=MaterialTable)
+    hierarchy: Hierarchy | None = None
+    rig: Rig | None = None
+    organs: Organs = field(default_factory=Organs)
+    animation: Animation | None = None
     lods: tuple = ()
+
+    @property
+    def bark_material(self) -> Material:
+        """The bark's default material (its segments' index without an entry of its own)."""
+        return self.materials.bark
+
+    @property
+    def leaf_material(self) -> Material:
+        """The leaves' default material."""
+        return self.materials.leaf
 
     @property
     def name(self) -> str:

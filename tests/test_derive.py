@@ -15,6 +15,7 @@ from invariants import balanced
 
 import lsys3d
 from lsys3d import DerivationError, Grammar, LimitError, derive, generations, load_preset, predict_length
+from lsys3d.derive import predict_counts
 from lsys3d.modules import ModuleString, format_number
 
 
@@ -87,6 +88,23 @@ def test_d0l_lengths_equal_the_parikh_count(name):
         assert [result.count(s) for s in symbols] == list(parikh)
         assert lsys3d.predict_length(g, n) == len(result)
         parikh = parikh.dot(growth)
+
+
+@pytest.mark.parametrize("name", [p for p in lsys3d.list_presets() if predict_length(load_preset(p)) is not None])
+def test_predicted_symbol_counts_are_the_derived_counts(name):
+    g = load_preset(name)
+    for n in range(min(g.iterations, 6) + 1):
+        result = derive(g, n)
+        counts = predict_counts(g, n)
+        assert all(counts[s] == result.count(s) for s in counts)
+        assert sum(counts.values()) == len(result) == predict_length(g, n)
+
+
+def test_predicted_counts_saturate_and_refuse_what_they_cannot_know():
+    assert predict_counts(Grammar(axiom="A", rules=["A -> AB", "B -> A"]), 10) == {"A": 89, "B": 55}
+    assert predict_counts(Grammar(axiom="A", rules=["A -> AA"]), 5000) == {"A": 2**53}  # float64: capped where inexact
+    assert predict_counts(load_preset("koch-stochastic")) is None
+    assert predict_counts(load_preset("context-1.31a")) is None
 
 
 def test_both_engines_agree_on_d0l_grammars():
@@ -380,3 +398,122 @@ def test_module_string_equality_and_slices():
     assert a == ModuleString.from_symbols("F[+F]")
     assert a != ModuleString.from_symbols("F[-F]")
     assert str(a[1:4]) == "[+F"
+
+
+def textbook_context(s: str, i: int, left: str, right: list[str], ignore: str) -> bool:
+    """Does module ``i`` of ``s`` have these contexts?  The walk of ABOP section 1.8, one module at a time."""
+    match, stack = {}, []
+    for k, c in enumerate(s):
+        if c == "[":
+            stack.append(k)
+        elif c == "]" and stack:
+            match[k] = stack.pop()
+            match[match[k]] = k
+    j = i - 1
+    for want in reversed(left):
+        while j >= 0 and (s[j] in "[]" or s[j] in ignore):
+            j = match[j] - 1 if s[j] == "]" else j - 1
+        if j < 0 or s[j] != want:
+            return False
+        j -= 1
+    j = i + 1
+    for want in right:
+        if want == "[":
+            while j < len(s) and s[j] in ignore:
+                j += 1
+            if j >= len(s) or s[j] != "[":
+                return False
+        elif want == "]":
+            while j < len(s) and s[j] != "]":
+                j = match[j] + 1 if s[j] == "[" else j + 1
+            if j >= len(s):
+                return False
+        else:
+            while j < len(s) and (s[j] == "[" or s[j] in ignore):
+                j = match[j] + 1 if s[j] == "[" else j + 1
+            if j >= len(s) or s[j] != want:  # a ']' ends the branch: no right context
+                return False
+        j += 1
+    return True
+
+
+RIGHT_PIECES = st.sampled_from(["A", "B", "F", "]", "[A]", "[F]", "[", "["])
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    bracketed(24),
+    st.text("AB", max_size=2),
+    st.sampled_from("ABF"),
+    st.lists(RIGHT_PIECES, max_size=3).map("".join),
+    st.text("+-F", max_size=2),
+)
+def test_context_matching_agrees_with_the_textbook_walk(axiom, left, pred, right, ignore):
+    right = right + "]" * (right.count("[") - right.count("]"))  # a right context may not leave '[' open
+    rule = (f"{left} < " if left else "") + pred + (f" > {right}" if right else "") + " -> X"
+    try:
+        g = Grammar(axiom=axiom or "A", rules=[rule], ignore=ignore)
+    except lsys3d.GrammarError:
+        return
+    s = axiom or "A"
+    pattern = [m.symbol for m in g.productions[0].right]
+    expected = "".join(
+        "X" if c == pred and textbook_context(s, i, left, pattern, ignore) else c for i, c in enumerate(s)
+    )
+    assert str(derive(g, 1)) == expected
+
+
+def test_context_in_long_strings_costs_the_pattern_not_the_string():
+    """Each module's context walk is a table lookup: a predecessor in the ignore set, or ']' as right context,
+    used to walk the whole string for every module (quadratic: minutes at 131,072 modules)."""
+    ignored = Grammar(axiom="B[A]", rules=["B < A -> AA", "A -> A"], ignore="A")
+    branch_end = Grammar(axiom="[A]", rules=["A > ] -> AA"])
+    for g in (ignored, branch_end):
+        assert len(derive(g, 20)) == 2**20 + len(g.axiom) - 1
+
+
+def test_one_generation_is_alive_at_a_time():
+    """derive() used to keep every generation (a grammar holding 131k modules for 183 generations took 22.9 GB)."""
+    import tracemalloc
+
+    g = Grammar(axiom="A(0)", rules=["A(x) : x < 12 -> A(x + 1)A(x + 1)", "A(x) : x >= 12 -> A(x + 1)"])
+    one = derive(g, 12)
+    size = one.symbols.nbytes + one.arity.nbytes + one.params.nbytes + one.offsets.nbytes
+    tracemalloc.start()
+    try:
+        held = derive(g, 200)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert str(held[:1]) == "A(200)" and len(held) == 4096
+    assert peak < 20 * size  # two generations and the step's temporaries (7x), not 188 generations (196x)
+
+
+def test_an_unbalanced_start_string_ends_context_walks():
+    """A start string from Python may leave a bracket unmatched: the walk ends there (it used to loop forever)."""
+    g = Grammar(axiom="A", rules=["A > B -> X", "B < A -> Y"])
+    for text, expected in (("[AB", "[XB"), ("AB]A", "XB]A"), ("]A[B", "]A[B"), ("A[", "A[")):
+        assert str(derive(g, 1, start=ModuleString.from_symbols(text))) == expected, text
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from("AF+[]é"),
+            st.lists(st.sampled_from([0.0, -0.0, 1.0, 1.5, -2.25, 1e-9, 8 / 7, 1e300, -7e-7]), max_size=3),
+        ),
+        max_size=40,
+    ),
+    st.integers(1, 9),
+)
+def test_text_pieces_equal_the_text_of_each_module(modules, chunk):
+    alphabet = ModuleString.from_symbols("").alphabet[:128] + "é" + "\0" * 127
+    ms = ModuleString(
+        np.array([ord(c) if c != "é" else 128 for c, _ in modules], np.uint8),
+        np.array([len(args) for _, args in modules], np.uint8),
+        np.array([x for _, args in modules for x in args], np.float64),
+        alphabet,
+    )
+    expected = "".join(ms.module_text(i) for i in range(len(ms)))
+    assert "".join(ms.iter_text(chunk)) == str(ms) == expected

@@ -61,3 +61,25 @@ def test_architecture_names_what_exists():
     modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / "lsys3d").rglob("*.py") if p.name != "__init__.py"}
     missing = sorted(m for m in modules if m not in text and m.split("/")[-1] not in ("__main__.py",))
     assert not missing, f"docs/architecture.md does not mention {missing}"
+
+
+@pytest.mark.parametrize("text", [b for b in blocks("toml") if "[[jobs]]" in b.values[0]])
+def test_jobs_file_examples_parse(text, tmp_path):
+    """A jobs file in the docs reads (the grammar files it names exist beside it, as one would have them)."""
+    from lsys3d.jobs import read_jobs
+
+    for name in re.findall(r'"([\w/]+\.toml)"', text):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text('axiom = "F"\nrules = ["F -> F[+F]F"]\n')
+    path = tmp_path / "jobs.toml"
+    path.write_text(text)
+    assert read_jobs(path)
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "docs" / "looks").glob("*.toml")), ids=lambda p: p.name)
+def test_looks_grammars_grow(path, tmp_path):
+    """The example grammars of docs/looks.md grow with the textures and models beside them, and export."""
+    tree = lsys3d.generate(path, iterations=3)
+    assert tree.materials and tree.bark.is_watertight
+    lsys3d.export(tree, tmp_path / "look.glb")
+    lsys3d.export(tree, tmp_path / "look.usdz")

@@ -5,16 +5,15 @@ from __future__ import annotations
 import errno
 import json
 import re
-import struct
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import export_fixtures as fx
 import numpy as np
 import pytest
 import trimesh
 import validators
+from gltf_files import accessor, node, read_glb
 
 from lsys3d.errors import ExportError, OptionsError
 from lsys3d.exchange import SUPPORTED_SUFFIXES, ExportOptions, atomic, export
@@ -26,39 +25,6 @@ from lsys3d.exchange.common import decompose_transforms, gather_mesh
 @pytest.fixture(scope="module")
 def tree():
     return fx.make_tree()
-
-
-def read_glb(path: Path) -> tuple[dict, bytes]:
-    data = path.read_bytes()
-    magic, version, length = struct.unpack_from("<4sII", data, 0)
-    assert (magic, version, length) == (b"glTF", 2, len(data))
-    json_len, json_type = struct.unpack_from("<I4s", data, 12)
-    assert json_type == b"JSON" and json_len % 4 == 0
-    doc = json.loads(data[20 : 20 + json_len])
-    bin_len, bin_type = struct.unpack_from("<I4s", data, 20 + json_len)
-    assert bin_type == b"BIN\0" and bin_len % 4 == 0
-    binary = data[28 + json_len : 28 + json_len + bin_len]
-    assert 28 + json_len + bin_len == len(data)
-    return doc, binary
-
-
-DTYPES = {5126: np.float32, 5123: np.uint16, 5125: np.uint32}
-WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
-
-
-def accessor(doc: dict, binary: bytes, index: int) -> np.ndarray:
-    acc = doc["accessors"][index]
-    view = doc["bufferViews"][acc["bufferView"]]
-    dtype = np.dtype(DTYPES[acc["componentType"]])
-    width = WIDTH[acc["type"]]
-    start = view["byteOffset"] + acc.get("byteOffset", 0)
-    out = np.frombuffer(binary, dtype, acc["count"] * width, start)
-    return out.reshape(-1, width) if width > 1 else out
-
-
-def node(doc: dict, name: str) -> dict:
-    (found,) = [n for n in doc["nodes"] if n.get("name") == name]
-    return found
 
 
 # ---------------------------------------------------------------- structure
@@ -398,11 +364,11 @@ def test_failing_usd_writer_keeps_the_old_file(tree, tmp_path, monkeypatch):
     target = tmp_path / "tree.usdc"
     target.write_bytes(b"good old asset")
 
-    def export_layer(layer, tmp, path):
+    def export_crate(stage, tmp, path):
         tmp.write_bytes(b"half a crate")
         raise OSError(errno.EIO, "Input/output error")
 
-    monkeypatch.setattr(usd, "_export_layer", export_layer)
+    monkeypatch.setattr(usd, "_export_crate", export_crate)
     with pytest.raises(ExportError, match=re.escape(f"{target}: input/output error")):
         export(tree, target)
     assert target.read_bytes() == b"good old asset"

@@ -231,8 +231,10 @@ def test_parameter_count_limit():
 
 
 def test_missing_file_is_a_grammar_error(tmp_path):
-    with pytest.raises(GrammarError, match="cannot read"):
+    with pytest.raises(GrammarError, match=r"nope\.toml: no such grammar file"):
         Grammar.from_file(tmp_path / "nope.toml")
+    with pytest.raises(GrammarError, match="cannot read grammar file: is a directory"):
+        Grammar.from_file(tmp_path)
 
 
 # -- presets -------------------------------------------------------------------------------------------------

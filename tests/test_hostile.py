@@ -10,10 +10,16 @@
   tests/test_hostile.py -k random`` (or ``--hypothesis-profile=fuzz``) runs 2000 random ones per test (about
   two minutes).
 * Nothing lost: a failed or interrupted export keeps the old file and leaves no temporary file.
+
+Round 2 (issue 18), at the end of the file: bombs inside every documented limit run in a subprocess whose
+address space is capped (RLIMIT_AS), so a regression fails instead of swapping; more bad inputs whose only
+acceptable outcome is one line; every output format written under RLIMIT_FSIZE and onto a full tmpfs (where
+mounting is allowed), and interrupted by SIGTERM and SIGHUP; the option classes' cases wait for issue 13.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import errno
 import importlib
 import json
@@ -22,6 +28,7 @@ import re
 import signal
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -44,8 +51,10 @@ from lsys3d import (
     ModuleString,
     OptionsError,
     TurtleOptions,
+    golden,
 )
 from lsys3d.cli import build_parser, main
+from lsys3d.errors import GoldenError
 from lsys3d.exchange import atomic
 from lsys3d.pipeline import GenerateOptions
 from lsys3d.sweep import DEFAULT_MAX_TRIANGLES, sweep
@@ -229,7 +238,7 @@ def cli(*argv: str, setup=None):
         out = ctx.capsys.readouterr()
         lines = out.err.splitlines()
         assert len(lines) == 1 and lines[0].startswith("lsys3d: error: ") and fragment in lines[0], out.err
-        assert "Traceback" not in out.err
+        assert "Traceback" not in out.err and "\x1b" not in out.err  # escape sequences are printed escaped
 
     return run
 
@@ -367,7 +376,7 @@ CASES = [
     ("nan-parameter", grow('axiom = "A(1e308)"\nrules = ["A(x) -> A(x*10 - x*10)"]\n'), DerivationError, "NaN"),
     ("overflow-exp", grow('axiom = "A(1000)"\nrules = ["A(x) -> A(exp(x))"]\n'), DerivationError, "exp(x)"),
     ("domain-sqrt", grow('axiom = "A(-1)"\nrules = ["A(x) -> A(sqrt(x))"]\n'), DerivationError, "square root"),
-    ("turtle-position-overflow", grow('axiom = "F(1e308)F(1e308)"\n'), InterpretError, "became infinite"),
+    ("turtle-position-overflow", grow('axiom = "F(1e308)F(1e308)"\n'), InterpretError, "left the drawable range"),
     ("turtle-step-overflow", grow('axiom = "\\"(1e300)\\"(1e300)F"\n'), InterpretError, "step length"),
     ("turtle-nan-parameter", api(turtle_nan), InterpretError, "not a finite number"),
     ("start-nan-parameter", api(start_nan), DerivationError, "start string: module A(nan)"),
@@ -471,7 +480,7 @@ def test_defaults_leave_every_preset_a_hundredfold_headroom():
         skeleton = interpret(modules, g)
         tubes = sweep(skeleton)
         most = {
-            "modules": max(most["modules"], len(modules)),
+            "modules": max(most["modules"], len(modules) + derive_module.PARAMETER_COST * len(modules.params)),
             "segments": max(most["segments"], len(skeleton)),
             "triangles": max(most["triangles"], len(tubes.faces)),
         }
@@ -706,3 +715,519 @@ def test_a_real_sigint_exits_130_and_keeps_the_old_file(tmp_path):
     assert "Traceback" not in rest
     assert target.read_bytes() == b"good old asset"
     assert [p.name for p in tmp_path.iterdir()] == ["tree.glb"]
+
+
+# ================================================================ round 2 (issue 18)
+# Bombs inside every documented limit, tracebacks, and nothing lost on a full disk or a SIGTERM.
+BIG_INT = "1" + "0" * 400  # a TOML integer far beyond float range
+X32 = ",".join(f"x{i}" for i in range(32))  # 32 formal parameters
+DERIVE_CAP = 3 << 29  # 1.5 GiB of address space: derivation and printing (a bare `lsys3d derive` maps ~0.4 GiB)
+MESH_CAP = 3 << 30  # 3 GiB for commands that load USD and build meshes (USD alone maps ~0.9 GiB)
+
+
+def run_lsys3d(argv, cwd: Path, *, cap: int = DERIVE_CAP, fsize: int | None = None, timeout: float = 60, env=None):
+    """``python -m lsys3d argv`` in a subprocess whose address space is capped (RLIMIT_AS), and optionally its
+    file size (RLIMIT_FSIZE: a write past it fails with EFBIG; Python ignores SIGXFSZ)."""
+    import resource
+
+    def limits():
+        resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+        if fsize is not None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
+
+    return subprocess.run(
+        [sys.executable, "-m", "lsys3d", *argv],
+        cwd=cwd,
+        preexec_fn=limits,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=env,
+    )
+
+
+def one_error_line(proc: subprocess.CompletedProcess, fragment: str) -> str:
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("lsys3d: error: ") and fragment in lines[0], proc.stderr
+    return lines[0]
+
+
+def leftovers(folder: Path) -> list[str]:
+    """Temporary files of any writer left in ``folder``: ours (.<name>.<hex>.tmp.*), USD's (.<name>...tmp.XXXXXX)."""
+    return sorted(p.name for p in folder.iterdir() if ".tmp" in p.name or p.name.startswith("lsys3d-"))
+
+
+def rules_toml(axiom: str, rules: list[str], iterations: int, extra: str = "") -> str:
+    body = ",\n".join(f"  {toml_string(r)}" for r in rules)
+    return f"axiom = {toml_string(axiom)}\niterations = {iterations}\nrules = [\n{body}\n]\n{extra}"
+
+
+BOMBS = [
+    # D0L: B is never reached from the axiom; it used to be expanded anyway (23 GB at 40 steps)
+    ("unreachable", rules_toml("A", ["A -> A", "B -> BB"], 40), ["derive"], 0, lambda out: out == "A\n"),
+    # grows to 131,072 modules, then stops changing: that string is the rest of the generations (every
+    # generation was kept: 22.9 GB); tests/test_derive.py checks that one generation is alive at a time
+    (
+        "fixed-point",
+        rules_toml("A(0)", ["A(x) : x < 17 -> A(x + 1)A(x + 1)"], 10_000),
+        ["stats", "--json"],
+        0,
+        lambda out: json.loads(out)["derive"]["modules"] == 2**17,
+    ),
+    # parameters count: 32-parameter modules at a third of the module limit took 11 GB
+    (
+        "parameters",
+        rules_toml("A(" + ",".join(["1"] * 32) + ")", [f"A({X32}) -> A({X32})A({X32})"], 24),
+        ["derive"],
+        1,
+        lambda out: out == "",
+    ),
+    # ... also where the length depends on the values (a condition): checked before each generation is allocated
+    (
+        "parameters-conditional",
+        rules_toml("A(" + ",".join(["1"] * 32) + ")", [f"A({X32}) : x0 > 0 -> A({X32})A({X32})"], 24),
+        ["derive", "--max-modules", "5000000"],  # refused at generation 19 (at 22 by default: 1.8 GB, 10 s)
+        1,
+        lambda out: out == "",
+    ),
+    # ABOP-style context with the predecessor in the ignore set, and ']' as right context: quadratic before
+    (
+        "context-ignored-predecessor",
+        rules_toml("B[A]", ["B < A -> AA", "A -> A"], 17, 'ignore = "A"\n'),
+        ["stats", "--json"],
+        0,
+        lambda out: json.loads(out)["derive"]["modules"] == 2**17 + 3,
+    ),
+    (
+        "context-branch-end",
+        rules_toml("[A]", ["A > ] -> AA"], 17),
+        ["stats", "--json"],
+        0,
+        lambda out: json.loads(out)["derive"]["modules"] == 2**17 + 2,
+    ),
+]
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_AS")
+@pytest.mark.parametrize(("text", "argv", "status", "check"), [pytest.param(*b[1:], id=b[0]) for b in BOMBS])
+def test_bombs_inside_the_limits_end_within_memory_and_time(tmp_path, text, argv, status, check):
+    (tmp_path / "bomb.toml").write_text(text)
+    proc = run_lsys3d([*argv, "bomb.toml"], tmp_path, cap=MESH_CAP)  # the goal is 4 GB
+    assert proc.returncode == status, proc.stderr[-2000:]
+    assert check(proc.stdout), proc.stdout[:200]
+    if status:
+        one_error_line(proc, "parameters (each counts as 0.4 of a module)")
+    else:
+        assert proc.stderr == ""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_AS")
+def test_derive_prints_a_long_string_without_holding_its_text(tmp_path):
+    """4,194,304 four-parameter modules (50 MB of text, 16.8M numbers) through a pipe: the text is streamed, each
+    distinct number formatted once (str() held every number as a Python float and a string: 8.1 GB at 16.8M)."""
+    (tmp_path / "long.toml").write_text(rules_toml("A(1,2,3,4)", ["A(a,b,c,d) -> A(a+1,b,c,d)A(a,b+0.5,c,d)"], 22))
+    import resource
+
+    def cap():
+        resource.setrlimit(resource.RLIMIT_AS, (DERIVE_CAP, DERIVE_CAP))
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "lsys3d", "derive", "long.toml"],
+        cwd=tmp_path,
+        preexec_fn=cap,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    size, head, tail = 0, b"", b""
+    while chunk := proc.stdout.read(1 << 20):
+        head = head or chunk[:40]
+        tail = (tail + chunk)[-40:]
+        size += len(chunk)
+    assert proc.wait(timeout=120) == 0, proc.stderr.read().decode()[-2000:]
+    assert head.startswith(b"A(23,2,3,4)A(22,2.5,3,4)") and tail.endswith(b"A(1,13,3,4)\n")
+    assert size > 45_000_000
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_AS")
+def test_grammar_parsing_is_linear_in_the_number_of_rules(tmp_path):
+    """20,000 short rules parse within the time and memory goals (was quadratic: > 120 s, 15 GB); an error in
+    the first of 4,000 identical rules is reported at once (it waited for the whole file: 119 s)."""
+    many = [f"{'ABCDEFGHIJKLMNOPQRSTUVWXYZ'[i % 26]}(x) : x > {i} -> {'ABCDEFGH'[i % 8]}(x + 1)" for i in range(20_000)]
+    (tmp_path / "many.toml").write_text(rules_toml("A(1)", many, 1))
+    proc = run_lsys3d(["derive", "many.toml"], tmp_path)
+    assert proc.returncode == 0 and proc.stdout == "A(2)\n", proc.stderr[-2000:]  # the first rule for A applies
+    (tmp_path / "same.toml").write_text(rules_toml("F", ["F -> F("] + ["F -> FF"] * 4000, 1))
+    proc = run_lsys3d(["derive", "same.toml"], tmp_path)
+    assert proc.returncode == 1
+    one_error_line(proc, "same.toml:4:10: unclosed '(' after 'F'")
+
+
+def test_many_identical_stochastic_rules_pick_in_linear_time():
+    """4,000 equal alternatives of one pool: each module's choice is found by one sort, not a pass per rule."""
+    g = Grammar(axiom="F" * 20_000, rules=[f"F -> {c}" for c in "ABCD"] * 1000)
+    counts = {c: str(lsys3d.derive(g, 1, seed=3)).count(c) for c in "ABCD"}
+    assert sum(counts.values()) == 20_000 and min(counts.values()) > 4000
+
+
+def test_equal_weights_whose_sum_overflows_are_still_equal():
+    g = Grammar(axiom="F" * 4000, rules=["F -> A : 1e308", "F -> B : 1e308"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no RuntimeWarning either
+        text = str(lsys3d.derive(g, 1, seed=5))
+    assert abs(text.count("A") / 4000 - 0.5) < 0.05
+
+
+def test_iter_text_is_the_canonical_text_in_pieces():
+    g = Grammar(axiom="A(0.5, -0, 1e-9)[+F(2)]B", rules=["A(x, y, z) -> A(x * 2, y, z)F(1 / 7)A(x, -y, z)"])
+    s = lsys3d.derive(g, 5)
+    for chunk in (1, 3, 7, 1 << 16):
+        pieces = list(s.iter_text(chunk))
+        assert "".join(pieces) == str(s) and len(pieces) == -(-len(s) // chunk)
+    assert str(lsys3d.derive(g, 1)) == "A(1,0,0)F(0.142857)A(0.5,0,0)[+F(2)]B"
+
+
+# ---------------------------------------------------------------- round 2: one line, never a traceback
+def symlink_loop(ctx):
+    os.symlink("loop.toml", ctx.tmp / "loop.toml")
+
+
+def looping_folder(ctx):
+    os.symlink("loopdir", ctx.tmp / "loopdir")
+
+
+def deep_golden(ctx):
+    ctx.file('{"a":' * 3000 + "1" + "}" * 3000, "deep.json")
+    golden.check(ctx.tmp / "deep.json")
+
+
+def huge_float32_leaves(ctx):
+    tree = lsys3d.generate(Grammar(axiom="F~(0.5)"), union=False)
+    tree = dataclasses.replace(
+        tree, leaves=dataclasses.replace(tree.leaves, transforms=tree.leaves.transforms * 1e39)
+    )  # scale 5e38: past float32
+    lsys3d.export(tree, ctx.tmp / "t.glb", lsys3d.ExportOptions(instance_leaves=True))
+
+
+def huge_svg_widths(ctx):
+    tree = lsys3d.generate(Grammar(axiom="F"), union=False)
+    sk = tree.skeleton
+    wide = dataclasses.replace(sk, width_start=sk.width_start * 1e308, width_end=sk.width_end * 1e308)
+    lsys3d.export(dataclasses.replace(tree, skeleton=wide), ctx.tmp / "t.svg")
+
+
+def steps_file(ctx):
+    ctx.file('axiom = "F(1e200)+F(1e200)"\n', "huge.toml")
+
+
+ROUND_2 = [
+    # -- TOML: numbers beyond float range, nesting
+    ("toml-angle-beyond-float", grow(F + f"angle = {BIG_INT}\n"), GrammarError, "'angle' must be a number"),
+    ("toml-define-beyond-float", grow(F + f"[defines]\nR = {BIG_INT}\n"), GrammarError, "define 'R' must be a finite"),
+    ("toml-nested-deeply", grow(F + "x = " + "[" * 3000 + "]" * 3000 + "\n"), GrammarError, "nested too deeply"),
+    ("toml-key-escape-sequence", grow(F + '"\\u001b[2J" = 1\n'), GrammarError, "unknown key '\\x1b[2J'"),
+    # -- grammar paths
+    ("path-too-long", cli("derive", "{tmp}/" + "x" * 300 + ".toml"), GrammarError, "file name too long"),
+    ("path-symlink-loop", cli("derive", "{tmp}/loop.toml", setup=symlink_loop), GrammarError, "symbolic links"),
+    ("path-folder", cli("derive", "{tmp}"), GrammarError, "cannot read grammar file: is a directory"),
+    ("preset-escape-sequence", cli("derive", "\x1b]0;owned\x07tree"), GrammarError, "'\\x1b]0;owned\\x07tree'"),
+    # -- sizes the mesh stages cannot compute with: the turtle names the module and the setting
+    ("turtle-step-huge", cli("generate", "{tmp}/huge.toml", "-o", "{tmp}/t.glb", setup=steps_file), InterpretError,
+     "module 0 'F(1e+200)' (forward): the turtle's position left the drawable range"),
+    ("turtle-width-huge", grow('axiom = "!(1e300)F"\n'), InterpretError, "width must be a number from 0 to 1e+09"),
+    ("turtle-leaf-huge", grow('axiom = "F~(1e300)"\n'), InterpretError, "leaf size must be a number from 0 to 1e+09"),
+    ("export-leaf-beyond-float32", api(huge_float32_leaves), ExportError, "beyond the 32-bit float range"),
+    ("export-svg-width-overflow", api(huge_svg_widths), ExportError, "extent (with the branch widths) holds a value"),
+    # -- output paths
+    ("output-name-too-long", cli("generate", "koch", "-o", "{tmp}/" + "t" * 300 + ".glb"), ExportError,
+     "file name too long"),
+    ("output-folder-loop", cli("generate", "koch", "-o", "{tmp}/loopdir/t.glb", setup=looping_folder), ExportError,
+     "too many levels of symbolic links"),
+    # -- golden files
+    ("golden-nested-deeply", api(deep_golden), GoldenError, "nested too deeply"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("run", "error", "fragment"), [pytest.param(*c[1:], id=c[0]) for c in ROUND_2])
+def test_bad_input_round_2(tmp_path, monkeypatch, capsys, run, error, fragment):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # numpy's warnings would be lines of their own
+        run(Context(tmp_path, monkeypatch, capsys), error, fragment)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["check", "x.json", "--rtol", "-1"], ["check", "x.json", "--rtol", "nan"], ["check", "x.json", "--rtol", "inf"]],
+)
+def test_bad_tolerances_are_usage_errors(capsys, argv):
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    assert "--rtol: must be a finite number >= 0" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "fragment"),
+    [
+        ("iterations", -1, "'iterations' must be a whole number >= 0, not -1"),
+        ("iterations", "3", "'iterations' must be a whole number >= 0"),
+        ("iterations", True, "'iterations' must be a whole number >= 0, not true"),
+        ("iterations", float("nan"), "'iterations' must be a whole number >= 0, not NaN"),
+        ("seed", 1.5, "'seed' must be a whole number >= 0"),
+        ("mesh", "yes", "'mesh' must be true or false"),
+        ("preset", 7, "'preset' must be a preset's name"),
+        ("preset", "tree3d\x00", "'preset' must be a preset's name"),
+        ("preset", "../../etc/passwd", "no bundled preset named '../../etc/passwd'"),
+        ("file", "plant\x00.toml", "'file' must be a file name"),
+        ("text", 5, "'text' must be the grammar's text"),
+        ("iterations", 10**400, "more than the limit of 10,000"),
+        ("options", [], "'options' must be a table of options"),
+        ("options", {"sweep": {"sides": 2}}, "recipe options: SweepOptions.sides"),
+        ("options", {"colour": 1}, "recipe options: unknown option 'colour'"),
+        ("grammar_sha256", 5, "'grammar_sha256' must be a text"),
+    ],
+)
+def test_golden_recipe_fields_are_checked(tmp_path, capsys, field, value, fragment):
+    recipe = {"iterations": 1, "seed": 0, "mesh": False, field: value}
+    if field not in ("file", "text"):
+        recipe.setdefault("preset", "koch")
+    path = tmp_path / "g.json"
+    path.write_text(json.dumps({"lsys3d_golden": 1, "recipe": recipe, "report": {}}))
+    with pytest.raises(GoldenError, match=re.escape(fragment)):
+        golden.check(path)
+    assert main(["check", str(path)]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"lsys3d: error: {path}: ") and "Traceback" not in err[0]
+
+
+def test_a_name_with_control_characters_makes_well_formed_svg(tmp_path):
+    import xml.dom.minidom
+
+    tree = lsys3d.generate(Grammar(axiom="F[+F]F", name="plant\x01\x1b[2J\x7f"), union=False)
+    path = lsys3d.export(tree, tmp_path / "t.svg")
+    document = xml.dom.minidom.parse(str(path))
+    assert document.getElementsByTagName("title")[0].firstChild.data == "plant\\x01\\x1b[2J\\x7f"
+
+
+def test_lone_surrogates_are_refused_where_they_enter():
+    with pytest.raises(GrammarError, match=r"'name' is not valid Unicode text \(a lone surrogate at character 3\)"):
+        Grammar(axiom="F", name="ab\udcff")
+
+
+def test_a_long_file_name_gets_a_shorter_temporary_name(tmp_path):
+    """A 251-byte name is valid; its temporary name (16 bytes longer) would not be, so its stem is cut."""
+    for suffix in (".glb", ".usdc", ".usdz"):
+        target = tmp_path / ("t" * (251 - len(suffix)) + suffix)
+        assert lsys3d.export(lsys3d.generate("koch", 1, union=False), target) == target
+    assert leftovers(tmp_path) == [] and len(list(tmp_path.iterdir())) == 3
+
+
+def test_echoed_paths_are_escaped(tmp_path, capsys):
+    """A file name with an escape sequence (or undecodable bytes) is printed escaped, never raw."""
+    name = tmp_path / "tree\x1b[2J\udcff.glb"
+    assert main(["generate", "koch", "-n", "1", "-o", str(name)]) == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out and "tree\\x1b[2J\\udcff.glb" in out
+
+
+# ---------------------------------------------------------------- round 2: the options checker (issue 13)
+
+
+@pytest.mark.parametrize(
+    "table", [f"step = {BIG_INT}", f"width = {BIG_INT}", f"tropism = [{BIG_INT}, 0, 0]", f"angle_jitter = {BIG_INT}"]
+)
+def test_turtle_table_integers_beyond_float_range(tmp_path, capsys, table):
+    path = tmp_path / "plant.toml"
+    path.write_text(f'axiom = "F"\n[turtle]\n{table}\n')
+    with pytest.raises(LSystemError) as info:
+        lsys3d.generate(path, union=False)
+    check_message(str(info.value), "[turtle]")
+    assert main(["generate", str(path), "--no-union", "-o", str(tmp_path / "t.glb")]) == 1
+    assert len(capsys.readouterr().err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("argv", [["--turtle", f"step={BIG_INT}"], ["--sides", BIG_INT]])
+def test_option_flags_beyond_float_range(tmp_path, capsys, argv):
+    with pytest.raises(SystemExit) as info:  # usage errors, or ...
+        code = main(["generate", "koch", "-n", "1", "--no-union", "-o", str(tmp_path / "t.glb"), *argv])
+        raise SystemExit(code)  # ... errors of the options checker
+    assert info.value.code in (1, 2)
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("lsys3d: error: ")
+
+
+@pytest.mark.parametrize(
+    "build",
+    [
+        lambda: lsys3d.TurtleOptions(step=int(BIG_INT)),
+        lambda: lsys3d.SweepOptions(sides=int(BIG_INT)),
+        lambda: lsys3d.SweepOptions(bark_octaves=10**9),  # a time bomb: 1e9 octaves of noise per vertex
+        lambda: lsys3d.generate("koch", 1, union=False, options=GenerateOptions(turtle={"step": int(BIG_INT)})),
+    ],
+)
+def test_option_classes_raise_lsys3d_errors(build):
+    with pytest.raises(LSystemError) as info:
+        build()
+    check_message(str(info.value), "")
+
+
+@pytest.mark.parametrize("table", ["step = 1e400", "tropism = [1e400, 0, 0]"])
+def test_turtle_table_infinities_are_one_line(tmp_path, capsys, table):
+    """Floats that overflow to inf: one line from a grammar (exit 1), a usage error from a flag (exit 2)."""
+    path = tmp_path / "plant.toml"
+    path.write_text(f'axiom = "F"\n[turtle]\n{table}\n')
+    assert main(["generate", str(path), "--no-union", "-o", str(tmp_path / "t.glb")]) == 1
+    with pytest.raises(SystemExit) as info:
+        main(["generate", "koch", "-n", "1", "--turtle", "step=1e400", "-o", str(tmp_path / "t.glb")])
+    assert info.value.code == 2
+    assert all(line.startswith("lsys3d: error: ") for line in capsys.readouterr().err.splitlines())
+
+
+# ---------------------------------------------------------------- round 2: full disk, every format
+OUTPUTS = [".glb", ".gltf", ".usda", ".usdc", ".usd", ".usdz", ".obj", ".ply", ".stl", ".svg"]
+
+# One process writes every format in turn (each a whole `lsys3d generate`), so the suite pays Python's and
+# USD's start-up once.  argv: what to do ("fsize BYTES", "signal NAME" or "plain -"), the folder, the suffixes.
+EVERY_FORMAT = """
+import contextlib, io, json, os, resource, signal, sys
+from lsys3d.cli import main
+from lsys3d.exchange import atomic, usd
+
+kind, value, folder, *suffixes = sys.argv[1:]
+if kind == "fsize":  # a write past it fails with EFBIG (Python ignores SIGXFSZ)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (int(value), int(value)))
+elif kind == "signal":  # the signal arrives while the writer has a temporary file open
+    def during(fn):
+        def wrapped(*args, **kw):
+            result = fn(*args, **kw)
+            os.kill(os.getpid(), getattr(signal, value))
+            return result
+        return wrapped
+    atomic._write_chunks = during(atomic._write_chunks)  # every writer but USD's crate
+    usd._whole_crate = during(usd._whole_crate)  # right after USD wrote a crate (.usdc/.usd, inside a .usdz)
+results = {}
+for suffix in suffixes:
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = main(["generate", "tree3d", "-n", "4", "--no-union", "-o", os.path.join(folder, "tree" + suffix)])
+    results[suffix] = [code, err.getvalue()]
+print(json.dumps(results))
+"""
+
+
+def every_format(kind: str, value, folder: Path, suffixes=OUTPUTS) -> dict[str, tuple[int, str, dict]]:
+    """Write each format over old files in ``folder`` under a file-size limit or a signal; returns, per suffix,
+    the exit status, stderr and the old files' contents afterwards (which must be the old contents)."""
+    olds = {}
+    for suffix in suffixes:
+        olds[suffix] = {folder / f"tree{suffix}": f"good old {suffix}".encode()}
+        if suffix == ".gltf":
+            olds[suffix][folder / "tree.bin"] = b"good old buffer"
+    scratch = folder.parent / "tmpdir"
+    scratch.mkdir(exist_ok=True)
+    env = {**os.environ, "TMPDIR": str(scratch)}
+    results = {}
+    for suffix in suffixes:  # one at a time: the .gltf's tree.bin is not the .glb's
+        for path, data in olds[suffix].items():
+            path.write_bytes(data)
+    proc = subprocess.run(
+        [sys.executable, "-c", EVERY_FORMAT, kind, str(value), str(folder), *suffixes],
+        cwd=folder.parent,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    for suffix, (code, err) in json.loads(proc.stdout.splitlines()[-1]).items():
+        results[suffix] = (code, err, {p: p.read_bytes() for p in olds[suffix]} == olds[suffix])
+    assert leftovers(folder) == [] and list(scratch.iterdir()) == []  # ours, USD's, the temp directory's
+    return results
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_FSIZE")
+def test_file_size_limit_keeps_the_old_file_for_every_format(tmp_path):
+    """``ulimit -f``: every writer fails with 'file too large' (USD's said 'crate file corrupt'; .usdz exited 0
+    with a truncated package), keeps the old file, and leaves no temporary file, there or in TMPDIR."""
+    folder = tmp_path / "out"
+    folder.mkdir()
+    results = every_format("fsize", 20_000, folder)  # each format writes more (the smallest, .svg, 33 KB)
+    for suffix, (code, err, kept) in results.items():
+        assert (code, kept) == (1, True), (suffix, err)
+        assert (
+            err == f"lsys3d: error: {folder / ('tree.bin' if suffix == '.gltf' else 'tree' + suffix)}: file too large\n"
+        )
+
+
+@pytest.fixture
+def small_tmpfs(tmp_path):
+    """A 64 KiB tmpfs, where mounting is allowed (root on Linux); skipped elsewhere."""
+    folder = tmp_path / "small"
+    folder.mkdir()
+    if sys.platform != "linux" or os.geteuid() != 0:
+        pytest.skip("mounting a tmpfs needs root on Linux")
+    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(folder)], capture_output=True)
+    if proc.returncode:
+        pytest.skip(f"cannot mount a tmpfs: {proc.stderr.decode().strip()}")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=True)
+
+
+def test_full_file_system_keeps_the_old_file_for_every_format(small_tmpfs):
+    """A full disk: 'no space left on device' for every format (the old files take 44 of the 64 KiB, every
+    output is larger than the 20 KiB left), the old files kept, nothing left behind."""
+    for suffix, (code, err, kept) in every_format("plain", "-", small_tmpfs).items():
+        assert (code, kept) == (1, True), (suffix, err)
+        assert err.endswith(": no space left on device\n") and len(err.splitlines()) == 1, (suffix, err)
+
+
+# ---------------------------------------------------------------- round 2: SIGTERM and SIGHUP
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGHUP"])
+def test_sigterm_during_export_keeps_the_old_file_and_leaves_nothing(tmp_path, signame):
+    folder = tmp_path / "out"
+    folder.mkdir()
+    suffixes = OUTPUTS if signame == "SIGTERM" else [".glb", ".usdc", ".usdz"]
+    for suffix, (code, err, kept) in every_format("signal", signame, folder, suffixes).items():
+        assert (code, kept) == (128 + getattr(signal, signame), True), (suffix, err)
+        assert err == f"lsys3d: interrupted ({signame})\n", suffix
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def test_a_real_sigterm_exits_143_and_keeps_the_old_file(tmp_path):
+    target = tmp_path / "tree.usdz"
+    target.write_bytes(b"good old asset")
+    scratch = tmp_path / "tmpdir"
+    scratch.mkdir()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "lsys3d", "-v", "generate", "tree3d", "-n", "7", "-o", str(target)],
+        stderr=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "TMPDIR": str(scratch)},
+    )
+    seen = []
+    for line in proc.stderr:  # -v logs each stage once it is done; terminate the sweep or the union
+        seen.append(line)
+        if line.startswith("lsys3d: interpret"):
+            proc.send_signal(signal.SIGTERM)
+            break
+    rest = proc.stderr.read()
+    assert proc.wait(timeout=120) == 143, "".join(seen) + rest
+    assert rest.splitlines()[-1] == "lsys3d: interrupted (SIGTERM)" and "Traceback" not in rest
+    assert target.read_bytes() == b"good old asset"
+    assert leftovers(tmp_path) == [] and list(scratch.iterdir()) == []
+
+
+def test_an_ignored_sighup_stays_ignored():
+    from lsys3d.cli import _signals_interrupt
+
+    previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        with _signals_interrupt():
+            assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+            assert signal.getsignal(signal.SIGTERM) not in (signal.SIG_DFL, signal.SIG_IGN)
+        assert signal.getsignal(signal.SIGTERM) is not None
+    finally:
+        signal.signal(signal.SIGHUP, previous)

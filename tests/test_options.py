@@ -9,21 +9,40 @@ import math
 import pytest
 
 import lsys3d
+from lsys3d.attributes import AttributeOptions
 from lsys3d.bark import BarkColorOptions
 from lsys3d.cleanup import CleanupOptions
 from lsys3d.cli import build_parser, main
 from lsys3d.errors import OptionsError
 from lsys3d.exchange import ExportOptions
+from lsys3d.forest import ForestOptions
 from lsys3d.leaves import LeafOptions
 from lsys3d.lod import LodOptions
 from lsys3d.options import Options, add_arguments, check_value, flat_fields, from_arguments, spec_of
+from lsys3d.organs import OrganOptions
 from lsys3d.pipeline import GenerateOptions, Limits
 from lsys3d.preview import PreviewOptions
+from lsys3d.rig import RigOptions
 from lsys3d.sweep import SweepOptions
 from lsys3d.turtle import TurtleOptions, TurtleOverrides
 from lsys3d.union import UnionOptions
+from lsys3d.wind import WindOptions
 
-CLASSES = [Limits, SweepOptions, UnionOptions, BarkColorOptions, TurtleOptions, ExportOptions, PreviewOptions]
+CLASSES = [
+    Limits,
+    SweepOptions,
+    UnionOptions,
+    BarkColorOptions,
+    AttributeOptions,
+    LeafOptions,
+    OrganOptions,
+    RigOptions,
+    TurtleOptions,
+    ExportOptions,
+    PreviewOptions,
+    ForestOptions,
+    WindOptions,
+]
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda c: c.__name__)
@@ -39,7 +58,19 @@ def test_every_field_is_declared_with_its_spec(cls):
 
 def test_generate_options_nest_one_class_per_stage():
     names = {f.name: f.type for f in dataclasses.fields(GenerateOptions)}
-    assert list(names) == ["limits", "turtle", "sweep", "union", "cleanup", "color", "leaves", "lod"]
+    assert list(names) == [
+        "limits",
+        "turtle",
+        "sweep",
+        "union",
+        "cleanup",
+        "color",
+        "attributes",
+        "leaves",
+        "rig",
+        "wind",
+        "lod",
+    ]
     flat = flat_fields(GenerateOptions)
     assert flat["sides"] == ("sweep", "sides") and flat["union"] == ("union", "enabled")
     assert flat["max_modules"] == ("limits", "max_modules") and flat["bark_color_variation"] == ("color", "variation")
@@ -98,7 +129,18 @@ def test_cli_flags_come_from_the_fields():
     add_arguments(parser, GenerateOptions)
     flags = {a.option_strings[0] for a in parser._actions if a.option_strings and a.dest.startswith("opt__")}
     expected = set()
-    for cls in (Limits, SweepOptions, UnionOptions, CleanupOptions, BarkColorOptions, LeafOptions, LodOptions):
+    for cls in (
+        Limits,
+        SweepOptions,
+        UnionOptions,
+        CleanupOptions,
+        BarkColorOptions,
+        AttributeOptions,
+        LeafOptions,
+        RigOptions,
+        WindOptions,
+        LodOptions,
+    ):
         for f in dataclasses.fields(cls):
             spec = spec_of(f)
             if spec.cli:

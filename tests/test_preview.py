@@ -210,3 +210,18 @@ def test_cli_size_usage_errors_exit_2(size, message):
     proc = subprocess.run([sys.executable, "-m", "lsys3d", "preview", "--size", size], capture_output=True, text=True)
     assert proc.returncode == 2
     assert f"argument --size: {message}" in proc.stderr
+
+
+def test_a_pose_bends_a_rigged_tree_in_blender(tmp_path):
+    """PreviewOptions.pose turns pose bones before the render: the picture changes; an unknown joint is an error."""
+    rigged = lsys3d.generate("abop-1.24a", iterations=2, rig=True)
+    base = {"size": (64, 64), "samples": 1, "denoise": False, "blender": bpy_python(), "background": BACKGROUND}
+    rest = read_png(preview(rigged, tmp_path / "rest.png", PreviewOptions(**base)))
+    joint = rigged.rig.names[2]
+    bent = read_png(preview(rigged, tmp_path / "bent.png", PreviewOptions(**base, pose=(f"{joint}=60",))))
+    assert (object_mask(rest) != object_mask(bent)).sum() > 50
+    with pytest.raises(PreviewError, match="no joint named nowhere"):
+        preview(rigged, tmp_path / "no.png", PreviewOptions(**base, pose=("nowhere=10",)))
+    assert not (tmp_path / "no.png").exists()
+    with pytest.raises(OptionsError, match=r"PreviewOptions.pose: expected JOINT=DEGREES, not 'b0_j1'"):
+        PreviewOptions(pose=("b0_j1",))

@@ -313,7 +313,9 @@ def test_bracket_with_argument():
         ("F!(-1)F", r"^module 1 '!\(-1\)' \(width\): the width must be"),
         ('F"(-1)F', r"^module 1 '\"\(-1\)' \(step length\)"),
         ("+(1,2)F", r"^module 0 '\+\(1,2\)' \(turn left\): takes at most 1 argument"),
-        ("F(1e308)F(1e308)", r"^module 1 'F\(1e\+308\)' \(forward\): the turtle's position became infinite"),
+        ("F(6e8)F(6e8)", r"^module 1 'F\(6e\+08\)' \(forward\): the turtle's position left the drawable range"),
+        ("F!(2e9)F", r"^module 1 '!\(2e\+09\)' \(width\): the width must be a number from 0 to 1e\+09"),
+        ("F~(2e9)", r"^module 1 '~\(2e\+09\)' \(leaf\): the leaf size must be a number from 0 to 1e\+09"),
     ],
 )
 def test_interpret_errors(axiom, message):

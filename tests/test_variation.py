@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import itertools
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 import validators
+from gltf_files import read_glb
 from pxr import Usd, UsdGeom
 
 import lsys3d
@@ -333,12 +333,6 @@ def test_same_seed_same_bytes(tmp_path, suffix):
         paths.append(export(tree, tmp_path / folder / f"tree{suffix}"))
     a, b, c = (p.read_bytes() for p in paths)
     assert a == b != c
-
-
-def read_glb(path: Path) -> tuple[dict, bytes]:
-    data = path.read_bytes()
-    n = int.from_bytes(data[12:16], "little")
-    return json.loads(data[20 : 20 + n]), data[28 + n :]
 
 
 def test_gltf_vertex_colors_pass_the_validator(barky_tree, tmp_path):

@@ -9,8 +9,12 @@ a welded mesh comes back welded), ``.usd*`` through its USD importer.  The
 last line of output is ``LSYS3D-BLENDER ``, then JSON with the Blender version,
 the imported objects (type, parent, vertex and face counts, world bounding
 box, materials, whether ``Mesh.validate`` had to repair anything), the
-materials (Principled BSDF base colour and roughness) and the world bounding
-box of everything Blender draws, instances included.
+materials (Principled BSDF base colour and roughness, and the image textures
+wired into its Base Color, Alpha and Normal inputs, with their pixel size),
+the world bounding box of everything Blender draws, instances included, and
+the actions (frame range, the scene's frames per second, F-curves, keyframes), with how far the skinned
+meshes' vertices move between an action's first frame and a quarter of the
+way through it.
 
 Blender crashes on some malformed files: the caller should run this in a
 child process and treat a signal as a failure (``tests/validators.py`` does).
@@ -47,6 +51,72 @@ def _points(mesh):
     co = np.empty(len(mesh.vertices) * 3, np.float64)
     mesh.vertices.foreach_get("co", co)
     return co.reshape(-1, 3)
+
+
+def _images_into(socket):
+    """The image textures upstream of a node socket (through normal-map, mix and separate nodes)."""
+    out, seen, stack = [], set(), [socket]
+    while stack:
+        for link in stack.pop().links:
+            node = link.from_node
+            if node.name in seen:
+                continue
+            seen.add(node.name)
+            if node.type == "TEX_IMAGE" and node.image is not None:
+                image = node.image
+                space = image.colorspace_settings.name
+                out.append({"image": image.name, "size": list(image.size), "colorspace": space})
+            stack.extend(i for i in node.inputs if i.is_linked)
+    return out
+
+
+def _actions(bpy):
+    """Each action: its frame range, F-curves and keyframes (Blender 4.4+ layered actions, or the legacy list)."""
+    out = []
+    for action in sorted(bpy.data.actions, key=lambda a: a.name):
+        curves = list(getattr(action, "fcurves", None) or [])
+        for layer in getattr(action, "layers", []):
+            for strip in layer.strips:
+                for bag in strip.channelbags:
+                    curves.extend(bag.fcurves)
+        out.append(
+            {
+                "name": action.name,
+                "frame_range": list(action.frame_range),
+                "fps": bpy.context.scene.render.fps / bpy.context.scene.render.fps_base,
+                "fcurves": len(curves),
+                "keyframes": sum(len(c.keyframe_points) for c in curves),
+                "users": [o.name for o in bpy.data.objects if o.animation_data and o.animation_data.action == action],
+            }
+        )
+    return out
+
+
+def _animated(bpy, actions):
+    """How far each deformed mesh moves (metres, its farthest vertex) from an action's start to a quarter in."""
+    if not actions:
+        return {}
+    import numpy as np
+
+    start, end = actions[0]["frame_range"]
+    scene = bpy.context.scene
+    meshes = [o for o in bpy.data.objects if o.type == "MESH" and o.modifiers]
+
+    def positions():
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        out = {}
+        for o in meshes:
+            evaluated = o.evaluated_get(depsgraph)
+            mesh = evaluated.to_mesh()
+            out[o.name] = _points(mesh) @ np.array(evaluated.matrix_world)[:3, :3].T
+            evaluated.to_mesh_clear()
+        return out
+
+    scene.frame_set(round(start))
+    before = positions()
+    scene.frame_set(round(start + (end - start) / 4))
+    after = positions()
+    return {name: float(np.linalg.norm(after[name] - before[name], axis=1).max(initial=0.0)) for name in before}
 
 
 def main(path):
@@ -91,6 +161,11 @@ def main(path):
             if bsdf is not None:
                 entry["base_color"] = list(bsdf.inputs["Base Color"].default_value)
                 entry["roughness"] = bsdf.inputs["Roughness"].default_value
+                entry["textures"] = {
+                    name: _images_into(bsdf.inputs[name])
+                    for name in ("Base Color", "Alpha", "Normal")
+                    if bsdf.inputs[name].is_linked and _images_into(bsdf.inputs[name])
+                }
         materials.append(entry)
 
     # what is drawn, instances included: evaluate the dependency graph
@@ -107,12 +182,15 @@ def main(path):
         me = ob.data
         drawn = _merge(drawn, _bbox(_points(me), inst.matrix_world))
 
+    actions = _actions(bpy)
     report = {
         "blender": bpy.app.version_string,
         "objects": objects,
         "materials": materials,
         "drawn_bbox": drawn,
         "drawn_instances": instances,
+        "actions": actions,
+        "animated": _animated(bpy, actions),
     }
     sys.stdout.write("\n" + MARK + json.dumps(report) + "\n")
     sys.stdout.flush()

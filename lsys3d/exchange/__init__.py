@@ -95,8 +95,9 @@ SUPPORTED_SUFFIXES: tuple[str, ...] = tuple(_WRITERS)
 def check_output(path: str | os.PathLike, options: ExportOptions | None = None) -> Path:
     """Check, before any long work, that :func:`export` could write ``path``.
 
-    Raises :class:`~lsys3d.errors.ExportError` for an unknown suffix, a missing
-    or unwritable folder, or an existing file with ``no_clobber``; leaves nothing
+    Raises :class:`~lsys3d.errors.ExportError` for an unknown suffix, options
+    the format cannot honour (glTF in centimetres or Z up), a missing or
+    unwritable folder, or an existing file with ``no_clobber``; leaves nothing
     behind (the folder is tested by creating and removing an empty hidden file).
 
     Examples
@@ -114,6 +115,10 @@ def check_output(path: str | os.PathLike, options: ExportOptions | None = None) 
     if suffix not in _WRITERS:
         what = f"unknown suffix {suffix!r}" if suffix else "no suffix"
         raise ExportError(f"{path}: {what}; supported: {', '.join(SUPPORTED_SUFFIXES)}")
+    if suffix in (".glb", ".gltf"):
+        from .gltf import check_options
+
+        check_options(options, str(path))
     check_target(path, options.no_clobber)
     return path
 

@@ -14,20 +14,17 @@ import contextlib
 import errno
 import os
 import secrets
+import stat
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from ..errors import ExportError
+from ..errors import ExportError, os_reason
 
-__all__ = ["atomic_path", "check_target", "write_bytes", "write_chunks"]
+__all__ = ["atomic_path", "check_target", "scratch_path", "write_bytes", "write_chunks", "write_failure"]
 
 
-def _reason(exc: BaseException) -> str:
-    """One line describing an OS error, without the file name (we print our own)."""
-    if isinstance(exc, OSError) and exc.strerror:
-        return exc.strerror[:1].lower() + exc.strerror[1:]
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
+NAME_MAX = 255
+"""Longest file name (one path component, in bytes) most file systems take; temporary names stay within it."""
 
 
 def check_target(path: Path, no_clobber: bool) -> None:
@@ -36,13 +33,31 @@ def check_target(path: Path, no_clobber: bool) -> None:
     Raises
     ------
     ExportError
-        ``path: reason``.
+        ``path: reason``, the reason from the operating system's error
+        number where there is one (a symlink loop, a name too long, no
+        permission).
     """
     folder = path.parent
-    if not folder.is_dir():
-        what = "is not a folder" if folder.exists() else "does not exist"
-        raise ExportError(f"{path}: folder {str(folder)!r} {what}")
-    if path.is_dir():
+    try:
+        if not stat.S_ISDIR(os.stat(folder).st_mode):
+            raise ExportError(f"{path}: folder {str(folder)!r} is not a folder")
+    except FileNotFoundError:
+        raise ExportError(f"{path}: folder {str(folder)!r} does not exist") from None
+    except NotADirectoryError:
+        raise ExportError(f"{path}: folder {str(folder)!r} is not a folder") from None
+    except ValueError:  # a NUL character
+        raise ExportError(f"{path}: a file name cannot hold a NUL character") from None
+    except OSError as exc:  # a symlink loop, a name too long, no permission to look
+        raise ExportError(f"{path}: folder {str(folder)!r}: {os_reason(exc)}") from None
+    try:
+        is_folder = stat.S_ISDIR(os.stat(path).st_mode)
+    except (FileNotFoundError, NotADirectoryError):
+        is_folder = False
+    except OSError as exc:
+        if exc.errno != errno.ELOOP:  # a link that loops is replaced like any other file
+            raise ExportError(f"{path}: {os_reason(exc)}") from None
+        is_folder = False
+    if is_folder:
         raise ExportError(f"{path}: is a folder")
     # Try it rather than ask os.access(), which says yes to root even where the file system refuses (sysfs,
     # read-only mounts), so that a folder nobody can write fails here and not after minutes of work.
@@ -50,16 +65,25 @@ def check_target(path: Path, no_clobber: bool) -> None:
     try:
         os.close(os.open(probe, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
     except OSError as exc:
-        raise ExportError(f"{path}: folder {str(folder)!r} is not writable ({_reason(exc)})") from None
+        raise ExportError(f"{path}: folder {str(folder)!r} is not writable ({os_reason(exc)})") from None
     _remove(probe)
     if no_clobber and (path.exists() or path.is_symlink()):
         raise ExportError(f"{path}: file exists (no_clobber is set)")
 
 
-def _temp_name(path: Path) -> Path:
-    # Hidden, in the same folder (so the rename is atomic), ending in the real suffix because
-    # some writers (USD) choose the file format from it.
-    return path.with_name(f".{path.stem}.{secrets.token_hex(4)}.tmp{path.suffix}")
+def _temp_name(path: Path, suffix: str | None = None) -> Path:
+    """A new hidden name beside ``path``: ``.<stem>.<8 hex digits>.tmp<suffix>``, shortened to fit NAME_MAX.
+
+    In the same folder (so the rename is atomic), ending in the real suffix because some writers (USD)
+    choose the file format from it.
+    """
+    suffix = path.suffix if suffix is None else suffix
+    tail = f".{secrets.token_hex(4)}.tmp{suffix}"
+    stem = path.stem
+    room = NAME_MAX - 16 - 1 - len(os.fsencode(tail))  # 16 to spare: USD makes its own temporary name from ours
+    while stem and len(os.fsencode(stem)) > room:
+        stem = stem[: len(stem) - max(1, (len(os.fsencode(stem)) - room) // 4)]
+    return path.with_name(f".{stem}{tail}")
 
 
 def _publish(tmp: Path, path: Path, no_clobber: bool) -> None:
@@ -125,7 +149,7 @@ def atomic_path(path: str | os.PathLike, no_clobber: bool = False) -> Iterator[P
         raise
     except OSError as exc:
         _remove(tmp)
-        raise ExportError(f"{path}: {_reason(exc)}") from exc
+        raise ExportError(f"{path}: {os_reason(exc)}") from exc
     except BaseException:
         _remove(tmp)
         raise
@@ -134,6 +158,41 @@ def atomic_path(path: str | os.PathLike, no_clobber: bool = False) -> Iterator[P
 def _remove(tmp: Path) -> None:
     with contextlib.suppress(FileNotFoundError):
         tmp.unlink()
+
+
+@contextlib.contextmanager
+def scratch_path(path: str | os.PathLike, suffix: str) -> Iterator[Path]:
+    """A temporary file name beside ``path`` (ending in ``suffix``) for a library that writes only to paths;
+    the file is removed on the way out, whatever happens (an error, Ctrl-C, SIGTERM)."""
+    tmp = _temp_name(Path(path), suffix)
+    try:
+        yield tmp
+    finally:
+        _remove(tmp)
+
+
+def write_failure(tmp: Path, need: int) -> str | None:
+    """Why a library that writes with its own I/O (USD) failed at ``tmp``: the operating system's reason, found by
+    trying to reserve ``need`` bytes more than ``tmp`` holds (no space left, file too large, quota), or None.
+
+    The library's own message for a full disk is a C++ internal ("crate file corrupt"); asking the file system
+    the same question gives the user the real cause.  ``tmp`` is left for the caller to remove.
+    """
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT, 0o600)
+        try:
+            size = os.fstat(fd).st_size
+            if hasattr(os, "posix_fallocate"):
+                os.posix_fallocate(fd, size, max(int(need), 1))
+            else:  # pragma: no cover - no fallocate: write it
+                os.lseek(fd, size, os.SEEK_SET)
+                for _ in range(0, max(int(need), 1), 1 << 20):
+                    os.write(fd, bytes(1 << 20))
+        finally:
+            os.close(fd)
+    except OSError as exc:
+        return os_reason(exc)
+    return None
 
 
 def _write_chunks(f, chunks: Iterable[bytes | memoryview]) -> None:
@@ -148,7 +207,7 @@ def write_chunks(tmp: Path, chunks: Iterable[bytes | memoryview], path: Path) ->
         with open(tmp, "xb") as f:
             _write_chunks(f, chunks)
     except OSError as exc:
-        raise ExportError(f"{path}: {_reason(exc)}") from exc
+        raise ExportError(f"{path}: {os_reason(exc)}") from exc
 
 
 def write_bytes(path: str | os.PathLike, chunks: Iterable[bytes | memoryview], no_clobber: bool = False) -> Path:

@@ -8,29 +8,38 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..attributes import ATTRIBUTES
 from ..errors import ExportError
+from ..images import Image
 from ..mesh import Mesh
 from ..options import Options, option
 
 __all__ = [
     "ExportOptions",
     "MeshArrays",
+    "TextureFiles",
     "decompose_transforms",
     "file_frame",
     "frame_transforms",
     "gather_mesh",
+    "material_groups",
     "metadata_json",
-    "tangents",
+    "split_tangents",
+    "to_float32",
 ]
 
 log = logging.getLogger("lsys3d")
 
 UNITS = {"m": 1.0, "cm": 0.01}
 UP_AXES = ("Y", "Z")
+
+POINT_ATTRIBUTES = frozenset(a.key for a in ATTRIBUTES if a.point)
+"""Attributes that are positions: carried into the file's frame with the vertices."""
 
 # Y up -> Z up: a +90 degree turn about X, so +Y (the trunk) goes to +Z and +Z to -Y.
 _Y_TO_Z = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -93,6 +102,9 @@ class MeshArrays:
         Split vertex of each face corner.
     colors, split_colors : (v, 3) / (s, 3) float32 or None
         Linear RGB vertex colours (:attr:`lsys3d.mesh.Mesh.colors`), per point and per split vertex.
+    attributes, split_attributes : dict of str to (v, ...) / (s, ...) float32
+        The mesh's per-vertex attributes (:attr:`lsys3d.mesh.Mesh.attributes`), points among them
+        (:data:`lsys3d.attributes.ATTRIBUTES`) in the file's frame, per point and per split vertex.
     """
 
     points: np.ndarray
@@ -105,6 +117,23 @@ class MeshArrays:
     split_index: np.ndarray
     colors: np.ndarray | None = None
     split_colors: np.ndarray | None = None
+    attributes: dict = field(default_factory=dict)
+    split_attributes: dict = field(default_factory=dict)
+
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def to_float32(values, what: str, where: str) -> np.ndarray:
+    """``values`` as float32, the precision of the files, refusing what float32 cannot hold (an overflow to inf)."""
+    values = np.asarray(values, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        ok = bool((np.abs(values) <= FLOAT32_MAX).all())
+    if not ok:
+        raise ExportError(
+            f"{where}: {what} holds a value that is not a number or beyond the 32-bit float range (3.4e38)"
+        )
+    return values.astype(np.float32)
 
 
 def _unit_normals(normals: np.ndarray, faces: np.ndarray, vertices: np.ndarray) -> np.ndarray:
@@ -180,6 +209,9 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
     if not np.isfinite(uv).all():
         raise ExportError(f"{where}: the uv hold a NaN or infinite value")
     colors = mesh.colors
+    attributes = dict(mesh.attributes)
+    if not all(np.isfinite(a).all() for a in attributes.values()):
+        raise ExportError(f"{where}: a vertex attribute holds a NaN or infinite value")
     if colors is not None and not (np.isfinite(colors).all() and (colors >= 0).all()):
         raise ExportError(f"{where}: the vertex colours hold a negative, NaN or infinite value")
 
@@ -191,8 +223,9 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
         vertices = vertices[old_of_new]
         if colors is not None:
             colors = colors[old_of_new]
+        attributes = {k: a[old_of_new] for k, a in attributes.items()}
     identity = np.array_equal(frame, np.eye(3))
-    points = (vertices if identity else vertices @ frame.T).astype(np.float32)
+    points = to_float32(vertices if identity else vertices @ frame.T, "the vertices", where)
 
     if not identity:
         rotation = (frame / np.cbrt(np.linalg.det(frame))).astype(np.float32)
@@ -201,7 +234,14 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
     normals = np.ascontiguousarray(normals, dtype=np.float32)  # _split views the rows as bytes
     normals += np.float32(0.0)  # -0.0 -> 0.0, so corners that compare equal are equal bit for bit
 
-    split_index, split_points, split_normals, split_uv, split_colors = _split(points, corner_v, normals, uv, colors)
+    if not identity:  # positions among the attributes go into the file's frame like the vertices
+        attributes = {
+            k: (a @ frame.T).astype(np.float32) if k in POINT_ATTRIBUTES else a for k, a in attributes.items()
+        }
+    split_index, split_points, split_normals, split_uv, split_colors, vertex_of_split = _split(
+        points, corner_v, normals, uv, colors
+    )
+    split_attributes = {k: a if vertex_of_split is None else a[vertex_of_split] for k, a in attributes.items()}
     return MeshArrays(
         points=points,
         faces=corner_v.astype(np.int32).reshape(-1, 3),
@@ -213,6 +253,8 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
         split_index=split_index,
         colors=colors,
         split_colors=split_colors,
+        attributes=attributes,
+        split_attributes=split_attributes,
     )
 
 
@@ -261,7 +303,7 @@ def _split(points, corner_v, normals, uv, colors=None):
     split_colors = None
     if colors is not None:  # a colour belongs to the point: split vertices copy their point's
         split_colors = colors if vertex_of_split is None else colors[vertex_of_split]
-    return split_index, split_points, split_normals, split_uv, split_colors
+    return split_index, split_points, split_normals, split_uv, split_colors, vertex_of_split
 
 
 def _unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -285,58 +327,105 @@ def _unique_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return first, inverse
 
 
-def tangents(points: np.ndarray, index: np.ndarray, normals: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Tangent frames of split vertices for normal mapping, ``(s, 4) float32`` as glTF's ``TANGENT``.
+def split_tangents(arrays: MeshArrays) -> np.ndarray:
+    """Tangents of a gathered mesh's split vertices for normal maps, ``(s, 4) float32``: glTF's ``TANGENT``.
 
-    Parameters
-    ----------
-    points, normals : (s, 3)
-        Split vertices and their unit normals.
-    index : (f * 3,)
-        Split vertex of each face corner.
-    uv : (s, 2)
-        Texture coordinates in the file's convention (glTF: ``v`` down).
-
-    Returns
-    -------
-    (s, 4) float32
-        ``xyz``: the direction of increasing ``u`` in the surface, made
-        perpendicular to the normal and unit; ``w``: +1 or -1, the handedness,
-        so that ``cross(normal, xyz) * w`` is the direction of increasing
-        ``v``.  Each triangle's frame (Lengyel's) is summed, area-weighted,
-        over the corners of a vertex; a vertex whose triangles have no uv area
-        gets any unit vector perpendicular to its normal.
+    ``xyz`` is the direction in which ``u`` grows, made perpendicular to the
+    vertex normal (each face's share weighted by its size, the usual way of
+    summing them); ``w`` (+1 or -1) says on which side the direction in which
+    ``v`` grows lies (``bitangent = w * normal x tangent``), so mirrored uv
+    are right too.  A vertex whose faces have no usable uv gradient gets some
+    unit vector perpendicular to its normal.  Normal maps are read with +Y
+    toward growing ``v`` (the OpenGL convention glTF and UsdPreviewSurface use).
     """
-    idx = np.asarray(index, np.int64).reshape(-1, 3)
-    p = np.asarray(points, np.float64)[idx]
-    t = np.asarray(uv, np.float64)[idx]
-    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-    d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    points = arrays.split_points.astype(np.float64)
+    normals = arrays.split_normals.astype(np.float64)
+    uv = arrays.split_uv.astype(np.float64) if arrays.split_uv is not None else np.zeros((len(points), 2))
+    tri = arrays.split_index.reshape(-1, 3).astype(np.int64)
+    e1 = points[tri[:, 1]] - points[tri[:, 0]]
+    e2 = points[tri[:, 2]] - points[tri[:, 0]]
+    d1 = uv[tri[:, 1]] - uv[tri[:, 0]]
+    d2 = uv[tri[:, 2]] - uv[tri[:, 0]]
     det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
-    ok = np.abs(det) > 1e-20
-    sign = np.where(det < 0, -1.0, 1.0)
-    # (e1 dv2 - e2 dv1) / det is du-direction; scaling by |det| (the uv area, twice) keeps the sign and
-    # weights each triangle by its uv area, so that tiny uv triangles do not blow up
-    tu = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * (sign * ok)[:, None]
-    tv = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * (sign * ok)[:, None]
-    n_split = len(points)
-    su = np.zeros((n_split, 3))
-    sv = np.zeros((n_split, 3))
-    corner = idx.reshape(-1)
-    for c in range(3):
-        su[:, c] = np.bincount(corner, weights=np.repeat(tu[:, c], 3), minlength=n_split)
-        sv[:, c] = np.bincount(corner, weights=np.repeat(tv[:, c], 3), minlength=n_split)
-    n = np.asarray(normals, np.float64)
-    su -= np.einsum("ij,ij->i", su, n)[:, None] * n
-    length = np.linalg.norm(su, axis=1)
-    bad = length < 1e-12
-    if bad.any():  # no uv to follow: any direction in the tangent plane
-        helper = np.where(np.abs(n[bad, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-        su[bad] = np.cross(n[bad], helper)
-        length[bad] = np.linalg.norm(su[bad], axis=1)
-    su /= np.maximum(length, 1e-300)[:, None]
-    w = np.where(np.einsum("ij,ij->i", np.cross(n, su), sv) < 0, -1.0, 1.0)
-    return np.concatenate([su, w[:, None]], axis=1).astype(np.float32)
+    # dP/du and dP/dv of each face, times |det| (so a face's weight grows with its uv and 3D size)
+    sign = np.sign(det)[:, None]
+    t = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * sign
+    b = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * sign
+    corner = tri.reshape(-1)
+    n = len(points)
+    tangent = np.stack([np.bincount(corner, np.repeat(t[:, c], 3), minlength=n) for c in range(3)], axis=1)
+    bitangent = np.stack([np.bincount(corner, np.repeat(b[:, c], 3), minlength=n) for c in range(3)], axis=1)
+    tangent -= normals * np.einsum("ij,ij->i", normals, tangent)[:, None]
+    length = np.linalg.norm(tangent, axis=1)
+    bad = ~(length > 1e-12 * (1.0 + np.abs(points).max(initial=0.0)))
+    if bad.any():  # any unit vector perpendicular to the normal
+        nb = normals[bad]
+        axis = np.where((np.abs(nb[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+        tangent[bad] = np.cross(axis, nb)
+        length[bad] = np.linalg.norm(tangent[bad], axis=1)
+    tangent /= np.where(length > 0, length, 1.0)[:, None]
+    w = np.where(np.einsum("ij,ij->i", np.cross(normals, tangent), bitangent) < 0, -1.0, 1.0)
+    return np.concatenate([tangent, w[:, None]], axis=1).astype(np.float32)
+
+
+def material_groups(index: np.ndarray | None, material_of) -> list[tuple[object, int, np.ndarray | None]]:
+    """The rows (faces, leaves) of each distinct material: ``(material, its first index, rows)``.
+
+    ``index`` holds the turtle's material index per row (None: every row the
+    default, ``material_of(-1)``); ``material_of`` maps an index to its
+    :class:`~lsys3d.materials.Material`.  Indices that map to the same material
+    share a group, in the order of their smallest index; a single group has
+    ``rows`` None (all of them).
+
+    >>> material_groups(np.array([0, 3, 0, 5]), lambda i: "red" if i == 5 else "bark")
+    [('bark', 0, array([0, 1, 2])), ('red', 5, array([3]))]
+    """
+    if index is None or not len(index):
+        return [(material_of(-1), -1, None)]
+    used = np.unique(index).tolist()
+    first: dict = {}
+    for i in used:
+        first.setdefault(material_of(i), i)
+    if len(first) == 1:
+        return [(next(iter(first)), used[0], None)]
+    rows = {m: np.flatnonzero(np.isin(index, [i for i in used if material_of(i) == m])) for m in first}
+    return [(m, i, rows[m]) for m, i in first.items()]
+
+
+class TextureFiles:
+    """Where a writer puts the texture images it references: one file each, in one folder.
+
+    ``prefix`` is the folder as the file refers to it (``./tree_textures/``
+    beside a USD layer, ``textures/`` inside a ``.usdz``).  :meth:`path_of`
+    names an image the first time it is asked (its file name, made safe, with
+    ``_2``, ``_3``... when two different images share it) and returns the same
+    path afterwards; :meth:`files` lists what to write, in that order.
+
+    >>> from lsys3d.images import Image
+    >>> files = TextureFiles("./tree_textures/")
+    >>> a, b = Image("bark.png", b"1", "image/png", 1, 1, False), Image("bark.png", b"2", "image/png", 1, 1, False)
+    >>> files.path_of(a), files.path_of(b), files.path_of(a)
+    ('./tree_textures/bark.png', './tree_textures/bark_2.png', './tree_textures/bark.png')
+    """
+
+    def __init__(self, prefix: str):
+        self.prefix = prefix
+        self._names: dict[Image, str] = {}
+
+    def path_of(self, image: Image) -> str:
+        if image not in self._names:
+            stem = re.sub(r"[^A-Za-z0-9_.-]", "_", image.name.rsplit(".", 1)[0]).strip(".") or "texture"
+            name, i = f"{stem}{image.suffix}", 1
+            taken = set(self._names.values())
+            while name in taken:
+                i += 1
+                name = f"{stem}_{i}{image.suffix}"
+            self._names[image] = name
+        return self.prefix + self._names[image]
+
+    def files(self) -> list[tuple[str, bytes]]:
+        """``(file name, bytes)`` of every image named so far."""
+        return [(name, image.data) for image, name in self._names.items()]
 
 
 def decompose_transforms(transforms: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -8,6 +8,7 @@ Layout of the file::
         node "leaf"      mesh "leaf"      material "leaf"   (all leaves merged; or the leaf model
                                                              with EXT_mesh_gpu_instancing)
         node "leaf_polygons"                                (only with instanced leaves)
+        node "organ_<name>"                                 (organs of one kind: merged, or instanced)
         node "skeleton"  mesh "skeleton"  LINES             (only with skeleton_curves)
 
 With levels of detail the root node is ``<asset name>_LOD0`` with the
@@ -19,6 +20,10 @@ than the defaults are refused.  Vertices are split per unique (position,
 normal, uv) corner as glTF requires; texture ``v`` is flipped (glTF's origin
 is the top-left corner of the image).  A bark with vertex colours gets a
 ``COLOR_0`` attribute and a white base colour factor (glTF multiplies the two).
+A material's images (:attr:`lsys3d.materials.Material.images`) are embedded in
+the binary buffer (``images[].bufferView``; in the ``.bin`` of a ``.gltf``),
+each once, sampled with repeat and mipmaps; ``alpha_cutoff`` is
+``alphaMode: MASK``.
 """
 
 from __future__ import annotations
@@ -31,20 +36,35 @@ from urllib.parse import quote
 
 import numpy as np
 
+from ..attributes import branch_table, gltf_attributes
 from ..errors import ExportError
+from ..images import Image
 from ..materials import Material
 from ..tree import Tree
 from ..version import __version__
 from .atomic import atomic_path, check_target, write_bytes, write_chunks
-from .common import ExportOptions, MeshArrays, decompose_transforms, gather_mesh, metadata_json, tangents
+from .common import (
+    ExportOptions,
+    MeshArrays,
+    decompose_transforms,
+    gather_mesh,
+    material_groups,
+    metadata_json,
+    split_tangents,
+    to_float32,
+)
 
-__all__ = ["write_glb", "write_gltf"]
+__all__ = ["check_options", "write_glb", "write_gltf"]
 
 FLOAT, UNSIGNED_SHORT, UNSIGNED_INT = 5126, 5123, 5125
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
 TRIANGLES, LINES = 4, 1
 INSTANCING = "EXT_mesh_gpu_instancing"
-_TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4"}
+_TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
+UNSIGNED_BYTE = 5121
+LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT = 9729, 9987, 10497
+SAMPLER = {"magFilter": LINEAR, "minFilter": LINEAR_MIPMAP_LINEAR, "wrapS": REPEAT, "wrapT": REPEAT}
+"""The one sampler of every texture: bark uv run past 1 (along a branch, in metres), so they repeat."""
 
 
 class _Buffer:
@@ -55,6 +75,10 @@ class _Buffer:
         self.size = 0
         self.views: list[dict] = []
         self.accessors: list[dict] = []
+
+    def image(self, data: bytes) -> int:
+        """A bufferView holding an image file's bytes (``images[].bufferView``)."""
+        return self._view(np.frombuffer(data, np.uint8), None)
 
     def _view(self, data: np.ndarray, target: int | None) -> int:
         pad = -self.size % 4
@@ -70,11 +94,15 @@ class _Buffer:
         self.views.append(view)
         return len(self.views) - 1
 
-    def accessor(self, data: np.ndarray, target: int | None = ARRAY_BUFFER, bounds: bool = False) -> int:
-        """Add ``data`` ((n,) or (n, c), float32 / uint16 / uint32) as a tightly packed view and accessor."""
+    def accessor(
+        self, data: np.ndarray, target: int | None = ARRAY_BUFFER, bounds: bool = False, normalized: bool = False
+    ) -> int:
+        """Add ``data`` ((n,) or (n, c), float32 / uint8 / uint16 / uint32) as a tightly packed view and accessor."""
         data = np.ascontiguousarray(data)
         if data.dtype == np.float32:
             component = FLOAT
+        elif data.dtype == np.uint8:
+            component = UNSIGNED_BYTE
         elif data.dtype == np.uint16:
             component = UNSIGNED_SHORT
         elif data.dtype == np.uint32:
@@ -88,6 +116,8 @@ class _Buffer:
             "count": int(data.shape[0]),
             "type": _TYPES[width],
         }
+        if normalized:
+            acc["normalized"] = True
         if bounds:
             two_d = data.reshape(len(data), width)
             acc["min"] = two_d.min(axis=0).tolist()
@@ -105,39 +135,79 @@ def _indices(index: np.ndarray, n_vertices: int) -> np.ndarray:
     return index.astype(np.uint16 if n_vertices < 0xFFFF else np.uint32, copy=False)
 
 
-def _primitive(buf: _Buffer, arrays: MeshArrays, material: int) -> dict:
+def quantized_weights(weights: np.ndarray) -> np.ndarray:
+    """Skin weights as normalized unsigned bytes whose every row sums to exactly 255 (largest remainders round up).
+
+    >>> quantized_weights(np.array([[0.5, 0.5, 0, 0], [1 / 3, 1 / 3, 1 / 3, 0]], np.float32)).tolist()
+    [[128, 127, 0, 0], [85, 85, 85, 0]]
+    """
+    scaled = np.asarray(weights, np.float64) * 255.0
+    q = np.floor(scaled).astype(np.int64)
+    short = 255 - q.sum(axis=1)
+    rank = np.argsort(-(scaled - q), axis=1, kind="stable")
+    bump = np.arange(weights.shape[1])[None, :] < short[:, None]
+    np.add.at(q, (np.repeat(np.arange(len(q)), weights.shape[1])[bump.ravel()], rank[bump]), 1)
+    return q.astype(np.uint8)
+
+
+def _vertex_attributes(buf: _Buffer, arrays: MeshArrays, joints: int | None = None, tangents: bool = False) -> dict:
+    """The accessors of a gathered mesh's split vertices, shared by all its primitives."""
     attributes = {
         "POSITION": buf.accessor(arrays.split_points, bounds=True),
         "NORMAL": buf.accessor(arrays.split_normals),
     }
+    if tangents:  # a normal map needs them; generated at run time they may differ between viewers
+        attributes["TANGENT"] = buf.accessor(split_tangents(arrays))
     if arrays.split_uv is not None:
         uv = arrays.split_uv.copy()
         uv[:, 1] = np.float32(1.0) - uv[:, 1]
-        attributes["TANGENT"] = buf.accessor(
-            tangents(arrays.split_points, arrays.split_index, arrays.split_normals, uv)
-        )
         attributes["TEXCOORD_0"] = buf.accessor(uv)
     if arrays.split_colors is not None:  # multiplies the base colour factor, which is white then
         attributes["COLOR_0"] = buf.accessor(arrays.split_colors)
-    index = _indices(arrays.split_index, len(arrays.split_points))
-    return {
-        "attributes": attributes,
-        "indices": buf.accessor(index, ELEMENT_ARRAY_BUFFER),
-        "material": material,
-        "mode": TRIANGLES,
-    }
+    for name, values in gltf_attributes(arrays.split_attributes).items():  # hierarchy and wind
+        attributes[name] = buf.accessor(values)
+    if joints is not None and "skin_joints" in arrays.split_attributes:
+        ids = arrays.split_attributes["skin_joints"]
+        attributes["JOINTS_0"] = buf.accessor(ids.astype(np.uint8 if joints <= 256 else np.uint16))
+        attributes["WEIGHTS_0"] = buf.accessor(
+            quantized_weights(arrays.split_attributes["skin_weights"]), normalized=True
+        )
+    return attributes
 
 
-def _material(m: Material) -> dict:
-    out = {
-        "name": m.name,
-        "pbrMetallicRoughness": {
-            "baseColorFactor": [float(c) for c in m.base_color],
-            "metallicFactor": float(m.metallic),
-            "roughnessFactor": float(m.roughness),
-        },
+def _mesh_primitives(
+    buf: _Buffer, arrays: MeshArrays, groups, joints: int | None = None, tangents: bool = False
+) -> list[dict]:
+    """One primitive per ``(material index, faces)`` group (faces None: all), sharing the vertex accessors."""
+    attributes = _vertex_attributes(buf, arrays, joints, tangents)
+    index = _indices(arrays.split_index, len(arrays.split_points)).reshape(-1, 3)
+    return [
+        {
+            "attributes": attributes,
+            "indices": buf.accessor((index if faces is None else index[faces]).reshape(-1), ELEMENT_ARRAY_BUFFER),
+            "material": material,
+            "mode": TRIANGLES,
+        }
+        for material, faces in groups
+    ]
+
+
+def _material(m: Material, texture_index) -> dict:
+    """A glTF material; ``texture_index(image)`` gives the texture of each of its images."""
+    pbr = {
+        "baseColorFactor": [float(c) for c in m.base_color],
+        "metallicFactor": float(m.metallic),
+        "roughnessFactor": float(m.roughness),
     }
-    if m.base_color[3] < 1.0:
+    if m.texture is not None:
+        pbr["baseColorTexture"] = {"index": texture_index(m.texture)}
+    out = {"name": m.name, "pbrMetallicRoughness": pbr}
+    if m.normal_texture is not None:
+        out["normalTexture"] = {"index": texture_index(m.normal_texture)}
+    if m.alpha_cutoff is not None:
+        out["alphaMode"] = "MASK"
+        out["alphaCutoff"] = float(m.alpha_cutoff)
+    elif m.base_color[3] < 1.0:
         out["alphaMode"] = "BLEND"
     if m.double_sided:
         out["doubleSided"] = True
@@ -148,13 +218,22 @@ def _skeleton_lines(tree: Tree) -> tuple[np.ndarray, np.ndarray] | None:
     lines = tree.skeleton.polylines() if len(tree.skeleton) else []
     if not lines:
         return None
-    points = np.concatenate(lines).astype(np.float32)
+    points = to_float32(np.concatenate(lines), "the skeleton", "skeleton")
     sizes = np.array([len(p) for p in lines])
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     # segment i of a chain joins point i and i + 1; no segment across chains
     first = np.concatenate([np.arange(s, s + n - 1) for s, n in zip(starts.tolist(), sizes.tolist(), strict=True)])
     pairs = np.stack([first, first + 1], axis=1).reshape(-1)
     return points, pairs
+
+
+def check_options(options: ExportOptions, where: str) -> None:
+    """Refuse options glTF cannot honour: it is always metres and Y up."""
+    if options.units != "m" or options.up_axis != "Y":
+        raise ExportError(
+            f"{where}: glTF is always metres and Y up; units={options.units!r} and "
+            f"up_axis={options.up_axis!r} apply to USD (.usda/.usdc/.usdz) only"
+        )
 
 
 LOD = "MSFT_lod"
@@ -173,108 +252,217 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
     ``extras.MSFT_screencoverage``.  A viewer that does not know the
     extension shows level 0 alone.
     """
-    if options.units != "m" or options.up_axis != "Y":
-        raise ExportError(
-            f"{where}: glTF is always metres and Y up; units={options.units!r} and "
-            f"up_axis={options.up_axis!r} apply to USD (.usda/.usdc/.usdz) only"
-        )
+    check_options(options, where)
+    if tree.lods and tree.rig is not None:
+        raise ExportError(f"{where}: levels of detail carry no rig yet: export the rigged tree without them")
+    eye = np.eye(3)
     buf = _Buffer()
     meshes, nodes, materials = [], [], []
     extensions_used = []
-    material_cache: dict = {}
+
+    rig = tree.rig
+    joints = len(rig) if rig is not None else None
+    roots = [0]  # scene roots: the asset's node, and skinned meshes (glTF ignores a skinned mesh's parents)
+    asset = 0  # the node the parts go under: the asset's, or the level's
+
+    def add_node(name: str, primitives: list[dict], extensions: dict | None = None, skinned: bool = False):
+        meshes.append({"name": name, "primitives": primitives})
+        node = {"name": name, "mesh": len(meshes) - 1}
+        if extensions:
+            node["extensions"] = extensions
+        nodes.append(node)
+        if skinned:
+            node["skin"] = 0
+            roots.append(len(nodes) - 1)
+        else:
+            nodes[asset]["children"].append(len(nodes) - 1)
+
+    made: dict[Material, int] = {}
+    images, textures = [], []
+    texture_of: dict[Image, int] = {}
+
+    def texture_index(image: Image) -> int:
+        """The texture of an image, embedding the image once."""
+        if image not in texture_of:
+            images.append({"name": image.name, "bufferView": buf.image(image.data), "mimeType": image.mime})
+            textures.append({"sampler": 0, "source": len(images) - 1})
+            texture_of[image] = len(textures) - 1
+        return texture_of[image]
 
     def material_index(m: Material) -> int:
-        if m not in material_cache:
-            materials.append(_material(m))
-            material_cache[m] = len(materials) - 1
-        return material_cache[m]
+        if m not in made:
+            materials.append(_material(m, texture_index))
+            made[m] = len(materials) - 1
+        return made[m]
+
+    def primitives_of(buf, arrays, groups, joints=None):  # with tangents when a material has a normal map
+        tangents = any("normalTexture" in materials[material] for material, _ in groups)
+        return _mesh_primitives(buf, arrays, groups, joints, tangents)
+
+    table = tree.materials
+
+    def groups(face_material, material_of, white: bool = False) -> list[tuple[int, np.ndarray | None]]:
+        """(glTF material, faces) of each material index the faces use; one group of all faces without a table."""
+
+        def index_of(m: Material) -> int:  # vertex colours: the colour is COLOR_0, glTF multiplies it by the factor
+            return material_index(replace(m, base_color=(1.0, 1.0, 1.0, m.base_color[3])) if white else m)
+
+        index = face_material if table else None
+        return [(index_of(m), faces) for m, _, faces in material_groups(index, material_of)]
+
+    def add_parts(part: Tree, first: bool) -> None:
+        """The bark, leaves, organs (and for the first level the branch table and skeleton) of ``part``."""
+        if len(part.bark.faces):  # a tree of polygon leaves alone has no bark
+            bark = gather_mesh(part.bark, eye, f"{where}: bark")
+            bark_groups = groups(part.bark.face_material, table.for_bark, white=bark.split_colors is not None)
+            add_node("bark", primitives_of(buf, bark, bark_groups, joints), skinned=rig is not None)
+
+        def instanced_nodes(base: str, model_mesh, transforms, index, instance_attributes, material_of):
+            """One node per material of the instances, each drawing ``model_mesh`` at its instances' transforms."""
+            model = gather_mesh(model_mesh, eye, f"{where}: {base} model")
+            translation, quaternion, scale = decompose_transforms(transforms, where)
+            extra = gltf_attributes(instance_attributes)  # the branch each instance grows from
+            for n, (m, i, rows) in enumerate(material_groups(index, material_of)):
+                sel = slice(None) if rows is None else rows
+                attributes = {
+                    "TRANSLATION": buf.accessor(to_float32(translation[sel], f"{base} positions", where), target=None),
+                    "ROTATION": buf.accessor(quaternion[sel].astype(np.float32), target=None),
+                    "SCALE": buf.accessor(to_float32(scale[sel], f"{base} sizes", where), target=None),
+                }
+                for name, values in extra.items():
+                    attributes[name] = buf.accessor(np.ascontiguousarray(values[sel]), target=None)
+                primitives = primitives_of(buf, model, [(material_index(m), None)])
+                add_node(base if n == 0 else f"{base}_{i}", primitives, {INSTANCING: {"attributes": attributes}})
+            if INSTANCING not in extensions_used:
+                extensions_used.append(INSTANCING)
+
+        def merged_node(name: str, mesh, material_of):
+            if mesh is None or not len(mesh.faces):
+                return
+            arrays = gather_mesh(mesh, eye, f"{where}: {name}")
+            skinned = rig is not None and "skin_joints" in mesh.attributes
+            mesh_groups = groups(mesh.face_material, material_of)
+            add_node(name, primitives_of(buf, arrays, mesh_groups, joints if skinned else None), skinned=skinned)
+
+        leaves = part.leaves
+        instanced = bool(options.instance_leaves) and rig is None  # skinned leaves and organs are merged
+        if instanced and leaves.instanced:
+            k = len(leaves.transforms)
+            per_leaf = np.asarray(part.skeleton.leaf_material, np.int64) if table else np.zeros(0, np.int64)
+            if len(per_leaf) != k:
+                per_leaf = np.zeros(k, np.int64)
+            instanced_nodes(
+                "leaf", leaves.model, leaves.transforms, per_leaf, leaves.instance_attributes, table.for_leaf
+            )
+            if leaves.polygons is not None and len(leaves.polygons.faces):
+                merged_node("leaf_polygons", leaves.polygons, table.for_leaf)
+        else:
+            # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
+            merged_node("leaf", leaves.merged if leaves.merged is not None else leaves.polygons, table.for_leaf)
+
+        organs = part.organs
+        for p, proto in enumerate(organs.prototypes):  # a part per kind of organ: organ_sphere, organ_flower...
+            material_of = table.for_leaf if proto.material is None else (lambda i, m=proto.material: m)
+            if instanced:
+                mine = organs.of(p)
+                if len(mine):
+                    attributes = {key: a[mine] for key, a in organs.instance_attributes.items()}
+                    index = organs.material[mine] if table else None
+                    instanced_nodes(
+                        f"organ_{proto.name}", proto.mesh, organs.transforms[mine], index, attributes, material_of
+                    )
+            else:
+                merged_node(f"organ_{proto.name}", organs.merged[p], material_of)
+
+        if first and part.hierarchy is not None and len(part.hierarchy):
+            # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.attributes)
+            branches = {"count": len(part.hierarchy)}
+            for key, values in branch_table(part.hierarchy).items():
+                branches[key] = buf.accessor(np.ascontiguousarray(values, np.float32), target=None)
+            nodes[asset].setdefault("extras", {})["lsys3d_branches"] = branches
+
+        if first and options.skeleton_curves:
+            lines = _skeleton_lines(tree)
+            if lines is not None:
+                points, pairs = lines
+                primitive = {
+                    "attributes": {"POSITION": buf.accessor(points, bounds=True)},
+                    "indices": buf.accessor(_indices(pairs, len(points)), ELEMENT_ARRAY_BUFFER),
+                    "mode": LINES,
+                }
+                add_node("skeleton", [primitive])
 
     if tree.lods:
-        roots = []
+        level_nodes = []
         for i, lod in enumerate(tree.lods):
             nodes.append({"name": f"{tree.name}_LOD{lod.level}", "children": []})
-            roots.append(len(nodes) - 1)
-            part = tree.at_level(i)
-            _add_parts(part, roots[-1], buf, meshes, nodes, material_index, extensions_used, options, where)
-        if len(roots) > 1:
-            nodes[roots[0]]["extensions"] = {LOD: {"ids": roots[1:]}}
-            nodes[roots[0]]["extras"] = {"MSFT_screencoverage": [SCREEN_COVERAGE[lod.level] for lod in tree.lods]}
+            asset = len(nodes) - 1
+            level_nodes.append(asset)
+            add_parts(tree.at_level(i), i == 0)
+        asset = 0
+        if len(level_nodes) > 1:  # the scene holds level 0; it names the others
+            nodes[0]["extensions"] = {LOD: {"ids": level_nodes[1:]}}
+            coverage = [SCREEN_COVERAGE[lod.level] for lod in tree.lods]
+            nodes[0].setdefault("extras", {})["MSFT_screencoverage"] = coverage
             extensions_used.append(LOD)
     else:
         nodes.append({"name": tree.name, "children": []})
-        _add_parts(tree, 0, buf, meshes, nodes, material_index, extensions_used, options, where)
+        add_parts(tree, True)
+
+    skins = []
+    if rig is not None:  # the joints under the asset's node, each translated from its parent (no rotation)
+        base = len(nodes)
+        local = to_float32(rig.local, "joint positions", where)
+        for i, name in enumerate(rig.names):
+            nodes.append({"name": name, "translation": local[i].tolist()})
+        for i, up in enumerate(rig.parent.tolist()):
+            if up >= 0:
+                nodes[base + up].setdefault("children", []).append(base + i)
+        nodes[0]["children"].append(base)
+        inverse_bind = np.zeros((len(rig), 16), np.float32)
+        inverse_bind[:, [0, 5, 10, 15]] = 1.0
+        inverse_bind[:, 12:15] = -to_float32(rig.position, "joint positions", where)  # column-major translation
+        skins.append(
+            {
+                "name": "rig",
+                "joints": list(range(base, base + len(rig))),
+                "skeleton": base,
+                "inverseBindMatrices": buf.accessor(inverse_bind, target=None),
+            }
+        )
+
+    animations = []
+    if rig is not None and tree.animation is not None:  # the wind: a rotation channel per joint but the root
+        anim = tree.animation
+        times = buf.accessor(anim.times.astype(np.float32), target=None, bounds=True)
+        samplers, channels = [], []
+        for i in range(1, len(rig)):
+            output = buf.accessor(np.ascontiguousarray(anim.rotations[:, i], np.float32), target=None)
+            samplers.append({"input": times, "interpolation": "LINEAR", "output": output})
+            channels.append({"sampler": len(samplers) - 1, "target": {"node": base + i, "path": "rotation"}})
+        if channels:
+            animations.append({"name": "wind", "channels": channels, "samplers": samplers})
 
     metadata = metadata_json(tree, where)
     doc = {"asset": {"version": "2.0", "generator": f"lsys3d {__version__}"}}
     if metadata:
         doc["asset"]["extras"] = metadata
     if extensions_used:
-        doc["extensionsUsed"] = sorted(set(extensions_used))
-    scene = {"name": tree.name, "nodes": [0]}
+        doc["extensionsUsed"] = extensions_used
+    scene = {"name": tree.name, "nodes": roots}
     if metadata:
         scene["extras"] = metadata
     doc.update(scene=0, scenes=[scene], nodes=nodes)
     # glTF arrays may not be empty: leave out what a tree without geometry lacks
-    for key, value in (("meshes", meshes), ("materials", materials), ("accessors", buf.accessors)):
+    samplers = [SAMPLER] if textures else []
+    parts = (("meshes", meshes), ("materials", materials), ("textures", textures), ("images", images))
+    parts += (("samplers", samplers), ("skins", skins), ("animations", animations), ("accessors", buf.accessors))
+    for key, value in parts:
         if value:
             doc[key] = value
     if buf.views:
         doc.update(bufferViews=buf.views, buffers=[{"byteLength": buf.size + (-buf.size % 4)}])
     return doc, buf
-
-
-def _add_parts(tree: Tree, parent: int, buf, meshes, nodes, material_index, extensions_used, options, where) -> None:
-    """The tree's bark, leaves and skeleton as child nodes of node ``parent``."""
-    eye = np.eye(3)
-
-    def add_node(name: str, primitives: list[dict], extensions: dict | None = None):
-        meshes.append({"name": name, "primitives": primitives})
-        node = {"name": name, "mesh": len(meshes) - 1}
-        if extensions:
-            node["extensions"] = extensions
-        nodes.append(node)
-        nodes[parent]["children"].append(len(nodes) - 1)
-
-    if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
-        bark = gather_mesh(tree.bark, eye, f"{where}: bark")
-        material = tree.bark_material
-        if bark.split_colors is not None:  # COLOR_0 is the colour; glTF multiplies it by the factor
-            material = replace(material, base_color=(1.0, 1.0, 1.0, material.base_color[3]))
-        add_node("bark", [_primitive(buf, bark, material_index(material))])
-
-    leaves = tree.leaves
-    instanced = bool(options.instance_leaves) and leaves.instanced
-    if instanced:
-        leaf_mat = material_index(tree.leaf_material)
-        model = gather_mesh(leaves.model, eye, f"{where}: leaf_model")
-        translation, quaternion, scale = decompose_transforms(leaves.transforms, where)
-        attributes = {
-            "TRANSLATION": buf.accessor(translation.astype(np.float32), target=None),
-            "ROTATION": buf.accessor(quaternion.astype(np.float32), target=None),
-            "SCALE": buf.accessor(scale.astype(np.float32), target=None),
-        }
-        add_node("leaf", [_primitive(buf, model, leaf_mat)], {INSTANCING: {"attributes": attributes}})
-        extensions_used.append(INSTANCING)
-        if leaves.polygons is not None and len(leaves.polygons.faces):
-            polygons = gather_mesh(leaves.polygons, eye, f"{where}: polygon_leaves")
-            add_node("leaf_polygons", [_primitive(buf, polygons, leaf_mat)])
-    else:
-        # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
-        merged = leaves.merged if leaves.merged is not None else leaves.polygons
-        if merged is not None and len(merged.faces):
-            arrays = gather_mesh(merged, eye, f"{where}: leaves")
-            add_node("leaf", [_primitive(buf, arrays, material_index(tree.leaf_material))])
-
-    if options.skeleton_curves:
-        lines = _skeleton_lines(tree)
-        if lines is not None:
-            points, pairs = lines
-            primitive = {
-                "attributes": {"POSITION": buf.accessor(points, bounds=True)},
-                "indices": buf.accessor(_indices(pairs, len(points)), ELEMENT_ARRAY_BUFFER),
-                "mode": LINES,
-            }
-            add_node("skeleton", [primitive])
 
 
 def _json_bytes(doc: dict, indent: int | None = None) -> bytes:

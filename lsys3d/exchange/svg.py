@@ -33,11 +33,11 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from ..errors import ExportError
+from ..errors import ExportError, printable
 from ..materials import Material
 from ..tree import Tree
 from .atomic import write_bytes
-from .common import UNITS, ExportOptions, metadata_json
+from .common import UNITS, ExportOptions, metadata_json, to_float32
 
 __all__ = ["DISPLAY_PIXELS", "drawing_plane", "svg_text", "write_svg"]
 
@@ -172,7 +172,8 @@ def svg_text(tree: Tree, options: ExportOptions | None = None, where: str = "svg
     margin = MARGIN * size + 0.5 * (float(widths.max()) if len(skeleton) else 0.0)
     x0, y0 = lo - margin
     w, h = hi - lo + 2 * margin
-    px_w, px_h = (DISPLAY_PIXELS, DISPLAY_PIXELS * h / w) if w >= h else (DISPLAY_PIXELS * w / h, DISPLAY_PIXELS)
+    to_float32([x0, y0, w, h], "the drawing's extent (with the branch widths)", where)  # what viewers draw with
+    px_w, px_h = (DISPLAY_PIXELS, DISPLAY_PIXELS * (h / w)) if w >= h else (DISPLAY_PIXELS * (w / h), DISPLAY_PIXELS)
 
     title = tree.name
     metadata = _json_text(metadata_json(tree, where))
@@ -180,7 +181,7 @@ def svg_text(tree: Tree, options: ExportOptions | None = None, where: str = "svg
         '<?xml version="1.0" encoding="UTF-8"?>',
         f'<svg xmlns="http://www.w3.org/2000/svg" version="1.1" viewBox="{num.one(x0)} {num.one(y0)} '
         f'{num.one(w)} {num.one(h)}" width="{round(px_w)}" height="{round(px_h)}">',
-        f"<title>{escape(str(title))}</title>",
+        f"<title>{escape(printable(title))}</title>",  # XML 1.0 allows no control characters
         f"<metadata>{escape(metadata)}</metadata>",
         f'<rect x="{num.one(x0)}" y="{num.one(y0)}" width="{num.one(w)}" height="{num.one(h)}" fill="white"/>',
     ]

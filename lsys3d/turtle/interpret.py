@@ -60,7 +60,7 @@ import numpy as np
 from ..errors import InterpretError, LimitError
 from ..grammar import Grammar
 from ..modules import ModuleString
-from ..skeleton import Skeleton
+from ..skeleton import MAX_COORDINATE, Skeleton
 from ..streams import Stream, generator
 from . import kernel
 from .commands import COMMANDS, Command, Op, SymbolTable, symbol_table
@@ -205,6 +205,7 @@ def interpret(
         tx,
         ty,
         tz,
+        MAX_COORDINATE,
     )
     variation = _variation(m, options, seed, table, modules.symbols)
 
@@ -220,8 +221,12 @@ def interpret(
         np.empty(n_seg, np.int32),
         np.empty(n_seg, np.int32),
     )
-    poly = kernel.PolygonArrays(np.empty((n_pts, 3)), np.zeros(n_poly + 1, np.int64), np.empty(n_poly, np.int32))
-    leaf = kernel.LeafArrays(*frames(n_leaf, 4), np.empty(n_leaf), np.empty(n_leaf, np.int32))
+    poly = kernel.PolygonArrays(
+        np.empty((n_pts, 3)), np.zeros(n_poly + 1, np.int64), np.empty(n_poly, np.int32), np.empty(n_poly, np.int64)
+    )
+    leaf = kernel.LeafArrays(
+        *frames(n_leaf, 4), np.empty(n_leaf), np.empty(n_leaf, np.int32), np.empty(n_leaf, np.int64)
+    )
     status, bad, n_seg, n_pts, n_poly, n_leaf, dropped = kernel.run(
         program, arrays, config, variation, max_depth, seg, poly, leaf
     )
@@ -246,12 +251,14 @@ def interpret(
         polygon_points=poly.points[:n_pts],
         polygon_offsets=poly.offsets[: n_poly + 1],
         polygon_material=poly.material[:n_poly],
+        polygon_segment=poly.segment[:n_poly],
         leaf_position=leaf.position[:n_leaf],
         leaf_heading=leaf.heading[:n_leaf],
         leaf_left=leaf.left[:n_leaf],
         leaf_up=leaf.up[:n_leaf],
         leaf_size=leaf.size[:n_leaf],
         leaf_material=leaf.material[:n_leaf],
+        leaf_segment=leaf.segment[:n_leaf],
     )
     log.debug(
         "interpret: %d modules -> %d segments, %d polygons, %d leaves in %.3f s",

@@ -17,6 +17,7 @@ from collections import namedtuple
 import numba
 import numpy as np
 
+from ..skeleton import MAX_COORDINATE
 from .commands import N_OPS, Axis, Op
 
 __all__ = [
@@ -37,15 +38,16 @@ __all__ = [
 Program = namedtuple("Program", ["op", "axis", "sign", "max_args"])
 Modules = namedtuple("Modules", ["symbols", "arity", "offsets", "params"])
 Config = namedtuple(
-    "Config", ["angle", "heading", "step", "width", "width_scale", "length_scale", "elasticity", "tx", "ty", "tz"]
+    "Config",
+    ["angle", "heading", "step", "width", "width_scale", "length_scale", "elasticity", "tx", "ty", "tz", "far"],
 )
 Variation = namedtuple("Variation", ["angle", "length", "width", "roll", "skipped"])
 SegmentArrays = namedtuple(
     "SegmentArrays",
     ["start", "end", "heading", "left", "up", "width_start", "width_end", "parent", "module", "order", "material"],
 )
-PolygonArrays = namedtuple("PolygonArrays", ["points", "offsets", "material"])
-LeafArrays = namedtuple("LeafArrays", ["position", "heading", "left", "up", "size", "material"])
+PolygonArrays = namedtuple("PolygonArrays", ["points", "offsets", "material", "segment"])
+LeafArrays = namedtuple("LeafArrays", ["position", "heading", "left", "up", "size", "material", "segment"])
 
 # numba sees the enums as plain integers
 _NONE = int(Op.NONE)
@@ -73,11 +75,13 @@ MESSAGES = {
     2: "a polygon is already open (polygons do not nest)",
     3: "no polygon is open ('}' without '{')",
     4: "polygon never closed (no matching '}')",
-    5: "the turtle's position became infinite or NaN",
-    6: "the width must be a finite number >= 0",
+    5: f"the turtle's position left the drawable range of +-{MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE); "
+    "check the step length (F's parameter, step, length_scale, length_jitter)",
+    6: f"the width must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
     7: "the step length must be a finite number >= 0",
     8: "the material index must be >= 0",
-    9: "the leaf size must be a finite number >= 0",
+    9: f"the leaf size must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
+    10: f"the width with width_jitter is more than {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
 }
 
 
@@ -215,6 +219,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
     width_scale = config.width_scale
     length_scale = config.length_scale
     elasticity = config.elasticity
+    far = config.far  # MAX_COORDINATE
     tx, ty, tz = config.tx, config.ty, config.tz
     bend = elasticity != 0.0 and (tx != 0.0 or ty != 0.0 or tz != 0.0)
     jitter_angle = variation.angle.shape[0] > 0
@@ -240,6 +245,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
     poly_open = -1  # module that opened the polygon
     poly_start = 0
     poly_mat = 0
+    poly_seg = -1
 
     m = symbols.shape[0]
     for i in range(m):
@@ -278,7 +284,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
             qx = px + hx * length
             qy = py + hy * length
             qz = pz + hz * length
-            if not math.isfinite(qx + qy + qz):
+            if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):  # NaN fails too
                 return 5, i, n_seg, n_pts, n_poly, n_leaf, dropped
             if poly_open >= 0:
                 n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
@@ -291,6 +297,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
                 _put(seg.left, s_, lx, ly, lz)
                 _put(seg.up, s_, ux, uy, uz)
                 drawn = width * variation.width[i] if jitter_width else width
+                if not drawn <= far:
+                    return 10, i, n_seg, n_pts, n_poly, n_leaf, dropped
                 seg.width_start[s_] = drawn
                 seg.width_end[s_] = drawn
                 if anchor >= 0:
@@ -380,7 +388,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
             anchor = stack_i[depth, 2]
         elif code == _WIDTH:
             width = arg if has_arg else width * width_scale
-            if not (width >= 0.0 and math.isfinite(width)):
+            if not (0.0 <= width <= far):
                 return 6, i, n_seg, n_pts, n_poly, n_leaf, dropped
             if last >= 0 and depth_of[last] == depth:
                 seg.width_end[last] = width
@@ -401,6 +409,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
             poly_open = i
             poly_start = n_pts
             poly_mat = material
+            poly_seg = last
         elif code == _POLYGON_VERTEX:
             if poly_open >= 0:
                 n_pts = _add_vertex(poly.points, n_pts, poly_start, px, py, pz)
@@ -421,12 +430,13 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
                 n_poly += 1
                 poly.offsets[n_poly] = n_pts
                 poly.material[n_poly - 1] = poly_mat
+                poly.segment[n_poly - 1] = poly_seg
             else:
                 n_pts = poly_start
                 dropped += 1
         elif code == _LEAF:
             size = arg if has_arg else step
-            if not (size >= 0.0 and math.isfinite(size)):
+            if not (0.0 <= size <= far):
                 return 9, i, n_seg, n_pts, n_poly, n_leaf, dropped
             _put(leaf.position, n_leaf, px, py, pz)
             _put(leaf.heading, n_leaf, hx, hy, hz)
@@ -434,6 +444,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf):
             _put(leaf.up, n_leaf, ux, uy, uz)
             leaf.size[n_leaf] = size
             leaf.material[n_leaf] = material
+            leaf.segment[n_leaf] = last
             n_leaf += 1
     if poly_open >= 0:
         return 4, poly_open, n_seg, n_pts, n_poly, n_leaf, dropped

@@ -13,7 +13,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, fields
 
 from ..errors import GrammarError, OptionsError, clip
-from ..grammar import Grammar, _key_line
+from ..grammar import Grammar, table_key_line
 from ..options import Options, check_value, option, spec_of
 from .commands import RENAMEABLE, by_symbol
 
@@ -185,24 +185,8 @@ assert set(RENAMEABLE) <= set(_SPECS)  # the renameable commands' symbols are se
 
 
 def _turtle_error(grammar: Grammar, key: str, what: str) -> GrammarError:
-    line = _turtle_key_line(grammar.text, key) if grammar.text else None
+    line = table_key_line(grammar.text, "turtle", key) if grammar.text else None
     return GrammarError(f"[turtle] {what}", grammar.source, line, 1 if line else None)
-
-
-def _turtle_key_line(text: str, key: str) -> int | None:
-    """Line of ``key`` inside the ``[turtle]`` table (or of the table itself)."""
-    table = _key_line(text, "turtle")
-    if table is None:
-        return None
-    lines = text.splitlines()
-    pattern = re.compile(rf"^[ \t]*[\"']?{re.escape(key)}[\"']?[ \t]*=")
-    for number in range(table + 1, len(lines) + 1):
-        line = lines[number - 1]
-        if re.match(r"^[ \t]*\[", line):
-            break
-        if pattern.match(line):
-            return number
-    return table
 
 
 def options_markdown() -> str:

@@ -1,0 +1,83 @@
+"""The memory model of ``lsys3d batch`` against measured peaks: predicted and measured bytes per job.
+
+    python benchmarks/bench_memory.py
+
+Each job runs in a fresh process that has already grown and written a small tree (so
+imports and USD's plugins are not counted), as a batch worker would.  The job's peak
+is the kernel's high-water mark of resident memory (``VmHWM``, reset before the job)
+less the memory before it.  Prints the prediction of :func:`lsys3d.jobs.predict_size`,
+the measurement, and their ratio (the model should not predict less than it takes).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+
+CASES = [
+    ("tree3d", 5, True),
+    ("tree3d", 6, True),
+    ("tree3d", 7, True),
+    ("bush", 6, True),
+    ("bush", 7, True),
+    ("bush", 8, True),
+    ("monopodial", 12, True),
+    ("abop-1.24a", 6, True),
+    ("abop-1.24d", 8, True),
+    ("abop-1.24f", 6, True),
+    ("tree3d", 7, False),
+    ("bush", 8, False),
+]
+
+CHILD = r"""
+import gc, json, sys
+from pathlib import Path
+import lsys3d
+from lsys3d.exchange import export
+from lsys3d.stats import report
+
+def status(key):
+    for line in open("/proc/self/status"):
+        if line.startswith(key):
+            return int(line.split()[1]) * 1024
+
+name, n, union, folder = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1", Path(sys.argv[4])
+warm = lsys3d.generate("tree3d", 2)
+export(warm, folder / "warm.glb"); export(warm, folder / "warm.usdc"); report(warm.modules, warm.skeleton, warm)
+del warm; gc.collect()
+before = status("VmRSS:")
+open("/proc/self/clear_refs", "w").write("5")
+tree = lsys3d.generate(name, n, union=union)
+report(tree.modules, tree.skeleton, tree)
+export(tree, folder / "job.glb"); export(tree, folder / "job.usdc")
+print(json.dumps({"bytes": status("VmHWM:") - before, "triangles": int(tree.provenance["counts"]["tube_faces"])}))
+"""
+
+
+def main():
+    import lsys3d
+    from lsys3d.jobs import predict_size
+    from lsys3d.pipeline import GenerateOptions
+
+    print(f"{'job':<22} {'tube tris':>10} {'predicted':>10} {'measured':>10}  ratio")
+    with tempfile.TemporaryDirectory() as folder:
+        for name, n, union in CASES:
+            size = predict_size(lsys3d.load_preset(name), n, 0, GenerateOptions(union=union))
+            proc = subprocess.run(
+                [sys.executable, "-c", CHILD, name, str(n), "1" if union else "0", folder],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
+            measured = json.loads(proc.stdout.strip().splitlines()[-1])
+            label = f"{name} n={n}{'' if union else ' no-union'}"
+            print(
+                f"{label:<22} {measured['triangles']:>10,} {size.bytes / 1e6:>8.0f}MB {measured['bytes'] / 1e6:>8.0f}MB"
+                f"  {size.bytes / max(measured['bytes'], 1):5.2f}x"
+            )
+
+
+if __name__ == "__main__":
+    main()
