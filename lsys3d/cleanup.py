@@ -219,7 +219,7 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
         closeness = np.zeros(len(he.points))
         remesh.collar(he, opt.collar, closeness)
         faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False)
-        remesh.settle(he, closeness)  # the faired surface is now the side to keep
+        remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
         done += remesh.clean(he, rules, closeness > 0)  # the faired collars may have made a few needles
     rescued = remesh.rescue(he, opt.rescue, opt.sliver, 10 * opt.flip_tolerance)
     if done.sum() >= budget:
