@@ -83,6 +83,17 @@ class CleanupOptions(Options):
     rescue: float = option(500.0, low=1, help="aspect above which the last pass takes any collapse", cli=False)
     sliver: float = option(1e-6, low=0, help="metres: the last pass removes triangles lower than this", cli=False)
 
+    def bulge(self, sides: int) -> float:
+        """How far the collars may move a vertex out of its tube, in radii of a tube of ``sides`` sides.
+
+        A vertex moves at most ``reach`` local scales (a side of the thinner
+        tube, ``2 r sin(pi / sides)``); the stages that find a vertex's branch
+        by its distance from the skeleton (attributes, materials) allow it.
+        """
+        if not (self.enabled and self.smooth):
+            return 0.0
+        return self.reach * 2.0 * float(np.sin(np.pi / max(int(sides), 3)))
+
 
 @dataclass(frozen=True, eq=False)
 class Cleaned:

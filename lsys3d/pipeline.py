@@ -311,7 +311,8 @@ def generate(
     # the rig binds by branch and t, so it needs those two whatever the attributes' layout
     keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
     branches = hierarchy(skeleton, seed) if keys or table else None
-    bulge = options.sweep.bark_displacement
+    # how far the bark may stand out of the tubes: the bark noise, and the junction collars
+    bulge = options.sweep.bark_displacement + options.cleanup.bulge(min(options.sweep.sides, options.sweep.min_sides))
     if table and len(tubes):
         bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
     if keys:
@@ -394,7 +395,8 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod,
         tubes = sweep(pruned, opts.sweep, max_triangles=options.limits.max_triangles, seed=seed)
         bark = _bark(tubes, opts, seed, quiet, table.bark.base_color)
         if table and len(tubes):
-            bark = with_face_materials(bark, pruned, hierarchy(pruned, seed), opts.sweep.bark_displacement)
+            bulge = opts.sweep.bark_displacement + opts.cleanup.bulge(min(opts.sweep.sides, opts.sweep.min_sides))
+            bark = with_face_materials(bark, pruned, hierarchy(pruned, seed), bulge)
         leaves = lod_leaves(skeleton, level, opts.leaves, leaf_model)
         settings = {"sides": opts.sweep.sides, "prune": spec.prune, "merge_angle": opts.sweep.merge_angle}
         return Lod(level, bark, leaves, settings)
