@@ -297,12 +297,14 @@ def union(
 
 
 def _misplaced(vertices: np.ndarray, faces: np.ndarray, source: np.ndarray, tubes: Tubes) -> np.ndarray:
-    """``(f,) bool``: the faces whose centroid is farther from their source tube face than that tube's radius.
+    """``(f,) bool``: the faces whose centroid is farther from their source tube face than its radius and side.
 
     A piece of a face lies on the face; one of a span split by new rings lies
-    in the quad of the span (within a side of the tube).  A slice at a time.
+    in the quad of the span (within a side of the tube, ``2 r sin(pi / sides)``,
+    more than the radius when a tube has 3-5 sides).  A slice at a time.
     """
     radius = np.maximum.reduceat(tubes.ring_radius, tubes.ring_offsets[:-1])
+    radius = radius * (1.0 + 2.0 * np.sin(np.pi / tubes.sides))
     out = np.zeros(len(faces), bool)
     for lo in range(0, len(faces), 1 << 18):
         src = source[lo : lo + (1 << 18)]
@@ -334,11 +336,11 @@ def _true_sources(mesh: Mesh, tubes: Tubes) -> Mesh:
     """The mesh with every face's source a tube face it lies on or next to.
 
     manifold3d keeps each input triangle's face id on its pieces, but where
-    coplanar tubes cross (the flat presets: ``tree`` 38 of 279,780 faces,
+    coplanar tubes cross (the flat presets: ``tree`` 31 of 279,780 faces,
     ``abop-1.24c`` 4 of 287,018), it gives a few triangles the id of a face
     of another tube, far away.  Such a face takes the source of a neighbour
-    (sharing a vertex) whose source face it does lie next to (``tree``: 25 of
-    the 38; ``abop-1.24c``: 1 of 4); a face none of whose neighbours fits (a
+    (sharing a vertex) whose source face it does lie next to (``tree``: 24 of
+    the 31; ``abop-1.24c``: 1 of 4); a face none of whose neighbours fits (a
     long triangle across several coplanar tubes) keeps its id, and is logged.
     """
     faces, source = mesh.faces, mesh.face_source
