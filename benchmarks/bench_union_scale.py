@@ -1,7 +1,7 @@
 """The union at scale: full pipeline against the tube soup, growth, memory, and the other pipelines.
 
     python benchmarks/bench_union_scale.py [--plant 5 6 7 8 9] [--fern] [--repeat 1]
-        [--compare 7] [--no-naive] [--blender .venv-bpy/bin/python] [--hostile]
+        [--compare 7] [--no-naive] [--blender .venv-bpy/bin/python] [--hostile] [--no-cleanup-too]
 
 Each run is its own process (``lsys3d -v generate``), timed from outside, its
 peak resident memory read with ``getrusage(RUSAGE_CHILDREN)`` by a wrapper
@@ -11,7 +11,10 @@ one of its union workers).  Cases:
 * the 3D plant ``X -> F[!+X][!&X]F[!-X]/X``, ``F -> FF``, 22.5 degrees,
   width_scale 0.7, at 5..9 generations: full (derive, turtle, sweep, union,
   export ``.glb``) against the soup (``--no-union``: the same without the
-  boolean), and how time and memory grow;
+  boolean), and how time and memory grow; the full run includes the cleanup
+  of the union's bark (its own column), and ``--no-cleanup-too`` adds a row
+  per case without it (``--no-cleanup``, the union handed the only reference
+  to the tube soup);
 * a dense constant-width fern (width 0.01; segments 0.0005-0.04 long, most
   much shorter than wide; about 88k segments): alternate pinnae along a rachis
   that curls in at its tip, pinnules on the pinnae, and so on;
@@ -164,21 +167,22 @@ def gib(nbytes: float) -> str:
 
 def full_vs_soup(rows, repeat: int, tmp: Path):
     print(
-        f"{'case':<12} {'segments':>9} {'faces':>10} {'full s':>7} {'union s':>8} {'soup s':>7} {'full/soup':>9}"
-        f" {'RSS full':>9} {'RSS soup':>9}"
+        f"{'case':<24} {'segments':>9} {'faces':>10} {'full s':>7} {'union s':>8} {'cleanup s':>9} {'soup s':>7}"
+        f" {'full/soup':>9} {'RSS full':>9} {'RSS soup':>9}"
     )
     table = []
-    for name, grammar, n in rows:
+    for name, grammar, n, *extra in rows:
         out = tmp / f"{name}.glb"
-        full = best(lsys3d_cmd(grammar, n, out), repeat)
+        full = best(lsys3d_cmd(grammar, n, out, *extra), repeat)
         faces = int(re.search(r"wrote .*?: [\d,]+ vertices, ([\d,]+) faces", full["stderr"])[1].replace(",", ""))
         soup = best(lsys3d_cmd(grammar, n, tmp / f"{name}-soup.glb", "--no-union"), repeat)
         segments = _segments(grammar, n)
-        table.append((name, segments, full, soup))
+        if not extra:
+            table.append((name, segments, full, soup))
         print(
-            f"{name:<12} {segments:>9,} {faces:>10,} {full['seconds']:>7.2f} {full['stages'].get('union', 0):>8.2f}"
-            f" {soup['seconds']:>7.2f} {full['seconds'] / soup['seconds']:>8.1f}x {gib(full['peak']):>9}"
-            f" {gib(soup['peak']):>9}",
+            f"{name:<24} {segments:>9,} {faces:>10,} {full['seconds']:>7.2f} {full['stages'].get('union', 0):>8.2f}"
+            f" {full['stages'].get('cleanup', 0):>9.2f} {soup['seconds']:>7.2f}"
+            f" {full['seconds'] / soup['seconds']:>8.1f}x {gib(full['peak']):>9} {gib(soup['peak']):>9}",
             flush=True,
         )
     return table
@@ -317,6 +321,7 @@ def main(argv=None):
         help="a Python with the bpy wheel (default: .venv-bpy/bin/python if there)",
     )
     ap.add_argument("--hostile", action="store_true", help="also time the pathological unions of issue 18")
+    ap.add_argument("--no-cleanup-too", dest="raw", action="store_true", help="also run each case without the cleanup")
     args = ap.parse_args(argv)
     print(f"{os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}")
     with tempfile.TemporaryDirectory() as tmp:
@@ -327,6 +332,8 @@ def main(argv=None):
         rows = [(f"plant n={n}", plant, n) for n in args.plant]
         if args.fern:
             rows.append(("fern", fern, None))
+        if args.raw:
+            rows = [r for row in rows for r in (row, (f"{row[0]} --no-cleanup", *row[1:], "--no-cleanup"))]
         table = full_vs_soup(rows, args.repeat, tmp)
         growth(table)
         if args.compare:

@@ -322,10 +322,13 @@ def cmd_generate(args) -> int:
         _print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
     elif not args.quiet:
         bark, leaves, organs = tree.bark, tree.skeleton.n_leaves, len(tree.organs)
+        levels = "".join(f", LOD{lod.level} {lod.triangles:,}" for lod in tree.lods)
+        if levels:
+            levels = f"; triangles of the levels of detail{levels}"
         _print(
             f"wrote {path}: {len(bark.vertices):,} vertices, {len(bark.faces):,} faces, {leaves:,} leaves"
             + (f", {organs:,} organs" if organs else "")
-            + f" ({time.perf_counter() - t0:.1f} s)"
+            + f"{levels} ({time.perf_counter() - t0:.1f} s)"
         )
     return 0
 
@@ -333,11 +336,12 @@ def cmd_generate(args) -> int:
 def _generate_siblings(args, options, export_options) -> int:
     """``generate --variants N``: the grammar grown with seeds SEED .. SEED+N-1, written by export_variants."""
     from .exchange import check_output, export_variants, variant_paths
-    from .pipeline import generate, run_stage
+    from .pipeline import generate, run_stage, warn_if_identical
 
     for target in variant_paths(args.output, args.variants):
         check_output(target, export_options)
     grammar = load(args.grammar)
+    warn_if_identical(grammar, options, args.variants)
     first = grammar.seed if args.seed is None else args.seed
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()

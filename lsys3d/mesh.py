@@ -26,6 +26,11 @@ duplicated vertex:
     Per-vertex data the writers carry as they are: the hierarchy and wind
     attributes of :mod:`lsys3d.attributes` (glTF ``_BRANCH_ID``..., USD
     ``primvars:branch_id``...).  Empty by default.
+``face_source`` : (f,) int64 or None
+    For a bark: the face of :attr:`lsys3d.sweep.Tubes.faces` each triangle is a
+    piece of (the union carries manifold3d's face ids through the boolean), so
+    later stages know the tube, span and branch of every triangle
+    (:mod:`lsys3d.cleanup` finds the junction seams by it).  None when unknown.
 """
 
 from __future__ import annotations
@@ -53,6 +58,7 @@ class Mesh:
     colors : (v, 3) float32 or None
     attributes : dict of str to (v,) or (v, 3) float32
     face_material : (f,) int32 or None
+    face_source : (f,) int64 or None
 
     Examples
     --------
@@ -68,6 +74,7 @@ class Mesh:
     colors: np.ndarray | None = None
     attributes: Mapping[str, np.ndarray] = field(default_factory=dict)
     face_material: np.ndarray | None = None
+    face_source: np.ndarray | None = None
 
     def __post_init__(self):
         v = np.asarray(self.vertices, np.float64).reshape(-1, 3)
@@ -97,6 +104,11 @@ class Mesh:
             if fm.shape != (len(f),):
                 raise ValueError(f"Mesh.face_material has shape {fm.shape}, expected ({len(f)},)")
             object.__setattr__(self, "face_material", fm)
+        if self.face_source is not None:
+            s = np.asarray(self.face_source, np.int64)
+            if s.shape != (len(f),):
+                raise ValueError(f"Mesh.face_source has shape {s.shape}, expected ({len(f)},)")
+            object.__setattr__(self, "face_source", s)
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -125,7 +137,7 @@ class Mesh:
 
     @classmethod
     def concatenate(cls, meshes) -> Mesh:
-        """Several meshes as one (indices shifted; colours kept only when every part has them)."""
+        """Several meshes as one (indices shifted; colours kept only when every part has them, face sources never)."""
         meshes = [m for m in meshes if m is not None]
         if not meshes:
             return cls.empty()

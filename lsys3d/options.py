@@ -70,7 +70,8 @@ class Spec:
     optional : bool
         ``None`` is allowed.
     length : int
-        Length of a ``vector`` or ``ints`` value.
+        Length of a ``vector`` or ``ints`` value (0: any length; an empty
+        default declares a list of any length).
     name : str or None
         Flat and CLI name when it is not the field's own name.
     cli : bool
@@ -249,10 +250,11 @@ def check_value(spec: Spec, value, where: str):
             raise OptionsError(f"{where}: must be {spec.range_text()}, not {clip(repr(value))}")
         return value
     if kind in ("vector", "ints"):
-        n = spec.length
-        if not isinstance(value, (list, tuple)) or len(value) != n or not all(_is_number(v) for v in value):
+        n = spec.length  # 0: any length
+        if not isinstance(value, (list, tuple)) or (n and len(value) != n) or not all(_is_number(v) for v in value):
             what = "whole numbers" if kind == "ints" else "numbers"
-            raise OptionsError(f"{where}: must be a list of {n} {what}, not {clip(repr(value))}")
+            count = f"{n} " if n else ""
+            raise OptionsError(f"{where}: must be a list of {count}{what}, not {clip(repr(value))}")
         one = dataclasses.replace(spec, kind=int if kind == "ints" else float, length=0)
         return tuple(check_value(one, v, where) for v in value)
     if kind == "strings":
@@ -470,6 +472,8 @@ def _parser_for(spec: Spec, where: str):
 def _default_text(value) -> str:
     if isinstance(value, bool):
         return "on" if value else "off"
+    if value == ():
+        return "none"
     if isinstance(value, tuple):
         return "x".join(map(str, value)) if all(isinstance(v, int) for v in value) else ",".join(map(str, value))
     if isinstance(value, int):

@@ -3,19 +3,22 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> color -> materials -> attributes -> leaves -> rig -> wind
+    derive -> interpret -> sweep -> union -> cleanup -> color -> materials -> attributes -> leaves -> rig -> wind
+    (-> lod)
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 from . import bark as bark_stage
 from . import dialects
 from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
+from .cleanup import CleanupOptions, cleanup
 from .derive import DEFAULT_MAX_MODULES, derive, interpretation
 from .diagnostics import Checks, check
 from .errors import GeometryError, OptionsError
@@ -23,6 +26,7 @@ from .grammar import Grammar
 from .hierarchy import hierarchy
 from .leaves import LeafOptions
 from .leaves import leaves as build_leaves
+from .lod import LEVELS, Lod, LodOptions, fit_budget, level_options, lod_leaves, prune
 from .materials import material_table, with_face_materials
 from .mesh import Mesh
 from .modules import ModuleString
@@ -39,7 +43,16 @@ from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interp
 from .union import UnionOptions, concatenate, union
 from .wind import WindOptions, sway
 
-__all__ = ["STAGES", "GenerateOptions", "Limits", "draw", "generate", "run_stage"]
+__all__ = [
+    "STAGES",
+    "GenerateOptions",
+    "Limits",
+    "draw",
+    "generate",
+    "run_stage",
+    "seed_dependence",
+    "warn_if_identical",
+]
 
 log = logging.getLogger("lsys3d")
 
@@ -48,6 +61,7 @@ STAGES = (
     "interpret",
     "sweep",
     "union",
+    "cleanup",
     "color",
     "materials",
     "attributes",
@@ -55,6 +69,7 @@ STAGES = (
     "organs",
     "rig",
     "wind",
+    "lod",
 )
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
 
@@ -91,6 +106,8 @@ class GenerateOptions(Options):
         Tube sides, minimum width, bend splitting, bark displacement...
     union : UnionOptions
         Whether (``union=False``: the tube soup, a fast preview) and how the tubes are unioned.
+    cleanup : CleanupOptions
+        Removing the union's needles and slivers (``cleanup=False``: the raw boolean).
     color : BarkColorOptions
         Bark colour variation written as vertex colours after the union.
     attributes : AttributeOptions
@@ -105,6 +122,8 @@ class GenerateOptions(Options):
         A sample wind animation keyed on the rig's joints (off by default; needs the rig).
     checks : Checks
         Whether the grammar's warnings (:mod:`lsys3d.diagnostics`) are errors (``strict``).
+    lod : LodOptions
+        Levels of detail to build as well, or a triangle budget to fit.
 
     Every field below these has a flat name (``sides``, ``union``,
     ``max_modules``, ``bark_color_variation``...) for :meth:`from_flat`,
@@ -115,6 +134,7 @@ class GenerateOptions(Options):
     turtle: TurtleOverrides = field(default_factory=TurtleOverrides)
     sweep: SweepOptions = option(factory=SweepOptions, help="tubes")
     union: UnionOptions = option(factory=UnionOptions, help="the union")
+    cleanup: CleanupOptions = option(factory=CleanupOptions, help="the cleanup of the union")
     color: bark_stage.BarkColorOptions = option(factory=bark_stage.BarkColorOptions, help="bark colour")
     attributes: AttributeOptions = option(factory=AttributeOptions, help="hierarchy and wind attributes")
     leaves: LeafOptions = option(factory=LeafOptions, help="leaves")
@@ -122,16 +142,74 @@ class GenerateOptions(Options):
     rig: RigOptions = option(factory=RigOptions, help="the rig")
     wind: WindOptions = option(factory=WindOptions, help="the wind animation")
     checks: Checks = option(factory=Checks, help="the grammar's warnings")
+    lod: LodOptions = option(factory=LodOptions, help="levels of detail")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
             object.__setattr__(self, "turtle", TurtleOverrides(self.turtle))
         super().__post_init__()
+        if (self.lod.levels or self.lod.target_triangles) and (self.rig.enabled or self.attributes.enabled):
+            raise OptionsError(
+                "LodOptions (--lod, --target-triangles): the levels of detail carry no attributes or rig yet; "
+                "drop --attributes / --rig, or build the levels without them"
+            )
         if self.wind.enabled and not self.rig.enabled:
             raise OptionsError(
                 "WindOptions.seconds (--wind-animation): the wind animation moves the rig's joints: "
                 "it needs the rig (--rig)"
             )
+
+
+_JITTERS = ("angle_jitter", "length_jitter", "width_jitter", "branch_roll", "branch_drop")
+
+
+def seed_dependence(grammar: Grammar, options: GenerateOptions | None = None) -> tuple[str, ...]:
+    """What the seed changes in a plant grown from ``grammar`` with ``options``; empty when nothing does.
+
+    The seed drives stochastic rules (two or more alternatives for one
+    predecessor), the turtle's jitters, branch roll and drop, and the bark's
+    noise (displacement and colour).
+
+    Examples
+    --------
+    >>> from lsys3d import load_preset
+    >>> seed_dependence(load_preset("tree3d")), seed_dependence(load_preset("koch-stochastic"))
+    ((), ('stochastic rules',))
+    >>> seed_dependence(load_preset("tree3d"), GenerateOptions.from_flat(bark_displacement=0.2))
+    ('bark_displacement',)
+    """
+    options = options or GenerateOptions()
+    found = []
+    pools = Counter(p.pool_key() for p in grammar.productions)
+    if any(n > 1 for n in pools.values()):
+        found.append("stochastic rules")
+    turtle = TurtleOptions.from_grammar(grammar, options.turtle)
+    found += [name for name in _JITTERS if getattr(turtle, name) > 0]
+    if options.sweep.bark_displacement > 0:
+        found.append("bark_displacement")
+    if options.color.variation > 0:
+        found.append("bark_color_variation")
+    return tuple(found)
+
+
+def warn_if_identical(grammar: Grammar, options: GenerateOptions | None, count: int) -> bool:
+    """Warn (through the ``lsys3d`` logger) that ``count`` siblings would be identical; whether it did.
+
+    Siblings differ only by their seed: when nothing depends on it
+    (:func:`seed_dependence`) they are copies, and the warning names the
+    settings that would make them differ.
+    """
+    if count < 2 or seed_dependence(grammar, options):
+        return False
+    name = grammar.name or grammar.source
+    log.warning(
+        "%s grows the same plant from every seed (no stochastic rules, turtle jitter or bark noise): its %d "
+        "variants are identical; vary them with e.g. --turtle angle_jitter=5 --turtle width_jitter=0.1 "
+        "--turtle branch_roll=30, --bark-displacement 0.2 or --bark-color-variation 0.3",
+        name,
+        count,
+    )
+    return True
 
 
 def run_stage(name: str, fn: Callable, *args, progress: Callable[[str, str, float], None] | None = None, **kw):
@@ -199,7 +277,7 @@ def generate(
     progress: Callable[[str, str, float], None] | None = None,
     **overrides,
 ) -> Tree:
-    """Grow a plant: derive, interpret, sweep, union, colour and build the leaves.
+    """Grow a plant: derive, interpret, sweep, union, clean up, colour and build the leaves.
 
     Parameters
     ----------
@@ -260,23 +338,20 @@ def generate(
         tube_vertices=len(tubes.points),
         tube_faces=len(tubes.faces),
     )
-    if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
-        bark = stage("union", Mesh.empty)
-    elif options.union.enabled:
+    union_progress = None
+    if progress:
 
-        def report(fraction: float) -> None:
+        def union_progress(fraction: float) -> None:
             progress("union", "progress", fraction)
 
-        held, tubes = [tubes], None  # the union is given the only reference: it frees the soup once it is culled
-        bark = stage("union", _union_of_held, held, options.union, report if progress else None)
-    else:
-        bark = stage("union", concatenate, tubes)
-    bark = stage("color", bark_stage.color, bark, options.color, table.bark.base_color, seed)
+    held, tubes = [tubes], None  # _bark holds the tube soup alone (and hands it on to the union when it can)
+    bark = _bark(held, options, seed, stage, table.bark.base_color, union_progress)
     wanted = options.attributes.keys
     # the rig binds by branch and t, so it needs those two whatever the attributes' layout
     keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
     branches = hierarchy(skeleton, seed) if keys or table else None
-    bulge = options.sweep.bark_displacement
+    # how far the bark may stand out of the tubes: the bark noise, and the junction collars
+    bulge = options.sweep.bark_displacement + options.cleanup.bulge(min(options.sweep.sides, options.sweep.min_sides))
     if table and counts.tubes:
         bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
     if keys:
@@ -311,6 +386,11 @@ def generate(
             bark, leaves, organs = _keep(bark, leaves, organs, wanted + SKIN_KEYS)
         if options.wind.enabled:
             animation = stage("wind", sway, rig, branches, options.wind)
+    lods = ()
+    if options.lod.levels or options.lod.target_triangles:
+        lods = stage("lod", _levels, skeleton, options, seed, Lod(0, bark, leaves), table, leaf_model)
+        if options.lod.target_triangles:  # the tree is the level that fits; it has no others
+            bark, leaves, lods = lods[0].bark, lods[0].leaves, ()
     return Tree(
         bark=bark,
         skeleton=skeleton,
@@ -324,12 +404,77 @@ def generate(
         organs=organs,
         materials=table,
         animation=animation,
+        lods=lods,
     )
+
+
+def _bark(
+    held: list, options: GenerateOptions, seed: int, stage, base_color, progress: Callable[[float], None] | None = None
+) -> Mesh:
+    """The union (and its cleanup) or the tube soup, coloured: the bark of one set of tubes.
+
+    ``held`` is a list holding the tubes alone; it is emptied.  Without the
+    cleanup the union is given the only reference, so that it frees the soup
+    once it is culled (the 262,143-segment plant's soup is over a gigabyte);
+    the cleanup needs the tubes after the union (``Mesh.face_source`` names
+    their faces), so with it they are kept until the cleanup is done.
+    """
+    if options.union.enabled and not options.cleanup.enabled and len(held[0]):
+        bark = stage("union", _union_of_held, held, options.union, progress)
+        return stage("color", bark_stage.color, bark, options.color, base_color, seed)
+    tubes = held.pop()
+    if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
+        bark = stage("union", Mesh.empty)
+    elif options.union.enabled:
+        bark = stage("union", _union_of_held, [tubes], options.union, progress)  # tubes kept: the cleanup needs them
+        bark = stage("cleanup", cleanup, bark, tubes, options.cleanup)
+    else:
+        bark = stage("union", concatenate, tubes)
+    del tubes
+    return stage("color", bark_stage.color, bark, options.color, base_color, seed)
 
 
 def _union_of_held(held: list, options: UnionOptions, progress: Callable[[float], None] | None) -> Mesh:
     """``union(held.pop(), options)``: the list is emptied, so the union holds the tube soup alone."""
     return union(held.pop(), options, progress=progress)
+
+
+def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod, table, leaf_model) -> tuple[Lod, ...]:
+    """The levels of detail asked for (:mod:`lsys3d.lod`), from one skeleton; ``first`` is level 0, built already.
+
+    With a triangle budget, the one level that fits: the most detailed one
+    whose bark and leaves stay within it (levels are built until one does).
+    """
+
+    def quiet(name, fn, *args, **kw):
+        return fn(*args, **kw)
+
+    def build(level: int) -> Lod:
+        if level == 0:
+            return first
+        spec = LEVELS[level]
+        opts = level_options(options, level)
+        pruned = prune(skeleton, spec.prune)
+        tubes = sweep(pruned, opts.sweep, max_triangles=options.limits.max_triangles, seed=seed)
+        bark = _bark([tubes], opts, seed, quiet, table.bark.base_color)
+        if table and len(tubes):
+            bulge = opts.sweep.bark_displacement + opts.cleanup.bulge(min(opts.sweep.sides, opts.sweep.min_sides))
+            bark = with_face_materials(bark, pruned, hierarchy(pruned, seed), bulge)
+        leaves = lod_leaves(skeleton, level, opts.leaves, leaf_model)
+        settings = {"sides": opts.sweep.sides, "prune": spec.prune, "merge_angle": opts.sweep.merge_angle}
+        return Lod(level, bark, leaves, settings)
+
+    budget = options.lod.target_triangles
+    if budget:
+        built: dict[int, Lod] = {}
+
+        def counts():
+            for level in range(len(LEVELS)):
+                built[level] = build(level)
+                yield level, built[level].triangles
+
+        return (built[fit_budget(counts(), budget)],)
+    return tuple(build(level) for level in options.lod.levels)
 
 
 def _keep(bark: Mesh, leaves, organs, keys):

@@ -35,19 +35,36 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from .errors import OptionsError, PreviewError, clip
 from .exchange import export
 from .exchange.atomic import atomic_path, check_target
 from .options import Options, option
 from .tree import Tree
 
-__all__ = ["ENV_BLENDER", "INSTALL_HINT", "VIEWS", "PreviewOptions", "blender_command", "check_preview", "preview"]
+__all__ = [
+    "ENV_BLENDER",
+    "INSTALL_HINT",
+    "MATERIALS",
+    "VIEWS",
+    "PreviewOptions",
+    "blender_command",
+    "check_preview",
+    "junction_focus",
+    "preview",
+]
 
 log = logging.getLogger("lsys3d")
 
-VIEWS = ("front", "side", "iso")
+VIEWS = ("front", "side", "iso", "junction")
 """Camera positions: ``front`` looks along the tree's -Z (glTF's front), ``side`` along -X, ``iso`` from
-45 degrees to the side and 30 degrees above."""
+45 degrees to the side and 30 degrees above; ``junction`` is a close-up of the fork where the thickest
+branch leaves its parent, seen across the plane of the fork (:func:`junction_focus`)."""
+
+MATERIALS = ("asset", "checker")
+"""``asset``: the tree's own materials; ``checker``: glossy bark with a UV checker on it (8 x 8 squares per
+texture tile), to look at the mesh the way a technical director does: creases, stretch and seams show."""
 
 ENV_BLENDER = "LSYS3D_BLENDER"
 INSTALL_HINT = (
@@ -71,6 +88,7 @@ class PreviewOptions(Options):
 
     size: tuple[int, int] = option((800, 800), low=1, high=16384, metavar="WxH", help="image size in pixels")
     view: str = option("front", choices=VIEWS, help="where the camera stands")
+    material: str = option("asset", choices=MATERIALS, help="the tree's materials, or glossy bark with a UV checker")
     samples: int = option(16, low=1, high=65536, help="Cycles samples per pixel (denoised)")
     denoise: bool = option(True, help="run Blender's OpenImageDenoise on the render", cli=False)
     background: tuple[float, float, float] = option(
@@ -209,6 +227,42 @@ def _failure(path: Path, blender: str, proc: subprocess.CompletedProcess) -> Pre
     return PreviewError(f"{path}: Blender ({blender}) {what}{tail}")
 
 
+def junction_focus(tree: Tree) -> dict:
+    """Where the ``junction`` view looks: the fork where the thickest branch leaves its parent.
+
+    Returns
+    -------
+    dict
+        ``target`` (the point looked at: a little past the fork, where the
+        collar is), ``direction`` (unit, from the target towards the camera:
+        across the plane of the fork, towards the front) and ``size`` (the
+        width of the picture), in the tree's frame (metres, Y up, as glTF).
+
+    Raises
+    ------
+    PreviewError
+        A skeleton without a branch leaving another.
+    """
+    sk = tree.skeleton
+    chains = sk.chains
+    heads = chains.segments[chains.offsets[:-1]] if len(sk) else np.zeros(0, np.int64)
+    heads = heads[sk.parent[heads] >= 0] if len(heads) else heads
+    if not len(heads):
+        raise PreviewError("the junction view needs a branch that leaves another, and this tree has none")
+    child = int(heads[np.argmax(sk.width_start[heads])])  # the thickest; the first drawn of equals
+    parent = int(sk.parent[child])
+    r_parent = 0.5 * max(float(sk.width_end[parent]), float(sk.width_start[child]), 1e-6)
+    a, b = sk.heading[parent], sk.heading[child]
+    normal = np.cross(a, b)
+    if np.linalg.norm(normal) < 1e-6:  # a straight continuation: any side will do
+        normal = np.cross(a, [0.0, 0.0, 1.0] if abs(a[2]) < 0.9 else [1.0, 0.0, 0.0])
+    normal = normal / np.linalg.norm(normal)
+    if normal @ np.array([0.3, 0.2, 1.0]) < 0:  # look from the front (+Z), a little from the right and above
+        normal = -normal
+    target = sk.start[child] + 1.5 * r_parent * (a + b) / max(np.linalg.norm(a + b), 1e-9)
+    return {"target": target.tolist(), "direction": normal.tolist(), "size": 9.0 * r_parent}
+
+
 def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None = None) -> Path:
     """Render a shaded picture of ``tree`` to the PNG file ``path``.
 
@@ -270,8 +324,12 @@ def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None 
                 "background": list(options.background),
                 "margin": options.margin,
                 "threads": options.threads,
+                "material": options.material,
+                "bark_material": tree.bark_material.name,
                 "pose": options.bends(),
             }
+            if options.view == "junction":
+                job["focus"] = junction_focus(tree)
             command = _command(blender, json.dumps(job))
             log.info("render: %s", " ".join(command[:-1]))
             try:

@@ -11,9 +11,12 @@ or, with the ``bpy`` module, as ``python preview_blender.py -- JSON``.  ``JSON``
 is one object: ``glb`` (the scene), ``png`` (the image to write), ``width``,
 ``height``, ``view`` (``front``, ``side`` or ``iso``), ``samples``, ``denoise``,
 ``background`` (sRGB, 3 floats in [0, 1]), ``margin`` (fraction of the frame
-left around the object), ``threads`` (0: all cores), ``pose`` (optional: joint
-name -> degrees, each pose bone of a rigged tree turned about its X axis before
-the camera is fitted).
+left around the object), ``threads`` (0: all cores), ``material`` (``asset``,
+or ``checker``: the material named ``bark_material`` becomes glossy with a UV
+checker), for a close-up ``focus``: ``target``, ``direction`` (towards the
+camera) and ``size`` (the picture's width), in glTF's frame, and ``pose``
+(optional: joint name -> degrees, each pose bone of a rigged tree turned about
+its X axis before the camera is fitted).
 
 The scene: the glTF import (Blender turns glTF's Y up into its Z up, so the
 tree stands on the XY plane), a perspective camera fitted to every mesh vertex
@@ -131,6 +134,54 @@ def _camera(bpy, scene, view, margin):
     data.clip_end = distance + 2 * size
 
 
+def _blender_frame(v):
+    """glTF (Y up) to Blender (Z up), as the glTF importer turns the scene."""
+    return (v[0], -v[2], v[1])
+
+
+def _focus_camera(bpy, scene, focus):
+    """A camera looking at ``focus['target']`` from ``focus['direction']``, the picture ``focus['size']`` wide."""
+    from mathutils import Vector
+
+    data = bpy.data.cameras.new("preview")
+    camera = bpy.data.objects.new("preview", data)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    data.lens = LENS_MM
+    target = Vector(_blender_frame(focus["target"]))
+    direction = Vector(_blender_frame(focus["direction"])).normalized()
+    half_angle = math.atan(0.5 * data.sensor_width / LENS_MM)
+    distance = 0.5 * focus["size"] / math.tan(half_angle)
+    camera.location = target + distance * direction
+    camera.rotation_euler = (-direction).to_track_quat("-Z", "Y").to_euler()
+    data.clip_start = distance * 1e-3
+    data.clip_end = distance * 1e3
+
+
+def _checker(bpy, name):
+    """Give the material ``name`` a glossy surface with a UV checker: 8 x 8 squares per texture tile."""
+    material = bpy.data.materials.get(name)
+    if material is None:
+        return
+    if material.node_tree is None:  # Blender < 5 makes node trees on request
+        material.use_nodes = True
+    nodes = material.node_tree.nodes
+    links = material.node_tree.links
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    shader = nodes.new("ShaderNodeBsdfPrincipled")
+    shader.inputs["Roughness"].default_value = 0.18
+    shader.inputs["Metallic"].default_value = 0.0
+    checker = nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Scale"].default_value = 8.0
+    checker.inputs["Color1"].default_value = (0.85, 0.82, 0.75, 1.0)
+    checker.inputs["Color2"].default_value = (0.12, 0.14, 0.2, 1.0)
+    coords = nodes.new("ShaderNodeTexCoord")
+    links.new(coords.outputs["UV"], checker.inputs["Vector"])
+    links.new(checker.outputs["Color"], shader.inputs["Base Color"])
+    links.new(shader.outputs["BSDF"], out.inputs["Surface"])
+
+
 def _sun(bpy, scene):
     from mathutils import Vector
 
@@ -203,7 +254,12 @@ def render(job):
 
     _world(bpy, scene)
     _sun(bpy, scene)
-    _camera(bpy, scene, job["view"], job["margin"])
+    if job.get("material") == "checker":
+        _checker(bpy, job.get("bark_material", "bark"))
+    if job.get("focus"):
+        _focus_camera(bpy, scene, job["focus"])
+    else:
+        _camera(bpy, scene, job["view"], job["margin"])
 
     rendered = os.path.join(os.path.dirname(job["glb"]), "rendered.png")  # lsys3d's temporary folder
     render.filepath = rendered

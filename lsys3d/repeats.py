@@ -34,7 +34,7 @@ __all__ = ["Clusters", "copies", "find"]
 
 _KEY = 1e-6  # relative size of the grid that buckets candidate clusters
 _POINTS = 1e-7  # relative tolerance of congruent points (and 1/100 of a float32 step at the coordinates' size)
-_SHADING = 1e-5  # tolerance of congruent normals (unit) and u (0..1), and of the per-run v offset (metres)
+_SHADING = 1e-5  # tolerance of congruent normals (unit) and u, and of the per-run v offset (texture tiles)
 
 
 class Clusters:
@@ -111,6 +111,9 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
     for c in range(nc):
         groups.setdefault((*sig[c].tolist(), run_sig[c]), []).append(c)
     wedge_uv = tubes.wedge_uv
+    # v runs on along the whole plant (tiles, float32): where it is large, two float32 steps are the finest
+    # difference the texture coordinates themselves can hold
+    v_tolerance = max(_SHADING, 2.0 * float(np.spacing(np.abs(wedge_uv[:, 1]).max(initial=0.0))))
     for members in groups.values():
         if len(members) < 2:
             continue
@@ -146,7 +149,7 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
         run_of = np.repeat(np.arange(len(lens)), lens)
         first_tri = _offsets(lens)[:-1]
         offset = dv[:, first_tri, 0]  # (k, runs)
-        ok &= np.abs(dv - offset[:, run_of, None]).max(axis=(1, 2)) <= _SHADING
+        ok &= np.abs(dv - offset[:, run_of, None]).max(axis=(1, 2)) <= v_tolerance
         take = cand[ok]
         rep[m[take]] = m[r[take]]
         for row, k in zip(take.tolist(), np.flatnonzero(ok).tolist(), strict=True):

@@ -6,6 +6,7 @@ import numpy as np
 
 from .arrays import components as _labels
 from .modules import ModuleString
+from .quality import quality
 from .skeleton import Skeleton
 from .version import __version__
 
@@ -63,9 +64,6 @@ def skeleton_stats(modules: ModuleString, skeleton: Skeleton) -> dict:
 
 def components(faces: np.ndarray, n_vertices: int) -> int:
     """Number of connected pieces of a triangle mesh (vertices joined by its edges; unused vertices ignored).
-
-    Label propagation with pointer jumping, in numpy: a few passes over the
-    edges, whatever the mesh's diameter.
 
     Examples
     --------
@@ -167,6 +165,9 @@ def report(modules: ModuleString, skeleton: Skeleton, tree=None) -> dict:
         ``watertight``, ``winding_consistent``, ``unioned`` (after the union, or
         the tube soup without it).
         ``leaves``: ``vertices``, ``faces`` (all leaves merged).
+        ``quality``: the bark's :class:`~lsys3d.quality.Quality`: ``triangles``,
+        ``over_100`` and ``over_1000`` (aspect), ``slivers`` (under 1 um),
+        ``max_aspect``, ``uv_stretch`` (median; None without uv area).
         ``bbox``: ``min``, ``max`` of everything exported (bark and leaves).
         ``versions``: lsys3d, manifold3d, numba, numpy, trimesh.
 
@@ -190,6 +191,7 @@ def report(modules: ModuleString, skeleton: Skeleton, tree=None) -> dict:
         bark_keys = ("area", "components", "faces", "unioned", "vertices", "volume", "watertight", "winding_consistent")
         out["bark"] = {k: m[k] for k in bark_keys}
         out["leaves"] = {"faces": m["leaf_faces"], "vertices": m["leaf_vertices"]}
+        out["quality"] = quality(tree.bark).to_json()
         points = [tree.bark.vertices]
         leaves = tree.leaves.merged if tree.leaves.merged is not None else tree.leaves.polygons
         if leaves is not None:

@@ -37,7 +37,7 @@ attributes) read the same arrays.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
@@ -101,11 +101,39 @@ class SweepOptions(Options):
     )
     bark_frequency: float = option(8.0, low=0, low_open=True, high=1e6, help="bark features per metre")
     bark_octaves: int = option(3, low=1, high=16, help="octaves of the bark noise")
+    ring_spacing: float = option(
+        0.0,
+        low=0,
+        high=1e6,
+        help="rings at most this many tube sides apart (0: only at joints; 1 with bark displacement)",
+    )
+    uv_tile: float = option(
+        0.5,
+        low=0,
+        low_open=True,
+        high=1e6,
+        help="metres of bark around a branch one texture tile covers (a whole number of tiles goes around)",
+    )
 
     def sides_for_order(self, order) -> np.ndarray:
         """Sides of the rings of chains of branch order ``order``, ``int64``."""
         order = np.asarray(order, np.int64)
         return np.maximum(min(self.min_sides, self.sides), self.sides - order * self.sides_step)
+
+    @property
+    def spacing(self) -> tuple[float, float]:
+        """The ring spacing in effect: (tube sides, metres); a span longer than both gets rings.
+
+        ``ring_spacing`` sides when given; with bark displacement and no
+        ``ring_spacing``, one side (square quads) but no closer than half the
+        bark's feature size (``1 / bark_frequency``: two rings per bump of the
+        noise's first octave); (0, 0): rings only at joints.
+        """
+        if self.ring_spacing > 0:
+            return self.ring_spacing, 0.0
+        if self.bark_displacement > 0:
+            return 1.0, 0.5 / self.bark_frequency
+        return 0.0, 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,8 +141,9 @@ class Tubes:
     """Closed tubes, each a welded 2-manifold, stored as flat arrays.
 
     Tube ``t`` owns ``points[point_offsets[t]:point_offsets[t+1]]``, the
-    wedges ``wedge_offsets[t]:wedge_offsets[t+1]`` and the faces
-    ``face_offsets[t]:face_offsets[t+1]``; all indices are global.
+    wedges ``wedge_offsets[t]:wedge_offsets[t+1]``, the faces
+    ``face_offsets[t]:face_offsets[t+1]`` and the rings
+    ``ring_offsets[t]:ring_offsets[t+1]``; all indices are global.
 
     Attributes
     ----------
@@ -125,8 +154,9 @@ class Tubes:
     wedge_normal : (W, 3) float32
         Unit normal of each wedge (smooth around a tube, sharp at the caps).
     wedge_uv : (W, 2) float32
-        ``u`` around the tube in [0, 1] (caps: planar, also in [0, 1]),
-        ``v`` along the chain in skeleton units (metres).
+        Texture coordinates in tiles (see the module's documentation): ``u``
+        from 0 to ``tiles`` around the tube, ``v`` along the chain, a square
+        texel everywhere; caps planar at the same density.
     faces : (F, 3) int64
         Triangles as wedge indices, counter-clockwise seen from outside.
     point_offsets, wedge_offsets, face_offsets : (t + 1,) int64
@@ -136,6 +166,14 @@ class Tubes:
         Ring size and ring count of each tube.
     order : (t,) int32
         Branch order of each tube's chain.
+    tiles : (t,) float64
+        Texture tiles around each tube (a whole number).
+    ring_center, ring_tangent, ring_axis : (R, 3) float64
+        Each ring's centre, the normal of its plane (the mean direction of the
+        segments meeting there) and the direction of its first vertex (``u = 0``),
+        before any bark displacement; ``R = rings.sum()``, tube after tube.
+    ring_radius, ring_v : (R,) float64
+        Each ring's radius and texture ``v``.
     """
 
     points: np.ndarray
@@ -150,6 +188,12 @@ class Tubes:
     sides: np.ndarray
     rings: np.ndarray
     order: np.ndarray
+    tiles: np.ndarray
+    ring_center: np.ndarray
+    ring_tangent: np.ndarray
+    ring_axis: np.ndarray
+    ring_radius: np.ndarray
+    ring_v: np.ndarray
 
     def __len__(self) -> int:
         return len(self.point_offsets) - 1
@@ -158,8 +202,9 @@ class Tubes:
     def empty(cls) -> Tubes:
         z = np.zeros(1, np.int64)
         e = np.zeros(0, np.int64)
+        v3 = np.zeros((0, 3))
         return cls(
-            np.zeros((0, 3)),
+            v3,
             e,
             np.zeros((0, 3), np.float32),
             np.zeros((0, 2), np.float32),
@@ -171,12 +216,23 @@ class Tubes:
             e,
             e,
             np.zeros(0, np.int32),
+            np.zeros(0),
+            v3,
+            v3,
+            v3,
+            np.zeros(0),
+            np.zeros(0),
         )
 
     @property
     def face_points(self) -> np.ndarray:
         """Triangles as point indices, ``(F, 3) int64``."""
         return self.wedge_point[self.faces]
+
+    @property
+    def ring_offsets(self) -> np.ndarray:
+        """CSR offsets of each tube's rings, ``(t + 1,) int64``."""
+        return offsets(self.rings)
 
     def bounds(self) -> np.ndarray:
         """Axis-aligned box of each tube, ``(t, 2, 3)``."""
@@ -201,6 +257,7 @@ class Tubes:
         pts, p_old, p_new = gather(self.point_offsets, which)
         wed, w_old, w_new = gather(self.wedge_offsets, which)
         fac, _, f_new = gather(self.face_offsets, which)
+        rng, _, _ = gather(self.ring_offsets, which)
         wedge_point = self.wedge_point[wed] - np.repeat(p_old - p_new[:-1], np.diff(w_new))
         faces = self.faces[fac] - np.repeat(w_old - w_new[:-1], np.diff(f_new))[:, None]
         return Tubes(
@@ -216,9 +273,15 @@ class Tubes:
             self.sides[which],
             self.rings[which],
             self.order[which],
+            self.tiles[which],
+            self.ring_center[rng],
+            self.ring_tangent[rng],
+            self.ring_axis[rng],
+            self.ring_radius[rng],
+            self.ring_v[rng],
         )
 
-    def insert_rings(self, tube: np.ndarray, ring: np.ndarray, t: np.ndarray) -> Tubes:
+    def insert_rings(self, tube: np.ndarray, ring: np.ndarray, t: np.ndarray, *, origin: bool = False):
         """These tubes with new rings between existing ones, each vertex interpolated along its wall edge.
 
         A new ring goes into tube ``tube[i]`` between its rings ``ring[i]`` and
@@ -229,10 +292,15 @@ class Tubes:
         tube, :func:`straight_spans`) the surface does not change; elsewhere it
         moves by at most the quads' distance from planar.  The existing points
         keep their exact values.
+
+        With ``origin=True``, returns ``(tubes, face_origin)``: for each face of
+        the new tubes, the face of these tubes it lies in (a wall face of a
+        split span: the face of the same quad and half in the span it splits;
+        a cap face: the same cap face).
         """
         tube, ring, t = (np.asarray(x) for x in (tube, ring, t))
         if not len(tube):
-            return self
+            return (self, np.arange(len(self.faces))) if origin else self
         nt, sides, rings = len(self), self.sides, self.rings
         all_tube = np.concatenate([np.repeat(np.arange(nt), rings), tube.astype(np.int64)])
         all_ring = np.concatenate([local_index(rings), ring.astype(np.int64)])
@@ -299,7 +367,23 @@ class Tubes:
         for s in np.unique(sides).tolist():
             which = np.flatnonzero(sides == s)
             _tube_faces(faces, s, new_rings[which], w_off[which], f_off[which])
-        return Tubes(
+        # the rings themselves: an inserted ring lies on its span, perpendicular to it (as _subdivide makes them)
+        old_ring = self.ring_offsets[rt] + rk
+        nxt = np.minimum(old_ring + 1, len(self.ring_center) - 1)
+        moved = rf > 0
+        fm = rf[moved][:, None]
+        ring_center = self.ring_center[old_ring]
+        ring_center[moved] = (1.0 - fm) * self.ring_center[old_ring[moved]] + fm * self.ring_center[nxt[moved]]
+        ring_radius = self.ring_radius[old_ring]
+        ring_radius[moved] = (1.0 - fm[:, 0]) * ring_radius[moved] + fm[:, 0] * self.ring_radius[nxt[moved]]
+        ring_v = self.ring_v[old_ring]
+        ring_v[moved] = (1.0 - fm[:, 0]) * ring_v[moved] + fm[:, 0] * self.ring_v[nxt[moved]]
+        ring_tangent = self.ring_tangent[old_ring]
+        ring_axis = self.ring_axis[old_ring]
+        d = unit(self.ring_center[nxt[moved]] - self.ring_center[old_ring[moved]])
+        ring_axis[moved] = _reflect_transport(ring_axis[moved], ring_tangent[moved], d)
+        ring_tangent[moved] = d
+        new = Tubes(
             points,
             wedge_point,
             wedge_normal,
@@ -312,12 +396,110 @@ class Tubes:
             self.sides,
             new_rings,
             self.order,
+            self.tiles,
+            ring_center,
+            ring_tangent,
+            ring_axis,
+            ring_radius,
+            ring_v,
         )
+        if not origin:
+            return new
+        # each new face's face before: wall faces by the span their first ring splits, caps as they were
+        face_tube = np.repeat(np.arange(nt), np.diff(f_off))
+        local_face = np.arange(f_off[-1]) - f_off[face_tube]
+        s2 = 2 * sides[face_tube]
+        body = s2 * (new_rings[face_tube] - 1)
+        wall = local_face < body
+        span_row = offsets(new_rings)[face_tube] + local_face // s2  # the row (in rt, rk) of the span's first ring
+        old_local = np.where(
+            wall,
+            rk[np.minimum(span_row, len(rk) - 1)] * s2 + local_face % s2,
+            local_face - body + s2 * (rings[face_tube] - 1),
+        )
+        return new, self.face_offsets[face_tube] + old_local
 
     def mesh(self, i: int | None = None) -> Mesh:
-        """Tube ``i`` (or all tubes, as one tube soup) as a welded :class:`~lsys3d.mesh.Mesh`."""
-        tubes = self if i is None else self.select([i])
-        return Mesh(tubes.points, tubes.face_points, tubes.wedge_normal[tubes.faces], tubes.wedge_uv[tubes.faces])
+        """Tube ``i`` (or all tubes, as one tube soup) as a welded :class:`~lsys3d.mesh.Mesh`.
+
+        Its ``face_source`` is each triangle's index in :attr:`faces`.
+        """
+        if i is None:
+            tubes, source = self, np.arange(len(self.faces))
+        else:
+            tubes, source = self.select([i]), np.arange(self.face_offsets[i], self.face_offsets[i + 1])
+        normals, uv = tubes.wedge_normal[tubes.faces], tubes.wedge_uv[tubes.faces]
+        return Mesh(tubes.points, tubes.face_points, normals, uv, face_source=source)
+
+    def uv_at(self, face: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Texture coordinates of ``points`` (k, 3) or (k, m, 3) in the chart of the tube faces ``face`` (k,).
+
+        The chart of a wall face is its tube's cylinder coordinates about the
+        span the face belongs to: ``u`` from the angle around the span's axis
+        (measured in the tube's twist-free frame, so a ring vertex gets
+        exactly its own ``u``), ``v`` from the position along it (the share of
+        the way from one ring's plane to the next's, so every vertex of a
+        tilted joint ring gets the ring's ``v``); a cap's chart is planar.
+        This is what lets a stage that moves or adds vertices (the cleanup)
+        give them texture coordinates that match the tube's: points need not
+        lie on the face.  ``u`` is in ``[0, tiles)``; wrap it per triangle
+        (:func:`wrap_u`).  Returns ``points``' shape with 2 in place of 3.
+        """
+        face = np.asarray(face, np.int64)
+        points = np.asarray(points, np.float64)
+        extra = (slice(None),) + (None,) * (points.ndim - 2)  # per-face values against the points' middle axes
+        tube = np.searchsorted(self.face_offsets, face, side="right") - 1
+        s = self.sides[tube]
+        local = face - self.face_offsets[tube]
+        body = 2 * s * (self.rings[tube] - 1)
+        first = self.ring_offsets[tube]
+        span = np.minimum(local // np.maximum(2 * s, 1), np.maximum(self.rings[tube] - 2, 0))
+        r0 = first + span
+        r1 = np.minimum(r0 + 1, first + self.rings[tube] - 1)
+        c0, c1 = self.ring_center[r0], self.ring_center[r1]
+        axis = c1 - c0
+        span_length = np.linalg.norm(axis, axis=1)
+        d = np.where(span_length[:, None] > 0, axis / np.maximum(span_length, 1e-300)[:, None], self.ring_tangent[r0])
+        a = _reflect_transport(self.ring_axis[r0], self.ring_tangent[r0], d)
+        b = np.cross(d, a)
+        x = points - c0[extra]
+        angle = np.arctan2(dot(x, b[extra]), dot(x, a[extra])) % (2.0 * np.pi)
+        angle[angle > 2.0 * np.pi * (1.0 - 1e-12)] = 0.0  # the seam itself is u = 0 (wrap_u decides per face)
+        u = self.tiles[tube][extra] * angle / (2.0 * np.pi)
+        # along: the share of the way from one ring's plane to the next's (a joint ring's plane is tilted)
+        h0 = dot(x, self.ring_tangent[r0][extra])
+        h1 = dot(c1[extra] - points, self.ring_tangent[r1][extra])
+        total = h0 + h1
+        t = np.where(np.abs(total) > 1e-300, h0 / np.where(np.abs(total) > 1e-300, total, 1.0), 0.0)
+        v0, v1 = self.ring_v[r0][extra], self.ring_v[r1][extra]
+        v = v0 + t * (v1 - v0)
+        # caps: planar, at the density of the wall at their ring
+        cap = local >= body
+        if cap.any():
+            tc = tube[cap]
+            tip = local[cap] >= body[cap] + s[cap]
+            ring = np.where(tip, first[cap] + self.rings[tc] - 1, first[cap])
+            xc = points[cap] - self.ring_center[ring][extra]
+            ca = self.ring_axis[ring]
+            cb = np.cross(self.ring_tangent[ring], ca)
+            density = self.tiles[tc] / (s[cap] * 2.0 * np.sin(np.pi / s[cap]) * self.ring_radius[ring])
+            u[cap] = (0.5 * self.tiles[tc])[extra] + density[extra] * dot(xc, ca[extra])
+            v[cap] = self.ring_v[ring][extra] + density[extra] * dot(xc, cb[extra])
+        return np.stack([u, v], axis=-1)
+
+
+def wrap_u(uv: np.ndarray, tiles: np.ndarray) -> np.ndarray:
+    """Per triangle ``(f, 3, 2)``: corners whose ``u`` lies more than half a turn below the others get ``+ tiles``.
+
+    :meth:`Tubes.uv_at` gives ``u`` in ``[0, tiles)``; a triangle across the
+    tube's seam needs its corners on one side of it (``u`` near ``tiles``, not 0).
+    """
+    u = uv[:, :, 0]
+    tiles = np.asarray(tiles, np.float64)[:, None]
+    wide = (u.max(axis=1, keepdims=True) - u) > 0.5 * tiles
+    out = uv.copy()
+    out[:, :, 0] = np.where(wide, u + tiles, u)
+    return out
 
 
 def _reflect_transport(u: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -405,14 +587,19 @@ def sweep(
     # v along the chain counts every segment, dropped ones included
     cum = np.cumsum(length)
     v1 = cum - np.repeat(cum[chains.offsets[:-1]] - length[chains.offsets[:-1]], chains.lengths())
+    chain_sides = opt.sides_for_order(skeleton.order[seg[chains.offsets[:-1]]])
+    tiles, tv1 = _texture_v(skeleton, opt, chain_sides, seg, chain, length)
     keep = length > opt.min_length
     if not keep.any():
         return Tubes.empty()
-    seg, chain, p0, p1, length, v1 = seg[keep], chain[keep], p0[keep], p1[keep], length[keep], v1[keep]
+    seg, chain, p0, p1, length, v1, tv1 = seg[keep], chain[keep], p0[keep], p1[keep], length[keep], v1[keep], tv1[keep]
     d = (p1 - p0) / length[:, None]
     v0 = v1 - length
     w0 = np.maximum(skeleton.width_start[seg], opt.min_width)
     w1 = np.maximum(skeleton.width_end[seg], opt.min_width)
+    # texture v per metre where the radius is r: tiles / perimeter = rate / r
+    rate = tiles[chain] / (chain_sides[chain] * 2.0 * np.sin(np.pi / chain_sides[chain]))
+    tv0 = tv1 - rate * length * _inverse_mean(0.5 * w0, 0.5 * w1)
     k = len(seg)
     if opt.merge_deviation > 0 and k > 1:
         group = _merge_groups(chain, p0, p1, v0, v1, w0, w1, opt.merge_deviation, 1e-9 * (np.abs(p1).max() + 1.0))
@@ -421,6 +608,7 @@ def sweep(
             last = np.append(first[1:] - 1, k - 1)
             seg, chain, p0, p1, v0, v1 = seg[first], chain[first], p0[first], p1[last], v0[first], v1[last]
             w0, w1 = w0[first], w1[last]
+            tv0, tv1, rate = tv0[first], tv1[last], rate[first]  # texture v of the run's ends (one chain: one rate)
             length = np.linalg.norm(p1 - p0, axis=1)
             d = (p1 - p0) / length[:, None]
             k = len(seg)
@@ -453,7 +641,7 @@ def sweep(
 
     # ---- rotation-minimising frame: u[s] perpendicular to d[s]; all pieces advance together
     u = np.empty((k, 3))
-    u[piece_start] = _perpendicular(d[piece_start], skeleton.left[seg[piece_start]])
+    u[piece_start] = _perpendicular(d[piece_start], _seam_side(d[piece_start]))
     by_len = np.argsort(-piece_len, kind="stable")
     starts_sorted = piece_start[by_len]
     neg_len = -piece_len[by_len]
@@ -470,6 +658,7 @@ def sweep(
     axis_a = np.empty((nr, 3))
     width = np.empty(nr)
     v = np.empty(nr)
+    tv = np.empty(nr)
     stretch = np.ones(nr)
     bend_dir = np.zeros((nr, 3))
     joint = np.zeros(nr, bool)
@@ -479,6 +668,7 @@ def sweep(
     axis_a[ring_start] = u[piece_start]
     width[ring_start] = w0[piece_start]
     v[ring_start] = v0[piece_start] - ext_start[piece_start]
+    tv[ring_start] = tv0[piece_start] - rate[piece_start] * ext_start[piece_start] / (0.5 * w0[piece_start])
 
     e = np.flatnonzero(last)
     re = ring_of_end[e]
@@ -487,6 +677,7 @@ def sweep(
     axis_a[re] = u[e]
     width[re] = w1[e]
     v[re] = v1[e] + ext_end[e]
+    tv[re] = tv1[e] + rate[e] * ext_end[e] / (0.5 * w1[e])
 
     j = np.flatnonzero(~last)  # segment j ends at a joint with segment j + 1
     rj = ring_of_end[j]
@@ -496,6 +687,7 @@ def sweep(
     axis_a[rj] = _reflect_transport(u[j], d[j], tangent[rj])
     width[rj] = 0.5 * (w1[j] + w0[j + 1])
     v[rj] = v1[j]
+    tv[rj] = tv1[j]
     cj = cos[j]
     turning = cj < 1.0 - 1e-12
     stretch[rj] = np.where(turning, np.sqrt(2.0 / (1.0 + cj)), 1.0)
@@ -510,8 +702,14 @@ def sweep(
     kept[rj] = ~(straight & (np.abs(width[rj] - interp) <= opt.merge_width * width[rj]))
     ring_piece = np.repeat(np.arange(npieces), piece_len + 1)
     sel = np.flatnonzero(kept)
-    center, tangent, axis_a, width, v = center[sel], tangent[sel], axis_a[sel], width[sel], v[sel]
+    center, tangent, axis_a, width, v, tv = center[sel], tangent[sel], axis_a[sel], width[sel], v[sel], tv[sel]
     stretch, bend_dir, ring_piece = stretch[sel], bend_dir[sel], ring_piece[sel]
+    chain_of_piece = chain[piece_start]
+    sides_of_piece = chain_sides[chain_of_piece]
+    if opt.spacing[0] > 0:
+        center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece = _subdivide(
+            opt.spacing, sides_of_piece, center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece
+        )
     rings = np.bincount(ring_piece, minlength=npieces)
     radius = 0.5 * width
     axis_b = np.cross(tangent, axis_a)
@@ -519,19 +717,17 @@ def sweep(
     # taper slope dr/ds between neighbouring rings, for the normals
     ring_first = np.zeros(npieces + 1, np.int64)
     np.cumsum(rings, out=ring_first[1:])
-    nxt = np.arange(len(sel)) + 1
-    prv = np.arange(len(sel)) - 1
-    is_last = np.zeros(len(sel), bool)
+    nxt = np.arange(len(v)) + 1
+    prv = np.arange(len(v)) - 1
+    is_last = np.zeros(len(v), bool)
     is_last[ring_first[1:] - 1] = True
-    is_first = np.zeros(len(sel), bool)
+    is_first = np.zeros(len(v), bool)
     is_first[ring_first[:-1]] = True
     nxt[is_last] -= 1
     prv[is_first] += 1
     slope = (radius[nxt] - radius[prv]) / np.maximum(v[nxt] - v[prv], 1e-300)
 
-    chain_of_piece = chain[piece_start]
     order_of_piece = skeleton.order[skeleton.chains.segments[skeleton.chains.offsets[chain_of_piece]]]
-    sides_of_piece = opt.sides_for_order(order_of_piece)
     triangles = int((2 * sides_of_piece * rings).sum())
     if triangles > max_triangles:
         raise LimitError(
@@ -563,28 +759,131 @@ def sweep(
                     axis_b[rsel],
                     radius[rsel],
                     slope[rsel],
-                    v[rsel],
+                    tv[rsel],
                     stretch[rsel],
                     bend_dir[rsel],
+                    tiles[chain_of_piece[pieces]],
                     displace,
                 ),
             )
         )
     order_all = np.concatenate([p for p, _ in parts])
     tubes = _concat([t for _, t in parts])
-    return Tubes(
-        tubes.points,
-        tubes.wedge_point,
-        tubes.wedge_normal,
-        tubes.wedge_uv,
-        tubes.faces,
-        tubes.point_offsets,
-        tubes.wedge_offsets,
-        tubes.face_offsets,
-        chain_of_piece[order_all],
-        sides_of_piece[order_all],
-        rings[order_all],
-        order_of_piece[order_all].astype(np.int32),
+    return replace(
+        tubes,
+        chain=chain_of_piece[order_all],
+        sides=sides_of_piece[order_all],
+        rings=rings[order_all],
+        order=order_of_piece[order_all].astype(np.int32),
+    )
+
+
+def _seam_side(d: np.ndarray) -> np.ndarray:
+    """Where each tube's seam (``u = 0``) starts: the top of a branch, the back (-Z) of an upright one.
+
+    The seam of a texture rarely matches perfectly; it goes where it is least
+    seen.  A camera on the ground looks up at a crown and sees the undersides
+    of its branches, so the seam runs along the top; an upright stem has no
+    top, so its seam faces -Z, the back of a glTF asset (whose front is +Z).
+    The twist-free frame carries the seam along the chain: a branch bending
+    in a vertical plane (gravity, phototropism) keeps it on top.
+    """
+    upright = np.abs(d[:, 1]) > 0.99
+    return np.where(upright[:, None], [[0.0, 0.0, -1.0]], [[0.0, 1.0, 0.0]])
+
+
+def _inverse_mean(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
+    """The mean of ``1 / r`` over a linear taper from ``r0`` to ``r1``: ``log(r1 / r0) / (r1 - r0)``."""
+    x = (r1 - r0) / r0
+    small = np.abs(x) < 1e-6
+    return np.where(small, 1.0 - 0.5 * x, np.log1p(np.where(small, 0.0, x)) / np.where(small, 1.0, x)) / r0
+
+
+def _texture_v(skeleton: Skeleton, opt: SweepOptions, chain_sides, seg, chain, length):
+    """Tiles around each chain, and the texture ``v`` at the end of each segment (in chain order).
+
+    A chain gets a whole number of tiles around, ``round(perimeter at its
+    base / uv_tile)`` and at least one, so its texture wraps without a seam;
+    ``v`` grows by ``tiles / perimeter`` per metre, so a texel is square
+    wherever the chain tapers.  A chain's ``v`` starts where its parent's ``v``
+    is at the junction: the texture runs on from a branch into its child.
+    """
+    chains = skeleton.chains
+    heads = chains.offsets[:-1]
+    r0 = 0.5 * np.maximum(skeleton.width_start[seg], opt.min_width)
+    r1 = 0.5 * np.maximum(skeleton.width_end[seg], opt.min_width)
+    chord = chain_sides * 2.0 * np.sin(np.pi / chain_sides)  # perimeter / radius
+    tiles = np.maximum(1.0, np.round(chord * r0[heads] / opt.uv_tile))
+    rate = (tiles / chord)[chain]
+    step = rate * length * _inverse_mean(r0, r1)
+    cum = np.cumsum(step)
+    local = cum - np.repeat(cum[heads] - step[heads], chains.lengths())
+    # each chain starts at its parent's v where it branches off (parents come first: parent[s] < s)
+    position = np.empty(len(seg), np.int64)
+    position[seg] = np.arange(len(seg))
+    parent = skeleton.parent[seg[heads]]
+    has = parent >= 0
+    at = position[parent[has]]
+    start = np.zeros(len(chains))
+    for _ in range(len(chains)):
+        new = np.zeros(len(chains))
+        new[has] = start[chain[at]] + local[at]
+        if np.array_equal(new, start):
+            break
+        start = new
+    return tiles, start[chain] + local
+
+
+def _subdivide(spacing, sides_of_piece, center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece):
+    """Extra rings between neighbouring rings of a piece farther apart than ``spacing`` (tube sides, metres).
+
+    The new rings are evenly spaced, perpendicular to their span, with the
+    span's twist-free frame and the linear taper's width.
+    """
+    sides_apart, metres = spacing
+    n = len(center)
+    same = ring_piece[1:] == ring_piece[:-1]
+    sides = sides_of_piece[ring_piece[:-1]]
+    gap = np.linalg.norm(center[1:] - center[:-1], axis=1)
+    side = np.minimum(width[1:], width[:-1]) * np.sin(np.pi / sides)  # 2 r sin(pi / S)
+    extra = np.where(same, np.ceil(gap / np.maximum(sides_apart * side, metres)) - 1, 0).astype(np.int64)
+    extra = np.maximum(extra, 0)
+    if not extra.any():
+        return center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece
+    count = np.ones(n, np.int64)
+    count[:-1] += extra
+    first = offsets(count)[:-1]
+    total = int(count.sum())
+    pair = np.repeat(np.arange(n), count)  # the ring each new row follows
+    k = np.arange(total) - first[pair]  # 0 for the ring itself, 1.. for the inserted
+    t = k / np.append(extra + 1, 1)[pair]
+    nxt = np.minimum(pair + 1, n - 1)
+
+    def lerp(a):
+        tt = t.reshape(-1, *([1] * (a.ndim - 1)))
+        return a[pair] + tt * (a[nxt] - a[pair])
+
+    inserted = k > 0
+    d = unit(center[nxt] - center[pair])
+    out_tangent = np.where(inserted[:, None], d, tangent[pair])
+    out_axis = axis_a[pair].copy()
+    out_axis[inserted] = _reflect_transport(axis_a[pair][inserted], tangent[pair][inserted], d[inserted])
+    out_stretch = np.where(inserted, 1.0, stretch[pair])
+    out_bend = np.where(inserted[:, None], 0.0, bend_dir[pair])
+    # texture v grows as the integral of 1 / r: exact for the linear taper, so texels stay square
+    r0, r1 = 0.5 * width[pair], 0.5 * width[nxt]
+    rt = r0 + t * (r1 - r0)
+    share = t * _inverse_mean(r0, rt) / _inverse_mean(r0, r1)
+    return (
+        lerp(center),
+        out_tangent,
+        out_axis,
+        lerp(width),
+        lerp(v),
+        tv[pair] + share * (tv[nxt] - tv[pair]),
+        out_stretch,
+        out_bend,
+        ring_piece[pair],
     )
 
 
@@ -692,9 +991,12 @@ def _tube_faces(faces: np.ndarray, s: int, rings: np.ndarray, wedge_start: np.nd
     faces[(cap_f + s)[:, None] + js] = (cap_w + s + 1)[:, None, None] + fan[None][:, :, [0, 2, 1]]
 
 
-def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch, bend_dir, displace=None) -> Tubes:
+def _build(
+    s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch, bend_dir, tiles, displace=None
+) -> Tubes:
     """Tubes of ``s`` sides; ring arrays hold the rings of every tube, tube after tube.
 
+    ``v`` is each ring's texture ``v``, ``tiles`` each tube's tiles around.
     ``displace(points (k, 3)) -> (k,)`` moves each ring vertex along its radial
     direction by that fraction of the ring's radius; the ring normals are then
     taken from the displaced surface.
@@ -735,9 +1037,11 @@ def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch,
     ring_w = (w_off[tube_of_ring] + local * (s + 1))[:, None] + jj  # (n, s+1)
     wedge_point[ring_w] = (p_off[tube_of_ring] + local * s)[:, None] + jj % s
     wedge_normal[ring_w] = normal
-    wedge_uv[ring_w, 0] = jj / s
+    wedge_uv[ring_w, 0] = tiles[tube_of_ring][:, None] * jj / s
     wedge_uv[ring_w, 1] = v[:, None]
-    # caps: centre then rim, base cap before tip cap; planar u, v in metres
+    # caps: centre then rim, base cap before tip cap; planar, as dense as the wall at their ring (Tubes.uv_at)
+    half = 0.5 * tiles
+    reach = tiles / (s * 2.0 * np.sin(np.pi / s))
     cap_w = (w_off[:-1] + rings * (s + 1))[:, None] + np.array([0, s + 1])  # (nt, 2)
     for which, ring, sign, centre_point in ((0, base, -1.0, p_off[1:] - 2), (1, tip, 1.0, p_off[1:] - 1)):
         cw = cap_w[:, which]
@@ -746,9 +1050,9 @@ def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch,
         wedge_point[rim] = (p_off[:-1] + local[ring] * s)[:, None] + jj[:s]
         wedge_normal[cw] = sign * tangent[ring]
         wedge_normal[rim] = sign * tangent[ring][:, None, :]
-        wedge_uv[cw] = np.stack([np.full(nt, 0.5), v[ring]], axis=1)
-        wedge_uv[rim, 0] = 0.5 + 0.5 * c[None, :s]
-        wedge_uv[rim, 1] = v[ring][:, None] + radius[ring][:, None] * si[None, :s]
+        wedge_uv[cw] = np.stack([half, v[ring]], axis=1)
+        wedge_uv[rim, 0] = half[:, None] + reach[:, None] * c[None, :s]
+        wedge_uv[rim, 1] = v[ring][:, None] + reach[:, None] * si[None, :s]
 
     faces = np.empty((f_off[-1], 3), np.int64)
     _tube_faces(faces, s, rings, w_off[:-1], f_off[:-1])
@@ -756,7 +1060,24 @@ def _build(s, rings, center, tangent, axis_a, axis_b, radius, slope, v, stretch,
         _surface_normals(points, wedge_point, wedge_normal, faces, f_off, 2 * s * (rings - 1), ring_w)
     z = np.zeros(nt, np.int64)
     return Tubes(
-        points, wedge_point, wedge_normal, wedge_uv, faces, p_off, w_off, f_off, z, z, rings, z.astype(np.int32)
+        points,
+        wedge_point,
+        wedge_normal,
+        wedge_uv,
+        faces,
+        p_off,
+        w_off,
+        f_off,
+        z,
+        z,
+        rings,
+        z.astype(np.int32),
+        np.asarray(tiles, np.float64),
+        center,
+        tangent,
+        axis_a,
+        radius,
+        v,
     )
 
 
@@ -797,5 +1118,19 @@ def _concat(parts: list[Tubes]) -> Tubes:
         shifted("point_offsets", p_shift),
         shifted("wedge_offsets", w_shift),
         shifted("face_offsets", f_shift),
-        *(np.concatenate([getattr(t, name) for t in parts]) for name in ("chain", "sides", "rings", "order")),
+        *(
+            np.concatenate([getattr(t, name) for t in parts])
+            for name in (
+                "chain",
+                "sides",
+                "rings",
+                "order",
+                "tiles",
+                "ring_center",
+                "ring_tangent",
+                "ring_axis",
+                "ring_radius",
+                "ring_v",
+            )
+        ),
     )

@@ -9,7 +9,7 @@ corner normals and uv, optional vertex colours).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 from .hierarchy import Hierarchy
 from .leaves import Leaves
@@ -75,6 +75,9 @@ class Tree:
         prototypes and instances, and each prototype's organs merged.
     animation : Animation or None
         The sample wind animation of the rig's joints (:mod:`lsys3d.wind`), when asked for.
+    lods : tuple of lsys3d.lod.Lod
+        Its levels of detail when asked for (``lod=(0, 1, 2, 3)``), level 0
+        being ``bark`` and ``leaves`` themselves; empty otherwise.
     """
 
     bark: Mesh
@@ -89,6 +92,7 @@ class Tree:
     rig: Rig | None = None
     organs: Organs = field(default_factory=Organs)
     animation: Animation | None = None
+    lods: tuple = ()
 
     @property
     def bark_material(self) -> Material:
@@ -111,7 +115,18 @@ class Tree:
         return asset_identifier(self.name)
 
     def metadata(self) -> dict:
-        """The ``lsys3d`` block every writer records: provenance and counts, JSON-ready (empty without provenance)."""
+        """The ``lsys3d`` block every writer records: provenance and counts, JSON-ready (empty without provenance).
+
+        With levels of detail, ``lods`` lists each level's number and triangles.
+        """
         if self.provenance is None:
             return {}
-        return {**self.provenance.to_json(), "counts": self.counts.to_json()}
+        out = {**self.provenance.to_json(), "counts": self.counts.to_json()}
+        if self.lods:
+            out["lods"] = [{"level": lod.level, "triangles": lod.triangles} for lod in self.lods]
+        return out
+
+    def at_level(self, index: int) -> Tree:
+        """The tree with the bark and leaves of ``lods[index]`` and no levels: what a writer writes per level."""
+        lod = self.lods[index]
+        return replace(self, bark=lod.bark, leaves=lod.leaves, lods=())

@@ -54,13 +54,13 @@ import logging
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import manifold3d
 import numpy as np
 
 from . import booleans, repeats, union_jobs
-from .arrays import components, find_rows
+from .arrays import components, find_rows, gather, ranges
 from .arrays import first_equal_row as _first_equal_row
 from .arrays import offsets as _offsets
 from .booleans import BooleanError, Part
@@ -136,10 +136,15 @@ def concatenate(tubes: Tubes) -> Mesh:
     return tubes.mesh()
 
 
-def _manifold(tubes: Tubes, where: str) -> manifold3d.Manifold:
-    """One Manifold of whole (pairwise disjoint) tubes, attributes as properties."""
+def _manifold(tubes: Tubes, where: str, first_face: int = 0) -> manifold3d.Manifold:
+    """One Manifold of whole (pairwise disjoint) tubes, attributes as properties.
+
+    The face ids are the faces' indices from ``first_face`` on (their index in
+    the tubes these were selected from, for ``Mesh.face_source``).
+    """
     try:
-        return booleans.manifold_of(_part(tubes, tubes.faces, np.arange(len(tubes.faces))), where)
+        ids = first_face + np.arange(len(tubes.faces))
+        return booleans.manifold_of(_part(tubes, tubes.faces, ids), where)
     except BooleanError as exc:
         raise GeometryError(str(exc)) from None
 
@@ -207,9 +212,11 @@ def union(
     Returns
     -------
     Mesh
-        Welded, watertight 2-manifold with outward faces and the
-        ``corner_normals`` (unit) / ``corner_uv`` face attributes of
-        :mod:`lsys3d.tree`.
+        Welded, watertight 2-manifold with outward faces, unit corner normals
+        and corner uv; its ``face_source`` is, for every triangle, the index
+        in ``tubes.faces`` of the tube face it is a piece of (on every path:
+        whole tubes, junction jobs, copies of repeated junctions, untouched
+        pieces stitched back on).
 
     Raises
     ------
@@ -230,18 +237,23 @@ def union(
     workers = opt.workers or union_jobs.default_workers()
     progress = _Progress(progress)
     progress(0.0)
+    nf = len(tubes.faces)
     if not opt.layers:
-        parts = [_manifold(tubes.select([i]), f"union: tube {i} (chain {tubes.chain[i]})") for i in range(len(tubes))]
+        fo = tubes.face_offsets
+        parts = [
+            _manifold(tubes.select([i]), f"union: tube {i} (chain {tubes.chain[i]})", int(fo[i]))
+            for i in range(len(tubes))
+        ]
         result = parts[0] if len(parts) == 1 else manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add)
         if result.status() != manifold3d.Error.NoError:
             raise GeometryError(f"{where}: manifold3d reported {result.status().name}")
         if result.is_empty() or result.num_tri() == 0:
             raise GeometryError(f"{where}: manifold3d returned an empty mesh")
-        mesh = _weld_float32([_drop_crumbs(_to_mesh([booleans.part_of(result)], where))])
+        mesh = _weld_float32([_true_sources(_drop_crumbs(_to_mesh([booleans.part_of(result)], where)), tubes)])
         progress(1.0)
-        return mesh
+        return _sourced(mesh, np.arange(nf), where)
     t0 = time.perf_counter()
-    tubes, pcs, a, b = _prepare(tubes, opt, progress)
+    tubes, pcs, a, b, origin = _prepare(tubes, opt, progress)
     _release_memory()
     log.debug("union: %d pieces, %d touching pairs (%.2f s)", len(pcs), len(a), time.perf_counter() - t0)
     progress(0.10)
@@ -252,10 +264,11 @@ def union(
         held = [_local_union(tubes, pcs, busy, a, b, where, workers, progress)]
         if held[0] is not None:
             progress(0.90)
+            held.append(_true_sources(held.pop(), tubes))
             del tubes, pcs, a, b, busy  # the weld's memory: the stitched mesh is all that is needed now
             mesh = _weld_float32(held)
             progress(1.0)
-            return mesh
+            return _sourced(mesh, origin, where)
     ta, tb = pcs.tube[a], pcs.tube[b]
     pairs = _unique_pairs(ta, tb)
     colour = _colour(len(tubes), pairs)
@@ -267,8 +280,9 @@ def union(
         items = jobs.leaves[i]
         out = []
         for c in np.unique(colour[items]).tolist():
-            sel = tubes.select(np.sort(items[colour[items] == c]))
-            out.append(_part(sel, sel.faces, np.arange(len(sel.faces))))
+            which = np.sort(items[colour[items] == c])
+            sel = tubes.select(which)
+            out.append(_part(sel, sel.faces, gather(tubes.face_offsets, which)[0]))
         return out
 
     use = _use(workers, weight.sum(), jobs)
@@ -276,17 +290,115 @@ def union(
     log.debug("union: %d tubes in %d jobs, %d workers", len(tubes), stats["jobs"], stats["workers"])
     held = [_to_mesh(roots, where)]
     progress(0.85)
-    held.append(_drop_crumbs(held.pop()))
+    held.append(_true_sources(_drop_crumbs(held.pop()), tubes))
     mesh = _weld_float32(held)
     progress(1.0)
-    return mesh
+    return _sourced(mesh, origin, where)
+
+
+def _misplaced(vertices: np.ndarray, faces: np.ndarray, source: np.ndarray, tubes: Tubes) -> np.ndarray:
+    """``(f,) bool``: the faces whose centroid is farther from their source tube face than its radius and side.
+
+    A piece of a face lies on the face; one of a span split by new rings lies
+    in the quad of the span (within a side of the tube, ``2 r sin(pi / sides)``,
+    more than the radius when a tube has 3-5 sides).  A slice at a time.
+    """
+    radius = np.maximum.reduceat(tubes.ring_radius, tubes.ring_offsets[:-1])
+    radius = radius * (1.0 + 2.0 * np.sin(np.pi / tubes.sides))
+    out = np.zeros(len(faces), bool)
+    for lo in range(0, len(faces), 1 << 18):
+        src = source[lo : lo + (1 << 18)]
+        tri = tubes.points[tubes.face_points[src]]
+        p = vertices[faces[lo : lo + (1 << 18)]].mean(axis=1)
+        reach = radius[np.searchsorted(tubes.face_offsets, src, side="right") - 1]
+        out[lo : lo + len(src)] = _triangle_distance(p, tri) > reach * (1 + 1e-6) + 1e-9
+    return out
+
+
+def _triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Distance of the points ``p`` (n, 3) from the triangles ``tri`` (n, 3, 3)."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    n = np.cross(b - a, c - a)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    height = np.einsum("ij,ij->i", p - a, n)
+    q = p - height[:, None] * n
+    inside = np.ones(len(p), bool)
+    edge = np.full(len(p), np.inf)
+    for u, v in ((a, b), (b, c), (c, a)):
+        e = v - u
+        inside &= np.einsum("ij,ij->i", np.cross(e, q - u), n) >= 0
+        t = np.clip(np.einsum("ij,ij->i", p - u, e) / np.maximum(np.einsum("ij,ij->i", e, e), 1e-300), 0.0, 1.0)
+        edge = np.minimum(edge, np.linalg.norm(p - (u + t[:, None] * e), axis=1))
+    return np.where(inside, np.abs(height), edge)
+
+
+def _true_sources(mesh: Mesh, tubes: Tubes) -> Mesh:
+    """The mesh with every face's source a tube face it lies on or next to.
+
+    manifold3d keeps each input triangle's face id on its pieces, but where
+    coplanar tubes cross (the flat presets: ``tree`` 31 of 279,780 faces,
+    ``abop-1.24c`` 4 of 287,018), it gives a few triangles the id of a face
+    of another tube, far away.  Such a face takes the source of a neighbour
+    (sharing a vertex) whose source face it does lie next to (``tree``: 24 of
+    the 31; ``abop-1.24c``: 1 of 4); a face none of whose neighbours fits (a
+    long triangle across several coplanar tubes) keeps its id, and is logged.
+    """
+    faces, source = mesh.faces, mesh.face_source
+    bad = np.flatnonzero(_misplaced(mesh.vertices, faces, source, tubes))
+    if not len(bad):
+        return mesh
+    source = source.copy()
+    found = len(bad)
+    for _ in range(8):
+        good_faces = np.ones(len(faces), bool)
+        good_faces[bad] = False
+        near = np.zeros(len(mesh.vertices), bool)
+        near[faces[bad]] = True
+        cand = np.flatnonzero(near[faces].any(axis=1) & good_faces)
+        cv = faces[cand].ravel()
+        cf = np.repeat(cand, 3)
+        order = np.argsort(cv, kind="stable")
+        cv, cf = cv[order], cf[order]
+        bv = faces[bad].ravel()  # each bad face's corners
+        lo, hi = np.searchsorted(cv, bv, "left"), np.searchsorted(cv, bv, "right")
+        pair_face = np.repeat(np.repeat(bad, 3), hi - lo)
+        pair_src = source[cf[ranges(lo, hi - lo)]]
+        ok = ~_misplaced(mesh.vertices, faces[pair_face], pair_src, tubes)
+        fixed, first = np.unique(pair_face[ok], return_index=True)
+        source[fixed] = pair_src[ok][first]
+        bad = np.setdiff1d(bad, fixed)
+        if not len(bad) or not len(fixed):
+            break
+    log.debug("union: %d faces given a neighbour's source face, %d left as manifold3d gave them", found, len(bad))
+    return replace(mesh, face_source=source)
+
+
+def _sourced(mesh: Mesh, origin: np.ndarray, where: str) -> Mesh:
+    """The mesh with ``face_source`` naming the faces of the tubes given to :func:`union`.
+
+    ``origin[k]`` is the original face of face ``k`` of the tubes that went
+    into the boolean (:func:`_prepare` may have left tubes out and inserted
+    rings).  Every face id must be a tube face: a temporary cap that survived
+    the stitching would be a bug, never a face to pass on.
+    """
+    src = mesh.face_source
+    if src is None or len(src) != len(mesh.faces) or (src < 0).any() or (src >= len(origin)).any():
+        raise GeometryError(f"{where}: a face of the result is no piece of a tube face (union bug)")
+    return replace(mesh, face_source=origin[src])
 
 
 def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None]):
-    """Cull what adds nothing, find what may touch, refine long straight spans; returns tubes, pieces, pairs."""
+    """Cull what adds nothing, find what may touch, refine long straight spans.
+
+    Returns the tubes, their pieces, the pairs of pieces that may touch, and
+    for each face of the returned tubes the face of the given tubes it is (or
+    lies in, for a span split by new rings).
+    """
+    origin = np.arange(len(tubes.faces))
     dup = duplicate_tubes(tubes)
     if dup.any():
         log.debug("union: %d tubes equal to another left out", int(dup.sum()))
+        origin = origin[gather(tubes.face_offsets, np.flatnonzero(~dup))[0]]
         tubes = tubes.select(~dup)
     pcs = pieces(tubes)
     a, b = touching(pcs, opt.margin, opt.max_pairs)
@@ -294,6 +406,7 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None])
     buried = buried_tubes(tubes, pcs, a, b)
     if buried.any():
         log.debug("union: %d tubes buried inside another left out", int(buried.sum()))
+        origin = origin[gather(tubes.face_offsets, np.flatnonzero(~buried))[0]]
         tubes = tubes.select(~buried)
         pcs = pieces(tubes)
         a, b = touching(pcs, opt.margin, opt.max_pairs)
@@ -301,11 +414,12 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None])
         tube, ring, t = free_stretches(tubes, pcs, a, b, opt.margin)
         if len(tube):
             log.debug("union: %d rings inserted around touched stretches", len(tube))
-            tubes = tubes.insert_rings(tube, ring, t)
+            tubes, inserted = tubes.insert_rings(tube, ring, t, origin=True)
+            origin = origin[inserted]
             progress(0.07)
             pcs = pieces(tubes)
             a, b = touching(pcs, opt.margin, opt.max_pairs)
-    return tubes, pcs, a, b
+    return tubes, pcs, a, b, origin
 
 
 class _Progress:
@@ -395,7 +509,8 @@ def _drop_crumbs(mesh: Mesh) -> Mesh:
     used = np.zeros(len(mesh.vertices), bool)
     used[faces[keep]] = True
     renumber = np.cumsum(used) - 1
-    return Mesh(mesh.vertices[used], renumber[faces[keep]], mesh.normals[keep], mesh.uv[keep])
+    source = None if mesh.face_source is None else mesh.face_source[keep]
+    return Mesh(mesh.vertices[used], renumber[faces[keep]], mesh.normals[keep], mesh.uv[keep], face_source=source)
 
 
 def _repair_corners(mesh: Mesh) -> None:
@@ -432,13 +547,13 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
     """
     mesh = held.pop()
     _repair_corners(mesh)
-    vertices, faces, normals, uv = mesh.vertices, mesh.faces, mesh.normals, mesh.uv
+    vertices, faces, normals, uv, source = mesh.vertices, mesh.faces, mesh.normals, mesh.uv, mesh.face_source
     del mesh
     v32 = vertices.astype(np.float32) + np.float32(0.0)  # + 0.0: -0.0 and 0.0 are one position
     owner = _first_equal_row(v32.view(np.int32))
     first = owner == np.arange(len(v32))
     if first.all():
-        return _separate_float32(Mesh(vertices, faces, normals, uv))
+        return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source))
     renumber = np.cumsum(first) - 1  # the points numbered in their first appearance
     welded = renumber[owner][faces]
     a, b, c = welded.T
@@ -448,7 +563,7 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
     merged = np.zeros(int(first.sum()), bool)  # the points that several vertices became
     merged[renumber[owner[~first]]] = True
     if not _closed(welded, int(first.sum()), merged):
-        return _separate_float32(Mesh(vertices, faces, normals, uv))
+        return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source))
     # one array at a time: the old ones go as soon as they are replaced
     faces = welded
     del welded
@@ -457,7 +572,8 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
     if not keep.all():
         normals = normals[keep]
         uv = uv[keep]
-    return _separate_float32(Mesh(vertices, faces, normals, uv))
+        source = None if source is None else source[keep]
+    return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source))
 
 
 def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
@@ -513,7 +629,7 @@ def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
     moved = (v32 != v.astype(np.float32)).any(axis=1)
     log.debug("union: %d vertices moved to positions of their own", int(moved.sum()))
     v[moved] = v32[moved]
-    return Mesh(v, mesh.faces, mesh.normals, mesh.uv)
+    return replace(mesh, vertices=v)
 
 
 def _local_union(
@@ -679,8 +795,9 @@ def _local_union(
         return None
     # the stitched mesh, written in place part by part (no full-size temporaries): first the boolean's output
     kept = otri[keep]
-    del otri, fid
     ff = np.flatnonzero(~face_busy)  # the free pieces' faces
+    source = np.concatenate([fid[keep], ff])  # the tube face of each triangle (the boolean kept the ids)
+    del otri, fid
     del face_busy
     nb = len(kept)
     faces = np.empty((nb + len(ff), 3), np.int64)
@@ -723,7 +840,7 @@ def _local_union(
     if not _closed(faces, len(vertices), near):
         log.debug("union: the stitched mesh is not closed at a seam; unioning whole tubes")
         return None
-    return Mesh(vertices, faces, normals, uv)
+    return Mesh(vertices, faces, normals, uv, face_source=source)
 
 
 def _part(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray) -> Part:
@@ -839,7 +956,8 @@ def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> b
 
 
 def _to_mesh(parts: list[Part], where: str) -> Mesh:
-    props, tri, _, point_of, npts = _join(parts, where)
+    """The disjoint meshes as one Mesh; manifold3d's face ids (the tube face of every piece) as ``face_source``."""
+    props, tri, fid, point_of, npts = _join(parts, where)
     vertices = np.empty((npts, 3))
     vertices[point_of] = props[:, :3]
-    return Mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:])
+    return Mesh(vertices, point_of[tri], _unit_rows(props[tri, 3:6]), props[tri, 6:], face_source=fid)

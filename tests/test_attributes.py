@@ -68,16 +68,24 @@ def test_exact_values_on_a_small_tree(small):
 
 
 def test_the_seam_belongs_to_the_child(small):
-    """Vertices the union made where the branch cuts the trunk take the branch's values, not an interpolation."""
+    """Vertices on the seam where the branch cuts the trunk take the branch's values, not an interpolation.
+
+    The seam is found by the tube each triangle is a piece of (``Mesh.face_source``): its vertices are
+    in triangles of both tubes.  The junction collar (lsys3d.cleanup) moves them a little off the trunk.
+    """
     from lsys3d.sweep import sweep
 
     a = small.bark.attributes
     v = small.bark.vertices
-    tube_points = {tuple(p) for p in sweep(small.skeleton, lsys3d.SweepOptions(sides=8)).points.tolist()}
-    made_by_the_union = np.array([tuple(p) not in tube_points for p in v.tolist()])
-    assert made_by_the_union.sum() >= 8  # the intersection curve of the branch with the trunk
-    assert np.allclose(np.hypot(v[made_by_the_union, 0], v[made_by_the_union, 2]), 0.1, atol=0.01)  # on the trunk
-    assert (a["branch_id"][made_by_the_union] == 1).all() and (a["branch_t"][made_by_the_union] < 0.06).all()
+    tubes = sweep(small.skeleton, lsys3d.SweepOptions(sides=8))
+    tube = np.searchsorted(tubes.face_offsets, small.bark.face_source, side="right") - 1
+    faces = small.bark.faces
+    branch_tubes = np.unique(tube[np.isin(tube, np.flatnonzero(tubes.order > 0))])
+    on_branch = np.isin(tube, branch_tubes)
+    seam = np.intersect1d(faces[on_branch].ravel(), faces[~on_branch].ravel())
+    assert len(seam) >= 6  # the intersection curve of the branch with the trunk (the cleanup merges a few)
+    assert np.allclose(np.hypot(v[seam, 0], v[seam, 2]), 0.1, atol=0.03)  # on (or faired just off) the trunk
+    assert (a["branch_id"][seam] == 1).all() and (a["branch_t"][seam] < 0.06).all()
     assert set(np.unique(a["branch_id"]).tolist()) == {0, 1}  # never a value in between
 
 

@@ -137,7 +137,7 @@ def test_generate_verbose_times_each_stage(tmp_path):
 def test_stats_mesh(capsys):
     assert main(["stats", "abop-1.24a", "-n", "2", "--mesh", "--json"]) == 0
     stats = json.loads(capsys.readouterr().out)
-    assert list(stats) == ["bark", "bbox", "derive", "interpret", "leaves", "sweep", "versions"]
+    assert list(stats) == ["bark", "bbox", "derive", "interpret", "leaves", "quality", "sweep", "versions"]
     bark = stats["bark"]
     assert bark["watertight"] and bark["components"] == 1 and bark["volume"] > 0 and bark["unioned"]
     assert stats["sweep"]["vertices"] > 0 and stats["interpret"]["segments"] == 25

@@ -25,9 +25,11 @@ def test_every_preset_is_one_watertight_solid(name):
     bark = tree.bark
     assert bark.is_watertight and bark.is_winding_consistent
     assert bark.volume > 0
-    # the union never adds volume: at most the sum of the tube volumes (manifold3d works in float32)
+    # the union never adds volume (at most the sum of the tube volumes); the junction collars of the cleanup
+    # fill the creases: up to 7% more on the flat drawings, whose every right-angled corner is a junction
+    # (koch), 1-2.5% on the trees (the union alone: tests/test_cleanup.py)
     soup = concatenate(sweep(tree.skeleton))
-    assert bark.volume <= soup.volume * (1 + 1e-5)
+    assert bark.volume <= soup.volume * 1.08
     # every preset draws one connected plant (no crumbs left by the boolean)
     assert components(bark.faces, len(bark.vertices)) == 1
     # normals and UVs for every corner

@@ -59,7 +59,7 @@ def assert_same(path: Path, actual: dict):
 def test_report_is_stable_and_sorted():
     tree = lsys3d.generate("koch", iterations=2)
     r = report(tree.modules, tree.skeleton, tree)
-    assert list(r) == ["bark", "bbox", "derive", "interpret", "leaves", "sweep", "versions"]
+    assert list(r) == ["bark", "bbox", "derive", "interpret", "leaves", "quality", "sweep", "versions"]
     for section in r.values():
         assert list(section) == sorted(section)
     assert set(r["versions"]) >= {"lsys3d", "numpy", "manifold3d"}

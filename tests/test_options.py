@@ -11,12 +11,14 @@ import pytest
 import lsys3d
 from lsys3d.attributes import AttributeOptions
 from lsys3d.bark import BarkColorOptions
+from lsys3d.cleanup import CleanupOptions
 from lsys3d.cli import build_parser, main
 from lsys3d.diagnostics import Checks
 from lsys3d.errors import OptionsError
 from lsys3d.exchange import ExportOptions
 from lsys3d.forest import ForestOptions
 from lsys3d.leaves import LeafOptions
+from lsys3d.lod import LodOptions
 from lsys3d.options import Options, add_arguments, check_value, flat_fields, from_arguments, spec_of
 from lsys3d.organs import OrganOptions
 from lsys3d.pipeline import GenerateOptions, Limits
@@ -63,6 +65,7 @@ def test_generate_options_nest_one_class_per_stage():
         "turtle",
         "sweep",
         "union",
+        "cleanup",
         "color",
         "attributes",
         "leaves",
@@ -70,6 +73,7 @@ def test_generate_options_nest_one_class_per_stage():
         "rig",
         "wind",
         "checks",
+        "lod",
     ]
     assert flat_fields(GenerateOptions)["strict"] == ("checks", "strict")
     flat = flat_fields(GenerateOptions)
@@ -134,6 +138,7 @@ def test_cli_flags_come_from_the_fields():
         Limits,
         SweepOptions,
         UnionOptions,
+        CleanupOptions,
         BarkColorOptions,
         AttributeOptions,
         LeafOptions,
@@ -141,12 +146,13 @@ def test_cli_flags_come_from_the_fields():
         OrganOptions,
         WindOptions,
         Checks,
+        LodOptions,
     ):
         for f in dataclasses.fields(cls):
             spec = spec_of(f)
             if spec.cli:
-                flag = "--" + (spec.name or f.name).replace("_", "-")
-                expected.add(flag.replace("--union", "--no-union"))
+                name = (spec.name or f.name).replace("_", "-")
+                expected.add(f"--no-{name}" if f.default is True else f"--{name}")
     assert flags == expected
     help_text = " ".join(parser.format_help().split())
     assert "in [3, 1024]; default 8" in help_text  # range and default from the declaration

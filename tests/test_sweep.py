@@ -256,27 +256,88 @@ def test_normals_lean_with_the_taper():
     assert (body[:, 1] > 0.3).all()
 
 
-def test_uv_u_around_v_along_in_metres():
+def test_uv_tiles_around_and_square_texels_along():
     pts = zigzag(6)
-    sk = polyline(pts)
+    sk = polyline(pts)  # width 0.1: perimeter 16 * 0.05 * sin(pi / 8) = 0.306 m, one tile around
     tubes = sweep(sk, SweepOptions(sides=8))
+    assert tubes.tiles.tolist() == [1.0]
     uv = tubes.wedge_uv
     assert uv.dtype == np.float32
-    assert uv[:, 0].min() >= 0 and uv[:, 0].max() <= 1
     ring_uv = uv[: 7 * 9].reshape(7, 9, 2)
     np.testing.assert_allclose(ring_uv[:, :, 0], np.tile(np.arange(9) / 8, (7, 1)), atol=1e-7)
-    expected_v = np.concatenate([[0], np.cumsum(sk.lengths())])
-    np.testing.assert_allclose(ring_uv[:, 0, 1], expected_v, atol=1e-6)
-    np.testing.assert_allclose(np.diff(ring_uv[:, 0, 1]), sk.lengths(), atol=1e-6)
+    perimeter = 16 * 0.05 * math.sin(math.pi / 8)
+    np.testing.assert_allclose(np.diff(ring_uv[:, 0, 1]), sk.lengths() / perimeter, rtol=1e-6)
+    # a square of texture is square on the tube: the mitred joint rings stretch it but little
+    from lsys3d.quality import uv_stretch
+
+    m = tubes.mesh()
+    stretch = uv_stretch(m.vertices, m.faces, m.uv)
+    assert np.nanmedian(stretch) < 1.1 and np.nanmax(stretch) < 1.3
 
 
-def test_v_continues_along_the_chain_through_branches():
+def test_thick_chains_get_whole_tiles_around():
+    # a 1 m wide trunk: perimeter 8 * 2 * 0.5 * sin(pi / 8) = 3.06 m, 6 tiles of 0.5 m (uv_tile)
+    tubes = sweep(polyline([[0, 0, 0], [0, 2, 0]], width=1.0), SweepOptions(sides=8))
+    assert tubes.tiles.tolist() == [6.0]
+    assert tubes.wedge_uv[:9, 0].max() == pytest.approx(6.0)
+    tubes = sweep(polyline([[0, 0, 0], [0, 2, 0]], width=1.0), SweepOptions(sides=8, uv_tile=2.0))
+    assert tubes.tiles.tolist() == [2.0]
+
+
+def test_tapering_tube_keeps_square_texels():
+    sk = polyline([[0, 0, 0], [0, 3, 0]], width=0.4, width_end=0.05)
+    tubes = sweep(sk, SweepOptions(sides=12, ring_spacing=1.0))
+    from lsys3d.quality import uv_stretch
+
+    m = tubes.mesh()
+    body = slice(0, 2 * 12 * (tubes.rings[0] - 1))
+    stretch = uv_stretch(m.vertices, m.faces[body], m.uv[body])
+    assert np.nanmax(stretch) < 1.1
+
+
+def test_v_runs_on_from_parent_into_child():
     tubes = sweep(y_junction())
-    # the trunk continues into the first child: v runs on to trunk + child length
-    trunk = tubes.select(np.flatnonzero(tubes.order == 0))
-    ring_v = trunk.wedge_uv[: trunk.rings[0] * (trunk.sides[0] + 1), 1]
-    assert ring_v.min() == 0
-    assert ring_v.max() == pytest.approx(1.0 + math.hypot(0.6, 0.8), abs=1e-5)
+    # the second child is a tube of its own: its base ring's v is the trunk's v at the junction
+    trunk = np.flatnonzero(tubes.order == 0)[0]
+    child = np.flatnonzero(tubes.order == 1)[0]
+    first, last = tubes.ring_offsets[trunk], tubes.ring_offsets[trunk + 1]
+    # the trunk's ring at the junction (y = 1) is its second ring
+    junction_v = tubes.ring_v[first:last][np.argmin(np.abs(tubes.ring_center[first:last, 1] - 1.0))]
+    assert tubes.ring_v[tubes.ring_offsets[child]] == pytest.approx(junction_v)
+    assert junction_v > 0
+
+
+def test_uv_at_gives_each_vertex_its_own_uv():
+    tubes = sweep(y_junction(), SweepOptions(sides=7))
+    from lsys3d.sweep import wrap_u
+
+    m = tubes.mesh()
+    uv = tubes.uv_at(np.repeat(m.face_source, 3), m.vertices[m.faces].reshape(-1, 3)).reshape(-1, 3, 2)
+    tube = np.searchsorted(tubes.face_offsets, m.face_source, side="right") - 1
+    uv = wrap_u(uv, tubes.tiles[tube])
+    np.testing.assert_allclose(uv, m.uv, atol=2e-5)
+
+
+def test_seam_runs_along_the_top_or_the_back():
+    # a horizontal branch: the first ring vertex (u = 0) is on top
+    tubes = sweep(polyline([[0, 1, 0], [2, 1, 0]], width=0.2), SweepOptions(sides=8))
+    assert tubes.points[0] == pytest.approx([0, 1.1, 0])
+    # an upright stem: at the back (-Z)
+    tubes = sweep(polyline([[0, 0, 0], [0, 2, 0]], width=0.2), SweepOptions(sides=8))
+    assert tubes.points[0] == pytest.approx([0, 0, -0.1])
+
+
+def test_ring_spacing_adds_rings_on_long_spans():
+    sk = polyline([[0, 0, 0], [0, 4, 0]], width=0.2)
+    assert sweep(sk).rings.tolist() == [2]
+    side = 0.2 * math.sin(math.pi / 8)  # 2 r sin(pi / S)
+    tubes = sweep(sk, SweepOptions(ring_spacing=2.0))
+    assert tubes.rings.tolist() == [math.ceil(4 / (2 * side)) + 1]
+    # bark displacement asks for rings by itself: a side apart, but at most two per bump of the noise
+    tubes = sweep(sk, SweepOptions(bark_displacement=0.2, bark_frequency=8))
+    assert tubes.rings.tolist() == [math.ceil(4 / max(side, 0.5 / 8)) + 1]
+    counts_ok(tubes)
+    tubes_closed(tubes)
 
 
 # ---------------------------------------------------------------- degenerate input

@@ -200,7 +200,25 @@ def straight_tube(displacement: float, seed: int = 0):
     from skeletons import make_skeleton
 
     sk = make_skeleton([[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [0, 2, 0]], 0.2, [0.2, 0.02])
-    return sk, sweep(sk, SweepOptions(sides=12, bark_displacement=displacement, bark_frequency=6.0), seed=seed)
+    # the same rings with and without displacement (displacement alone would add rings of its own)
+    options = SweepOptions(sides=12, ring_spacing=1.0, bark_displacement=displacement, bark_frequency=6.0)
+    return sk, sweep(sk, options, seed=seed)
+
+
+def test_displaced_bark_shows_relief_along_a_straight_trunk():
+    """A straight span has rings only at its ends; displaced, it gets rings a tube side apart (or half a bump)."""
+    from skeletons import make_skeleton
+
+    sk = make_skeleton([[0, 0, 0]], [[0, 3.7, 0]], 0.3)
+    plain = sweep(sk, SweepOptions(sides=8))
+    bumpy = sweep(sk, SweepOptions(sides=8, bark_displacement=0.3), seed=1)
+    assert plain.rings.tolist() == [2]
+    side = 0.3 * np.sin(np.pi / 8)  # 2 r sin(pi / S)
+    assert bumpy.rings.tolist() == [int(np.ceil(3.7 / max(side, 0.5 / 8.0))) + 1]
+    # the radius varies along the trunk, not only around it
+    ring = bumpy.points[: bumpy.rings[0] * 8].reshape(-1, 8, 3)
+    radius = np.linalg.norm(ring[:, :, [0, 2]], axis=2)
+    assert np.ptp(radius[:, 0]) > 0.02 * 0.15
 
 
 def test_displacement_off_is_the_plain_sweep():

@@ -64,9 +64,10 @@ def validate_gltf(path: Path) -> dict:
     return json.loads(proc.stdout)
 
 
-#: Validator infos that are not defects: an unused object (a leaf model only instanced) and
-#: EXT_mesh_gpu_instancing, which the validator knows by name but does not check.
-HARMLESS_INFOS = {"UNUSED_OBJECT", "UNSUPPORTED_EXTENSION"}
+#: Validator infos that are not defects: an unused object (a leaf model only instanced, the lower levels
+#: of detail that MSFT_lod names outside the scene), EXT_mesh_gpu_instancing and MSFT_lod, which the
+#: validator knows by name but does not check, and tangents a normal map of the user's will use.
+HARMLESS_INFOS = {"UNUSED_OBJECT", "UNSUPPORTED_EXTENSION", "UNUSED_MESH_TANGENT"}
 
 
 def gltf_issues(report: dict, severity: int) -> list[str]:

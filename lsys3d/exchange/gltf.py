@@ -11,6 +11,10 @@ Layout of the file::
         node "organ_<name>"                                 (organs of one kind: merged, or instanced)
         node "skeleton"  mesh "skeleton"  LINES             (only with skeleton_curves)
 
+With levels of detail the root node is ``<asset name>_LOD0`` with the
+extension ``MSFT_lod`` naming the nodes ``<asset name>_LOD1`` ... (outside the
+scene), each holding its level's ``bark`` and ``leaf`` (see :func:`build`).
+
 glTF is metres and Y up by definition, so ``units`` and ``up_axis`` other
 than the defaults are refused.  Vertices are split per unique (position,
 normal, uv) corner as glTF requires; texture ``v`` is flipped (glTF's origin
@@ -232,17 +236,34 @@ def check_options(options: ExportOptions, where: str) -> None:
         )
 
 
+LOD = "MSFT_lod"
+SCREEN_COVERAGE = (0.4, 0.15, 0.05, 0.01)
+"""``MSFT_screencoverage`` hint per level of detail: level ``k`` is drawn while the tree covers more than
+this share of the screen (and less than the level before's)."""
+
+
 def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer]:
-    """Gather ``tree`` into a glTF JSON document and its binary buffer (not yet serialised)."""
+    """Gather ``tree`` into a glTF JSON document and its binary buffer (not yet serialised).
+
+    A tree with levels of detail gets one node per level, ``<name>_LOD0`` ..
+    ``<name>_LOD<n>`` (the name convention Unity's and Unreal's importers
+    group), each holding that level's parts; the scene holds ``_LOD0``, which
+    lists the others with ``MSFT_lod`` and their switching hints in
+    ``extras.MSFT_screencoverage``.  A viewer that does not know the
+    extension shows level 0 alone.
+    """
     check_options(options, where)
+    if tree.lods and tree.rig is not None:
+        raise ExportError(f"{where}: levels of detail carry no rig yet: export the rigged tree without them")
     eye = np.eye(3)
     buf = _Buffer()
-    meshes, nodes, materials = [], [{"name": tree.name, "children": []}], []
+    meshes, nodes, materials = [], [], []
     extensions_used = []
 
     rig = tree.rig
     joints = len(rig) if rig is not None else None
     roots = [0]  # scene roots: the asset's node, and skinned meshes (glTF ignores a skinned mesh's parents)
+    asset = 0  # the node the parts go under: the asset's, or the level's
 
     def add_node(name: str, primitives: list[dict], extensions: dict | None = None, skinned: bool = False):
         meshes.append({"name": name, "primitives": primitives})
@@ -254,7 +275,7 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
             node["skin"] = 0
             roots.append(len(nodes) - 1)
         else:
-            nodes[0]["children"].append(len(nodes) - 1)
+            nodes[asset]["children"].append(len(nodes) - 1)
 
     made: dict[Material, int] = {}
     images, textures = [], []
@@ -289,83 +310,104 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         index = face_material if table else None
         return [(index_of(m), faces) for m, _, faces in material_groups(index, material_of)]
 
-    if len(tree.bark.faces):  # a tree of polygon leaves alone has no bark
-        bark = gather_mesh(tree.bark, eye, f"{where}: bark")
-        bark_groups = groups(tree.bark.face_material, table.for_bark, white=bark.split_colors is not None)
-        add_node("bark", primitives_of(buf, bark, bark_groups, joints), skinned=rig is not None)
+    def add_parts(part: Tree, first: bool) -> None:
+        """The bark, leaves, organs (and for the first level the branch table and skeleton) of ``part``."""
+        if len(part.bark.faces):  # a tree of polygon leaves alone has no bark
+            bark = gather_mesh(part.bark, eye, f"{where}: bark")
+            bark_groups = groups(part.bark.face_material, table.for_bark, white=bark.split_colors is not None)
+            add_node("bark", primitives_of(buf, bark, bark_groups, joints), skinned=rig is not None)
 
-    def instanced_nodes(base: str, model_mesh, transforms, index, instance_attributes, material_of):
-        """One node per material of the instances, each drawing ``model_mesh`` at its instances' transforms."""
-        model = gather_mesh(model_mesh, eye, f"{where}: {base} model")
-        translation, quaternion, scale = decompose_transforms(transforms, where)
-        extra = gltf_attributes(instance_attributes)  # the branch each instance grows from
-        for n, (m, i, rows) in enumerate(material_groups(index, material_of)):
-            sel = slice(None) if rows is None else rows
-            attributes = {
-                "TRANSLATION": buf.accessor(to_float32(translation[sel], f"{base} positions", where), target=None),
-                "ROTATION": buf.accessor(quaternion[sel].astype(np.float32), target=None),
-                "SCALE": buf.accessor(to_float32(scale[sel], f"{base} sizes", where), target=None),
-            }
-            for name, values in extra.items():
-                attributes[name] = buf.accessor(np.ascontiguousarray(values[sel]), target=None)
-            primitives = primitives_of(buf, model, [(material_index(m), None)])
-            add_node(base if n == 0 else f"{base}_{i}", primitives, {INSTANCING: {"attributes": attributes}})
-        if INSTANCING not in extensions_used:
-            extensions_used.append(INSTANCING)
+        def instanced_nodes(base: str, model_mesh, transforms, index, instance_attributes, material_of):
+            """One node per material of the instances, each drawing ``model_mesh`` at its instances' transforms."""
+            model = gather_mesh(model_mesh, eye, f"{where}: {base} model")
+            translation, quaternion, scale = decompose_transforms(transforms, where)
+            extra = gltf_attributes(instance_attributes)  # the branch each instance grows from
+            for n, (m, i, rows) in enumerate(material_groups(index, material_of)):
+                sel = slice(None) if rows is None else rows
+                attributes = {
+                    "TRANSLATION": buf.accessor(to_float32(translation[sel], f"{base} positions", where), target=None),
+                    "ROTATION": buf.accessor(quaternion[sel].astype(np.float32), target=None),
+                    "SCALE": buf.accessor(to_float32(scale[sel], f"{base} sizes", where), target=None),
+                }
+                for name, values in extra.items():
+                    attributes[name] = buf.accessor(np.ascontiguousarray(values[sel]), target=None)
+                primitives = primitives_of(buf, model, [(material_index(m), None)])
+                add_node(base if n == 0 else f"{base}_{i}", primitives, {INSTANCING: {"attributes": attributes}})
+            if INSTANCING not in extensions_used:
+                extensions_used.append(INSTANCING)
 
-    def merged_node(name: str, mesh, material_of):
-        if mesh is None or not len(mesh.faces):
-            return
-        arrays = gather_mesh(mesh, eye, f"{where}: {name}")
-        skinned = rig is not None and "skin_joints" in mesh.attributes
-        mesh_groups = groups(mesh.face_material, material_of)
-        add_node(name, primitives_of(buf, arrays, mesh_groups, joints if skinned else None), skinned=skinned)
+        def merged_node(name: str, mesh, material_of):
+            if mesh is None or not len(mesh.faces):
+                return
+            arrays = gather_mesh(mesh, eye, f"{where}: {name}")
+            skinned = rig is not None and "skin_joints" in mesh.attributes
+            mesh_groups = groups(mesh.face_material, material_of)
+            add_node(name, primitives_of(buf, arrays, mesh_groups, joints if skinned else None), skinned=skinned)
 
-    leaves = tree.leaves
-    instanced = bool(options.instance_leaves) and rig is None  # skinned leaves and organs are merged
-    if instanced and leaves.instanced:
-        k = len(leaves.transforms)
-        per_leaf = np.asarray(tree.skeleton.leaf_material, np.int64) if table else np.zeros(0, np.int64)
-        if len(per_leaf) != k:
-            per_leaf = np.zeros(k, np.int64)
-        instanced_nodes("leaf", leaves.model, leaves.transforms, per_leaf, leaves.instance_attributes, table.for_leaf)
-        if leaves.polygons is not None and len(leaves.polygons.faces):
-            merged_node("leaf_polygons", leaves.polygons, table.for_leaf)
-    else:
-        # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
-        merged_node("leaf", leaves.merged if leaves.merged is not None else leaves.polygons, table.for_leaf)
-
-    organs = tree.organs
-    for p, proto in enumerate(organs.prototypes):  # a part per kind of organ: organ_sphere, organ_flower...
-        material_of = table.for_leaf if proto.material is None else (lambda i, m=proto.material: m)
-        if instanced:
-            mine = organs.of(p)
-            if len(mine):
-                attributes = {key: a[mine] for key, a in organs.instance_attributes.items()}
-                index = organs.material[mine] if table else None
-                instanced_nodes(
-                    f"organ_{proto.name}", proto.mesh, organs.transforms[mine], index, attributes, material_of
-                )
+        leaves = part.leaves
+        instanced = bool(options.instance_leaves) and rig is None  # skinned leaves and organs are merged
+        if instanced and leaves.instanced:
+            k = len(leaves.transforms)
+            per_leaf = np.asarray(part.skeleton.leaf_material, np.int64) if table else np.zeros(0, np.int64)
+            if len(per_leaf) != k:
+                per_leaf = np.zeros(k, np.int64)
+            instanced_nodes(
+                "leaf", leaves.model, leaves.transforms, per_leaf, leaves.instance_attributes, table.for_leaf
+            )
+            if leaves.polygons is not None and len(leaves.polygons.faces):
+                merged_node("leaf_polygons", leaves.polygons, table.for_leaf)
         else:
-            merged_node(f"organ_{proto.name}", organs.merged[p], material_of)
+            # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
+            merged_node("leaf", leaves.merged if leaves.merged is not None else leaves.polygons, table.for_leaf)
 
-    if tree.hierarchy is not None and len(tree.hierarchy):
-        # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.attributes)
-        table = {"count": len(tree.hierarchy)}
-        for key, values in branch_table(tree.hierarchy).items():
-            table[key] = buf.accessor(np.ascontiguousarray(values, np.float32), target=None)
-        nodes[0]["extras"] = {"lsys3d_branches": table}
+        organs = part.organs
+        for p, proto in enumerate(organs.prototypes):  # a part per kind of organ: organ_sphere, organ_flower...
+            material_of = table.for_leaf if proto.material is None else (lambda i, m=proto.material: m)
+            if instanced:
+                mine = organs.of(p)
+                if len(mine):
+                    attributes = {key: a[mine] for key, a in organs.instance_attributes.items()}
+                    index = organs.material[mine] if table else None
+                    instanced_nodes(
+                        f"organ_{proto.name}", proto.mesh, organs.transforms[mine], index, attributes, material_of
+                    )
+            else:
+                merged_node(f"organ_{proto.name}", organs.merged[p], material_of)
 
-    if options.skeleton_curves:
-        lines = _skeleton_lines(tree)
-        if lines is not None:
-            points, pairs = lines
-            primitive = {
-                "attributes": {"POSITION": buf.accessor(points, bounds=True)},
-                "indices": buf.accessor(_indices(pairs, len(points)), ELEMENT_ARRAY_BUFFER),
-                "mode": LINES,
-            }
-            add_node("skeleton", [primitive])
+        if first and part.hierarchy is not None and len(part.hierarchy):
+            # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.attributes)
+            branches = {"count": len(part.hierarchy)}
+            for key, values in branch_table(part.hierarchy).items():
+                branches[key] = buf.accessor(np.ascontiguousarray(values, np.float32), target=None)
+            nodes[asset].setdefault("extras", {})["lsys3d_branches"] = branches
+
+        if first and options.skeleton_curves:
+            lines = _skeleton_lines(tree)
+            if lines is not None:
+                points, pairs = lines
+                primitive = {
+                    "attributes": {"POSITION": buf.accessor(points, bounds=True)},
+                    "indices": buf.accessor(_indices(pairs, len(points)), ELEMENT_ARRAY_BUFFER),
+                    "mode": LINES,
+                }
+                add_node("skeleton", [primitive])
+
+    if tree.lods:
+        level_nodes = []
+        for i, lod in enumerate(tree.lods):
+            nodes.append({"name": f"{tree.name}_LOD{lod.level}", "children": []})
+            asset = len(nodes) - 1
+            level_nodes.append(asset)
+            add_parts(tree.at_level(i), i == 0)
+        asset = 0
+        if len(level_nodes) > 1:  # the scene holds level 0; it names the others
+            nodes[0]["extensions"] = {LOD: {"ids": level_nodes[1:]}}
+            coverage = [SCREEN_COVERAGE[lod.level] for lod in tree.lods]
+            nodes[0].setdefault("extras", {})["MSFT_screencoverage"] = coverage
+            extensions_used.append(LOD)
+    else:
+        nodes.append({"name": tree.name, "children": []})
+        add_parts(tree, True)
 
     skins = []
     if rig is not None:  # the joints under the asset's node, each translated from its parent (no rotation)

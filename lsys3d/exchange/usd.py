@@ -23,7 +23,10 @@ The parts have the same names as in glTF (``bark``, ``leaf``, ``leaf_polygons``,
 the geometry is turned and scaled to match, so every DCC sees the tree upright
 at its true size.  Siblings (the same grammar grown with several seeds) go into
 one stage as the variants of the variant set ``seed`` on the root prim, each
-holding the whole layout above (:func:`build_variant_stage`).  Points are numbered in the order faces first use them,
+holding the whole layout above (:func:`build_variant_stage`).  Levels of detail
+are the variants ``LOD0`` .. ``LOD3`` of the variant set ``lod`` on the root
+prim (``LOD0`` selected), each holding the layout above for its level.
+Points are numbered in the order faces first use them,
 which keeps the crate file's integer compression fast.
 """
 
@@ -64,6 +67,7 @@ from .common import (
 )
 
 __all__ = [
+    "LOD_SET",
     "VARIANT_SET",
     "build_stage",
     "build_variant_stage",
@@ -76,6 +80,10 @@ __all__ = [
 
 VARIANT_SET = "seed"
 """The variant set of a stage of siblings (:func:`build_variant_stage`)."""
+
+LOD_SET = "lod"
+"""The variant set of a tree's levels of detail (``LOD0`` .. ``LOD3``, the first selected); siblings with levels
+hold it inside each ``seed`` variant."""
 
 
 def _extent(points: np.ndarray) -> Vt.Vec3fArray:
@@ -333,8 +341,27 @@ def build_stage(
     are the images the stage refers to, for the caller to write.
     """
     stage, prim = _new_stage(options, tree.identifier, tree.rig is not None)
-    _author_tree(stage, prim, tree, options, where, textures or TextureFiles("./textures/"))
+    _author_levels(stage, prim, tree, options, where, textures or TextureFiles("./textures/"))
     return stage
+
+
+def _author_levels(
+    stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOptions, where: str, textures: TextureFiles
+) -> None:
+    """The tree, or with levels of detail each level as a variant ``LOD<k>`` of the variant set ``lod``."""
+    if not tree.lods:
+        _author_tree(stage, prim, tree, options, where, textures)
+        return
+    if tree.rig is not None:
+        raise ExportError(f"{where}: levels of detail carry no rig yet: export the rigged tree without them")
+    levels = prim.GetVariantSets().AddVariantSet(LOD_SET)
+    names = [f"LOD{lod.level}" for lod in tree.lods]
+    for i, name in enumerate(names):
+        levels.AddVariant(name)
+        levels.SetVariantSelection(name)
+        with levels.GetVariantEditContext():
+            _author_tree(stage, prim, tree.at_level(i), options, f"{where}: {name}", textures)
+    levels.SetVariantSelection(names[0])
 
 
 def build_variant_stage(
@@ -363,7 +390,7 @@ def build_variant_stage(
         variants.AddVariant(name)
         variants.SetVariantSelection(name)
         with variants.GetVariantEditContext():
-            _author_tree(stage, prim, tree, options, f"{where}: variant {name}", textures)
+            _author_levels(stage, prim, tree, options, f"{where}: variant {name}", textures)
     variants.SetVariantSelection(names[0])
     return stage
 

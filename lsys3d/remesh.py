@@ -1,0 +1,1435 @@
+"""Local remeshing of a closed triangle mesh: edge collapses, flips and splits that keep it closed.
+
+The numba kernels behind :mod:`lsys3d.cleanup`.  The mesh is held as
+half-edges in flat arrays (:class:`HalfEdges`): half-edge ``3 f + k`` runs
+from corner ``k`` of face ``f`` to corner ``k + 1``; ``opp`` pairs it with
+the half-edge running the other way.  Every operation keeps the mesh a
+closed, consistently oriented 2-manifold:
+
+* an **edge collapse** merges the two ends of an edge only when their
+  neighbourhoods share exactly the two vertices across the edge (the *link
+  condition*), both vertices across keep at least three neighbours, and no
+  face around turns away from the surface it lies on;
+* an **edge flip** replaces the diagonal of the two faces of an edge when the
+  other diagonal is not an edge already and the faces do not fold;
+* an **edge split** adds a vertex on an edge and two faces.
+
+Faces die by a flag (``face_alive``) and the mesh is compacted at the end
+(:func:`compact`), which also says where every surviving vertex came from
+(``vertex_origin``: itself, or for a vertex made by a split the nearer end of
+the edge it split) and every face (``face_source``: the input face it
+descends from).  Those two maps carry per-vertex and per-face attributes
+(branch id, order...) from the input to the output: ``attribute[vertex_origin]``.
+
+Vertices carry flags: :data:`SEAM` (on a junction seam), :data:`FEATURE` (on
+a sharp rim that must stay: the edge of a tube's flat cap), :data:`ORIGINAL`
+(a vertex of the swept tubes, not made by the boolean) and :data:`LOCKED`
+(never touched: a vertex whose faces do not form one fan).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+__all__ = [
+    "FEATURE",
+    "LOCKED",
+    "ORIGINAL",
+    "SEAM",
+    "HalfEdges",
+    "Rules",
+    "build",
+    "clean",
+    "compact",
+    "rescue",
+]
+
+SEAM = 1
+"""Vertex flag: on an edge between faces of two different tubes (the boolean's intersection curve)."""
+FEATURE = 2
+"""Vertex flag: on a sharp rim (a flat cap's edge): it stays, and only merges along its rim."""
+ORIGINAL = 4
+"""Vertex flag: a vertex of the swept tubes (not made by the boolean)."""
+LOCKED = 8
+"""Vertex flag: never moved or removed (its faces do not form a single fan)."""
+
+_MAX_RING = 256  # a vertex with more neighbours than this is left alone
+_FLAT = 1e30  # the aspect of a triangle without area
+_MAX_SPAWN = 8  # splits one seam vertex's fan may make
+
+
+class HalfEdges(NamedTuple):
+    """A closed triangle mesh as half-edges, with room to grow (arrays are longer than the mesh).
+
+    points : (vcap, 3) float64
+    faces : (fcap, 3) int64
+    opp : (3 fcap,) int64
+        The opposite half-edge of each half-edge.
+    out : (vcap,) int64
+        One half-edge leaving each vertex.
+    face_alive, vertex_alive : bool
+    flags : (vcap,) int64
+        :data:`SEAM`, :data:`FEATURE`, :data:`ORIGINAL`, :data:`LOCKED` bits.
+    scale : (vcap,) float64
+        The local length scale at each vertex (the side of the thinnest tube there).
+    face_part : (fcap,) int64
+        The part (tube) of each face; an edge between two parts is a seam.
+    face_flat : (fcap,) bool
+        Faces of a flat cap: an edge between a flat and a curved face is a rim.
+    reference : (fcap, 3) float64
+        The unit normal each face should keep (of the tube face it lies on):
+        exact even for a sliver, whose own normal is noise.
+    face_source : (fcap,) int64
+        The input face each face descends from.
+    vertex_origin : (vcap,) int64
+        The input vertex each vertex descends from.
+    counts : (2,) int64
+        Vertices and faces in use (alive or dead): the next free slots.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    opp: np.ndarray
+    out: np.ndarray
+    face_alive: np.ndarray
+    vertex_alive: np.ndarray
+    flags: np.ndarray
+    scale: np.ndarray
+    face_part: np.ndarray
+    face_flat: np.ndarray
+    reference: np.ndarray
+    face_source: np.ndarray
+    vertex_origin: np.ndarray
+    counts: np.ndarray
+
+
+class Rules(NamedTuple):
+    """The thresholds of :func:`clean`, lengths in local scales (see :class:`lsys3d.cleanup.CleanupOptions`)."""
+
+    short: float
+    """Collapse edges shorter than this."""
+    limit: float
+    """A collapse may leave a triangle of at most this aspect (or improve the worst one around)."""
+    bad: float
+    """Faces of a worse aspect are flipped, snapped or split."""
+    flip_tolerance: float
+    """A flip may move the surface by at most this."""
+    long: float
+    """Split fan edges leaving a seam that are longer than this..."""
+    step: float
+    """...this far from the seam."""
+    fallback: float
+    """A bad face whose shortest edge is shorter than this gets it collapsed."""
+    max_operations: int
+    """Stop after this many operations (a guard; never reached on sane input)."""
+
+
+def build(points, faces, flags, scale, face_part, face_flat, reference, face_source, extra_vertices: int = 0):
+    """Half-edges of a closed, consistently oriented mesh (every directed edge once, its reverse once).
+
+    ``extra_vertices`` reserves room for splits (each adds one vertex and two
+    faces).  Vertices whose faces do not form one fan are flagged
+    :data:`LOCKED`.  Raises ValueError for a mesh that is not closed.
+    """
+    points = np.asarray(points, np.float64)
+    faces = np.asarray(faces, np.int64)
+    nv, nf = len(points), len(faces)
+    vcap, fcap = nv + extra_vertices, nf + 2 * extra_vertices
+    org = faces.reshape(-1)
+    dst = faces[:, [1, 2, 0]].reshape(-1)
+    key = org * nv + dst
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    if len(sorted_key) > 1 and (sorted_key[1:] == sorted_key[:-1]).any():
+        raise ValueError("remesh.build: a directed edge is used twice (the mesh is not a consistent 2-manifold)")
+    rev = dst * nv + org
+    pos = np.minimum(np.searchsorted(sorted_key, rev), len(order) - 1)
+    if not (sorted_key[pos] == rev).all():
+        raise ValueError("remesh.build: the mesh is not closed (a half-edge has no opposite)")
+
+    def grow(a, n, fill, dtype=None):
+        a = np.asarray(a) if dtype is None else np.asarray(a, dtype)
+        out = np.full((n, *a.shape[1:]), fill, a.dtype)
+        out[: len(a)] = a
+        return out
+
+    out = np.full(vcap, -1, np.int64)
+    out[org[::-1]] = np.arange(3 * nf)[::-1]
+    he = HalfEdges(
+        points=grow(points, vcap, 0.0),
+        faces=grow(faces, fcap, 0),
+        opp=grow(order[pos], 3 * fcap, -1, np.int64),
+        out=out,
+        face_alive=grow(np.ones(nf, bool), fcap, False),
+        vertex_alive=grow(np.ones(nv, bool), vcap, False),
+        flags=grow(flags, vcap, 0, np.int64),
+        scale=grow(scale, vcap, 0.0, np.float64),
+        face_part=grow(face_part, fcap, -1, np.int64),
+        face_flat=grow(face_flat, fcap, False, bool),
+        reference=grow(reference, fcap, 0.0, np.float64),
+        face_source=grow(face_source, fcap, -1, np.int64),
+        vertex_origin=grow(np.arange(nv), vcap, -1, np.int64),
+        counts=np.array([nv, nf], np.int64),
+    )
+    # a vertex whose faces are not one fan (two cones touching at a point) is locked
+    fan = np.zeros(vcap, np.int64)
+    _fan_sizes(he, fan)
+    incidence = np.bincount(org, minlength=vcap)
+    he.flags[fan != incidence] |= LOCKED
+    return he
+
+
+def compact(he: HalfEdges):
+    """The live mesh: ``points, faces, face_part, face_flat, face_source, vertex_origin, flags``, renumbered."""
+    nv, nf = int(he.counts[0]), int(he.counts[1])
+    fa = np.flatnonzero(he.face_alive[:nf])
+    faces = he.faces[fa]
+    used = np.zeros(nv, bool)
+    used[faces.reshape(-1)] = True
+    keep = np.flatnonzero(used)
+    renumber = np.full(nv, -1, np.int64)
+    renumber[keep] = np.arange(len(keep))
+    return (
+        he.points[keep].copy(),
+        renumber[faces],
+        he.face_part[fa].copy(),
+        he.face_flat[fa].copy(),
+        he.face_source[fa].copy(),
+        he.vertex_origin[keep].copy(),
+        he.flags[keep].copy(),
+    )
+
+
+# ---------------------------------------------------------------------------------------- navigation
+@numba.njit(cache=True, inline="always")
+def _nxt(h):
+    return h - h % 3 + (h % 3 + 1) % 3
+
+
+@numba.njit(cache=True, inline="always")
+def _prv(h):
+    return h - h % 3 + (h % 3 + 2) % 3
+
+
+@numba.njit(cache=True, inline="always")
+def _org(faces, h):
+    return faces[h // 3, h % 3]
+
+
+@numba.njit(cache=True, inline="always")
+def _dst(faces, h):
+    return faces[h // 3, (h % 3 + 1) % 3]
+
+
+@numba.njit(cache=True, inline="always")
+def _apex(faces, h):
+    """The corner of ``h``'s face across from it."""
+    return faces[h // 3, (h % 3 + 2) % 3]
+
+
+@numba.njit(cache=True)
+def _fan_sizes(he, fan):
+    """Faces met walking once around each vertex (equals its face count when they form one fan)."""
+    for v in range(he.counts[0]):
+        h0 = he.out[v]
+        if h0 < 0:
+            continue
+        h = h0
+        n = 0
+        while True:
+            n += 1
+            h = he.opp[_prv(h)]
+            if h == h0 or n > 100000:
+                break
+        fan[v] = n
+
+
+@numba.njit(cache=True)
+def _ring(he, v, buf):
+    """Neighbours of ``v`` into ``buf``; their number, or -1 if more than fit."""
+    h0 = he.out[v]
+    h = h0
+    n = 0
+    while True:
+        if n >= len(buf):
+            return -1
+        buf[n] = _dst(he.faces, h)
+        n += 1
+        h = he.opp[_prv(h)]
+        if h == h0:
+            return n
+
+
+@numba.njit(cache=True)
+def _valence(he, v):
+    h0 = he.out[v]
+    h = h0
+    n = 0
+    while True:
+        n += 1
+        h = he.opp[_prv(h)]
+        if h == h0 or n > _MAX_RING:
+            return n
+
+
+@numba.njit(cache=True)
+def _half_edge(he, u, w):
+    """The half-edge from ``u`` to ``w``, or -1."""
+    h0 = he.out[u]
+    h = h0
+    n = 0
+    while True:
+        if _dst(he.faces, h) == w:
+            return h
+        h = he.opp[_prv(h)]
+        n += 1
+        if h == h0 or n > _MAX_RING:
+            return -1
+
+
+# ---------------------------------------------------------------------------------------- geometry
+@numba.njit(cache=True, inline="always")
+def _cross(ax, ay, az, bx, by, bz):
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@numba.njit(cache=True)
+def _normal_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
+    return _cross(bx - ax, by - ay, bz - az, cx - ax, cy - ay, cz - az)
+
+
+@numba.njit(cache=True)
+def _aspect_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
+    """Aspect (longest edge / (2 sqrt 3 inradius)) of a triangle given by coordinates; 1e30 when flat."""
+    l0 = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2)
+    l1 = np.sqrt((cx - bx) ** 2 + (cy - by) ** 2 + (cz - bz) ** 2)
+    l2 = np.sqrt((ax - cx) ** 2 + (ay - cy) ** 2 + (az - cz) ** 2)
+    nx, ny, nz = _normal_xyz(ax, ay, az, bx, by, bz, cx, cy, cz)
+    area = 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)
+    s = 0.5 * (l0 + l1 + l2)
+    if area <= 1e-300 or s <= 0:
+        return _FLAT
+    return max(l0, max(l1, l2)) * s / (2.0 * np.sqrt(3.0) * area)
+
+
+@numba.njit(cache=True)
+def _corners(p, a, b, c, moved, x, y, z):
+    """The coordinates of triangle ``a b c``, vertex ``moved`` placed at ``x y z``."""
+    ax, ay, az = p[a, 0], p[a, 1], p[a, 2]
+    bx, by, bz = p[b, 0], p[b, 1], p[b, 2]
+    cx, cy, cz = p[c, 0], p[c, 1], p[c, 2]
+    if a == moved:
+        ax, ay, az = x, y, z
+    if b == moved:
+        bx, by, bz = x, y, z
+    if c == moved:
+        cx, cy, cz = x, y, z
+    return ax, ay, az, bx, by, bz, cx, cy, cz
+
+
+@numba.njit(cache=True)
+def _aspect(p, a, b, c):
+    return _aspect_xyz(p[a, 0], p[a, 1], p[a, 2], p[b, 0], p[b, 1], p[b, 2], p[c, 0], p[c, 1], p[c, 2])
+
+
+@numba.njit(cache=True)
+def _normal(p, a, b, c):
+    return _normal_xyz(p[a, 0], p[a, 1], p[a, 2], p[b, 0], p[b, 1], p[b, 2], p[c, 0], p[c, 1], p[c, 2])
+
+
+@numba.njit(cache=True)
+def _length(p, u, w):
+    return np.sqrt((p[u, 0] - p[w, 0]) ** 2 + (p[u, 1] - p[w, 1]) ** 2 + (p[u, 2] - p[w, 2]) ** 2)
+
+
+@numba.njit(cache=True)
+def _segment_distance(p, a, b, c, d):
+    """Distance between segments ``a b`` and ``c d``."""
+    d1x, d1y, d1z = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1], p[b, 2] - p[a, 2]
+    d2x, d2y, d2z = p[d, 0] - p[c, 0], p[d, 1] - p[c, 1], p[d, 2] - p[c, 2]
+    rx, ry, rz = p[a, 0] - p[c, 0], p[a, 1] - p[c, 1], p[a, 2] - p[c, 2]
+    aa = d1x * d1x + d1y * d1y + d1z * d1z
+    ee = d2x * d2x + d2y * d2y + d2z * d2z
+    ff = d2x * rx + d2y * ry + d2z * rz
+    cc = d1x * rx + d1y * ry + d1z * rz
+    bb = d1x * d2x + d1y * d2y + d1z * d2z
+    tiny = 1e-300
+    denom = aa * ee - bb * bb
+    s = 0.0
+    if denom > tiny:
+        s = min(max((bb * ff - cc * ee) / denom, 0.0), 1.0)
+    t = (bb * s + ff) / ee if ee > tiny else 0.0
+    if t < 0.0:
+        t = 0.0
+        s = min(max(-cc / aa, 0.0), 1.0) if aa > tiny else 0.0
+    elif t > 1.0:
+        t = 1.0
+        s = min(max((bb - cc) / aa, 0.0), 1.0) if aa > tiny else 0.0
+    x = rx + d1x * s - d2x * t
+    y = ry + d1y * s - d2y * t
+    z = rz + d1z * s - d2z * t
+    return np.sqrt(x * x + y * y + z * z)
+
+
+# ---------------------------------------------------------------------------------------- collapse
+@numba.njit(cache=True)
+def _collapse_topology_ok(he, h, buf_a, buf_b):
+    """Whether collapsing half-edge ``h`` keeps a 2-manifold: the link condition, and valences of at least three."""
+    faces = he.faces
+    a = _org(faces, h)
+    b = _dst(faces, h)
+    c = _apex(faces, h)
+    d = _apex(faces, he.opp[h])
+    if a == b or c == d or (he.flags[a] | he.flags[b]) & LOCKED:
+        return False
+    if _valence(he, c) <= 3 or _valence(he, d) <= 3:
+        return False
+    na = _ring(he, a, buf_a)
+    nb = _ring(he, b, buf_b)
+    if na < 0 or nb < 0:
+        return False
+    for i in range(na):
+        va = buf_a[i]
+        if va in (c, d):
+            continue
+        for j in range(nb):
+            if buf_b[j] == va:
+                return False
+    return True
+
+
+@numba.njit(cache=True)
+def _collapse_geometry_ok(he, h, x, y, z, limit):
+    """Whether the faces around half-edge ``h``'s ends, with both at ``x, y, z``, keep their side and shapes.
+
+    Every face keeps within 80 degrees of its ``reference`` normal (the tube
+    face it lies on, exact even for a sliver), or turns no farther from it
+    than it is already turned, and the worst aspect around stays under
+    ``limit`` or improves.
+    """
+    faces, p = he.faces, he.points
+    a = _org(faces, h)
+    b = _dst(faces, h)
+    t = he.opp[h]
+    worst_old = max(_aspect(p, a, b, _apex(faces, h)), _aspect(p, b, a, _apex(faces, t)))
+    worst_new = 0.0
+    for end in range(2):
+        v = a if end == 0 else b
+        h0 = he.out[v]
+        g = h0
+        while True:
+            f = g // 3
+            if f != h // 3 and f != t // 3:
+                f0, f1, f2 = faces[f, 0], faces[f, 1], faces[f, 2]
+                corners = _corners(p, f0, f1, f2, v, x, y, z)
+                qx, qy, qz = _normal_xyz(*corners)
+                q = np.sqrt(qx * qx + qy * qy + qz * qz)
+                r = he.reference[f]
+                turned = qx * r[0] + qy * r[1] + qz * r[2]
+                if turned <= 0.17 * q:
+                    # turned away: allowed only for a face that was turned as far already (a fold left by the
+                    # boolean must not block every collapse around it), and not further
+                    ox, oy, oz = _normal(p, f0, f1, f2)
+                    o = np.sqrt(ox * ox + oy * oy + oz * oz)
+                    was = ox * r[0] + oy * r[1] + oz * r[2]
+                    if q <= 0.0 or o <= 0.0 or was > 0.17 * o or turned / q < was / o:
+                        return False
+                worst_old = max(worst_old, _aspect(p, f0, f1, f2))
+                worst_new = max(worst_new, _aspect_xyz(*corners))
+            g = he.opp[_prv(g)]
+            if g == h0:
+                break
+    return worst_new <= limit or worst_new < worst_old
+
+
+@numba.njit(cache=True)
+def _collapse_ok(he, h, x, y, z, limit, buf_a, buf_b, geometry=True):
+    """Whether collapsing half-edge ``h`` (its origin into its end, placed at ``x, y, z``) is allowed.
+
+    :func:`_collapse_topology_ok`, and unless ``geometry`` is off (for ends so
+    close that nothing can move) :func:`_collapse_geometry_ok`.
+    """
+    if not _collapse_topology_ok(he, h, buf_a, buf_b):
+        return False
+    return not geometry or _collapse_geometry_ok(he, h, x, y, z, limit)
+
+
+@numba.njit(cache=True)
+def _collapse(he, h, x, y, z):
+    """Collapse half-edge ``h``: its origin ``a`` merges into its end ``b``, placed at ``x, y, z``.
+
+    The two faces of the edge die; every other face of ``a`` takes ``b``.
+    Call only after :func:`_collapse_ok`.
+    """
+    faces, opp, out = he.faces, he.opp, he.out
+    a = _org(faces, h)
+    b = _dst(faces, h)
+    t = opp[h]
+    f0, f1 = h // 3, t // 3
+    h1, h2 = _nxt(h), _prv(h)  # b->c, c->a
+    t1, t2 = _nxt(t), _prv(t)  # a->d, d->b
+    o_h1, o_h2, o_t1, o_t2 = opp[h1], opp[h2], opp[t1], opp[t2]
+    c = _dst(faces, h1)
+    d = _dst(faces, t1)
+    g0 = out[a]
+    g = g0
+    while True:  # every face around a takes b
+        faces[g // 3, g % 3] = b
+        g = opp[_prv(g)]
+        if g == g0:
+            break
+    # the outer edges of the dead faces now face each other
+    opp[o_h1] = o_h2
+    opp[o_h2] = o_h1
+    opp[o_t1] = o_t2
+    opp[o_t2] = o_t1
+    out[b] = o_t2
+    out[c] = o_h1
+    out[d] = o_t1
+    he.face_alive[f0] = False
+    he.face_alive[f1] = False
+    for k in range(3):
+        opp[3 * f0 + k] = -1
+        opp[3 * f1 + k] = -1
+    he.vertex_alive[a] = False
+    out[a] = -1
+    he.points[b, 0], he.points[b, 1], he.points[b, 2] = x, y, z
+    he.flags[b] |= he.flags[a] & (SEAM | FEATURE)
+    he.scale[b] = min(he.scale[a], he.scale[b])
+
+
+@numba.njit(cache=True)
+def _volume_neutral(he, h, x, y, z):
+    """Where to put the merged vertex of collapsing ``h``, near ``x, y, z``, so the enclosed volume stays.
+
+    The volume is linear in the merged vertex's position (six times it is the
+    sum of ``det(x, p, q)`` over the faces ``x p q`` around it), so the
+    correction is one step along its gradient, at most the edge's length.
+    Without it, collapses on a convex tube (all of them) would shrink it.
+    """
+    faces, p = he.faces, he.points
+    a = _org(faces, h)
+    b = _dst(faces, h)
+    t = he.opp[h]
+    before = 0.0
+    after = 0.0
+    gx, gy, gz = 0.0, 0.0, 0.0
+    for end in range(2):
+        v = a if end == 0 else b
+        h0 = he.out[v]
+        g = h0
+        while True:
+            f = g // 3
+            k = g % 3
+            u, w = faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]
+            ux, uy, uz = p[u, 0], p[u, 1], p[u, 2]
+            wx, wy, wz = p[w, 0], p[w, 1], p[w, 2]
+            cx, cy, cz = _cross(ux, uy, uz, wx, wy, wz)
+            d = p[v, 0] * cx + p[v, 1] * cy + p[v, 2] * cz
+            if f == h // 3 or f == t // 3:
+                if end == 0:  # the two dying faces count once
+                    before += d
+            else:
+                before += d
+                after += x * cx + y * cy + z * cz
+                gx += cx
+                gy += cy
+                gz += cz
+            g = he.opp[_prv(g)]
+            if g == h0:
+                break
+    g2 = gx * gx + gy * gy + gz * gz
+    if g2 <= 0.0:
+        return x, y, z
+    step = (before - after) / g2
+    sx, sy, sz = step * gx, step * gy, step * gz
+    reach = _length(p, a, b)
+    size = np.sqrt(sx * sx + sy * sy + sz * sz)
+    if size > reach:
+        sx, sy, sz = sx * reach / size, sy * reach / size, sz * reach / size
+    return x + sx, y + sy, z + sz
+
+
+@numba.njit(cache=True)
+def _rank(flags, v):
+    """Which end of a collapse keeps its place: a rim vertex, then a tube vertex, then a seam vertex."""
+    f = flags[v]
+    if f & FEATURE:
+        return 3
+    if f & ORIGINAL:
+        return 2
+    if f & SEAM:
+        return 1
+    return 0
+
+
+@numba.njit(cache=True)
+def _try_collapse(he, h, limit, short, buf_a, buf_b):
+    """Collapse the edge of half-edge ``h`` the best way that is allowed; the kept vertex, or -1.
+
+    The end of higher :func:`_rank` keeps its place (either, for two of equal
+    rank), moved off it only as far as keeps the volume; two rim vertices
+    merge only along their rim.  An edge of almost no length merges whatever
+    the shapes around (they hardly move); a vertex of three neighbours across
+    it, which would be left with two, first merges into its nearest
+    neighbour when that is nearer than ``short`` scales.
+    """
+    faces = he.faces
+    a = _org(faces, h)
+    b = _dst(faces, h)
+    if _rank(he.flags, a) == 3 and _rank(he.flags, b) == 3 and he.face_flat[h // 3] == he.face_flat[he.opp[h] // 3]:
+        return -1  # two rim vertices, but not along the rim
+    tiny = _length(he.points, a, b) < 1e-3 * min(he.scale[a], he.scale[b])
+    # a vertex of three neighbours across the edge would be left with two: merge it away first
+    for apex in (_apex(faces, h), _apex(faces, he.opp[h])):
+        if _valence(he, apex) == 3 and not (he.flags[apex] & LOCKED):
+            best, best_length = -1, 1e300
+            g0 = he.out[apex]
+            g = g0
+            while True:
+                n = _dst(faces, g)
+                length = _length(he.points, apex, n)
+                if _rank(he.flags, apex) <= _rank(he.flags, n) and length < best_length:
+                    best, best_length = g, length
+                g = he.opp[_prv(g)]
+                if g == g0:
+                    break
+            if best >= 0 and best_length < short * he.scale[apex]:
+                w = _dst(faces, best)
+                x, y, z = he.points[w, 0], he.points[w, 1], he.points[w, 2]
+                if _collapse_ok(he, best, x, y, z, limit, buf_a, buf_b):
+                    _collapse(he, best, x, y, z)
+                    return w
+    for attempt in range(2):
+        g = h if attempt == 0 else he.opp[h]
+        u = _org(faces, g)  # goes
+        w = _dst(faces, g)  # stays
+        if _rank(he.flags, u) > _rank(he.flags, w):
+            continue
+        if not _collapse_topology_ok(he, g, buf_a, buf_b):
+            continue
+        x, y, z = he.points[w, 0], he.points[w, 1], he.points[w, 2]
+        if not tiny and not (he.flags[w] & FEATURE):
+            x, y, z = _volume_neutral(he, g, x, y, z)
+        if _collapse_geometry_ok(he, g, x, y, z, 1e300 if tiny else limit):
+            _collapse(he, g, x, y, z)
+            return w
+    return -1
+
+
+# ---------------------------------------------------------------------------------------- flip
+@numba.njit(cache=True)
+def _flip_ok(he, h, tolerance):
+    """Whether flipping the edge of half-edge ``h`` improves its two faces without changing the shape much.
+
+    The surface moves by at most the distance between the old and the new
+    diagonal, which must stay under ``tolerance``; the new faces keep the
+    side of the old pair, and their worse aspect must be better than the old
+    worse one.
+    Seam and rim edges are never flipped.
+    """
+    faces, p = he.faces, he.points
+    t = he.opp[h]
+    f0, f1 = h // 3, t // 3
+    if he.face_part[f0] != he.face_part[f1]:
+        return False
+    a = _org(faces, h)
+    b = _dst(faces, h)
+    c = _apex(faces, h)
+    d = _apex(faces, t)
+    flags = he.flags
+    if c == d or ((flags[a] & FEATURE) and (flags[b] & FEATURE)):
+        return False
+    if (flags[a] | flags[b] | flags[c] | flags[d]) & LOCKED:
+        return False
+    if _valence(he, a) <= 3 or _valence(he, b) <= 3:
+        return False
+    if _half_edge(he, c, d) >= 0:
+        return False
+    if _segment_distance(p, a, b, c, d) > tolerance:
+        return False
+    n0x, n0y, n0z = _normal(p, a, b, c)
+    n1x, n1y, n1z = _normal(p, b, a, d)
+    mx, my, mz = n0x + n1x, n0y + n1y, n0z + n1z
+    qx, qy, qz = _normal(p, c, a, d)
+    if qx * mx + qy * my + qz * mz <= 0.0:
+        return False
+    qx, qy, qz = _normal(p, d, b, c)
+    if qx * mx + qy * my + qz * mz <= 0.0:
+        return False
+    old = max(_aspect(p, a, b, c), _aspect(p, b, a, d))
+    new = max(_aspect(p, c, a, d), _aspect(p, d, b, c))
+    return new < 0.999 * old
+
+
+@numba.njit(cache=True)
+def _flip(he, h):
+    """Flip the edge of half-edge ``h`` (faces ``a b c`` and ``b a d`` become ``c a d`` and ``d b c``)."""
+    faces, opp, out = he.faces, he.opp, he.out
+    t = opp[h]
+    f0, f1 = h // 3, t // 3
+    h1, h2 = _nxt(h), _prv(h)  # b->c, c->a
+    t1, t2 = _nxt(t), _prv(t)  # a->d, d->b
+    o_h1, o_h2, o_t1, o_t2 = opp[h1], opp[h2], opp[t1], opp[t2]
+    a = _org(faces, h)
+    b = _dst(faces, h)
+    c = _dst(faces, h1)
+    d = _dst(faces, t1)
+    faces[f0, 0], faces[f0, 1], faces[f0, 2] = c, a, d
+    faces[f1, 0], faces[f1, 1], faces[f1, 2] = d, b, c
+    e0, e1, e2 = 3 * f0, 3 * f0 + 1, 3 * f0 + 2  # c->a, a->d, d->c
+    g0, g1, g2 = 3 * f1, 3 * f1 + 1, 3 * f1 + 2  # d->b, b->c, c->d
+    opp[e0], opp[o_h2] = o_h2, e0
+    opp[e1], opp[o_t1] = o_t1, e1
+    opp[g0], opp[o_t2] = o_t2, g0
+    opp[g1], opp[o_h1] = o_h1, g1
+    opp[e2], opp[g2] = g2, e2
+    out[a] = e1
+    out[b] = g1
+    out[c] = e0
+    out[d] = g0
+
+
+# ---------------------------------------------------------------------------------------- split
+@numba.njit(cache=True)
+def _split(he, h, t):
+    """Split the edge of half-edge ``h`` at ``a + t (b - a)``: one new vertex, two new faces; the vertex or -1.
+
+    The new vertex's origin is the nearer end; the new faces copy their old
+    face's part, flatness, reference normal and source.  -1 when there is no room.
+    """
+    faces, opp, out, p = he.faces, he.opp, he.out, he.points
+    nv, nf = he.counts[0], he.counts[1]
+    if nv >= len(p) or nf + 2 > len(faces):
+        return -1
+    o = opp[h]
+    f0, f1 = h // 3, o // 3
+    a = _org(faces, h)
+    b = _dst(faces, h)
+    c = _apex(faces, h)
+    d = _apex(faces, o)
+    m = nv
+    for k in range(3):
+        p[m, k] = p[a, k] + t * (p[b, k] - p[a, k])
+    he.vertex_alive[m] = True
+    he.flags[m] = FEATURE if (he.flags[a] & he.flags[b]) & FEATURE else 0
+    he.scale[m] = min(he.scale[a], he.scale[b])
+    he.vertex_origin[m] = he.vertex_origin[a] if t <= 0.5 else he.vertex_origin[b]
+    # f0 (a b c) -> (a m c) and new g0 (m b c); f1 (b a d) -> (m a d) and new g1 (b m d)
+    g0, g1 = nf, nf + 1
+    o_bc, o_ca, o_ad, o_db = opp[_nxt(h)], opp[_prv(h)], opp[_nxt(o)], opp[_prv(o)]
+    faces[f0, 0], faces[f0, 1], faces[f0, 2] = a, m, c
+    faces[g0, 0], faces[g0, 1], faces[g0, 2] = m, b, c
+    faces[f1, 0], faces[f1, 1], faces[f1, 2] = m, a, d
+    faces[g1, 0], faces[g1, 1], faces[g1, 2] = b, m, d
+    for new, old in ((g0, f0), (g1, f1)):
+        he.face_alive[new] = True
+        he.face_part[new] = he.face_part[old]
+        he.face_flat[new] = he.face_flat[old]
+        he.face_source[new] = he.face_source[old]
+        he.reference[new] = he.reference[old]
+    # f0: a->m, m->c, c->a; g0: m->b, b->c, c->m; f1: m->a, a->d, d->m; g1: b->m, m->d, d->b
+    F0, G0, F1, G1 = 3 * f0, 3 * g0, 3 * f1, 3 * g1
+    opp[F0], opp[F1] = F1, F0
+    opp[G0], opp[G1] = G1, G0
+    opp[F0 + 1], opp[G0 + 2] = G0 + 2, F0 + 1
+    opp[F1 + 2], opp[G1 + 1] = G1 + 1, F1 + 2
+    opp[F0 + 2], opp[o_ca] = o_ca, F0 + 2
+    opp[G0 + 1], opp[o_bc] = o_bc, G0 + 1
+    opp[F1 + 1], opp[o_ad] = o_ad, F1 + 1
+    opp[G1 + 2], opp[o_db] = o_db, G1 + 2
+    out[m] = G0
+    out[a] = F0
+    out[b] = G0 + 1
+    out[c] = F0 + 2
+    out[d] = F1 + 2
+    he.counts[0] = nv + 1
+    he.counts[1] = nf + 2
+    return m
+
+
+# ---------------------------------------------------------------------------------------- the driver
+@numba.njit(cache=True)
+def _needs_work(he, f, rules):
+    faces, p = he.faces, he.points
+    a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+    s = min(he.scale[a], min(he.scale[b], he.scale[c]))
+    short = rules.short * s
+    if _length(p, a, b) < short or _length(p, b, c) < short or _length(p, c, a) < short:
+        return True
+    return _aspect(p, a, b, c) > rules.bad
+
+
+@numba.njit(cache=True)
+def _push_fan(he, v, stack, queued, top, rules):
+    """Queue the faces around ``v`` that need work; the new stack height."""
+    h0 = he.out[v]
+    if h0 < 0:
+        return top
+    g = h0
+    n = 0
+    while True:
+        f = g // 3
+        if not queued[f] and _needs_work(he, f, rules):
+            queued[f] = True
+            stack[top] = f
+            top += 1
+        g = he.opp[_prv(g)]
+        n += 1
+        if g == h0 or n > _MAX_RING:
+            return top
+
+
+@numba.njit(cache=True)
+def _snap(he, f, k, rules, buf_a, buf_b):
+    """A cap: move its far corner ``x`` onto its edge ``k`` (``u w``) and give the face across the edge to it.
+
+    Topologically an edge flip of ``u w`` (``x`` joins the vertex ``d`` across
+    it), then ``x`` moves to its foot on ``u w``: the cap vanishes and the face
+    across splits in two halves of itself, so only the faces around ``x``
+    change shape, by at most the cap's height (under ``short`` scales).
+    ``x`` takes the rank of the edge it now lies on (a tube edge, a rim, the
+    seam).  Where ``x`` stands over an end of the edge (its foot in the
+    outer tenths), it merges into that end instead.  Returns the vertex left
+    (``x``, or the end), or -1 when not allowed.
+    """
+    faces, p, flags = he.faces, he.points, he.flags
+    g = 3 * f + k
+    t = he.opp[g]
+    u, w, x = faces[f, k], faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]
+    d = _apex(faces, t)
+    if x == d or (flags[u] | flags[w] | flags[x] | flags[d]) & LOCKED or flags[x] & FEATURE:
+        return -1
+    ex, ey, ez = p[w, 0] - p[u, 0], p[w, 1] - p[u, 1], p[w, 2] - p[u, 2]
+    e2 = ex * ex + ey * ey + ez * ez
+    if e2 <= 0.0:
+        return -1
+    tt = ((p[x, 0] - p[u, 0]) * ex + (p[x, 1] - p[u, 1]) * ey + (p[x, 2] - p[u, 2]) * ez) / e2
+    fx, fy, fz = p[u, 0] + tt * ex, p[u, 1] + tt * ey, p[u, 2] + tt * ez
+    s = min(he.scale[u], min(he.scale[w], he.scale[x]))
+    dx, dy, dz = fx - p[x, 0], fy - p[x, 1], fz - p[x, 2]
+    if not (0.1 < tt < 0.9):
+        # x stands over an end of the edge: merge it into that end instead (the halves would be needles)
+        h = _half_edge(he, x, u if tt <= 0.5 else w)
+        if h < 0 or _rank(flags, x) > _rank(flags, _dst(faces, h)):
+            return -1
+        return _try_collapse(he, h, rules.limit, rules.short, buf_a, buf_b)
+    # a short move, or one along the faces around x (in their planes: the surface does not change)
+    if np.sqrt(dx * dx + dy * dy + dz * dz) >= rules.short * s:
+        h0 = he.out[x]
+        h = h0
+        while True:
+            ff = h // 3
+            if ff != f:
+                nx, ny, nz = _normal(p, faces[ff, 0], faces[ff, 1], faces[ff, 2])
+                nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+                if nn <= 0.0 or abs(nx * dx + ny * dy + nz * dz) > rules.flip_tolerance * s * nn:
+                    return -1
+            h = he.opp[_prv(h)]
+            if h == h0:
+                break
+    if _valence(he, u) <= 3 or _valence(he, w) <= 3 or _half_edge(he, x, d) >= 0:
+        return -1
+    # the faces around x (but the cap), with x at its foot: on their surface, no worse than the limit or than now
+    worst_old = _aspect(p, u, w, x)
+    worst_new = 0.0
+    h0 = he.out[x]
+    h = h0
+    while True:
+        ff = h // 3
+        if ff != f:
+            f0, f1, f2 = faces[ff, 0], faces[ff, 1], faces[ff, 2]
+            corners = _corners(p, f0, f1, f2, x, fx, fy, fz)
+            qx, qy, qz = _normal_xyz(*corners)
+            r = he.reference[ff]
+            if qx * r[0] + qy * r[1] + qz * r[2] <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
+                return -1
+            worst_old = max(worst_old, _aspect(p, f0, f1, f2))
+            worst_new = max(worst_new, _aspect_xyz(*corners))
+        h = he.opp[_prv(h)]
+        if h == h0:
+            break
+    for pair in range(2):  # the two halves of the face across
+        a0, a1 = (u, d) if pair == 0 else (d, w)
+        worst_new = max(worst_new, _aspect_xyz(fx, fy, fz, p[a0, 0], p[a0, 1], p[a0, 2], p[a1, 0], p[a1, 1], p[a1, 2]))
+    if not (worst_new <= rules.limit or worst_new < worst_old):
+        return -1
+    on_seam = he.face_part[f] != he.face_part[t // 3]
+    across = t // 3
+    _flip(he, g)
+    for ff in (f, across):  # both faces are now halves of the face across
+        he.face_part[ff] = he.face_part[across]
+        he.face_flat[ff] = he.face_flat[across]
+        he.face_source[ff] = he.face_source[across]
+        he.reference[ff] = he.reference[across]
+    p[x, 0], p[x, 1], p[x, 2] = fx, fy, fz
+    if on_seam:
+        flags[x] |= SEAM
+    elif (flags[u] & (ORIGINAL | FEATURE)) and (flags[w] & (ORIGINAL | FEATURE)):
+        flags[x] |= ORIGINAL
+    return x
+
+
+@numba.njit(cache=True)
+def _split_fan(he, f, order, lengths, rules, spawned):
+    """A needle of a seam's fan: split its longest edge that leaves the seam ``step`` scales from it; the vertex or -1.
+
+    The boolean joins each point of its intersection curve to the far corners
+    of the tube faces it cut: fans of needles as long as the span.  The
+    vertices put on one fan's edges merge in the next collapses, leaving short
+    triangles along the seam and one fan of ordinary ones beyond.  A seam
+    vertex spawns at most a few (a new vertex that merges back into a tube
+    vertex would bring the fan back, and the split again: a cycle).
+    """
+    faces, flags = he.faces, he.flags
+    for i in range(3):
+        k = order[i]
+        u, w = faces[f, k], faces[f, (k + 1) % 3]
+        su, sw = (flags[u] & SEAM) != 0, (flags[w] & SEAM) != 0
+        if su == sw or (flags[u] | flags[w]) & LOCKED:
+            continue
+        v = u if su else w
+        if lengths[k] <= rules.long * he.scale[v] or spawned[v] >= _MAX_SPAWN:
+            continue
+        spawned[v] += 1
+        t = rules.step * he.scale[v] / lengths[k]
+        return _split(he, 3 * f + k, t if su else 1.0 - t)
+    return -1
+
+
+@numba.njit(cache=True)
+def clean(he, rules, region):
+    """Remove the needles and caps of ``he`` by local operations; returns how many of each kind were done.
+
+    Every face that needs work (an edge shorter than ``rules.short`` local
+    scales, or an aspect above ``rules.bad``) goes on a stack; the faces
+    around whatever an operation changes go on it again, and when the stack
+    runs dry every face is looked at again (up to three times: an operation
+    also changes the valences around it, which may unblock another).  For
+    each face:
+
+    1. its edges shorter than ``short`` are collapsed, shortest first, where allowed;
+    2. if its aspect is above ``bad``: its edges are flipped, longest first,
+       where :func:`_flip_ok` allows it (the surface moving less than
+       ``flip_tolerance`` scales);
+    3. failing that, a cap's far corner is snapped onto its longest edge (:func:`_snap`);
+    4. failing that, a seam fan's needle is split (:func:`_split_fan`);
+    5. failing that, its shortest edge is collapsed if shorter than ``fallback``.
+
+    Lengths are in local scales (``he.scale``: the side of the thinnest tube there).
+    ``region`` (a flag per vertex) limits the work to the faces touching it
+    (empty: everywhere).  Returns the counts of collapses, flips, snaps, fan
+    splits and fallback collapses.
+    """
+    faces, p = he.faces, he.points
+    fcap = len(faces)
+    buf_a = np.empty(_MAX_RING, np.int64)
+    buf_b = np.empty(_MAX_RING, np.int64)
+    lengths = np.empty(3)
+    order = np.empty(3, np.int64)
+    queued = np.zeros(fcap, np.bool_)
+    spawned = np.zeros(len(p), np.int64)
+    stack = np.empty(fcap, np.int64)
+    top = 0
+    everywhere = len(region) == 0
+    for f in range(he.counts[1] - 1, -1, -1):
+        if not he.face_alive[f]:
+            continue
+        if not everywhere and not (region[faces[f, 0]] or region[faces[f, 1]] or region[faces[f, 2]]):
+            continue
+        if _needs_work(he, f, rules):
+            queued[f] = True
+            stack[top] = f
+            top += 1
+    done = np.zeros(5, np.int64)  # collapses, flips, snaps, fan splits, fallback collapses
+    rounds = 0 if everywhere else 3  # a second cleaning of a region does not look everywhere again
+    while top > 0 and done.sum() < rules.max_operations:
+        top -= 1
+        f = stack[top]
+        queued[f] = False
+        if not he.face_alive[f]:
+            continue
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        s = min(he.scale[a], min(he.scale[b], he.scale[c]))
+        for k in range(3):
+            lengths[k] = _length(p, faces[f, k], faces[f, (k + 1) % 3])
+        # edges by length, shortest first
+        order[0], order[1], order[2] = 0, 1, 2
+        for i in range(3):
+            for j in range(2 - i):
+                if lengths[order[j]] > lengths[order[j + 1]]:
+                    order[j], order[j + 1] = order[j + 1], order[j]
+        touched = -1
+        touched2 = -1
+        for i in range(3):
+            k = order[i]
+            if lengths[k] >= rules.short * s:
+                break
+            touched = _try_collapse(he, 3 * f + k, rules.limit, rules.short, buf_a, buf_b)
+            if touched >= 0:
+                done[0] += 1
+                break
+        if touched < 0 and _aspect(p, a, b, c) > rules.bad:
+            for i in range(2, -1, -1):
+                g = 3 * f + order[i]
+                if _flip_ok(he, g, rules.flip_tolerance * s):
+                    touched, touched2 = _org(faces, g), _dst(faces, g)
+                    _flip(he, g)
+                    done[1] += 1
+                    break
+            if touched < 0:
+                touched = _snap(he, f, order[2], rules, buf_a, buf_b)
+                done[2] += touched >= 0
+            if touched < 0:
+                order[0], order[2] = order[2], order[0]  # longest first
+                touched = _split_fan(he, f, order, lengths, rules, spawned)
+                order[0], order[2] = order[2], order[0]
+                done[3] += touched >= 0
+            if touched < 0 and lengths[order[0]] < rules.fallback * s:
+                touched = _try_collapse(he, 3 * f + order[0], rules.limit, rules.short, buf_a, buf_b)
+                done[4] += touched >= 0
+        if touched < 0:
+            continue
+        for v in (touched, touched2):
+            if v >= 0:
+                top = _push_fan(he, v, stack, queued, top, rules)
+        if he.face_alive[f] and not queued[f] and _needs_work(he, f, rules):
+            queued[f] = True
+            stack[top] = f
+            top += 1
+        if top == 0 and rounds < 3:
+            # faces an operation changed only by the valences around them: look at everything again
+            rounds += 1
+            for g in range(he.counts[1] - 1, -1, -1):
+                if he.face_alive[g] and _needs_work(he, g, rules):
+                    queued[g] = True
+                    stack[top] = g
+                    top += 1
+    return done
+
+
+@numba.njit(cache=True)
+def rescue(he, worst, height, flip):
+    """The last resort for faces still worse than aspect ``worst`` or lower than ``height``; returns the count fixed.
+
+    First, on every face, an edge so short that readers would weld its ends
+    (float32 files, trimesh's 1e-8 grid) merges whenever the topology allows.
+    Then such a face may flip an edge that moves the surface by up to
+    ``flip`` local scales (more than :func:`clean` allows); failing that, any
+    of its edges may collapse, either way or to a point between (a quarter,
+    half or three quarters along), whatever the ranks of its ends,
+    when every face around keeps its side and the worst aspect around
+    becomes better than this face's (for a face lower than ``height``:
+    whatever the aspects); a vertex of three neighbours on it, or across one
+    of its edges (which blocks the collapse of that edge), may merge into any
+    of them on the same terms (whatever the aspects, into one nearer than a
+    tenth of a side: the next round collapses the face's edge).
+    """
+    faces, p = he.faces, he.points
+    buf_a = np.empty(_MAX_RING, np.int64)
+    buf_b = np.empty(_MAX_RING, np.int64)
+    fixed = 0
+    for _ in range(4):
+        changed = 0
+        for f in range(he.counts[1]):
+            if not he.face_alive[f]:
+                continue
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            # an edge readers would weld (float32, or trimesh's 1e-8 grid): merge it if the topology allows
+            for k in range(3):
+                g = 3 * f + k
+                u, w = faces[f, k], faces[f, (k + 1) % 3]
+                weld = 1e-8 + 1e-6 * max(abs(p[w, 0]), max(abs(p[w, 1]), abs(p[w, 2])))
+                close = _length(p, u, w) < weld and not ((he.flags[u] | he.flags[w]) & LOCKED)
+                if close and _collapse_ok(he, g, p[w, 0], p[w, 1], p[w, 2], 1e300, buf_a, buf_b, False):
+                    _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
+                    changed += 1
+                    break
+            if not he.face_alive[f]:
+                continue
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            bad = _aspect(p, a, b, c)
+            nx, ny, nz = _normal(p, a, b, c)
+            longest = max(_length(p, a, b), max(_length(p, b, c), _length(p, c, a)))
+            low = np.sqrt(nx * nx + ny * ny + nz * nz) < height * longest  # twice the area over the longest edge
+            if bad <= worst and not low:
+                continue
+            # a sliver goes whatever it leaves around (as long as nothing turns over)
+            allowed = 1e300 if low else 0.999 * bad
+            done = False
+            # a flip that moves the surface by up to ``flip`` local scales
+            s = min(he.scale[a], min(he.scale[b], he.scale[c]))
+            lengths = np.array([_length(p, a, b), _length(p, b, c), _length(p, c, a)])
+            for k in np.argsort(-lengths):
+                g = 3 * f + k
+                if _flip_ok(he, g, flip * s):
+                    _flip(he, g)
+                    done = True
+                    break
+            # candidate half-edges: the face's own (both ways), then those leaving a corner of three neighbours
+            for k in range(6 if not done else 0):
+                g = 3 * f + k % 3
+                if k >= 3:
+                    g = he.opp[g]
+                if he.flags[_org(faces, g)] & (LOCKED | FEATURE):
+                    continue
+                w = _dst(faces, g)
+                if _collapse_ok(he, g, p[w, 0], p[w, 1], p[w, 2], allowed, buf_a, buf_b):
+                    _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
+                    done = True
+                    break
+                # or both ends meet on the edge (on a crease, either end may turn a face over, a point between not)
+                u = _org(faces, g)
+                if k < 3 and not (he.flags[w] & (LOCKED | FEATURE)):
+                    for t in (0.5, 0.25, 0.75):
+                        x = p[u, 0] + t * (p[w, 0] - p[u, 0])
+                        y = p[u, 1] + t * (p[w, 1] - p[u, 1])
+                        z = p[u, 2] + t * (p[w, 2] - p[u, 2])
+                        if _collapse_ok(he, g, x, y, z, allowed, buf_a, buf_b):
+                            _collapse(he, g, x, y, z)
+                            done = True
+                            break
+                    if done:
+                        break
+            if not done:
+                for k in range(6):  # its corners, then the corners across its edges
+                    v = faces[f, k] if k < 3 else _apex(faces, he.opp[3 * f + k - 3])
+                    if _valence(he, v) != 3 or he.flags[v] & (LOCKED | FEATURE):
+                        continue
+                    g0 = he.out[v]
+                    g = g0
+                    while True:
+                        w = _dst(faces, g)
+                        # a merge along an edge of a tenth of a side moves nothing that counts: whatever the
+                        # aspects (the face being fixed, unchanged by it, may be the worst around)
+                        near = _length(p, v, w) < 0.1 * he.scale[v]
+                        if _collapse_ok(he, g, p[w, 0], p[w, 1], p[w, 2], 1e300 if near else allowed, buf_a, buf_b):
+                            _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
+                            done = True
+                            break
+                        g = he.opp[_prv(g)]
+                        if g == g0:
+                            break
+                    if done:
+                        break
+            changed += done
+        fixed += changed
+        if changed == 0:
+            break
+    return fixed
+
+
+# ---------------------------------------------------------------------------------------- junction collars
+@numba.njit(cache=True)
+def collar(he, width, closeness):
+    """How close each vertex is to a seam, in ``closeness`` (1 on the seam, 0 at ``width`` scales or beyond).
+
+    The distance is measured along edges from the nearest seam vertex, in that
+    seam vertex's own scale (the side of the thinner tube at the seam), so a
+    twig's collar is as narrow as the twig.  Returns the number of vertices in
+    a collar.
+    """
+    faces, p = he.faces, he.points
+    nv = he.counts[0]
+    reach = np.zeros(nv)  # metres still to go from the best seam vertex
+    span = np.zeros(nv)  # that seam vertex's collar width in metres
+    for v in range(nv):
+        if he.vertex_alive[v] and he.out[v] >= 0 and he.flags[v] & SEAM:
+            span[v] = width * he.scale[v]
+            reach[v] = span[v]
+    changed = True
+    while changed:
+        changed = False
+        for f in range(he.counts[1]):
+            if not he.face_alive[f]:
+                continue
+            for k in range(3):
+                u, w = faces[f, k], faces[f, (k + 1) % 3]
+                if reach[u] <= 0.0:
+                    continue
+                left = reach[u] - _length(p, u, w)
+                # the seam whose collar is left the larger share of wins
+                if left > 0.0 and (span[w] == 0.0 or left * span[w] > reach[w] * span[u] * (1.0 + 1e-12)):
+                    reach[w] = left
+                    span[w] = span[u]
+                    changed = True
+    n = 0
+    for v in range(nv):
+        closeness[v] = reach[v] / span[v] if span[v] > 0.0 else 0.0
+        n += closeness[v] > 0.0
+    return n
+
+
+@numba.njit(cache=True)
+def _vertex_normal(he, v):
+    faces, p = he.faces, he.points
+    h0 = he.out[v]
+    g = h0
+    nx, ny, nz = 0.0, 0.0, 0.0
+    while True:
+        f = g // 3
+        ax, ay, az = _normal(p, faces[f, 0], faces[f, 1], faces[f, 2])
+        nx += ax
+        ny += ay
+        nz += az
+        g = he.opp[_prv(g)]
+        if g == h0:
+            break
+    n = np.sqrt(nx * nx + ny * ny + nz * nz)
+    if n <= 0.0:
+        return 0.0, 0.0, 0.0
+    return nx / n, ny / n, nz / n
+
+
+@numba.njit(cache=True)
+def fair(he, closeness, iterations, step, reach, inward):
+    """Round the junction creases: make each collar as smooth as a thin plate bent between its tubes.
+
+    The collar vertices (``closeness > 0``) move along their normals to make
+    the bi-Laplacian vanish (the Laplacian weighted by 1 / length^2, applied
+    twice), with every vertex outside the collar held: steps of ``step``
+    times the bi-Laplacian's normal part, ``iterations`` times (Jacobi, so the
+    order of the vertices does not matter).  The collar then leaves each tube
+    with its tangent plane and the crease between them becomes a fillet about
+    as wide as the collar.  Weighting by the inverse square of the edge length
+    makes the Laplacian a property of the surface rather than of the mesh:
+    the long edges of a tube's spans hardly count, where a plain mean would
+    drag a vertex along them.  Unless ``inward``, vertices only move outwards
+    (the concave creases fill; a convex tube is never pulled in).  No vertex
+    moves farther than ``reach`` local scales from where it was (a narrow
+    crotch is not webbed over), and a vertex that leaves a face turned more
+    than 80 degrees from its reference normal goes back where it was.
+    Returns the vertices moved.
+    """
+    faces, p = he.faces, he.points
+    nv = he.counts[0]
+    member = np.zeros(nv, np.bool_)
+    for v in range(nv):
+        if closeness[v] > 0.0 and he.vertex_alive[v] and he.out[v] >= 0 and not (he.flags[v] & (LOCKED | FEATURE)):
+            member[v] = True
+    members = np.flatnonzero(member)
+    # the collar and its neighbours (where the Laplacian is needed), with their neighbours as CSR lists
+    slot = np.full(nv, -1, np.int64)
+    around = np.empty(nv, np.int64)
+    na = 0
+    for v in members:
+        if slot[v] < 0:
+            slot[v] = na
+            around[na] = v
+            na += 1
+        h0 = he.out[v]
+        g = h0
+        while True:
+            w = _dst(faces, g)
+            if slot[w] < 0:
+                slot[w] = na
+                around[na] = w
+                na += 1
+            g = he.opp[_prv(g)]
+            if g == h0:
+                break
+    around = around[:na]
+    first = np.zeros(na + 1, np.int64)
+    for i in range(na):
+        first[i + 1] = first[i] + _valence(he, around[i])
+    nbr = np.empty(first[na], np.int64)
+    for i in range(na):
+        h0 = he.out[around[i]]
+        g = h0
+        k = first[i]
+        while k < first[i + 1]:
+            nbr[k] = _dst(faces, g)
+            k += 1
+            g = he.opp[_prv(g)]
+    start = np.empty((len(members), 3))
+    for i in range(len(members)):
+        v = members[i]
+        start[i, 0], start[i, 1], start[i, 2] = p[v, 0], p[v, 1], p[v, 2]
+    lap = np.zeros((na, 3))
+    target = np.zeros((len(members), 3))
+    moves = 0
+    for _ in range(iterations):
+        for i in range(na):
+            v = around[i]
+            mx, my, mz, total = 0.0, 0.0, 0.0, 0.0
+            for k in range(first[i], first[i + 1]):
+                w = nbr[k]
+                dx, dy, dz = p[w, 0] - p[v, 0], p[w, 1] - p[v, 1], p[w, 2] - p[v, 2]
+                weight = 1.0 / max(dx * dx + dy * dy + dz * dz, 1e-300)
+                mx += weight * dx
+                my += weight * dy
+                mz += weight * dz
+                total += weight
+            lap[i, 0], lap[i, 1], lap[i, 2] = mx / total, my / total, mz / total
+        for i in range(len(members)):
+            v = members[i]
+            j = slot[v]
+            mx, my, mz, total = 0.0, 0.0, 0.0, 0.0
+            for k in range(first[j], first[j + 1]):
+                w = nbr[k]
+                dx, dy, dz = p[w, 0] - p[v, 0], p[w, 1] - p[v, 1], p[w, 2] - p[v, 2]
+                weight = 1.0 / max(dx * dx + dy * dy + dz * dz, 1e-300)
+                lw = slot[w]
+                mx += weight * (lap[lw, 0] - lap[j, 0])
+                my += weight * (lap[lw, 1] - lap[j, 1])
+                mz += weight * (lap[lw, 2] - lap[j, 2])
+                total += weight
+            bx, by, bz = mx / total, my / total, mz / total
+            nx, ny, nz = _vertex_normal(he, v)
+            along = bx * nx + by * ny + bz * nz
+            if along > 0.0 and not inward:  # only outwards: creases fill, tubes do not shrink
+                along = 0.0
+            # d(L(L(x)))/dx_v is about 2 for a regular neighbourhood
+            tx = p[v, 0] - 0.5 * step * along * nx
+            ty = p[v, 1] - 0.5 * step * along * ny
+            tz = p[v, 2] - 0.5 * step * along * nz
+            ox, oy, oz = tx - start[i, 0], ty - start[i, 1], tz - start[i, 2]
+            far = np.sqrt(ox * ox + oy * oy + oz * oz)
+            limit = reach * he.scale[v]
+            if far > limit:
+                tx, ty, tz = (
+                    start[i, 0] + ox * limit / far,
+                    start[i, 1] + oy * limit / far,
+                    start[i, 2] + oz * limit / far,
+                )
+            target[i, 0], target[i, 1], target[i, 2] = tx, ty, tz
+        for i in range(len(members)):
+            v = members[i]
+            p[v, 0], p[v, 1], p[v, 2] = target[i, 0], target[i, 1], target[i, 2]
+    # a vertex with a face turned away from its surface goes back, until none is left
+    for _ in range(10):
+        reverted = 0
+        for i in range(len(members)):
+            v = members[i]
+            if p[v, 0] == start[i, 0] and p[v, 1] == start[i, 1] and p[v, 2] == start[i, 2]:
+                continue
+            h0 = he.out[v]
+            g = h0
+            while True:
+                f = g // 3
+                qx, qy, qz = _normal(p, faces[f, 0], faces[f, 1], faces[f, 2])
+                r = he.reference[f]
+                if qx * r[0] + qy * r[1] + qz * r[2] <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
+                    p[v, 0], p[v, 1], p[v, 2] = start[i, 0], start[i, 1], start[i, 2]
+                    reverted += 1
+                    break
+                g = he.opp[_prv(g)]
+                if g == h0:
+                    break
+        if reverted == 0:
+            break
+    for i in range(len(members)):
+        v = members[i]
+        moves += p[v, 0] != start[i, 0] or p[v, 1] != start[i, 1] or p[v, 2] != start[i, 2]
+    return moves
+
+
+@numba.njit(cache=True)
+def settle(he, closeness):
+    """Turn the faired collars' reference normals halfway to their own normals; returns how many changed.
+
+    A faired collar face turns, by design, up to nearly 80 degrees from the
+    tube face it lies on; measured against the tube, the operations after the
+    fairing (:func:`clean` of the collars, :func:`rescue`) could hardly move
+    its vertices (bush kept needles of aspect 1,600 there).  Measured against
+    its own normal, they could turn it up to 160 degrees from the tube: folds
+    (abop-1.24e's bark grew 23% in volume).  Halfway, neither.  Faces without
+    area, or turned too far already, keep their tube's.
+    """
+    faces, p = he.faces, he.points
+    n = 0
+    for f in range(he.counts[1]):
+        if not he.face_alive[f]:
+            continue
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        if closeness[a] <= 0.0 and closeness[b] <= 0.0 and closeness[c] <= 0.0:
+            continue
+        qx, qy, qz = _normal(p, a, b, c)
+        q = np.sqrt(qx * qx + qy * qy + qz * qz)
+        r = he.reference[f]
+        if q <= 0.0 or qx * r[0] + qy * r[1] + qz * r[2] <= 0.17 * q:
+            continue
+        # halfway between the tube's and the faired face's: the later operations may turn a face at most 80
+        # degrees from that, so a collar face still never turns over against its tube
+        hx, hy, hz = r[0] + qx / q, r[1] + qy / q, r[2] + qz / q
+        h = np.sqrt(hx * hx + hy * hy + hz * hz)
+        r[0], r[1], r[2] = hx / h, hy / h, hz / h
+        n += 1
+    return n
+
+
+# ---------------------------------------------------------------------------------------- per-corner helpers
+@numba.njit(cache=True)
+def corner_normals(points, faces, flat):
+    """Corner normals ``(f, 3, 3) float32``: angle-weighted vertex normals of the curved faces; flat faces' own.
+
+    A corner whose vertex gets no normal (its faces cancel out) takes its
+    face's; a face without area takes +Y.
+    """
+    nf = len(faces)
+    fn = np.zeros((nf, 3))
+    vn = np.zeros((len(points), 3))
+    for f in range(nf):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        nx, ny, nz = _normal(points, a, b, c)
+        n = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if n > 0.0:
+            fn[f, 0], fn[f, 1], fn[f, 2] = nx / n, ny / n, nz / n
+        else:
+            fn[f, 1] = 1.0
+        if flat[f] or n <= 0.0:
+            continue
+        for k in range(3):
+            v, w, u = faces[f, k], faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]
+            ex, ey, ez = points[w, 0] - points[v, 0], points[w, 1] - points[v, 1], points[w, 2] - points[v, 2]
+            gx, gy, gz = points[u, 0] - points[v, 0], points[u, 1] - points[v, 1], points[u, 2] - points[v, 2]
+            cx, cy, cz = _cross(ex, ey, ez, gx, gy, gz)
+            angle = np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), ex * gx + ey * gy + ez * gz)
+            vn[v, 0] += angle * fn[f, 0]
+            vn[v, 1] += angle * fn[f, 1]
+            vn[v, 2] += angle * fn[f, 2]
+    out = np.empty((nf, 3, 3), np.float32)
+    for f in range(nf):
+        for k in range(3):
+            v = faces[f, k]
+            n = np.sqrt(vn[v, 0] ** 2 + vn[v, 1] ** 2 + vn[v, 2] ** 2)
+            if flat[f] or n < 1e-12:
+                out[f, k, 0], out[f, k, 1], out[f, k, 2] = fn[f, 0], fn[f, 1], fn[f, 2]
+            else:
+                out[f, k, 0], out[f, k, 1], out[f, k, 2] = vn[v, 0] / n, vn[v, 1] / n, vn[v, 2] / n
+    return out
+
+
+@numba.njit(cache=True)
+def on_corners(points, faces, corners, relative, absolute):
+    """Whether each face corner lies on a corner of ``corners[f]`` (its tube face), ``(f, 3) bool``.
+
+    "On" within ``relative`` times the tube face's shortest edge, or
+    ``absolute`` times the coordinate's magnitude (the union moves vertices
+    that share a float32 position apart by a few float32 steps).
+    """
+    nf = len(faces)
+    out = np.zeros((nf, 3), np.bool_)
+    for f in range(nf):
+        shortest = 1e300
+        for j in range(3):
+            k = (j + 1) % 3
+            d = 0.0
+            for c in range(3):
+                d += (corners[f, j, c] - corners[f, k, c]) ** 2
+            shortest = min(shortest, np.sqrt(d))
+        for i in range(3):
+            v = faces[f, i]
+            size = max(abs(points[v, 0]), max(abs(points[v, 1]), abs(points[v, 2])))
+            near = max(relative * shortest, absolute * size)
+            for j in range(3):
+                d = 0.0
+                for c in range(3):
+                    d += (points[v, c] - corners[f, j, c]) ** 2
+                if np.sqrt(d) <= near:
+                    out[f, i] = True
+                    break
+    return out

@@ -1,0 +1,250 @@
+"""Cleanup: the union's needles and slivers gone, the mesh still one closed solid, junctions smoothed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from grown import grown
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from test_union import chainy_tree, random_tree, y_junction
+
+import lsys3d
+from lsys3d import remesh
+from lsys3d.cleanup import CleanupOptions, clean_mesh, cleanup
+from lsys3d.errors import GeometryError
+from lsys3d.mesh import Mesh
+from lsys3d.pipeline import draw
+from lsys3d.quality import quality
+from lsys3d.stats import components
+from lsys3d.sweep import SweepOptions, sweep
+from lsys3d.union import UnionOptions, union
+
+DRAWING_PRESETS = [name for name in lsys3d.list_presets() if name not in ("algae", "dog", "dog-growing")]
+
+
+def closed_solid(mesh: Mesh, pieces: int = 1):
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    assert components(mesh.faces, len(mesh.vertices)) == pieces
+    assert len(np.unique(mesh.faces)) == len(mesh.vertices)  # no vertex left unused
+    assert mesh.face_source is not None and len(mesh.face_source) == len(mesh.faces)
+
+
+@pytest.fixture(scope="module")
+def tree3d_parts():
+    g = lsys3d.load_preset("tree3d")
+    _, skeleton = draw(g, g.iterations, g.seed)
+    tubes = sweep(skeleton)
+    return tubes, union(tubes)
+
+
+# ---------------------------------------------------------------- the goals of issue 17
+
+
+@pytest.mark.parametrize("name", ["tree3d", "bush"])
+def test_no_needles_or_slivers_at_default_settings(name):
+    """0 triangles above aspect 1,000, 0 under 1 um, at most 2% above aspect 100 (the union had 45% and 24%)."""
+    bark = grown(name).bark
+    closed_solid(bark)
+    q = quality(bark)
+    assert q.over_1000 == 0 and q.slivers == 0
+    assert q.over_100 <= 0.02 * q.triangles, q
+
+
+def right_angled(skeleton) -> bool:
+    """Whether most joints of the skeleton turn by 80 degrees or more (the turtle drawings of curves)."""
+    d = skeleton.end - skeleton.start
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    joint = skeleton.parent >= 0
+    cos = np.einsum("ij,ij->i", d[joint], d[skeleton.parent[joint]])
+    return bool(joint.any() and np.mean(cos < np.cos(np.radians(80))) > 0.5)
+
+
+@pytest.mark.parametrize("name", DRAWING_PRESETS)
+def test_texels_are_square_on_every_preset(name):
+    """Median uv stretch (along against around) within 1.5:1 (was 19:1 on tree3d, 69:1 on bush).
+
+    Where most joints turn by a right angle (dragon, hilbert3d, koch-island:
+    spans 20 radii long) the mitred rings shear each long, thin wall triangle
+    (a ring keeps one ``v`` all round, its far side a radius ahead of its near
+    side): their median is 1.513 in the tubes already, before any union or
+    cleanup; 1.55 for them (docs/mesh.md).
+    """
+    tree = grown(name)
+    limit = 1.55 if right_angled(tree.skeleton) else 1.5
+    assert quality(tree.bark).uv_stretch <= limit
+
+
+def test_cleanup_keeps_the_volume_and_the_collars_add_a_little(tree3d_parts):
+    tubes, raw = tree3d_parts
+    plain = clean_mesh(raw, tubes, CleanupOptions(smooth=False)).mesh
+    smooth = clean_mesh(raw, tubes).mesh
+    closed_solid(plain)
+    closed_solid(smooth)
+    assert plain.volume == pytest.approx(raw.volume, rel=0.005)
+    # the collars fill the creases: a little more volume, never less
+    assert raw.volume * 0.995 <= smooth.volume <= raw.volume * 1.03
+    assert len(plain.faces) < 0.6 * len(raw.faces)
+
+
+def test_cleanup_is_deterministic(tree3d_parts):
+    tubes, raw = tree3d_parts
+    a, b = clean_mesh(raw, tubes), clean_mesh(raw, tubes)
+    for name in ("vertices", "faces", "normals", "uv", "face_source"):
+        assert np.array_equal(getattr(a.mesh, name), getattr(b.mesh, name))
+    assert np.array_equal(a.vertex_origin, b.vertex_origin)
+    assert a.operations == b.operations and a.operations["collapses"] > 0
+
+
+def test_off_is_the_union():
+    tubes = sweep(y_junction())
+    raw = union(tubes)
+    assert cleanup(raw, tubes, CleanupOptions(enabled=False)) is raw
+    tree = lsys3d.generate("abop-1.24a", iterations=2, cleanup=False)
+    assert quality(tree.bark).triangles == len(union(sweep(tree.skeleton)).faces)
+
+
+def test_vertex_origin_carries_per_vertex_attributes(tree3d_parts):
+    tubes, raw = tree3d_parts
+    cleaned = clean_mesh(raw, tubes, CleanupOptions(smooth=False))
+    origin = cleaned.vertex_origin
+    assert origin.shape == (len(cleaned.mesh.vertices),) and origin.min() >= 0 and origin.max() < len(raw.vertices)
+    # an attribute of the input (here its own positions) carried over lands near each vertex: within a few
+    # tube sides (a vertex made by a split takes the nearer end of its edge)
+    carried = raw.vertices[origin]
+    far = np.linalg.norm(carried - cleaned.mesh.vertices, axis=1)
+    assert np.median(far) < 1e-9
+    assert np.quantile(far, 0.99) < 0.1
+
+
+def test_normals_are_continuous_across_the_seams():
+    tubes = sweep(y_junction(), SweepOptions(sides=12))
+    bark = cleanup(union(tubes), tubes)
+    closed_solid(bark)
+    part = np.searchsorted(tubes.face_offsets, bark.face_source, side="right") - 1
+    # every corner of a vertex on a seam (in faces of two tubes) has one normal
+    seam_vertices = np.intersect1d(bark.faces[part == 0].ravel(), bark.faces[part != 0].ravel())
+    assert len(seam_vertices) > 10
+    corner = bark.faces.ravel()
+    normals = bark.normals.reshape(-1, 3)
+    for v in seam_vertices[:50]:
+        n = normals[corner == v]
+        assert np.ptp(n, axis=0).max() < 1e-6
+
+
+def test_collars_round_the_crease():
+    """The angle between the faces across a seam edge shrinks with the collars."""
+    tubes = sweep(y_junction(), SweepOptions(sides=16))
+    raw = union(tubes)
+
+    def crease(mesh):
+        part = np.searchsorted(tubes.face_offsets, mesh.face_source, side="right") - 1
+        he = remesh.build(
+            mesh.vertices,
+            mesh.faces,
+            np.zeros(len(mesh.vertices), np.int64),
+            np.ones(len(mesh.vertices)),
+            part,
+            np.zeros(len(mesh.faces), bool),
+            mesh.face_normals,
+            mesh.face_source,
+        )
+        across = he.opp[: 3 * len(mesh.faces)] // 3
+        own = np.repeat(np.arange(len(mesh.faces)), 3)
+        seam = part[own] != part[across]
+        n = mesh.face_normals
+        return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", n[own[seam]], n[across[seam]]), -1, 1)))
+
+    sharp = crease(clean_mesh(raw, tubes, CleanupOptions(smooth=False)).mesh)
+    smooth = crease(clean_mesh(raw, tubes).mesh)
+    assert np.median(smooth) < np.median(sharp)
+
+
+def test_triangles_fall_with_sides():
+    counts = [len(lsys3d.generate("tree3d", iterations=5, sides=s).bark.faces) for s in (3, 4, 5, 6, 8)]
+    assert counts == sorted(counts) and len(set(counts)) == len(counts), counts
+
+
+def test_crumbs_of_the_boolean_are_dropped():
+    """A closed piece that encloses nothing (a flat tetrahedron beside the plant) goes; a real one stays."""
+    tubes = sweep(y_junction())
+    raw = union(tubes)
+    far = raw.vertices.max(axis=0) + 1.0
+    crumb = np.array([[0, 0, 0], [1e-3, 0, 0], [0, 1e-3, 0], [3e-4, 3e-4, 0]]) + far  # flat: no volume
+    faces = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]]) + len(raw.vertices)
+    polluted = Mesh(
+        np.concatenate([raw.vertices, crumb]),
+        np.concatenate([raw.faces, faces]),
+        np.concatenate([raw.normals, np.zeros((4, 3, 3))]),
+        np.concatenate([raw.uv, np.zeros((4, 3, 2))]),
+        face_source=np.concatenate([raw.face_source, np.zeros(4, np.int64)]),
+    )
+    assert components(polluted.faces, len(polluted.vertices)) == 2
+    closed_solid(cleanup(polluted, tubes))
+
+
+# ---------------------------------------------------------------- any union stays a closed solid
+
+
+def labels_count(mesh):
+    return components(mesh.faces, len(mesh.vertices))
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 80), sides=st.integers(3, 9))
+def test_any_cleaned_union_stays_a_closed_solid(seed, n, sides):
+    tubes = sweep(chainy_tree(seed, n), SweepOptions(sides=sides))
+    try:
+        raw = union(tubes, UnionOptions(local_max=1.0))
+    except GeometryError:
+        return
+    bark = cleanup(raw, tubes)
+    assert bark.is_watertight and bark.is_winding_consistent
+    assert labels_count(bark) <= labels_count(raw)
+    assert bark.volume == pytest.approx(raw.volume, rel=0.05)
+    assert quality(bark).over_1000 <= quality(raw).over_1000
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 30),
+    spread=st.floats(0.0, 3.0),
+    width=st.floats(0.01, 0.5),
+    sides=st.integers(3, 10),
+)
+def test_any_cleaned_random_union_stays_closed(seed, n, spread, width, sides):
+    tubes = sweep(random_tree(seed, n, spread, width), SweepOptions(sides=sides))
+    try:
+        raw = union(tubes, UnionOptions(local_max=1.0))
+    except GeometryError:
+        return
+    bark = cleanup(raw, tubes)
+    assert bark.is_watertight and bark.is_winding_consistent
+    assert labels_count(bark) <= labels_count(raw)
+
+
+# ---------------------------------------------------------------- the half-edge kernel
+
+
+def test_half_edges_refuse_an_open_mesh():
+    box = Mesh.box()
+    with pytest.raises(ValueError, match="not closed"):
+        remesh.build(
+            box.vertices, box.faces[:-1], np.zeros(8, np.int64), np.ones(8), np.zeros(11, np.int64),
+            np.zeros(11, bool), box.face_normals[:-1], np.arange(11),
+        )  # fmt: skip
+
+
+def test_a_cut_cap_is_no_rim():
+    """A thick child's base poking out of its parent (a ledge) is part of the junction: it may be smoothed."""
+    from lsys3d.skeleton import Skeleton
+
+    sk = Skeleton.from_segments(
+        [[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [1.0, 1.2, 0]], [0.1, 0.3], parent=[-1, 0], order=[0, 1]
+    )
+    tubes = sweep(sk, SweepOptions(sides=12))
+    bark = cleanup(union(tubes), tubes)
+    closed_solid(bark)
+    q = quality(bark)
+    assert q.over_1000 == 0 and q.slivers == 0

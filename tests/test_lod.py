@@ -1,0 +1,135 @@
+"""Levels of detail: budgets from one skeleton, monotone counts, closed bark, MSFT_lod and the USD 'lod' set."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import lsys3d
+from lsys3d.errors import LimitError, OptionsError
+from lsys3d.exchange import export
+from lsys3d.lod import LodOptions, fit_budget, prune, thin_leaves
+from lsys3d.quality import quality
+from lsys3d.stats import components
+
+
+@pytest.fixture(scope="module")
+def tree3d_lods():
+    return lsys3d.generate("tree3d", lod=(0, 1, 2, 3))
+
+
+def test_tree3d_levels_fit_the_issue_budgets(tree3d_lods):
+    """LOD0 <= 60k, LOD1 <= 20k, LOD2 <= 6k, LOD3 <= 1.5k triangles, leaves included; each bark one closed solid."""
+    counts = [lod.triangles for lod in tree3d_lods.lods]
+    assert [lod.level for lod in tree3d_lods.lods] == [0, 1, 2, 3]
+    for count, budget in zip(counts, (60_000, 20_000, 6_000, 1_500), strict=True):
+        assert count <= budget, counts
+    assert counts == sorted(counts, reverse=True) and len(set(counts)) == 4
+    for lod in tree3d_lods.lods:
+        bark = lod.bark
+        assert bark.is_watertight and bark.is_winding_consistent
+        assert components(bark.faces, len(bark.vertices)) == 1
+        q = quality(bark)
+        assert q.over_1000 == 0 and q.slivers == 0, (lod.level, q)
+
+
+def test_level_zero_is_the_tree(tree3d_lods):
+    assert tree3d_lods.lods[0].bark is tree3d_lods.bark
+    plain = lsys3d.generate("tree3d")
+    assert np.array_equal(plain.bark.faces, tree3d_lods.bark.faces)
+
+
+def test_levels_keep_the_silhouette(tree3d_lods):
+    """Every level is grown from the one skeleton: bark and leaves span the same box (no pop when switching).
+
+    A pruned twig's leaves stay where they grew, so the crown keeps its extent (the thinned leaves, grown
+    to keep their area, push it out by up to about 5%).
+    """
+
+    def points(lod):
+        leaves = lod.leaves.merged if lod.leaves.merged is not None else lod.leaves.polygons
+        return np.concatenate([lod.bark.vertices, leaves.vertices])
+
+    top = points(tree3d_lods.lods[0])
+    size = np.ptp(top, axis=0).max()
+    for lod in tree3d_lods.lods[1:]:
+        v = points(lod)
+        assert np.abs(v.min(axis=0) - top.min(axis=0)).max() < 0.08 * size, lod.level
+        assert np.abs(v.max(axis=0) - top.max(axis=0)).max() < 0.08 * size, lod.level
+
+
+def test_target_triangles_picks_the_richest_level_that_fits(tree3d_lods):
+    counts = [lod.triangles for lod in tree3d_lods.lods]
+    budget = (counts[1] + counts[2]) // 2  # between LOD1 and LOD2: LOD2 fits
+    tree = lsys3d.generate("tree3d", target_triangles=budget)
+    assert not tree.lods
+    assert np.array_equal(tree.bark.faces, tree3d_lods.lods[2].bark.faces)
+    pairs = list(enumerate(counts))
+    assert fit_budget(pairs, budget) == 2
+    assert fit_budget(pairs, 10**9) == 0
+    with pytest.raises(LimitError, match="even the lightest level"):
+        fit_budget(pairs, 1)
+
+
+def test_prune_drops_thin_chains_with_what_grows_from_them():
+    sk = lsys3d.generate("tree3d").skeleton
+    widest = max(sk.width_start.max(), sk.width_end.max())
+    pruned = prune(sk, 0.3)
+    assert 0 < len(pruned) < len(sk)
+    heads = pruned.chains.segments[pruned.chains.offsets[:-1]]
+    assert (pruned.width_start[heads] >= 0.3 * widest).all()
+    assert (pruned.parent < np.arange(len(pruned))).all()  # parents renumbered, still before their children
+    assert pruned.n_leaves == sk.n_leaves  # the leaves stay where they grew
+    assert prune(sk, 0.0) is sk
+
+
+def test_thinned_leaves_keep_their_area():
+    sk = lsys3d.generate("tree3d").skeleton
+    thin = thin_leaves(sk, 0.2)
+    assert 0 < thin.n_leaves < sk.n_leaves
+    area = (np.asarray(sk.leaf_size) ** 2).sum()
+    assert (np.asarray(thin.leaf_size) ** 2).sum() == pytest.approx(area, rel=0.1)
+
+
+def test_lod_options_are_checked():
+    with pytest.raises(OptionsError):
+        LodOptions(levels=(0, 7))
+    with pytest.raises(OptionsError):
+        LodOptions(target_triangles=-1)
+
+
+def test_gltf_names_the_levels_and_lists_them_with_msft_lod(tmp_path):
+    tree = lsys3d.generate("tree3d", iterations=4, lod=(0, 1, 2, 3))
+    path = export(tree, tmp_path / "t.gltf")
+    doc = json.loads(path.read_text())
+    names = [n.get("name") for n in doc["nodes"]]
+    levels = [f"{tree.name}_LOD{k}" for k in range(4)]
+    assert all(name in names for name in levels)
+    root = doc["nodes"][doc["scenes"][0]["nodes"][0]]
+    assert root["name"] == levels[0]
+    assert [doc["nodes"][i]["name"] for i in root["extensions"]["MSFT_lod"]["ids"]] == levels[1:]
+    assert "MSFT_lod" in doc["extensionsUsed"]
+
+
+def test_usd_levels_are_a_variant_set(tmp_path):
+    pxr = pytest.importorskip("pxr")
+    tree = lsys3d.generate("tree3d", iterations=4, lod=(0, 1, 2, 3))
+    path = export(tree, tmp_path / "t.usda")
+    stage = pxr.Usd.Stage.Open(str(path))
+    root = stage.GetDefaultPrim()
+    lod = root.GetVariantSets().GetVariantSet("lod")
+    assert lod.GetVariantNames() == ["LOD0", "LOD1", "LOD2", "LOD3"]
+    assert lod.GetVariantSelection() == "LOD0"
+
+    def faces():
+        return sum(
+            len(pxr.UsdGeom.Mesh(p).GetFaceVertexCountsAttr().Get() or [])
+            for p in stage.Traverse()
+            if p.IsA(pxr.UsdGeom.Mesh)
+        )
+
+    top = faces()
+    lod.SetVariantSelection("LOD3")
+    assert 0 < faces() < top
