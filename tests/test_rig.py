@@ -167,3 +167,16 @@ def test_blender_poses_the_rig_and_the_leaves_follow(rigged, tmp_path, suffix):
     assert expected.sum() > 20 and np.array_equal(moved, expected)
     bark_moved = np.array(report["moved"]["bark"]) > 1e-4
     assert 0 < bark_moved.sum() < len(bark_moved)
+
+
+@pytest.mark.parametrize("name", ["dragon", "koch", "snowflake"])
+def test_rigged_presets_are_validator_clean(name, tmp_path):
+    """Weights that round to 0 in the bytes name joint 0 (the validator warned ACCESSOR_JOINTS_USED_ZERO_WEIGHT)."""
+    tree = lsys3d.generate(name, rig=True, attributes="compact")
+    report = validators.validate_gltf(export(tree, tmp_path / f"{name}.glb"))
+    assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, report["issues"]["messages"][:3]
+    doc, binary = read_glb(tmp_path / f"{name}.glb")
+    attrs = doc["meshes"][node(doc, "bark")["mesh"]]["primitives"][0]["attributes"]
+    joints, weights = accessor(doc, binary, attrs["JOINTS_0"]), accessor(doc, binary, attrs["WEIGHTS_0"])
+    assert (joints[weights == 0] == 0).all() and (weights.astype(int).sum(axis=1) == 255).all()
+    assert validators.usd_problems(export(tree, tmp_path / f"{name}.usda")) == []

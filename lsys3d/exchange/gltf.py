@@ -167,11 +167,11 @@ def _vertex_attributes(buf: _Buffer, arrays: MeshArrays, joints: int | None = No
     for name, values in gltf_attributes(arrays.split_attributes).items():  # hierarchy and wind
         attributes[name] = buf.accessor(values)
     if joints is not None and "skin_joints" in arrays.split_attributes:
-        ids = arrays.split_attributes["skin_joints"]
+        weights = quantized_weights(arrays.split_attributes["skin_weights"])
+        # a weight that rounds to 0 names joint 0, as glTF asks (ACCESSOR_JOINTS_USED_ZERO_WEIGHT otherwise)
+        ids = np.where(weights > 0, arrays.split_attributes["skin_joints"], 0)
         attributes["JOINTS_0"] = buf.accessor(ids.astype(np.uint8 if joints <= 256 else np.uint16))
-        attributes["WEIGHTS_0"] = buf.accessor(
-            quantized_weights(arrays.split_attributes["skin_weights"]), normalized=True
-        )
+        attributes["WEIGHTS_0"] = buf.accessor(weights, normalized=True)
     return attributes
 
 
