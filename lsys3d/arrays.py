@@ -65,8 +65,16 @@ def ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     [5, 6, 9, 10, 11]
     """
     lengths = np.asarray(lengths).astype(np.int64)
-    starts = np.asarray(starts).astype(np.int64)
-    return np.repeat(starts, lengths) + local_index(lengths)
+    total = int(lengths.sum())
+    if total == 0:
+        return np.zeros(0, np.int64)
+    nz = lengths > 0
+    starts, lengths = np.asarray(starts)[nz].astype(np.int64), lengths[nz]
+    ends = np.cumsum(lengths)
+    steps = np.ones(total, np.int64)  # one cumulative sum: +1 inside a range, a jump to the next range's start
+    steps[0] = starts[0]
+    steps[ends[:-1]] = starts[1:] - (starts[:-1] + lengths[:-1] - 1)
+    return np.cumsum(steps)
 
 
 def gather(offsets_: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -48,6 +48,7 @@ import numba
 import numpy as np
 
 from . import dialects
+from .arrays import ranges
 from .errors import DerivationError, LimitError, clip
 from .expr import NOT_FINITE, EvalError, RandomDraws
 from .grammar import Grammar, PatternModule, Production
@@ -507,21 +508,6 @@ def _derive_d0l(plan: _Plan, n: int, growth: _Growth) -> ModuleString:
 
 
 # ---------------------------------------------------------------- general engine
-def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """Concatenated ``arange(s, s + l)`` for each pair, without a Python loop."""
-    lengths = lengths.astype(np.int64)
-    total = int(lengths.sum())
-    if total == 0:
-        return np.zeros(0, np.int64)
-    nz = lengths > 0
-    starts, lengths = starts[nz].astype(np.int64), lengths[nz]
-    ends = np.cumsum(lengths)
-    out = np.ones(total, np.int64)
-    out[0] = starts[0]
-    out[ends[:-1]] = starts[1:] - (starts[:-1] + lengths[:-1] - 1)
-    return np.cumsum(out)
-
-
 @numba.njit(cache=True, nogil=True)
 def _skip_tables(symbols, ignored):
     """Where a context walk lands from each position of a bracketed string, in one pass each way.
@@ -794,7 +780,7 @@ def _step(
     if len(params):
         with_params = copy[ms.arity[copy] > 0]
         lengths = ms.arity[with_params]
-        new_params[_ranges(par_off[with_params], lengths)] = params[_ranges(offsets[with_params], lengths)]
+        new_params[ranges(par_off[with_params], lengths)] = params[ranges(offsets[with_params], lengths)]
 
     for prod, idx, env, draws in chosen:
         n = len(idx)
@@ -822,7 +808,7 @@ def _step(
     produced = np.zeros(total if keys[0] != _PRODUCTION else 0, np.bool_)
     if keys[0] != _PRODUCTION:  # the passes after this one rewrite only what this one produced
         rewritten = np.flatnonzero(matched)
-        produced[_ranges(mod_off[rewritten], out_len[rewritten])] = True
+        produced[ranges(mod_off[rewritten], out_len[rewritten])] = True
     return ModuleString(new_sym, new_arity, new_params, plan.alphabet), produced
 
 
