@@ -78,6 +78,17 @@ def os_reason(exc: BaseException) -> str:
     return text[0] if text else type(exc).__name__
 
 
+def _locate(error: Exception, message: str, source: str, line: int | None, col: int | None) -> None:
+    """Give ``error`` its ``reason``, ``source``, ``line``, ``col`` and the text ``source:line:col: message``."""
+    error.reason, error.source, error.line, error.col = message, source, line, col
+    where = source
+    if line is not None:
+        where += f":{line}"
+        if col is not None:
+            where += f":{col}"
+    Exception.__init__(error, f"{where}: {message}")
+
+
 class LSystemError(Exception):
     """Base class of every error lsys3d raises for bad input."""
 
@@ -96,16 +107,7 @@ class GrammarError(LSystemError, ValueError):
     """
 
     def __init__(self, message: str, source: str = "<grammar>", line: int | None = None, col: int | None = None):
-        self.reason = message
-        self.source = source
-        self.line = line
-        self.col = col
-        where = source
-        if line is not None:
-            where += f":{line}"
-            if col is not None:
-                where += f":{col}"
-        super().__init__(f"{where}: {message}")
+        _locate(self, message, source, line, col)
 
 
 class AssetError(LSystemError, ValueError):
@@ -168,16 +170,7 @@ class BatchError(LSystemError, ValueError):
     """
 
     def __init__(self, message: str, source: str = "<jobs>", line: int | None = None, col: int | None = None):
-        self.reason = message
-        self.source = source
-        self.line = line
-        self.col = col
-        where = source
-        if line is not None:
-            where += f":{line}"
-            if col is not None:
-                where += f":{col}"
-        super().__init__(f"{where}: {message}")
+        _locate(self, message, source, line, col)
 
 
 class ForestError(LSystemError):
