@@ -353,7 +353,7 @@ CASES = [
     ("turtle-pop-empty-stack", api(from_symbols("F[]]F")), InterpretError, "nothing to pop"),
     ("polygon-never-closed", grow('axiom = "F{.f.f"\n'), InterpretError, "polygon never closed"),
     ("polygon-closed-twice", grow('axiom = "F{.f.}}"\n'), InterpretError, "no polygon is open"),
-    ("polygon-nested", grow('axiom = "{.f{.f}}"\n'), InterpretError, "already open"),
+    ("polygon-nested-too-deep", grow(f'axiom = "{"{" * 1001}{"}" * 1001}"\n'), InterpretError, "polygons open at once"),
     # -- unknown names, wrong arity
     ("unknown-name", grow(A + 'rules = ["A(x) -> A(y)"]\n'), GrammarError, "unknown name 'y'"),
     ("unknown-function", grow(A + 'rules = ["A(x) -> A(foo(x))"]\n'), GrammarError, "unknown function 'foo'"),

@@ -34,7 +34,10 @@ Polygons
     ``{`` opens a polygon, ``.`` and every move inside it append the turtle's
     position (a vertex equal to the previous one is skipped, and a last vertex
     equal to the first is dropped), ``}`` closes it.  Polygons with fewer than
-    three vertices are dropped with a warning.  Polygons do not nest.
+    three vertices are dropped with a warning.  Polygons nest, as in Lparser's
+    and cpfg's polygon stack: ``{`` inside an open polygon starts a polygon of
+    its own, ``}`` closes the innermost and the one around it goes on taking
+    vertices (at most ``kernel.MAX_POLYGON_DEPTH`` open at once).
 Natural variation
     With ``angle_jitter`` (degrees) each rotation angle gets an offset
     ``u * angle_jitter``; with ``length_jitter`` each move is scaled by

@@ -21,6 +21,7 @@ from ..skeleton import MAX_COORDINATE
 from .commands import N_OPS, Axis, Op, Organ
 
 __all__ = [
+    "MAX_POLYGON_DEPTH",
     "MESSAGES",
     "OK",
     "Config",
@@ -97,11 +98,15 @@ _AXIS_H = int(Axis.H)
 _SURFACE = int(Organ.SURFACE)
 _INSTANCE = int(Organ.INSTANCE)
 
+MAX_POLYGON_DEPTH = 1000
+"""Most polygons open at once: ``{`` inside an open polygon starts a polygon of its own (Lparser's
+and cpfg's polygon stack; Lparser's own bound is 1000 too)."""
+
 # status codes; the message says what went wrong at module `bad`
 OK = 0
 MESSAGES = {
     1: "nothing to pop: more ']' than '[' so far",
-    2: "a polygon is already open (polygons do not nest)",
+    2: f"more than {MAX_POLYGON_DEPTH} polygons open at once (lsys3d.turtle.kernel.MAX_POLYGON_DEPTH)",
     3: "no polygon is open ('}' without '{')",
     4: "polygon never closed (no matching '}')",
     5: f"the turtle's position left the drawable range of +-{MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE); "
@@ -177,6 +182,18 @@ def _add_vertex(points, n, first, x, y, z):
     points[n, 1] = y
     points[n, 2] = z
     return n + 1
+
+
+@numba.njit(cache=True)
+def _rotate_points(points, base, start, stop):
+    """Move rows ``start:stop`` to ``base`` and the rows ``base:start`` after them (a nested polygon closing)."""
+    k = stop - start
+    inner = points[start:stop].copy()
+    for r in range(start - 1, base - 1, -1):
+        points[r + k, 0] = points[r, 0]
+        points[r + k, 1] = points[r, 1]
+        points[r + k, 2] = points[r, 2]
+    points[base : base + k] = inner
 
 
 @numba.njit(cache=True, inline="always")
@@ -321,6 +338,10 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
     poly_start = 0
     poly_mat = 0
     poly_seg = -1
+    # the polygons open around the current one: (opening module, first point, material, segment);
+    # their points lie in order from the first's start up to the current polygon's start
+    poly_stack = np.empty((MAX_POLYGON_DEPTH, 4), np.int64)
+    poly_depth = 0
 
     m = symbols.shape[0]
     for i in range(m):
@@ -491,8 +512,14 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             if not (step >= 0.0 and math.isfinite(step)):
                 return 7, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
         elif code == _POLYGON_BEGIN:
-            if poly_open >= 0:
-                return 2, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+            if poly_open >= 0:  # a polygon inside a polygon: the outer one waits on the stack
+                if poly_depth + 1 == MAX_POLYGON_DEPTH:
+                    return 2, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                poly_stack[poly_depth, 0] = poly_open
+                poly_stack[poly_depth, 1] = poly_start
+                poly_stack[poly_depth, 2] = poly_mat
+                poly_stack[poly_depth, 3] = poly_seg
+                poly_depth += 1
             poly_open = i
             poly_start = n_pts
             poly_mat = material
@@ -514,13 +541,24 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
                     n_pts -= 1
                     k -= 1
             if k >= 3:
+                if poly_depth > 0:  # the open polygons' points come first: move this one's before them
+                    base = poly_stack[0, 1]
+                    _rotate_points(poly.points, base, poly_start, n_pts)
+                    for d in range(poly_depth):
+                        poly_stack[d, 1] += k
                 n_poly += 1
-                poly.offsets[n_poly] = n_pts
+                poly.offsets[n_poly] = poly.offsets[n_poly - 1] + k
                 poly.material[n_poly - 1] = poly_mat
                 poly.segment[n_poly - 1] = poly_seg
             else:
                 n_pts = poly_start
                 dropped += 1
+            if poly_depth > 0:  # back to the polygon this one was opened in
+                poly_depth -= 1
+                poly_open = poly_stack[poly_depth, 0]
+                poly_start = poly_stack[poly_depth, 1]
+                poly_mat = poly_stack[poly_depth, 2]
+                poly_seg = poly_stack[poly_depth, 3]
         elif code == _LEAF:
             size = arg if has_arg else step
             if not (0.0 <= size <= far):
