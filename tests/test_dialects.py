@@ -7,6 +7,7 @@ fails here.
 
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
@@ -64,6 +65,7 @@ LPARSER = {
     "$": Op.ROLL_HORIZONTAL, "~": Op.RANDOM_TURN, "t": Op.TROPISM, "[": Op.PUSH, "]": Op.POP,
     "{": Op.POLYGON_BEGIN, "}": Op.POLYGON_END, '"': Op.LENGTH, "'": Op.LENGTH, ";": Op.ANGLE_FACTOR,
     ":": Op.ANGLE_FACTOR, "?": Op.WIDTH_FACTOR, "!": Op.WIDTH_FACTOR, "c": Op.MATERIAL,
+    "_": Op.NONE,  # K-3D's l_parser.cpp (Lapre's code): the default successor, which draws nothing
 }  # fmt: skip
 # Houdini: the L-System SOP's "Turtle command reference" (SideFX); '&' pitches up, '^' down
 HOUDINI = {
@@ -105,7 +107,7 @@ def test_symbol_tables_say_what_the_tools_documentation_says(name):
 
 def test_every_op_has_a_row_in_some_dialect():
     ops = {c.op for name in dialects.DIALECTS for c in dialects.get(name).commands}
-    assert ops == set(Op) - {Op.NONE}
+    assert ops - {Op.NONE} == set(Op) - {Op.NONE}
 
 
 def test_the_dialects_differences_are_where_the_tools_differ():
@@ -320,6 +322,20 @@ def test_lparser_layouts_and_the_ls_forms_are_recognised():
     ]:
         with pytest.raises(GrammarError, match=re.escape(message)):
             Grammar.from_text(text, source="x.ls")
+
+
+def test_lparser_rules_leave_a_rewritten_symbols_argument_as_lparser_does(caplog):
+    """Lparser rewrites characters: 'f=_' makes f(300) into _(300), nothing; 'A=F' makes A(5) into F(5)."""
+    g = Grammar.from_text("2\n30\n10\nf(300)A(5)B(1)C(2)\nf=_\nA=F\nB=[F]\nC=D\nD=F\n@\n", source="x.ls")
+    assert g.rules[5:] == ("f(x1)=_", "A(x1)=F(x1)", "B(x1)=[F]", "C(x1)=D(x1)", "D(x1)=F(x1)")
+    assert str(lsys3d.derive(g, 1)) == "_F(5)[F]D(2)"
+    assert str(lsys3d.derive(g, 2)) == "_F(5)[F]F(2)"
+    assert len(interpret(lsys3d.derive(g, 2), g)) == 3  # '_' draws nothing
+    from lsys3d.pipeline import draw
+
+    with caplog.at_level(logging.WARNING, logger="lsys3d"):
+        draw(g, 2, 0)
+    assert "warning" not in caplog.text  # '_' means something in Lparser: no "symbols with no meaning"
 
 
 def test_houdini_premise_variables_and_signs():
