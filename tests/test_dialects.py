@@ -223,6 +223,29 @@ def __initialiseContext__(context):
     assert str(lsys3d.derive(g)) == "IIIX(-2)[F%F]"  # decomposed three times; cut at the next step
 
 
+def test_lpy_get_iteration_nb_is_the_derivation_step_as_lpy_counts_it():
+    """L-Py's Lsystem::__derive sets it to the step from 0 (decomposition too); interpretation sees the last step's."""
+    g = lpy(
+        """
+def f(x):
+    return x + getIterationNb()
+Axiom: A(getIterationNb())
+derivation length: 3
+production:
+A(x) --> B(getIterationNb()) A(f(10))
+decomposition:
+B(x) : produce C(x, getIterationNb())
+interpretation:
+C(x, y) --> D(x, y, getIterationNb())
+endlsystem
+"""
+    )
+    derived = lsys3d.derive(g)
+    assert str(derived) == "C(0,0)C(1,1)C(2,2)A(12)"
+    assert str(interpretation(g, derived)) == "D(0,0,2)D(1,1,2)D(2,2,2)A(12)"
+    assert str(interpretation(g, lsys3d.derive(g, 1), iterations=1)) == "D(0,0,0)A(10)"
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [
