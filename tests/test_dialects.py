@@ -11,6 +11,7 @@ import logging
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -45,7 +46,8 @@ LPY = {
     "!": Op.WIDTH_ADD, "DecWidth": Op.WIDTH_ADD, "SetWidth": Op.WIDTH, ";": Op.MATERIAL, "IncColor": Op.MATERIAL,
     ",": Op.MATERIAL, "DecColor": Op.MATERIAL, "SetColor": Op.MATERIAL, "@O": Op.ORGAN, "Sphere": Op.ORGAN,
     "@o": Op.ORGAN, "Circle": Op.ORGAN, "@B": Op.ORGAN, "Box": Op.ORGAN, "~l": Op.ORGAN,
-    "@Ts": Op.ELASTICITY, "Elasticity": Op.ELASTICITY,
+    "@Ts": Op.ELASTICITY, "Elasticity": Op.ELASTICITY, "@Tp": Op.TROPISM_VECTOR, "Tropism": Op.TROPISM_VECTOR,
+    "nF": Op.FORWARD_STEPS,
 }  # fmt: skip
 # cpfg: "Interpreted symbols", appendix of the cpfg 3.0 tutorial (algorithmicbotany.org), and its
 # circles-and-spheres page (@c, @O)
@@ -221,6 +223,49 @@ def __initialiseContext__(context):
     assert g.angle == 90 and g.defines["B"] == 1 and g.defines["STEP"] == 2 and g.defines["ON"] == 1
     assert g.decomposition_depth == 3
     assert str(lsys3d.derive(g)) == "IIIX(-2)[F%F]"  # decomposed three times; cut at the next step
+
+
+def _plantgl_path(heading, moves, tropism, elasticity):
+    """PlantGL's turtle, written for this test in its own Z-up world: F steps bent by Turtle::_tendTo."""
+    h = np.array(heading, float)
+    p = np.zeros(3)
+    t = np.array(tropism, float)
+    for length in moves:
+        axis = np.cross(h, t)
+        sine = np.linalg.norm(axis)
+        if sine > 1e-5:
+            axis /= sine
+            a = np.arctan2(sine, h @ t) * elasticity
+            h = h * np.cos(a) + np.cross(axis, h) * np.sin(a) + axis * (axis @ h) * (1 - np.cos(a))
+        p = p + h * length
+    return p
+
+
+def test_lpy_nf_draws_steps_bent_toward_the_tropism_as_plantgl_does():
+    g = lpy("Axiom: _(0.05) @Tp(1,0,0) Elasticity(0.05) nF(1, 0.3, 0.01)\nderivation length: 0\n")
+    sk = interpret(lsys3d.derive(g), g)
+    # PlantGL's Turtle::nF: int(1 / 0.3) = 3 steps of 0.3, then the rest 0.1; the radius 0.05 -> 0.01 by step
+    np.testing.assert_allclose(np.linalg.norm(sk.end - sk.start, axis=1), [0.3, 0.3, 0.3, 0.1])
+    np.testing.assert_allclose(sk.width_start, 2 * np.array([0.05, 0.038, 0.026, 0.014]))
+    assert sk.width_end[-1] == pytest.approx(0.02) and sk.parent.tolist() == [-1, 0, 1, 2]
+    tip = _plantgl_path((0, 0, 1), [0.3, 0.3, 0.3, 0.1], (1, 0, 0), 0.05)  # PlantGL's (x, y, z) is our (y, z, x)
+    np.testing.assert_allclose(sk.end[-1], tip[[1, 2, 0]], atol=1e-12)
+    # without @Tp the tropism is PlantGL's (0, 0, 1): up; a rest under PlantGL's epsilon draws nothing
+    g = lpy("Axiom: -(90) Elasticity(0.1) nF(0.6, 0.2)\nderivation length: 0\n")
+    sk = interpret(lsys3d.derive(g), g)
+    assert len(sk) == 3 and sk.end[-1][1] > 0.05  # bent up
+    # and @Tp is part of the state [ ] saves
+    g = lpy("Axiom: Elasticity(0.1) [@Tp(0,1,0)] -(90) nF(0.6, 0.2)\nderivation length: 0\n")
+    assert interpret(lsys3d.derive(g), g).end[-1][1] > 0.05
+    for axiom, message in [
+        ("nF(1)", "nF(length, dlength[, radius])"),
+        ("nF(1, 0)", "nF(length, dlength[, radius])"),
+        ("nF(-1, 0.1)", "nF(length, dlength[, radius])"),
+        ("@Tp(1, 0)", "@Tp(x, y, z)"),
+    ]:
+        g = lpy(f"Axiom: {axiom}\nderivation length: 0\n")
+        with pytest.raises(lsys3d.InterpretError, match=re.escape(message)):
+            interpret(lsys3d.derive(g), g)
 
 
 def test_lpy_get_iteration_nb_is_the_derivation_step_as_lpy_counts_it():

@@ -123,7 +123,15 @@ def _variation(
 
 def _program(table: SymbolTable) -> kernel.Program:
     return kernel.Program(
-        table.op, table.axis, table.sign, table.max_args, table.scale, table.vertex, table.factor, table.organ
+        table.op,
+        table.axis,
+        table.sign,
+        table.max_args,
+        table.scale,
+        table.vertex,
+        table.factor,
+        table.organ,
+        table.world,
     )
 
 
@@ -200,6 +208,12 @@ def interpret(
         raise _module_error(modules, table, bad, f"takes {'no argument' if n == 0 else f'at most {n} argument'}")
     if why == 2:
         raise _module_error(modules, table, bad, "parameter is not a finite number")
+    if why == 3:
+        what = {
+            Op.FORWARD_STEPS: "takes a length >= 0 and a step > 0: nF(length, dlength[, radius])",
+            Op.TROPISM_VECTOR: "takes the tropism vector's three coordinates: @Tp(x, y, z)",
+        }[Op(table.op[modules.symbols[bad]])]
+        raise _module_error(modules, table, bad, what)
     n_seg = int(counts[Op.FORWARD])
     if n_seg > max_segments:
         raise LimitError(
@@ -226,6 +240,7 @@ def interpret(
         options.width_unit,
         options.width_increment,
         options.angle_scale,
+        options.bend == "angle",
     )
     variation = _variation(m, options, seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
 

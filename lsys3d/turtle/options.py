@@ -18,7 +18,10 @@ from ..grammar import Grammar, table_key_line
 from ..options import Options, check_value, option, spec_of
 from .commands import RENAMEABLE, by_symbol
 
-__all__ = ["GRAMMAR_KEYS", "JITTER_DISTRIBUTIONS", "TurtleOptions", "TurtleOverrides", "options_markdown"]
+__all__ = ["BENDS", "GRAMMAR_KEYS", "JITTER_DISTRIBUTIONS", "TurtleOptions", "TurtleOverrides", "options_markdown"]
+
+BENDS = ("abop", "angle")
+"""Values of ``TurtleOptions.bend``."""
 
 JITTER_DISTRIBUTIONS = ("uniform", "normal")
 """Values of ``TurtleOptions.jitter_distribution``."""
@@ -34,7 +37,8 @@ class TurtleOptions(Options):
     ``docs/turtle.md`` lists them (:func:`options_markdown`).
 
     ``tropism`` and ``elasticity`` bend the frame toward T before each move
-    by ``e * |H x T|`` radians about ``H x T`` (ABOP 2.8).  The jitters and
+    by ``e * |H x T|`` radians about ``H x T`` (ABOP 2.8), or with ``bend =
+    "angle"`` by ``e`` times the angle between H and T (PlantGL's turtle).  The jitters and
     the branch roll draw ``u`` in [-1, 1]: uniform, or (``jitter_distribution
     = "normal"``) normal with sigma 1/2 truncated by redrawing.
     """
@@ -61,6 +65,12 @@ class TurtleOptions(Options):
     leaf: str = option("~", help="the leaf-instance symbol")
     tropism: tuple[float, float, float] = option((0.0, 0.0, 0.0), help="tropism vector T (ABOP 2.8), `[x, y, z]`")
     elasticity: float = option(0.0, help="before each move the frame turns by e\\|H x T\\| radians about H x T")
+    bend: str = option(
+        "abop",
+        choices=BENDS,
+        help='how the elasticity bends: `"abop"` by e\\|H x T\\| radians (ABOP 2.8), `"angle"` by e times the '
+        "angle between H and T (PlantGL's turtle, L-Py's default)",
+    )
     angle_jitter: float = option(0.0, low=0, help="random change of each rotation angle, up to this many degrees")
     length_jitter: float = option(0.0, low=0, help="random relative change of each step, up to this fraction")
     width_jitter: float = option(0.0, low=0, help="random relative change of each segment's width, up to this fraction")
