@@ -396,39 +396,82 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             continue
         has_arg = arity[i] > 0
         arg = params[offsets[i]] if has_arg else 0.0
-        if code in (_FORWARD, _MOVE, _FORWARD_STEPS):
-            n_rep = 1
-            whole = 1
-            dlength = rest = w0 = dw = 0.0
-            taper = False
-            if code == _FORWARD_STEPS:  # L-Py's nF(length, dlength[, radius]): PlantGL's Turtle::nF
-                dlength = params[offsets[i] + 1]
-                whole, rest, n_rep = _steps(arg, dlength)
-                if arity[i] >= 3:  # the width goes from the current one to the radius given, step by step
-                    taper = True
-                    w0 = width
-                    dw = (params[offsets[i] + 2] * width_unit - w0) / arg if arg > 0.0 else 0.0
+        if code in (_FORWARD, _MOVE):
+            if elasticity != 0.0 and bend:
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
+                )
+            length = arg if has_arg else step * program.scale[sym]
+            if jitter_length:
+                length *= variation.length[i]
+            qx = px + hx * length
+            qy = py + hy * length
+            qz = pz + hz * length
+            if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):  # NaN fails too
+                return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+            if poly_open >= 0:
+                if program.vertex[sym]:
+                    n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
+                last = -1
+            elif code == _FORWARD:
+                s_ = n_seg
+                _put(seg.start, s_, px, py, pz)
+                _put(seg.end, s_, qx, qy, qz)
+                _put(seg.heading, s_, hx, hy, hz)
+                _put(seg.left, s_, lx, ly, lz)
+                _put(seg.up, s_, ux, uy, uz)
+                drawn = width * variation.width[i] if jitter_width else width
+                if not drawn <= far:
+                    return 10, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                seg.width_start[s_] = drawn
+                seg.width_end[s_] = drawn
+                if anchor >= 0:
+                    rise = depth - depth_of[anchor]
+                    order = seg.order[anchor] + (rise if rise > 0 else 0)
+                else:
+                    order = 0
+                seg.parent[s_] = last
+                seg.module[s_] = i
+                seg.order[s_] = order
+                seg.material[s_] = material
+                depth_of[s_] = depth
+                if last >= 0:
+                    if first_child[last] < 0:
+                        first_child[last] = s_
+                    if same_child[last] < 0 and seg.order[last] == order:
+                        same_child[last] = s_
+                last = s_
+                anchor = s_
+                n_seg += 1
+            else:
+                last = -1
+            px, py, pz = qx, qy, qz
+        elif code == _FORWARD_STEPS:  # L-Py's nF(length, dlength[, radius]): PlantGL's Turtle::nF
+            # each step is the FORWARD above, with its length (kept apart: a loop there slows every F)
+            dlength = params[offsets[i] + 1]
+            whole, rest, n_rep = _steps(arg, dlength)
+            taper = arity[i] >= 3  # the width goes from the current one to the radius given, step by step
+            w0 = width
+            w1 = params[offsets[i] + 2] * width_unit if taper else width
+            dw = (w1 - w0) / arg if taper and arg > 0.0 else 0.0
             for k in range(n_rep):
                 if elasticity != 0.0 and bend:
                     hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
                         hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
                     )
-                if code == _FORWARD_STEPS:
-                    length = dlength if k < whole else rest
-                else:
-                    length = arg if has_arg else step * program.scale[sym]
+                length = dlength if k < whole else rest
                 if jitter_length:
                     length *= variation.length[i]
                 qx = px + hx * length
                 qy = py + hy * length
                 qz = pz + hz * length
-                if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):  # NaN fails too
+                if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):
                     return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
                 if poly_open >= 0:
                     if program.vertex[sym]:
                         n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
                     last = -1
-                elif code != _MOVE:
+                else:
                     s_ = n_seg
                     _put(seg.start, s_, px, py, pz)
                     _put(seg.end, s_, qx, qy, qz)
@@ -458,11 +501,9 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
                     last = s_
                     anchor = s_
                     n_seg += 1
-                else:
-                    last = -1
                 px, py, pz = qx, qy, qz
-                if taper:  # PlantGL's F(dlength, topradius): the next width, then the radius itself
-                    width = w0 + dw * dlength * (k + 1) if k < whole else params[offsets[i] + 2] * width_unit
+                if taper:  # PlantGL's F(dlength, topradius): the next width, the radius itself after the rest
+                    width = w0 + dw * dlength * (k + 1) if k < whole else w1
                     if not (0.0 <= width <= far):
                         return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
                     if last >= 0 and depth_of[last] == depth:
