@@ -356,6 +356,7 @@ CASES = [
     ("polygon-nested-too-deep", grow(f'axiom = "{"{" * 1001}{"}" * 1001}"\n'), InterpretError, "polygons open at once"),
     # -- L-Py's nF and @Tp, Lparser's carried arguments
     ("lpy-nF-too-many-steps", grow('dialect = "lpy"\naxiom = "nF(1e300, 1e-300)"\n'), LimitError, "segments"),
+    ("lpy-nF-many-huge", grow(f'dialect = "lpy"\naxiom = "{"nF(1e300, 1e-300)" * 2000}"\n'), LimitError, "segments"),
     ("lpy-nF-no-step", grow('dialect = "lpy"\naxiom = "F nF(1, 0)"\n'), InterpretError, "nF(length, dlength"),
     ("lpy-nF-radius-too-wide", grow('dialect = "lpy"\naxiom = "nF(1, 0.5, 1e300)"\n'), InterpretError, "width must be"),
     ("lpy-Tp-two-coordinates", grow('dialect = "lpy"\naxiom = "@Tp(1, 0) F"\n'), InterpretError, "@Tp(x, y, z)"),

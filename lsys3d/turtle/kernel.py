@@ -105,7 +105,8 @@ STEP_EPSILON = 1e-5
 """A rest of L-Py's ``nF(length, dlength)`` shorter than this draws no last segment (PlantGL's GEOM_EPSILON)."""
 
 MAX_STEPS = 2**53
-"""Most steps one ``nF`` module counts (far above any segment limit: only keeps the count an exact integer)."""
+"""Most steps one ``nF`` module, or all of them, count (far above any segment limit: keeps the counts exact
+integers that cannot wrap around)."""
 
 MAX_POLYGON_DEPTH = 1000
 """Most polygons open at once: ``{`` inside an open polygon starts a polygon of its own (Lparser's
@@ -288,7 +289,7 @@ def survey(program, modules):
             length, dlength = params[offsets[i]], params[offsets[i] + 1]
             if not (length >= 0.0 and dlength > 0.0 and math.isfinite(dlength)):
                 return counts, deepest, i, 3
-            counts[_FORWARD] += _steps(length, dlength)[2]
+            counts[_FORWARD] = min(counts[_FORWARD] + _steps(length, dlength)[2], MAX_STEPS)  # no wrap-around
         elif code == _TROPISM_VECTOR:
             if arity[i] != 3:
                 return counts, deepest, i, 3
