@@ -406,6 +406,14 @@ def test_lparser_rules_leave_a_rewritten_symbols_argument_as_lparser_does(caplog
     assert "warning" not in caplog.text  # '_' means something in Lparser: no "symbols with no meaning"
 
 
+def test_lparser_lengths_given_as_arguments_count_in_its_step_of_100():
+    """K-3D's l_parser.cpp starts F's distance at 100: F(300) goes three steps, F one, Z half of one."""
+    g = Grammar.from_text("0\n90\n10\nF(300)f(50)FZ(100)\n@\n", source="x.ls")
+    sk = interpret(lsys3d.derive(g), g)
+    np.testing.assert_allclose(np.linalg.norm(sk.end - sk.start, axis=1), [3.0, 1.0, 1.0])
+    assert sk.end[-1][1] == pytest.approx(5.5)
+
+
 def test_houdini_premise_variables_and_signs():
     g = Grammar.from_text(
         'dialect = "houdini"\npremise = "FA(0)"\nrules = ["A(i) : i < 2 = F[&A(i+1)]"]\n', source="h.toml"

@@ -5,7 +5,9 @@ rolls 180 degrees (no cut), ``Z``/``z`` move half a step, ``g`` moves without re
 vertex, ``"`` and ``'`` multiply the length by 1.1 and 0.9 (by ``x`` with an argument), ``;`` and ``:``
 the angle, ``?`` and ``!`` the thickness by 1.4 and 0.7, ``c`` steps the colour (sets it with an
 argument), ``~`` turns, pitches and rolls at random, ``t`` corrects for gravity, ``_`` draws nothing.
-Rules are ``X=...`` with no contexts and no conditions (``:`` is a symbol).
+Rules are ``X=...`` with no contexts and no conditions (``:`` is a symbol).  Lparser's step is 100
+units, so a length given as an argument counts in hundredths of a step (``f(300)`` moves three steps:
+``length_unit = 0.01``).
 
 Lparser rewrites characters, not modules: a rule ``X=s`` rewrites the ``X`` of ``X(300)`` and leaves
 ``(300)`` where it stands, after ``s``; the ``(300)`` then belongs to the last symbol of ``s`` when that
@@ -93,6 +95,8 @@ DIALECT = Dialect(
     title="Lparser",
     notation=Notation(arrows=("=",), contexts=False, conditions=False, reserved="=,"),
     commands=COMMANDS_LPARSER,
+    # Lparser's step is 100 (K-3D's l_parser.cpp: dis = 100): F(300) is three steps
+    turtle={"length_unit": 0.01},
     angle=90.0,
     cut="",
     suffixes=(".ls",),

@@ -241,6 +241,7 @@ def interpret(
         options.width_increment,
         options.angle_scale,
         options.bend == "angle",
+        options.length_unit,
     )
     variation = _variation(m, options, seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
 

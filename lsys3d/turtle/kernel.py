@@ -57,6 +57,7 @@ Config = namedtuple(
         "width_increment",
         "angle_scale",
         "bend_angle",
+        "length_unit",
     ],
 )
 Variation = namedtuple("Variation", ["angle", "length", "width", "roll", "skipped", "turn"])
@@ -348,6 +349,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
     length_scale = config.length_scale
     angle_scale = config.angle_scale
     width_unit = config.width_unit
+    length_unit = config.length_unit
     width_increment = config.width_increment
     elasticity = config.elasticity
     far = config.far  # MAX_COORDINATE
@@ -402,7 +404,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
                 hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
                     hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
                 )
-            length = arg if has_arg else step * program.scale[sym]
+            length = arg * length_unit if has_arg else step * program.scale[sym]
             if jitter_length:
                 length *= variation.length[i]
             qx = px + hx * length
@@ -460,7 +462,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
                     hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
                         hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
                     )
-                length = dlength if k < whole else rest
+                length = (dlength if k < whole else rest) * length_unit
                 if jitter_length:
                     length *= variation.length[i]
                 qx = px + hx * length

@@ -56,6 +56,13 @@ class TurtleOptions(Options):
         help="what a width given in the grammar (`!(w)`) is worth, as a diameter: 2 for a radius (L-Py), "
         "0.01 for centimetres",
     )
+    length_unit: float = option(
+        1.0,
+        low=0,
+        low_open=True,
+        help="what a length given in the grammar (`F(l)`, `f(l)`) is worth, in steps of 1: 0.01 for Lparser, "
+        "whose step is 100",
+    )
     width_increment: float = option(
         1.0, low=0, help="what L-Py's `_` and `!` (cpfg's `#` and `!`) add to or take from the width"
     )
