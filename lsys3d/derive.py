@@ -50,7 +50,7 @@ import numpy as np
 from . import dialects
 from .arrays import ranges
 from .errors import DerivationError, LimitError, clip
-from .expr import NOT_FINITE, EvalError, RandomDraws
+from .expr import NOT_FINITE, STEP, EvalError, RandomDraws
 from .grammar import Grammar, PatternModule, Production
 from .modules import ModuleString
 from .streams import Stream, hashed_uniform, rule_generator
@@ -288,9 +288,18 @@ def generations(
             previous = current
             current = previous if plan.cut < 0 else _cut(previous, plan.cut)
             if plan.pools_by_code:
-                current = _step(plan, current, (_PRODUCTION, g), int(seed), max_modules, g)[0]
+                current = _step(plan, current, (_PRODUCTION, g), int(seed), max_modules, g, step_number=g - 1)[0]
             if decompose is not None:
-                current = _passes(decompose, current, grammar.decomposition_depth, _DECOMPOSITION, g, seed, max_modules)
+                current = _passes(
+                    decompose,
+                    current,
+                    grammar.decomposition_depth,
+                    _DECOMPOSITION,
+                    g,
+                    seed,
+                    max_modules,
+                    step_number=g - 1,
+                )
             log.debug("generation %d: %d modules", g, len(current))
             # without chance, a string that rewrites to itself stays itself: the rest is this string
             fixed = not (plan.stochastic or (decompose is not None and decompose.stochastic)) and current == previous
@@ -304,12 +313,17 @@ def interpretation(
     seed: int | None = None,
     *,
     max_modules: int = DEFAULT_MAX_MODULES,
+    iterations: int | None = None,
 ) -> ModuleString:
     """The string the turtle reads: ``modules`` cut and rewritten by the homomorphism rules (if any).
 
     Homomorphism (interpretation) rules apply after derivation, up to
     ``grammar.homomorphism_depth`` times (each time to what the previous time
     produced), and their result is never fed back into the derivation.
+    ``iterations`` is how many steps derived ``modules`` (default: the
+    grammar's): in these rules L-Py's ``getIterationNb()`` is the last step's
+    number, ``iterations - 1`` (0 after none), as in L-Py, whose
+    interpretation runs after the derivation's last step set it.
 
     >>> from lsys3d import Grammar, derive
     >>> g = Grammar(axiom="A", rules=["A -> AB"], homomorphism=["B -> F+"], iterations=2)
@@ -323,7 +337,11 @@ def interpretation(
     if plan.pools_by_code:
         if modules.alphabet != plan.alphabet and modules.alphabet[128:] != plan.alphabet[128:]:
             raise DerivationError("the string uses symbols this grammar does not know")
-        modules = _passes(plan, modules, grammar.homomorphism_depth, _HOMOMORPHISM, 0, seed, max_modules)
+        n = grammar.iterations if iterations is None else iterations
+        last = max(int(n) - 1, 0) if isinstance(n, (int, np.integer)) else 0
+        modules = _passes(
+            plan, modules, grammar.homomorphism_depth, _HOMOMORPHISM, 0, seed, max_modules, step_number=last
+        )
         if plan.cut >= 0:
             modules = _cut(modules, plan.cut)
     return modules
@@ -333,11 +351,15 @@ _PRODUCTION, _DECOMPOSITION, _HOMOMORPHISM = 0, 1, 2
 _PHASE = {_PRODUCTION: "generation", _DECOMPOSITION: "decomposition of generation", _HOMOMORPHISM: "homomorphism"}
 
 
-def _passes(plan: _Plan, ms: ModuleString, depth: int, kind: int, generation: int, seed, max_modules) -> ModuleString:
+def _passes(
+    plan: _Plan, ms: ModuleString, depth: int, kind: int, generation: int, seed, max_modules, *, step_number: int
+) -> ModuleString:
     """Rewrite ``ms`` with ``plan`` up to ``depth`` times, each time only the modules the previous time produced."""
     eligible = None
     for d in range(depth):
-        out, produced = _step(plan, ms, (kind, generation, d), int(seed), max_modules, generation, eligible)
+        out, produced = _step(
+            plan, ms, (kind, generation, d), int(seed), max_modules, generation, eligible, step_number=step_number
+        )
         if produced is None:  # nothing matched
             break
         ms, eligible = out, produced
@@ -662,7 +684,12 @@ class _Draws(RandomDraws):
 
 
 def _narrow(sel, env, draws, ok):
-    return sel[ok], {k: v[ok] for k, v in env.items()}, draws.subset(np.flatnonzero(ok))
+    return sel[ok], _subset(env, ok), draws.subset(np.flatnonzero(ok))
+
+
+def _subset(env: dict, index) -> dict:
+    """The values of ``env`` for some of its modules (the derivation step, a scalar, for all)."""
+    return {k: v if k == STEP else v[index] for k, v in env.items()}
 
 
 def _step(
@@ -673,11 +700,14 @@ def _step(
     max_modules: int,
     generation: int,
     eligible: np.ndarray | None = None,
+    *,
+    step_number: int = 0,
 ) -> tuple[ModuleString, np.ndarray | None]:
     """One parallel rewrite of ``ms`` with ``plan``'s rules: the new string and which of its modules were produced.
 
     ``keys`` name the step for the random numbers (kind, generation[, pass]); ``eligible`` restricts
-    the modules that may be rewritten.  The mask of produced modules is None when nothing matched.
+    the modules that may be rewritten; ``step_number`` is what L-Py's ``getIterationNb()`` gives (0 at the
+    first derivation step).  The mask of produced modules is None when nothing matched.
     """
     m = len(ms)
     sym = ms.symbols
@@ -699,7 +729,7 @@ def _step(
             if not len(sel):
                 continue
             prod0 = pool.alternatives[0]
-            env: dict[str, np.ndarray] = {}
+            env: dict[str, np.ndarray | float] = {STEP: float(step_number)}
             if pool.left or pool.right:
                 keep = np.ones(len(sel), np.bool_)
                 values: list[np.ndarray] = []
@@ -753,9 +783,7 @@ def _step(
             bounds = np.concatenate([[0], np.cumsum(np.bincount(pick, minlength=len(pool.alternatives)))])
             for a in np.flatnonzero(np.diff(bounds)).tolist():
                 take = order[bounds[a] : bounds[a + 1]]
-                chosen.append(
-                    (pool.alternatives[a], sel[take], {k: v[take] for k, v in env.items()}, draws.subset(take))
-                )
+                chosen.append((pool.alternatives[a], sel[take], _subset(env, take), draws.subset(take)))
     if not chosen:
         return ms, None
 

@@ -65,7 +65,6 @@ def findings(grammar: Grammar, shown: ModuleString, skeleton: Skeleton, table) -
     ``table`` is the :class:`~lsys3d.turtle.commands.SymbolTable` the turtle used.
     """
     from . import dialects
-    from .turtle.commands import Op
 
     dialect = dialects.get(grammar.dialect)
     rewritten = {
@@ -78,7 +77,7 @@ def findings(grammar: Grammar, shown: ModuleString, skeleton: Skeleton, table) -
     unsupported, meaningless = [], []
     for code in present:
         name = alphabet[code]
-        if table.op[code] != Op.NONE or name in "[]" or name == grammar.cut_symbol or name in rewritten:
+        if table.command(code) is not None or name in "[]" or name == grammar.cut_symbol or name in rewritten:
             continue
         (unsupported if name in dialect.unsupported else meaningless).append(name)
     if meaningless:

@@ -39,6 +39,7 @@ __all__ = [
     "CONSTANTS",
     "FUNCTIONS",
     "RANDOM_FUNCTIONS",
+    "STEP",
     "EvalError",
     "Expr",
     "ExprSyntaxError",
@@ -58,6 +59,13 @@ MAX_LENGTH = 4096
 """Longest expression text, in characters."""
 
 CONSTANTS = {"pi": math.pi}
+
+STEP = "\0step"
+"""The key of an evaluation's ``env`` that holds the derivation step (no grammar can write this name).
+
+L-Py's ``getIterationNb()`` reads it (:attr:`Syntax.python`): the derivation sets it, 0 at the first step
+(L-Py's ``Lsystem::__derive``); where no derivation step is known (the axiom), the value is 0 too.
+"""
 
 NOT_FINITE = "result is not a finite number (overflow or NaN)"
 
@@ -149,6 +157,7 @@ RANDOM_FUNCTIONS = {
 }
 """The random functions and their arities: seeded by the grammar's seed (:func:`lsys3d.streams.hashed_uniform`)."""
 
+_STEP_FUNCTION = "getIterationNb"  # L-Py's: the derivation step (STEP)
 _KEYWORDS = {"and", "or", "not"}
 _PY_KEYWORDS = {"and", "or", "not", "if", "else"}
 _PY_CONSTANTS = {"True": 1.0, "False": 0.0}
@@ -166,7 +175,8 @@ class Syntax:
         ``=`` alone is equality (ABOP writes ``t = 0`` in conditions).
     python : bool
         Python's spelling: ``True``/``False``, ``x if c else y``, chained comparisons (``0 < x < 1``),
-        ``//`` and a module prefix on a function (``math.sqrt``, ``random.uniform``).
+        ``//`` and a module prefix on a function (``math.sqrt``, ``random.uniform``); and L-Py's
+        ``getIterationNb()``, the derivation step (:data:`STEP`).
     degrees : bool
         Trigonometric functions take and give degrees (cpfg).
     """
@@ -353,9 +363,13 @@ def _eval(node: Expr, scope: _Scope):
         return fn(*(np.asarray(_eval(a, scope), dtype=np.float64) for a in node.args))
     if op == "random":
         return _random(node, scope)
+    if op == "step":
+        return scope.env.get(STEP, 0.0)
     if op == "ucall":
         fn = node.function
         values = {p: np.asarray(_eval(a, scope), dtype=np.float64) for p, a in zip(fn.params, node.args, strict=True)}
+        if STEP in scope.env:
+            values[STEP] = scope.env[STEP]
         inner = _Scope(values, scope.size, scope.random, (scope.salt * 31 + hash_site(node)) % 64)
         return _eval(fn.body, inner)
     if op == "if":
@@ -609,6 +623,10 @@ class _Parser:
         raise ExprSyntaxError(f"unexpected {val!r} in expression", pos)
 
     def call(self, name: str, pos: int) -> Expr:
+        if name == _STEP_FUNCTION and self.syntax.python and name not in self.functions:
+            self.take()  # "("
+            self.expect(")")
+            return self.node("step", pos)
         if name not in FUNCTIONS and name not in RANDOM_FUNCTIONS and name not in self.functions:
             raise ExprSyntaxError(f"unknown function {name!r}", pos)
         self.take()  # "("

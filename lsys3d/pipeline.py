@@ -258,7 +258,7 @@ def draw(
     commands = dialects.get(grammar.dialect).commands
 
     def turtle_stage():
-        shown = interpretation(grammar, modules, seed, max_modules=limits.max_modules)
+        shown = interpretation(grammar, modules, seed, max_modules=limits.max_modules, iterations=iterations)
         skeleton = interpret(shown, turtle, seed=seed, max_segments=limits.max_segments, commands=commands)
         return shown, skeleton
 

@@ -64,7 +64,8 @@ class Skeleton:
     material : (n,) int32
         Material / colour index set with ``'``.
     module : (n,) int64
-        Index of the module that drew the segment.
+        Index of the module that drew the segment, in the string the turtle read
+        (after the homomorphism rules: :func:`lsys3d.derive.interpretation`).
 
     Leaf polygons (``p`` polygons, drawn with ``{ . }``):
 

@@ -59,7 +59,12 @@ class Tree:
     unioned : bool
         Whether ``bark`` went through the manifold union.
     modules : ModuleString or None
-        The derived string the turtle read (None for trees built by hand).
+        The derived string: what :func:`lsys3d.derive` gives, before the homomorphism
+        (interpretation) rules, the string whose length the reports count as
+        ``derive.modules`` (None for trees built by hand).  The turtle reads
+        ``lsys3d.derive.interpretation(grammar, modules)``, and ``skeleton.module``
+        indexes that string; the two are the same string when the grammar has no
+        homomorphism rules.
     materials : MaterialTable
         The bark's and the leaves' materials, by the turtle's material index
         (:mod:`lsys3d.materials`; the two defaults unless the grammar has a

@@ -141,7 +141,8 @@ def test_the_gathered_files_are_counted_honestly():
     for dialect in ("lpy", "cpfg", "lparser"):
         assert sum(name.startswith(dialect + "/real/") for name in REAL) >= 10, dialect
     # measured: see README.md; a regression (one more file refused) fails here
-    assert outcomes.count("match") >= 47, outcomes.count("match")
+    assert outcomes.count("match") >= 51, outcomes.count("match")
+    assert outcomes.count("match") >= 0.9 * len(REAL)
 
 
 @pytest.mark.parametrize("name", REAL)

@@ -7,9 +7,11 @@ fails here.
 
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -44,7 +46,8 @@ LPY = {
     "!": Op.WIDTH_ADD, "DecWidth": Op.WIDTH_ADD, "SetWidth": Op.WIDTH, ";": Op.MATERIAL, "IncColor": Op.MATERIAL,
     ",": Op.MATERIAL, "DecColor": Op.MATERIAL, "SetColor": Op.MATERIAL, "@O": Op.ORGAN, "Sphere": Op.ORGAN,
     "@o": Op.ORGAN, "Circle": Op.ORGAN, "@B": Op.ORGAN, "Box": Op.ORGAN, "~l": Op.ORGAN,
-    "@Ts": Op.ELASTICITY, "Elasticity": Op.ELASTICITY,
+    "@Ts": Op.ELASTICITY, "Elasticity": Op.ELASTICITY, "@Tp": Op.TROPISM_VECTOR, "Tropism": Op.TROPISM_VECTOR,
+    "nF": Op.FORWARD_STEPS,
 }  # fmt: skip
 # cpfg: "Interpreted symbols", appendix of the cpfg 3.0 tutorial (algorithmicbotany.org), and its
 # circles-and-spheres page (@c, @O)
@@ -64,6 +67,7 @@ LPARSER = {
     "$": Op.ROLL_HORIZONTAL, "~": Op.RANDOM_TURN, "t": Op.TROPISM, "[": Op.PUSH, "]": Op.POP,
     "{": Op.POLYGON_BEGIN, "}": Op.POLYGON_END, '"': Op.LENGTH, "'": Op.LENGTH, ";": Op.ANGLE_FACTOR,
     ":": Op.ANGLE_FACTOR, "?": Op.WIDTH_FACTOR, "!": Op.WIDTH_FACTOR, "c": Op.MATERIAL,
+    "_": Op.NONE,  # K-3D's l_parser.cpp (Lapre's code): the default successor, which draws nothing
 }  # fmt: skip
 # Houdini: the L-System SOP's "Turtle command reference" (SideFX); '&' pitches up, '^' down
 HOUDINI = {
@@ -105,7 +109,7 @@ def test_symbol_tables_say_what_the_tools_documentation_says(name):
 
 def test_every_op_has_a_row_in_some_dialect():
     ops = {c.op for name in dialects.DIALECTS for c in dialects.get(name).commands}
-    assert ops == set(Op) - {Op.NONE}
+    assert ops - {Op.NONE} == set(Op) - {Op.NONE}
 
 
 def test_the_dialects_differences_are_where_the_tools_differ():
@@ -221,6 +225,72 @@ def __initialiseContext__(context):
     assert str(lsys3d.derive(g)) == "IIIX(-2)[F%F]"  # decomposed three times; cut at the next step
 
 
+def _plantgl_path(heading, moves, tropism, elasticity):
+    """PlantGL's turtle, written for this test in its own Z-up world: F steps bent by Turtle::_tendTo."""
+    h = np.array(heading, float)
+    p = np.zeros(3)
+    t = np.array(tropism, float)
+    for length in moves:
+        axis = np.cross(h, t)
+        sine = np.linalg.norm(axis)
+        if sine > 1e-5:
+            axis /= sine
+            a = np.arctan2(sine, h @ t) * elasticity
+            h = h * np.cos(a) + np.cross(axis, h) * np.sin(a) + axis * (axis @ h) * (1 - np.cos(a))
+        p = p + h * length
+    return p
+
+
+def test_lpy_nf_draws_steps_bent_toward_the_tropism_as_plantgl_does():
+    g = lpy("Axiom: _(0.05) @Tp(1,0,0) Elasticity(0.05) nF(1, 0.3, 0.01)\nderivation length: 0\n")
+    sk = interpret(lsys3d.derive(g), g)
+    # PlantGL's Turtle::nF: int(1 / 0.3) = 3 steps of 0.3, then the rest 0.1; the radius 0.05 -> 0.01 by step
+    np.testing.assert_allclose(np.linalg.norm(sk.end - sk.start, axis=1), [0.3, 0.3, 0.3, 0.1])
+    np.testing.assert_allclose(sk.width_start, 2 * np.array([0.05, 0.038, 0.026, 0.014]))
+    assert sk.width_end[-1] == pytest.approx(0.02) and sk.parent.tolist() == [-1, 0, 1, 2]
+    tip = _plantgl_path((0, 0, 1), [0.3, 0.3, 0.3, 0.1], (1, 0, 0), 0.05)  # PlantGL's (x, y, z) is our (y, z, x)
+    np.testing.assert_allclose(sk.end[-1], tip[[1, 2, 0]], atol=1e-12)
+    # without @Tp the tropism is PlantGL's (0, 0, 1): up; a rest under PlantGL's epsilon draws nothing
+    g = lpy("Axiom: -(90) Elasticity(0.1) nF(0.6, 0.2)\nderivation length: 0\n")
+    sk = interpret(lsys3d.derive(g), g)
+    assert len(sk) == 3 and sk.end[-1][1] > 0.05  # bent up
+    # and @Tp is part of the state [ ] saves
+    g = lpy("Axiom: Elasticity(0.1) [@Tp(0,1,0)] -(90) nF(0.6, 0.2)\nderivation length: 0\n")
+    assert interpret(lsys3d.derive(g), g).end[-1][1] > 0.05
+    for axiom, message in [
+        ("nF(1)", "nF(length, dlength[, radius])"),
+        ("nF(1, 0)", "nF(length, dlength[, radius])"),
+        ("nF(-1, 0.1)", "nF(length, dlength[, radius])"),
+        ("@Tp(1, 0)", "@Tp(x, y, z)"),
+    ]:
+        g = lpy(f"Axiom: {axiom}\nderivation length: 0\n")
+        with pytest.raises(lsys3d.InterpretError, match=re.escape(message)):
+            interpret(lsys3d.derive(g), g)
+
+
+def test_lpy_get_iteration_nb_is_the_derivation_step_as_lpy_counts_it():
+    """L-Py's Lsystem::__derive sets it to the step from 0 (decomposition too); interpretation sees the last step's."""
+    g = lpy(
+        """
+def f(x):
+    return x + getIterationNb()
+Axiom: A(getIterationNb())
+derivation length: 3
+production:
+A(x) --> B(getIterationNb()) A(f(10))
+decomposition:
+B(x) : produce C(x, getIterationNb())
+interpretation:
+C(x, y) --> D(x, y, getIterationNb())
+endlsystem
+"""
+    )
+    derived = lsys3d.derive(g)
+    assert str(derived) == "C(0,0)C(1,1)C(2,2)A(12)"
+    assert str(interpretation(g, derived)) == "D(0,0,2)D(1,1,2)D(2,2,2)A(12)"
+    assert str(interpretation(g, lsys3d.derive(g, 1), iterations=1)) == "D(0,0,0)A(10)"
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [
@@ -320,6 +390,28 @@ def test_lparser_layouts_and_the_ls_forms_are_recognised():
     ]:
         with pytest.raises(GrammarError, match=re.escape(message)):
             Grammar.from_text(text, source="x.ls")
+
+
+def test_lparser_rules_leave_a_rewritten_symbols_argument_as_lparser_does(caplog):
+    """Lparser rewrites characters: 'f=_' makes f(300) into _(300), nothing; 'A=F' makes A(5) into F(5)."""
+    g = Grammar.from_text("2\n30\n10\nf(300)A(5)B(1)C(2)\nf=_\nA=F\nB=[F]\nC=D\nD=F\n@\n", source="x.ls")
+    assert g.rules[5:] == ("f(x1)=_", "A(x1)=F(x1)", "B(x1)=[F]", "C(x1)=D(x1)", "D(x1)=F(x1)")
+    assert str(lsys3d.derive(g, 1)) == "_F(5)[F]D(2)"
+    assert str(lsys3d.derive(g, 2)) == "_F(5)[F]F(2)"
+    assert len(interpret(lsys3d.derive(g, 2), g)) == 3  # '_' draws nothing
+    from lsys3d.pipeline import draw
+
+    with caplog.at_level(logging.WARNING, logger="lsys3d"):
+        draw(g, 2, 0)
+    assert "warning" not in caplog.text  # '_' means something in Lparser: no "symbols with no meaning"
+
+
+def test_lparser_lengths_given_as_arguments_count_in_its_step_of_100():
+    """K-3D's l_parser.cpp starts F's distance at 100: F(300) goes three steps, F one, Z half of one."""
+    g = Grammar.from_text("0\n90\n10\nF(300)f(50)FZ(100)\n@\n", source="x.ls")
+    sk = interpret(lsys3d.derive(g), g)
+    np.testing.assert_allclose(np.linalg.norm(sk.end - sk.start, axis=1), [3.0, 1.0, 1.0])
+    assert sk.end[-1][1] == pytest.approx(5.5)
 
 
 def test_houdini_premise_variables_and_signs():

@@ -57,11 +57,21 @@ def test_dialect_spellings(text, syntax, expected):
         ("math.system(1)", PY, "unknown function 'system'"),
         ("0 < 1 < 2 < 3", PY, "more than two comparisons"),
         ("uniform(1)", Syntax(), "takes 2 argument"),
+        ("getIterationNb()", Syntax(), "unknown function 'getIterationNb'"),  # L-Py's name: Python spelling only
+        ("getIterationNb(1)", PY, "expected '\\)'"),
     ],
 )
 def test_what_each_spelling_refuses(text, syntax, message):
     with pytest.raises(ExprSyntaxError, match=message):
         parse_expression(text, names=["x"], syntax=syntax)
+
+
+def test_the_derivation_step_is_read_from_the_evaluations_env():
+    from lsys3d.expr import STEP
+
+    e = parse_expression("2 + getIterationNb()", syntax=PY)
+    assert e.evaluate({STEP: 3.0}, 2).tolist() == [5.0, 5.0]
+    assert e.evaluate({}).tolist() == [2.0]  # no step known (the axiom): 0, as L-Py before its first step
 
 
 def test_the_untaken_branch_of_a_conditional_is_not_evaluated():

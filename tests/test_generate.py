@@ -100,6 +100,20 @@ def test_generate_records_provenance_and_counts():
     assert list(stats) == sorted(stats)
 
 
+def test_tree_modules_is_the_derived_string_and_skeleton_module_indexes_the_string_the_turtle_read():
+    """Tree.modules is derive()'s string, before the homomorphism; skeleton.module indexes interpretation()'s."""
+    from lsys3d.derive import interpretation
+
+    g = lsys3d.Grammar(axiom="A", rules=["A -> I[+A]IA"], homomorphism=["I -> FF"], iterations=3, angle=30)
+    tree = generate(g, union=False)
+    derived = lsys3d.derive(g)
+    assert tree.modules == derived and tree.counts.modules == len(derived) == len(tree.modules)
+    shown = interpretation(g, tree.modules)
+    assert len(shown) > len(tree.modules)  # each I became two F
+    assert {shown.symbol(i) for i in tree.skeleton.module.tolist()} == {"F"}
+    assert len(tree.skeleton) == 2 * tree.modules.count("I")
+
+
 def test_generate_is_deterministic_to_the_byte(tmp_path):
     a = generate("bush", 3, seed=5)
     b = generate("bush", 3, seed=5)

@@ -353,7 +353,19 @@ CASES = [
     ("turtle-pop-empty-stack", api(from_symbols("F[]]F")), InterpretError, "nothing to pop"),
     ("polygon-never-closed", grow('axiom = "F{.f.f"\n'), InterpretError, "polygon never closed"),
     ("polygon-closed-twice", grow('axiom = "F{.f.}}"\n'), InterpretError, "no polygon is open"),
-    ("polygon-nested", grow('axiom = "{.f{.f}}"\n'), InterpretError, "already open"),
+    ("polygon-nested-too-deep", grow(f'axiom = "{"{" * 1001}{"}" * 1001}"\n'), InterpretError, "polygons open at once"),
+    # -- L-Py's nF and @Tp, Lparser's carried arguments
+    ("lpy-nF-too-many-steps", grow('dialect = "lpy"\naxiom = "nF(1e300, 1e-300)"\n'), LimitError, "segments"),
+    ("lpy-nF-many-huge", grow(f'dialect = "lpy"\naxiom = "{"nF(1e300, 1e-300)" * 2000}"\n'), LimitError, "segments"),
+    ("lpy-nF-no-step", grow('dialect = "lpy"\naxiom = "F nF(1, 0)"\n'), InterpretError, "nF(length, dlength"),
+    ("lpy-nF-radius-too-wide", grow('dialect = "lpy"\naxiom = "nF(1, 0.5, 1e300)"\n'), InterpretError, "width must be"),
+    ("lpy-Tp-two-coordinates", grow('dialect = "lpy"\naxiom = "@Tp(1, 0) F"\n'), InterpretError, "@Tp(x, y, z)"),
+    (
+        "lparser-carried-argument-unclosed",
+        api(lambda ctx: lsys3d.Grammar.from_file(ctx.file("1\n30\n10\nA(1)\nA=F(\n@\n", "plant.ls"))),
+        GrammarError,
+        "plant.ls:5:",
+    ),
     # -- unknown names, wrong arity
     ("unknown-name", grow(A + 'rules = ["A(x) -> A(y)"]\n'), GrammarError, "unknown name 'y'"),
     ("unknown-function", grow(A + 'rules = ["A(x) -> A(foo(x))"]\n'), GrammarError, "unknown function 'foo'"),

@@ -231,6 +231,22 @@ def test_polygons():
     assert np.diff(sk.polygon_offsets).tolist() == [4] and sk.polygon_material.tolist() == [3]
 
 
+def test_nested_polygons_close_each_as_its_own_polygon():
+    """A polygon stack (Lparser's and cpfg's): '{' inside a polygon starts another; '}' closes the innermost."""
+    sk = draw("{.f+.'(2){.f+.f+.f}f+.}")
+    assert sk.n_polygons == 2 and sk.polygon_offsets.tolist() == [0, 4, 7]
+    inner = sk.polygon_points[0:4]
+    np.testing.assert_allclose(inner, [H0, H0 + L0, L0, [0, 0, 0]], atol=1e-12)
+    outer = sk.polygon_points[4:7]  # its vertices before and after the inner polygon, in order
+    np.testing.assert_allclose(outer, [[0, 0, 0], H0, -L0], atol=1e-12)
+    assert sk.polygon_material.tolist() == [2, 0]  # each keeps the material it was opened with
+    # three levels: the innermost has two vertices and the outermost walks back to its start (two
+    # again): both are dropped, and the middle one keeps its vertices from before and after the innermost
+    sk = draw("{.f+.{.f+.{.f.}f+.f}+f.}")
+    assert sk.n_polygons == 1 and sk.polygon_offsets.tolist() == [0, 4]
+    np.testing.assert_allclose(sk.polygon_points, [H0, H0 + L0, L0 - H0, -H0], atol=1e-12)
+
+
 def test_bush_polygons():
     modules, sk = grow("bush", 4)
     assert sk.n_polygons == modules.count("{")
@@ -309,7 +325,8 @@ def test_bracket_with_argument():
     [
         ("F{.f.f", r"^module 1 '\{' \(begin polygon\): polygon never closed"),
         ("F.f}", r"^module 3 '\}' \(end polygon\): no polygon is open"),
-        ("{.f{", r"^module 3 '\{' \(begin polygon\): a polygon is already open"),
+        ("{.f{.f}", r"^module 0 '\{' \(begin polygon\): polygon never closed"),
+        ("{" * 1001, r"^module 1000 '\{' \(begin polygon\): more than 1000 polygons open at once"),
         ("F!(-1)F", r"^module 1 '!\(-1\)' \(width\): the width must be"),
         ('F"(-1)F', r"^module 1 '\"\(-1\)' \(step length\)"),
         ("+(1,2)F", r"^module 0 '\+\(1,2\)' \(turn left\): takes at most 1 argument"),

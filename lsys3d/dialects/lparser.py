@@ -4,8 +4,17 @@ The symbols of ``lparser.txt`` (version 4): ``<`` and ``>`` roll (they are no co
 rolls 180 degrees (no cut), ``Z``/``z`` move half a step, ``g`` moves without recording a polygon
 vertex, ``"`` and ``'`` multiply the length by 1.1 and 0.9 (by ``x`` with an argument), ``;`` and ``:``
 the angle, ``?`` and ``!`` the thickness by 1.4 and 0.7, ``c`` steps the colour (sets it with an
-argument), ``~`` turns, pitches and rolls at random, ``t`` corrects for gravity.  Rules are ``X=...``
-with no contexts and no conditions (``:`` is a symbol).
+argument), ``~`` turns, pitches and rolls at random, ``t`` corrects for gravity, ``_`` draws nothing.
+Rules are ``X=...`` with no contexts and no conditions (``:`` is a symbol).  Lparser's step is 100
+units, so a length given as an argument counts in hundredths of a step (``f(300)`` moves three steps:
+``length_unit = 0.01``).
+
+Lparser rewrites characters, not modules: a rule ``X=s`` rewrites the ``X`` of ``X(300)`` and leaves
+``(300)`` where it stands, after ``s``; the ``(300)`` then belongs to the last symbol of ``s`` when that
+symbol takes an argument and has none (``A=F`` makes ``A(5)`` into ``F(5)``), and is inert otherwise
+(``f=_`` makes ``f(300)`` into ``_(300)``: nothing).  The reader gives each such rule the parametric
+twin that does the same (``X(x1)=s`` with ``(x1)`` on its last symbol or dropped), for the symbols the
+file writes with arguments.
 """
 
 from __future__ import annotations
@@ -70,6 +79,15 @@ COMMANDS_LPARSER = (
     Command("?", "thicker", Op.WIDTH_FACTOR, "x", 1, "Multiply the thickness by 1.4 (or `x`).", factor=1.4),
     Command("!", "thinner", Op.WIDTH_FACTOR, "x", 1, "Multiply the thickness by 0.7 (or `x`).", factor=0.7),
     Command("c", "colour", Op.MATERIAL, "x", 1, "Next colour index, or set it to `x`.", sign=+1),
+    Command(
+        "_",
+        "nothing",
+        Op.NONE,
+        "",
+        0,
+        "Draws nothing: Lparser's default successor (a symbol without a rule becomes `_`), written `X=_` to "
+        "remove `X`.",
+    ),
 )
 
 DIALECT = Dialect(
@@ -77,6 +95,8 @@ DIALECT = Dialect(
     title="Lparser",
     notation=Notation(arrows=("=",), contexts=False, conditions=False, reserved="=,"),
     commands=COMMANDS_LPARSER,
+    # Lparser's step is 100 (K-3D's l_parser.cpp: dis = 100): F(300) is three steps
+    turtle={"length_unit": 0.01},
     angle=90.0,
     cut="",
     suffixes=(".ls",),
@@ -196,6 +216,9 @@ def _lparser_grammar(values, axiom, rules, text, source, overrides) -> Grammar:
         seen[name] = number
         where[("rules", len(kept))] = line_where(number, col)
         kept.append(code)
+    for code, where_rule in _carried_arguments(axiom[0], kept, [where[("rules", k)] for k in range(len(kept))]):
+        where[("rules", len(kept))] = where_rule
+        kept.append(code)
     fields = {
         "axiom": axiom[0],
         "rules": kept,
@@ -207,6 +230,48 @@ def _lparser_grammar(values, axiom, rules, text, source, overrides) -> Grammar:
     }
     fields.update(overrides)
     return Grammar(**fields, source=source, text=text, _where=where)
+
+
+_TOKEN = re.compile(r"(\S)(\([^()]*\))?")
+_TAKES_ARGUMENT = frozenset(c.symbol for c in COMMANDS_LPARSER if c.args)
+_COMMANDS = frozenset(c.symbol for c in COMMANDS_LPARSER)
+
+
+def _arities(text: str) -> list[tuple[str, int]]:
+    """The symbols of an Lparser string that carry arguments, with how many (``F(1)`` -> ``('F', 1)``)."""
+    return [(m.group(1), m.group(2).count(",") + 1) for m in _TOKEN.finditer(text) if m.group(2)]
+
+
+def _carried_arguments(axiom: str, rules: list[str], wheres: list) -> list[tuple[str, object]]:
+    """Rules ``X(x1..)=s'`` for the rules ``X=s`` whose symbol the file writes with arguments.
+
+    Lparser leaves ``X``'s argument text after ``s`` (see the module's docstring): ``s'`` is ``s`` with
+    the arguments on its last symbol when it takes one and has none (a symbol without a command
+    takes them too, and passes them on when its own rule rewrites it), else ``s``.
+    """
+    successors = {}
+    for k, code in enumerate(rules):
+        name, _, value = code.partition("=")
+        successors[name.strip()] = (value.strip(), wheres[k])
+    carried: set[tuple[str, int]] = set(_arities(axiom))
+    for value, _ in successors.values():
+        carried.update(_arities(value))
+    twins: dict[tuple[str, int], str] = {}
+    todo = sorted(carried)
+    while todo:
+        symbol, n = todo.pop()
+        if (symbol, n) in twins or symbol not in successors:
+            continue
+        value = successors[symbol][0]
+        formals = ",".join(f"x{k + 1}" for k in range(n))
+        tokens = list(_TOKEN.finditer(value))
+        last = tokens[-1].groups() if tokens else ("", "(")
+        if not last[1] and (last[0] in _TAKES_ARGUMENT or last[0] not in _COMMANDS):
+            value = f"{value}({formals})"
+            todo.append((last[0], n))
+        twins[symbol, n] = f"{symbol}({formals})={value}"
+    order = {symbol: k for k, symbol in enumerate(successors)}
+    return [(twins[key], successors[key[0]][1]) for key in sorted(twins, key=lambda key: (order[key[0]], key[1]))]
 
 
 def _read_abop_like(text, source, **overrides) -> Grammar:

@@ -3,7 +3,10 @@
 The turtle is PlantGL's, as L-Py's documentation lists its predefined modules
 (``doc/user/helpcard.rst`` and ``src/cpp/predefinedmodules.cpp`` of openalea/lpy): each name and alias
 below is one row.  Widths are radii (``width_unit = 2``: lsys3d's widths are diameters), the
-default width is 0.1 and the default angle 60 degrees.  Module names are read as L-Py reads them: the
+default width is 0.1 and the default angle 60 degrees.  PlantGL's world has Z up: its (x, y, z) is
+lsys3d's (y, z, x) (the turtle starts heading up, H = (0, 0, 1), L = (0, -1, 0), U = (1, 0, 0)), so
+its default tropism (0, 0, 1), which ``@Tp`` changes, is lsys3d's (0, 1, 0); the elasticity turns H
+toward T by ``e`` times their angle (PlantGL's ``Turtle::_tendTo``).  Module names are read as L-Py reads them: the
 longest predefined or declared name, else one character; ``~`` takes the next character as the
 surface's name (``~l``).
 """
@@ -87,18 +90,36 @@ _BASE = (
         prefix=True,
     ),
     Command("@Ts", "Elasticity", Op.ELASTICITY, "e", 1, "Set the elasticity of the moves that follow."),
+    Command(
+        "@Tp",
+        "Tropism",
+        Op.TROPISM_VECTOR,
+        "x, y, z",
+        3,
+        "Set the tropism vector (PlantGL's world: Z up) that the elasticity bends the moves toward.",
+        world=(1, 2, 0),
+    ),
+    Command(
+        "nF",
+        "nF",
+        Op.FORWARD_STEPS,
+        "l, dl, r",
+        3,
+        "Move forward by `l` in steps of `dl` (and a last step of the rest), a cylinder each, the elasticity "
+        "bending each; with `r`, the radius goes from the width to `r` step by step.",
+        ignored=("radiusvariation",),
+    ),
 )
 
 # every alias is a row of its own: L-Py reads "Left" as "+"
 _ALIASED = {"+": "Left", "-": "Right", "^": "Up", "&": "Down", "/": "RollL", "\\": "RollR", "|": "TurnAround",
             "@v": "RollToVert", "[": "SB", "]": "EB", "{": "BP", "}": "EP", ".": "PP", "_": "IncWidth",
             "!": "DecWidth", ";": "IncColor", ",": "DecColor", "@O": "Sphere", "@o": "Circle", "@B": "Box",
-            "@Ts": "Elasticity"}  # fmt: skip
+            "@Ts": "Elasticity", "@Tp": "Tropism"}  # fmt: skip
 COMMANDS_LPY = _BASE + tuple(replace(c, symbol=_ALIASED[c.symbol]) for c in _BASE if c.symbol in _ALIASED)
 
 UNSUPPORTED = frozenset(
     [
-        "nF",
         "@Gc",
         "StartGC",
         "@Ge",
@@ -147,8 +168,6 @@ UNSUPPORTED = frozenset(
         "EndGuide",
         "Sweep",
         "PositionOnGuide",
-        "@Tp",
-        "Tropism",
         "InterpolateColors",
         "TextureBaseColor",
         "InterpolateTextureBaseColors",
@@ -180,7 +199,8 @@ DIALECT = Dialect(
         syntax=_SYNTAX,
     ),
     commands=COMMANDS_LPY,
-    turtle={"width": 0.2, "width_unit": 2.0, "width_increment": 1.0, "tropism": (0.0, -1.0, 0.0)},
+    # PlantGL's turtle: its tropism (0, 0, 1) is up (lsys3d's (0, 1, 0)), its elasticity bends by an angle
+    turtle={"width": 0.2, "width_unit": 2.0, "width_increment": 1.0, "tropism": (0.0, 1.0, 0.0), "bend": "angle"},
     angle=60.0,
     cut="%",
     suffixes=(".lpy",),

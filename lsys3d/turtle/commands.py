@@ -47,6 +47,8 @@ class Op(IntEnum):
     RANDOM_TURN = 19  # turn, pitch and roll by random angles up to the argument (or Command.factor, or angle)
     TROPISM = 20  # bend the frame once toward the tropism vector by the argument (or Command.factor)
     ELASTICITY = 21  # set the elasticity of the moves that follow (0 without an argument)
+    FORWARD_STEPS = 22  # move a length drawing a segment per step of a given length (L-Py's nF)
+    TROPISM_VECTOR = 23  # set the tropism vector T of the moves that follow (L-Py's @Tp)
 
 
 N_OPS = len(Op)
@@ -116,6 +118,9 @@ class Command:
     prefix : bool
         The row applies to every name that starts with ``symbol`` and is longer
         (cpfg's surfaces: ``~l``, ``~k``...).
+    world : tuple of int
+        For :data:`Op.TROPISM_VECTOR`: which of the module's parameters gives lsys3d's x, y and z
+        (the tool's world axes: PlantGL's Z-up world is ``(1, 2, 0)``).
     """
 
     symbol: str
@@ -132,6 +137,7 @@ class Command:
     factor: float = 0.0
     organ: Organ = Organ.NONE
     prefix: bool = False
+    world: tuple[int, int, int] = (0, 1, 2)
 
     @property
     def accepts(self) -> int:
@@ -229,6 +235,7 @@ class SymbolTable:
     vertex: np.ndarray = None  # bool: moves inside a polygon record a vertex
     factor: np.ndarray = None  # float64: default factor or amount (0: the options')
     organ: np.ndarray = None  # int8: Organ
+    world: np.ndarray = None  # (256, 3) int64: the parameters that give x, y, z (TROPISM_VECTOR)
 
     def command(self, code: int) -> Command | None:
         return self.commands[code]
@@ -259,6 +266,7 @@ def symbol_table(
     vertex = np.ones(n, np.bool_)
     factor = np.zeros(n, np.float64)
     organ = np.zeros(n, np.int8)
+    world = np.tile(np.arange(3, dtype=np.int64), (n, 1))
     per_code: list[Command | None] = [None] * n
     code_of = {ch: i for i, ch in enumerate(alphabet) if ch != "\0"}
     defaults = {o: _BY_OP[o].symbol for o in RENAMEABLE.values()}
@@ -286,8 +294,9 @@ def symbol_table(
         vertex[code] = c.vertex
         factor[code] = c.factor
         organ[code] = c.organ
+        world[code] = c.world
         per_code[code] = c
-    return SymbolTable(op, axis, sign, max_args, tuple(per_code), scale, vertex, factor, organ)
+    return SymbolTable(op, axis, sign, max_args, tuple(per_code), scale, vertex, factor, organ, world)
 
 
 def commands_markdown() -> str:

@@ -34,7 +34,10 @@ Polygons
     ``{`` opens a polygon, ``.`` and every move inside it append the turtle's
     position (a vertex equal to the previous one is skipped, and a last vertex
     equal to the first is dropped), ``}`` closes it.  Polygons with fewer than
-    three vertices are dropped with a warning.  Polygons do not nest.
+    three vertices are dropped with a warning.  Polygons nest, as in Lparser's
+    and cpfg's polygon stack: ``{`` inside an open polygon starts a polygon of
+    its own, ``}`` closes the innermost and the one around it goes on taking
+    vertices (at most ``kernel.MAX_POLYGON_DEPTH`` open at once).
 Natural variation
     With ``angle_jitter`` (degrees) each rotation angle gets an offset
     ``u * angle_jitter``; with ``length_jitter`` each move is scaled by
@@ -120,7 +123,15 @@ def _variation(
 
 def _program(table: SymbolTable) -> kernel.Program:
     return kernel.Program(
-        table.op, table.axis, table.sign, table.max_args, table.scale, table.vertex, table.factor, table.organ
+        table.op,
+        table.axis,
+        table.sign,
+        table.max_args,
+        table.scale,
+        table.vertex,
+        table.factor,
+        table.organ,
+        table.world,
     )
 
 
@@ -197,6 +208,12 @@ def interpret(
         raise _module_error(modules, table, bad, f"takes {'no argument' if n == 0 else f'at most {n} argument'}")
     if why == 2:
         raise _module_error(modules, table, bad, "parameter is not a finite number")
+    if why == 3:
+        what = {
+            Op.FORWARD_STEPS: "takes a length >= 0 and a step > 0: nF(length, dlength[, radius])",
+            Op.TROPISM_VECTOR: "takes the tropism vector's three coordinates: @Tp(x, y, z)",
+        }[Op(table.op[modules.symbols[bad]])]
+        raise _module_error(modules, table, bad, what)
     n_seg = int(counts[Op.FORWARD])
     if n_seg > max_segments:
         raise LimitError(
@@ -223,6 +240,8 @@ def interpret(
         options.width_unit,
         options.width_increment,
         options.angle_scale,
+        options.bend == "angle",
+        options.length_unit,
     )
     variation = _variation(m, options, seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
 

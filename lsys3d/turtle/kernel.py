@@ -21,6 +21,7 @@ from ..skeleton import MAX_COORDINATE
 from .commands import N_OPS, Axis, Op, Organ
 
 __all__ = [
+    "MAX_POLYGON_DEPTH",
     "MESSAGES",
     "OK",
     "Config",
@@ -36,7 +37,7 @@ __all__ = [
     "survey",
 ]
 
-Program = namedtuple("Program", ["op", "axis", "sign", "max_args", "scale", "vertex", "factor", "organ"])
+Program = namedtuple("Program", ["op", "axis", "sign", "max_args", "scale", "vertex", "factor", "organ", "world"])
 Modules = namedtuple("Modules", ["symbols", "arity", "offsets", "params"])
 Config = namedtuple(
     "Config",
@@ -55,6 +56,8 @@ Config = namedtuple(
         "width_unit",
         "width_increment",
         "angle_scale",
+        "bend_angle",
+        "length_unit",
     ],
 )
 Variation = namedtuple("Variation", ["angle", "length", "width", "roll", "skipped", "turn"])
@@ -91,17 +94,30 @@ _ANGLE_FACTOR = int(Op.ANGLE_FACTOR)
 _RANDOM_TURN = int(Op.RANDOM_TURN)
 _TROPISM = int(Op.TROPISM)
 _ELASTICITY = int(Op.ELASTICITY)
+_FORWARD_STEPS = int(Op.FORWARD_STEPS)
+_TROPISM_VECTOR = int(Op.TROPISM_VECTOR)
 _AXIS_U = int(Axis.U)
 _AXIS_L = int(Axis.L)
 _AXIS_H = int(Axis.H)
 _SURFACE = int(Organ.SURFACE)
 _INSTANCE = int(Organ.INSTANCE)
 
+STEP_EPSILON = 1e-5
+"""A rest of L-Py's ``nF(length, dlength)`` shorter than this draws no last segment (PlantGL's GEOM_EPSILON)."""
+
+MAX_STEPS = 2**53
+"""Most steps one ``nF`` module, or all of them, count (far above any segment limit: keeps the counts exact
+integers that cannot wrap around)."""
+
+MAX_POLYGON_DEPTH = 1000
+"""Most polygons open at once: ``{`` inside an open polygon starts a polygon of its own (Lparser's
+and cpfg's polygon stack; Lparser's own bound is 1000 too)."""
+
 # status codes; the message says what went wrong at module `bad`
 OK = 0
 MESSAGES = {
     1: "nothing to pop: more ']' than '[' so far",
-    2: "a polygon is already open (polygons do not nest)",
+    2: f"more than {MAX_POLYGON_DEPTH} polygons open at once (lsys3d.turtle.kernel.MAX_POLYGON_DEPTH)",
     3: "no polygon is open ('}' without '{')",
     4: "polygon never closed (no matching '}')",
     5: f"the turtle's position left the drawable range of +-{MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE); "
@@ -179,16 +195,46 @@ def _add_vertex(points, n, first, x, y, z):
     return n + 1
 
 
+@numba.njit(cache=True)
+def _rotate_points(points, base, start, stop):
+    """Move rows ``start:stop`` to ``base`` and the rows ``base:start`` after them (a nested polygon closing)."""
+    k = stop - start
+    inner = points[start:stop].copy()
+    for r in range(start - 1, base - 1, -1):
+        points[r + k, 0] = points[r, 0]
+        points[r + k, 1] = points[r, 1]
+        points[r + k, 2] = points[r, 2]
+    points[base : base + k] = inner
+
+
 @numba.njit(cache=True, inline="always")
-def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e):
-    """Turn the frame about H x T by e |H x T| radians, so that H bends toward T (ABOP 2.8); unchanged if H // T."""
+def _steps(length, dlength):
+    """L-Py's ``nF(length, dlength)``: (whole steps, rest, segments drawn), as PlantGL's Turtle::nF counts them.
+
+    ``int(length / dlength)`` steps of ``dlength``, then the rest if it is longer than :data:`STEP_EPSILON`.
+    The caller has checked ``length >= 0`` and ``dlength > 0``.
+    """
+    q = length / dlength
+    n = int(q) if q < MAX_STEPS else MAX_STEPS
+    rest = length - n * dlength
+    return n, rest, n + (1 if rest > STEP_EPSILON else 0)
+
+
+@numba.njit(cache=True, inline="always")
+def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
+    """Bend H toward T about H x T: by e |H x T| radians (ABOP 2.8), or (``by_angle``) by e times the angle
+    between H and T (PlantGL's Turtle::_tendTo, which turns about U by e pi when H is opposite T).
+    Unchanged when H is along T."""
     cx = hy * tz - hz * ty
     cy = hz * tx - hx * tz
     cz = hx * ty - hy * tx
     norm = math.sqrt(cx * cx + cy * cy + cz * cz)
     if norm <= 1e-12:
+        if by_angle and hx * tx + hy * ty + hz * tz < 0.0:
+            c, s = math.cos(e * math.pi), math.sin(e * math.pi)
+            return _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, _AXIS_U, c, s)
         return hx, hy, hz, lx, ly, lz, ux, uy, uz
-    a = e * norm
+    a = e * (math.atan2(norm, hx * tx + hy * ty + hz * tz) if by_angle else norm)
     kx, ky, kz = cx / norm, cy / norm, cz / norm
     c, s = math.cos(a), math.sin(a)
     # Rodrigues: v' = v c + (k x v) s + k (k.v)(1 - c), for H and L
@@ -220,7 +266,9 @@ def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
 def survey(program, modules):
     """One pass before drawing: how many modules of each op, deepest bracket, bad arguments.
 
-    Returns (counts (N_OPS,), max depth, bad module or -1, 1 too many arguments / 2 not finite).
+    Returns (counts (N_OPS,), max depth, bad module or -1, 1 too many arguments / 2 not finite / 3 too
+    few, or out of range, for L-Py's ``nF`` and ``@Tp``).  The FORWARD count includes the segments of
+    the ``nF`` modules, so it is the most segments the string draws.
     """
     counts = np.zeros(N_OPS, np.int64)
     depth = 0
@@ -236,7 +284,20 @@ def survey(program, modules):
             return counts, deepest, i, 1
         if arity[i] > 0 and not math.isfinite(params[offsets[i]]):
             return counts, deepest, i, 2
-        if code == _PUSH:
+        if code == _FORWARD_STEPS:
+            if arity[i] < 2:
+                return counts, deepest, i, 3
+            length, dlength = params[offsets[i]], params[offsets[i] + 1]
+            if not (length >= 0.0 and dlength > 0.0 and math.isfinite(dlength)):
+                return counts, deepest, i, 3
+            counts[_FORWARD] = min(counts[_FORWARD] + _steps(length, dlength)[2], MAX_STEPS)  # no wrap-around
+        elif code == _TROPISM_VECTOR:
+            if arity[i] != 3:
+                return counts, deepest, i, 3
+            for k in range(1, 3):
+                if not math.isfinite(params[offsets[i] + k]):
+                    return counts, deepest, i, 2
+        elif code == _PUSH:
             depth += 1
             if depth > deepest:
                 deepest = depth
@@ -277,7 +338,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
     depth_of = np.empty(n_cap, np.int64)
     first_child = np.full(n_cap, -1, np.int64)
     same_child = np.full(n_cap, -1, np.int64)  # first child of the same order
-    stack_f = np.empty((max_depth, 16))
+    stack_f = np.empty((max_depth, 19))
     stack_i = np.empty((max_depth, 3), np.int64)
 
     angle = config.angle
@@ -288,11 +349,13 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
     length_scale = config.length_scale
     angle_scale = config.angle_scale
     width_unit = config.width_unit
+    length_unit = config.length_unit
     width_increment = config.width_increment
     elasticity = config.elasticity
     far = config.far  # MAX_COORDINATE
     tx, ty, tz = config.tx, config.ty, config.tz
     bend = tx != 0.0 or ty != 0.0 or tz != 0.0
+    by_angle = config.bend_angle
     # one-shot bends (Lparser's t, Houdini's T) pull toward T, or down when T is not set
     gx, gy, gz = (tx, ty, tz) if bend else (0.0, -1.0, 0.0)
     random_turn = variation.turn.shape[0] > 0
@@ -321,6 +384,10 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
     poly_start = 0
     poly_mat = 0
     poly_seg = -1
+    # the polygons open around the current one: (opening module, first point, material, segment);
+    # their points lie in order from the first's start up to the current polygon's start
+    poly_stack = np.empty((MAX_POLYGON_DEPTH, 4), np.int64)
+    poly_depth = 0
 
     m = symbols.shape[0]
     for i in range(m):
@@ -334,8 +401,10 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
         arg = params[offsets[i]] if has_arg else 0.0
         if code in (_FORWARD, _MOVE):
             if elasticity != 0.0 and bend:
-                hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity)
-            length = arg if has_arg else step * program.scale[sym]
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
+                )
+            length = arg * length_unit if has_arg else step * program.scale[sym]
             if jitter_length:
                 length *= variation.length[i]
             qx = px + hx * length
@@ -380,6 +449,74 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             else:
                 last = -1
             px, py, pz = qx, qy, qz
+        elif code == _FORWARD_STEPS:  # L-Py's nF(length, dlength[, radius]): PlantGL's Turtle::nF
+            # each step is the FORWARD above, with its length (kept apart: a loop there slows every F)
+            dlength = params[offsets[i] + 1]
+            whole, rest, n_rep = _steps(arg, dlength)
+            taper = arity[i] >= 3  # the width goes from the current one to the radius given, step by step
+            w0 = width
+            w1 = params[offsets[i] + 2] * width_unit if taper else width
+            dw = (w1 - w0) / arg if taper and arg > 0.0 else 0.0
+            for k in range(n_rep):
+                if elasticity != 0.0 and bend:
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
+                        hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
+                    )
+                length = (dlength if k < whole else rest) * length_unit
+                if jitter_length:
+                    length *= variation.length[i]
+                qx = px + hx * length
+                qy = py + hy * length
+                qz = pz + hz * length
+                if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):
+                    return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                if poly_open >= 0:
+                    if program.vertex[sym]:
+                        n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
+                    last = -1
+                else:
+                    s_ = n_seg
+                    _put(seg.start, s_, px, py, pz)
+                    _put(seg.end, s_, qx, qy, qz)
+                    _put(seg.heading, s_, hx, hy, hz)
+                    _put(seg.left, s_, lx, ly, lz)
+                    _put(seg.up, s_, ux, uy, uz)
+                    drawn = width * variation.width[i] if jitter_width else width
+                    if not drawn <= far:
+                        return 10, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                    seg.width_start[s_] = drawn
+                    seg.width_end[s_] = drawn
+                    if anchor >= 0:
+                        rise = depth - depth_of[anchor]
+                        order = seg.order[anchor] + (rise if rise > 0 else 0)
+                    else:
+                        order = 0
+                    seg.parent[s_] = last
+                    seg.module[s_] = i
+                    seg.order[s_] = order
+                    seg.material[s_] = material
+                    depth_of[s_] = depth
+                    if last >= 0:
+                        if first_child[last] < 0:
+                            first_child[last] = s_
+                        if same_child[last] < 0 and seg.order[last] == order:
+                            same_child[last] = s_
+                    last = s_
+                    anchor = s_
+                    n_seg += 1
+                px, py, pz = qx, qy, qz
+                if taper:  # PlantGL's F(dlength, topradius): the next width, the radius itself after the rest
+                    width = w0 + dw * dlength * (k + 1) if k < whole else w1
+                    if not (0.0 <= width <= far):
+                        return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                    if last >= 0 and depth_of[last] == depth:
+                        seg.width_end[last] = width
+        elif code == _TROPISM_VECTOR:  # L-Py's @Tp(x, y, z), in the tool's world axes
+            base = offsets[i]
+            tx = params[base + program.world[sym, 0]]
+            ty = params[base + program.world[sym, 1]]
+            tz = params[base + program.world[sym, 2]]
+            bend = tx != 0.0 or ty != 0.0 or tz != 0.0
         elif code == _ROTATE:
             if jitter_angle:
                 c, s = _cos_sin((arg if has_arg else angle) + variation.angle[i])
@@ -405,7 +542,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
                     hx, hy, hz, lx, ly, lz, ux, uy, uz = _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, k + 1, c, s)
         elif code == _TROPISM:
             e = arg if has_arg else program.factor[sym]
-            hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, gx, gy, gz, e)
+            hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, gx, gy, gz, e, False)
         elif code == _ELASTICITY:
             elasticity = arg if has_arg else 0.0
         elif code == _ANGLE_FACTOR:
@@ -438,6 +575,9 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             row[13] = step
             row[14] = angle
             row[15] = elasticity
+            row[16] = tx
+            row[17] = ty
+            row[18] = tz
             stack_i[depth, 0] = material
             stack_i[depth, 1] = last
             stack_i[depth, 2] = anchor
@@ -461,6 +601,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
                 angle = row[14]
                 cos_angle, sin_angle = _cos_sin(angle)
             elasticity = row[15]
+            tx, ty, tz = row[16], row[17], row[18]
+            bend = tx != 0.0 or ty != 0.0 or tz != 0.0
             material = stack_i[depth, 0]
             last = stack_i[depth, 1]
             anchor = stack_i[depth, 2]
@@ -491,8 +633,14 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             if not (step >= 0.0 and math.isfinite(step)):
                 return 7, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
         elif code == _POLYGON_BEGIN:
-            if poly_open >= 0:
-                return 2, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+            if poly_open >= 0:  # a polygon inside a polygon: the outer one waits on the stack
+                if poly_depth + 1 == MAX_POLYGON_DEPTH:
+                    return 2, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                poly_stack[poly_depth, 0] = poly_open
+                poly_stack[poly_depth, 1] = poly_start
+                poly_stack[poly_depth, 2] = poly_mat
+                poly_stack[poly_depth, 3] = poly_seg
+                poly_depth += 1
             poly_open = i
             poly_start = n_pts
             poly_mat = material
@@ -514,13 +662,24 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
                     n_pts -= 1
                     k -= 1
             if k >= 3:
+                if poly_depth > 0:  # the open polygons' points come first: move this one's before them
+                    base = poly_stack[0, 1]
+                    _rotate_points(poly.points, base, poly_start, n_pts)
+                    for d in range(poly_depth):
+                        poly_stack[d, 1] += k
                 n_poly += 1
-                poly.offsets[n_poly] = n_pts
+                poly.offsets[n_poly] = poly.offsets[n_poly - 1] + k
                 poly.material[n_poly - 1] = poly_mat
                 poly.segment[n_poly - 1] = poly_seg
             else:
                 n_pts = poly_start
                 dropped += 1
+            if poly_depth > 0:  # back to the polygon this one was opened in
+                poly_depth -= 1
+                poly_open = poly_stack[poly_depth, 0]
+                poly_start = poly_stack[poly_depth, 1]
+                poly_mat = poly_stack[poly_depth, 2]
+                poly_seg = poly_stack[poly_depth, 3]
         elif code == _LEAF:
             size = arg if has_arg else step
             if not (0.0 <= size <= far):

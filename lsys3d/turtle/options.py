@@ -18,7 +18,10 @@ from ..grammar import Grammar, table_key_line
 from ..options import Options, check_value, option, spec_of
 from .commands import RENAMEABLE, by_symbol
 
-__all__ = ["GRAMMAR_KEYS", "JITTER_DISTRIBUTIONS", "TurtleOptions", "TurtleOverrides", "options_markdown"]
+__all__ = ["BENDS", "GRAMMAR_KEYS", "JITTER_DISTRIBUTIONS", "TurtleOptions", "TurtleOverrides", "options_markdown"]
+
+BENDS = ("abop", "angle")
+"""Values of ``TurtleOptions.bend``."""
 
 JITTER_DISTRIBUTIONS = ("uniform", "normal")
 """Values of ``TurtleOptions.jitter_distribution``."""
@@ -34,7 +37,8 @@ class TurtleOptions(Options):
     ``docs/turtle.md`` lists them (:func:`options_markdown`).
 
     ``tropism`` and ``elasticity`` bend the frame toward T before each move
-    by ``e * |H x T|`` radians about ``H x T`` (ABOP 2.8).  The jitters and
+    by ``e * |H x T|`` radians about ``H x T`` (ABOP 2.8), or with ``bend =
+    "angle"`` by ``e`` times the angle between H and T (PlantGL's turtle).  The jitters and
     the branch roll draw ``u`` in [-1, 1]: uniform, or (``jitter_distribution
     = "normal"``) normal with sigma 1/2 truncated by redrawing.
     """
@@ -52,6 +56,13 @@ class TurtleOptions(Options):
         help="what a width given in the grammar (`!(w)`) is worth, as a diameter: 2 for a radius (L-Py), "
         "0.01 for centimetres",
     )
+    length_unit: float = option(
+        1.0,
+        low=0,
+        low_open=True,
+        help="what a length given in the grammar (`F(l)`, `f(l)`) is worth, in steps of 1: 0.01 for Lparser, "
+        "whose step is 100",
+    )
     width_increment: float = option(
         1.0, low=0, help="what L-Py's `_` and `!` (cpfg's `#` and `!`) add to or take from the width"
     )
@@ -61,6 +72,12 @@ class TurtleOptions(Options):
     leaf: str = option("~", help="the leaf-instance symbol")
     tropism: tuple[float, float, float] = option((0.0, 0.0, 0.0), help="tropism vector T (ABOP 2.8), `[x, y, z]`")
     elasticity: float = option(0.0, help="before each move the frame turns by e\\|H x T\\| radians about H x T")
+    bend: str = option(
+        "abop",
+        choices=BENDS,
+        help='how the elasticity bends: `"abop"` by e\\|H x T\\| radians (ABOP 2.8), `"angle"` by e times the '
+        "angle between H and T (PlantGL's turtle, L-Py's default)",
+    )
     angle_jitter: float = option(0.0, low=0, help="random change of each rotation angle, up to this many degrees")
     length_jitter: float = option(0.0, low=0, help="random relative change of each step, up to this fraction")
     width_jitter: float = option(0.0, low=0, help="random relative change of each segment's width, up to this fraction")
