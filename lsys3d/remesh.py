@@ -301,13 +301,45 @@ def _normal_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
     return _cross(bx - ax, by - ay, bz - az, cx - ax, cy - ay, cz - az)
 
 
+@numba.njit(cache=True, inline="always")
+def _before(ax, ay, az, bx, by, bz):
+    """Whether point ``a`` comes before ``b`` in lexicographic order (a tie-break that ignores vertex order)."""
+    if ax != bx:
+        return ax < bx
+    if ay != by:
+        return ay < by
+    return az < bz
+
+
 @numba.njit(cache=True)
 def _aspect_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
-    """Aspect (longest edge / (2 sqrt 3 inradius)) of a triangle given by coordinates; 1e30 when flat."""
-    l0 = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2)
-    l1 = np.sqrt((cx - bx) ** 2 + (cy - by) ** 2 + (cz - bz) ** 2)
-    l2 = np.sqrt((ax - cx) ** 2 + (ay - cy) ** 2 + (az - cz) ** 2)
-    nx, ny, nz = _normal_xyz(ax, ay, az, bx, by, bz, cx, cy, cz)
+    """Aspect (longest edge / (2 sqrt 3 inradius)) of a triangle given by coordinates; 1e30 when flat.
+
+    The same bits whatever the order of the corners: the area's cross product
+    is taken at the corner across the longest edge (the most accurate one;
+    ties broken by the corners' coordinates), and a cross product with its
+    two edges swapped is exactly negated.  A needle's area is mostly rounding
+    noise; were it computed at whichever corner came first, a flip and the
+    flip back could each look like an improvement, and :func:`clean` cycled
+    (757,310 flips on abop-1.24a).
+    """
+    l0 = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2)  # across c
+    l1 = np.sqrt((cx - bx) ** 2 + (cy - by) ** 2 + (cz - bz) ** 2)  # across a
+    l2 = np.sqrt((ax - cx) ** 2 + (ay - cy) ** 2 + (az - cz) ** 2)  # across b
+    # the corner across the longest edge, as a rotation: (a, b, c), (b, c, a) or (c, a, b)
+    base = 0
+    if l1 > l0 or (l1 == l0 and _before(ax, ay, az, cx, cy, cz)):
+        base = 1
+        if l2 > l1 or (l2 == l1 and _before(bx, by, bz, ax, ay, az)):
+            base = 2
+    elif l2 > l0 or (l2 == l0 and _before(bx, by, bz, cx, cy, cz)):
+        base = 2
+    if base == 0:
+        nx, ny, nz = _normal_xyz(cx, cy, cz, ax, ay, az, bx, by, bz)
+    elif base == 1:
+        nx, ny, nz = _normal_xyz(ax, ay, az, bx, by, bz, cx, cy, cz)
+    else:
+        nx, ny, nz = _normal_xyz(bx, by, bz, cx, cy, cz, ax, ay, az)
     area = 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)
     s = 0.5 * (l0 + l1 + l2)
     if area <= 1e-300 or s <= 0:
