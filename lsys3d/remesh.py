@@ -127,6 +127,45 @@ class Rules(NamedTuple):
     """Stop after this many operations (a guard; never reached on sane input)."""
 
 
+@numba.njit(cache=True)
+def _opposites(faces, nv):
+    """The opposite of each half-edge (-1 where none); ``[-2, ...]`` when a directed edge is used twice.
+
+    Half-edges are listed by their origin (counting sort), and each finds its
+    reverse among those leaving its end: linear in the half-edges times the valence.
+    """
+    nh = 3 * len(faces)
+    start = np.zeros(nv + 1, np.int64)
+    for h in range(nh):
+        start[faces[h // 3, h % 3] + 1] += 1
+    for v in range(nv):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    leaving = np.empty(nh, np.int64)
+    for h in range(nh):
+        u = faces[h // 3, h % 3]
+        leaving[fill[u]] = h
+        fill[u] += 1
+    opp = np.full(nh, -1, np.int64)
+    for h in range(nh):
+        u = faces[h // 3, h % 3]
+        w = faces[h // 3, (h % 3 + 1) % 3]
+        seen = 0
+        for i in range(start[u], start[u + 1]):
+            g = leaving[i]
+            if faces[g // 3, (g % 3 + 1) % 3] == w:
+                seen += 1
+        if seen > 1:
+            opp[0] = -2
+            return opp
+        for i in range(start[w], start[w + 1]):
+            g = leaving[i]
+            if faces[g // 3, (g % 3 + 1) % 3] == u:
+                opp[h] = g
+                break
+    return opp
+
+
 def build(points, faces, flags, scale, face_part, face_flat, reference, face_source, extra_vertices: int = 0):
     """Half-edges of a closed, consistently oriented mesh (every directed edge once, its reverse once).
 
@@ -139,15 +178,10 @@ def build(points, faces, flags, scale, face_part, face_flat, reference, face_sou
     nv, nf = len(points), len(faces)
     vcap, fcap = nv + extra_vertices, nf + 2 * extra_vertices
     org = faces.reshape(-1)
-    dst = faces[:, [1, 2, 0]].reshape(-1)
-    key = org * nv + dst
-    order = np.argsort(key, kind="stable")
-    sorted_key = key[order]
-    if len(sorted_key) > 1 and (sorted_key[1:] == sorted_key[:-1]).any():
+    opp = _opposites(faces, nv)
+    if len(opp) and opp[0] == -2:
         raise ValueError("remesh.build: a directed edge is used twice (the mesh is not a consistent 2-manifold)")
-    rev = dst * nv + org
-    pos = np.minimum(np.searchsorted(sorted_key, rev), len(order) - 1)
-    if not (sorted_key[pos] == rev).all():
+    if len(opp) and opp.min() < 0:
         raise ValueError("remesh.build: the mesh is not closed (a half-edge has no opposite)")
 
     def grow(a, n, fill, dtype=None):
@@ -161,7 +195,7 @@ def build(points, faces, flags, scale, face_part, face_flat, reference, face_sou
     he = HalfEdges(
         points=grow(points, vcap, 0.0),
         faces=grow(faces, fcap, 0),
-        opp=grow(order[pos], 3 * fcap, -1, np.int64),
+        opp=grow(opp, 3 * fcap, -1, np.int64),
         out=out,
         face_alive=grow(np.ones(nf, bool), fcap, False),
         vertex_alive=grow(np.ones(nv, bool), vcap, False),
