@@ -206,8 +206,8 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     for mask, bit in ((seam, remesh.SEAM), (rim, remesh.FEATURE)):
         he.flags[org[mask]] |= bit
         he.flags[dst[mask]] |= bit
-    # a budget of operations: the presets need under one per face; where flips cycle (seen on the flat
-    # abop-1.24a, cause not yet found) it bounds the time, and the result says so
+    # a budget of operations, a guard the presets never reach (under one per face; flips cannot cycle since
+    # the aspect is the same whatever the order of a triangle's corners): if reached, the result says so
     budget = 4 * nf
     rules = remesh.Rules(opt.short, opt.limit, opt.bad, opt.flip_tolerance, opt.long, opt.step, opt.fallback, budget)
     done = remesh.clean(he, rules, np.zeros(0, bool))
