@@ -6,7 +6,8 @@ For each preset (default: every preset that draws a mesh) prints the time of
 ``lsys3d.generate`` without the cleanup (``cleanup=False``: the union's raw
 bark) and with it (the default), their ratio, and the bark's quality both
 ways (:mod:`lsys3d.quality`: triangles, above aspect 100 and 1,000, under
-1 um high, median uv stretch).  With ``--lod``, also the time of tree3d's four
+1 um high, median uv stretch) and the cleaned bark's volume against the raw
+union's (the collars must blend, not inflate: within 0.5%).  With ``--lod``, also the time of tree3d's four
 levels of detail against level 0 alone.  Times are the best of ``--repeat``
 runs (the first run of a process compiles the numba kernels: one warm-up
 run is not counted).
@@ -34,7 +35,7 @@ def main(argv=None):
     lsys3d.generate("abop-1.24a", iterations=3)  # compile the kernels
     print(
         f"{'preset':>14} {'raw s':>7} {'clean s':>8} {'ratio':>6} {'raw tris':>9} {'>100':>7} {'>1000':>7}"
-        f" {'<1um':>6} {'stretch':>7} {'tris':>8} {'>100':>5} {'>1000':>5} {'<1um':>5} {'stretch':>7}"
+        f" {'<1um':>6} {'stretch':>7} {'tris':>8} {'>100':>5} {'>1000':>5} {'<1um':>5} {'stretch':>7} {'volume':>8}"
     )
     for name in names:
         t_raw, raw = best_of(lambda name=name: lsys3d.generate(name, cleanup=False), args.repeat)
@@ -44,6 +45,7 @@ def main(argv=None):
             f"{name:>14} {t_raw:>7.2f} {t_clean:>8.2f} {t_clean / t_raw:>6.2f} {a.triangles:>9}"
             f" {a.over_100:>7} {a.over_1000:>7} {a.slivers:>6} {a.uv_stretch or 0:>7.2f} {b.triangles:>8}"
             f" {b.over_100:>5} {b.over_1000:>5} {b.slivers:>5} {b.uv_stretch or 0:>7.2f}"
+            f" {100 * (clean.bark.volume / raw.bark.volume - 1) if raw.bark.volume else 0:>+7.3f}%"
         )
     if args.lod:
         t0, _ = best_of(lambda: lsys3d.generate("tree3d"), args.repeat)

@@ -47,7 +47,7 @@ import numpy as np
 from . import remesh
 from .arrays import components
 from .errors import GeometryError
-from .mesh import Mesh, face_normals
+from .mesh import Mesh
 from .options import Options, option
 from .sweep import Tubes, wrap_u
 from .union import _separate_float32  # the union's last step, which the cleanup's moves must keep true
@@ -120,16 +120,6 @@ def _tube_of_face(tubes: Tubes, source: np.ndarray) -> np.ndarray:
     return np.searchsorted(tubes.face_offsets, source, side="right") - 1
 
 
-def _min_at(n: int, index: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """``out[i] = min(values[index == i])`` (inf where none), by one sort."""
-    out = np.full(n, np.inf)
-    order = np.argsort(index, kind="stable")
-    idx = index[order]
-    starts = np.flatnonzero(np.r_[True, idx[1:] != idx[:-1]])
-    out[idx[starts]] = np.minimum.reduceat(values[order], starts)
-    return out
-
-
 def _drop_crumbs(bark: Mesh) -> Mesh:
     """Remove closed pieces that enclose (almost) nothing: flat or inside-out crumbs of the boolean.
 
@@ -164,16 +154,11 @@ def _classify(bark: Mesh, tubes: Tubes):
     local = src - tubes.face_offsets[part]
     body = 2 * sides * (tubes.rings[part] - 1)
     flat = local >= body
-    tri = tubes.points[tubes.face_points[src]]  # (f, 3, 3): the tube face each face is a piece of
-    face_scale = np.linalg.norm(tri - tri[:, [1, 2, 0]], axis=2).min(axis=1)
-    corner = bark.faces.reshape(-1)
-    nv = len(bark.vertices)
-    scale = _min_at(nv, corner, np.repeat(face_scale, 3))
-    # a vertex of the tubes sits on a corner of its face's tube face (the union moves vertices that share a
-    # float32 position apart by a few float32 steps, so "on" allows for that)
-    flags = np.zeros(nv, np.int64)
-    flags[corner[remesh.on_corners(bark.vertices, bark.faces, tri, 1e-4, 1e-5).reshape(-1)]] |= remesh.ORIGINAL
-    reference = face_normals(tubes.points, tubes.face_points[src])
+    # the shortest edge of the tube faces around each vertex, whether it is a tube vertex, each face's tube normal
+    scale, original, reference = remesh.tube_faces(
+        bark.vertices, bark.faces, tubes.points, tubes.wedge_point, tubes.faces, src, 1e-4, 1e-5
+    )
+    flags = np.where(original, remesh.ORIGINAL, 0).astype(np.int64)
     return part, flat, local, body, sides, scale, flags, reference
 
 
@@ -221,8 +206,8 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     for mask, bit in ((seam, remesh.SEAM), (rim, remesh.FEATURE)):
         he.flags[org[mask]] |= bit
         he.flags[dst[mask]] |= bit
-    # a budget of operations: the presets need under one per face; where flips cycle (seen on the flat
-    # abop-1.24a, cause not yet found) it bounds the time, and the result says so
+    # a budget of operations, a guard the presets never reach (under one per face; flips cannot cycle since
+    # the aspect is the same whatever the order of a triangle's corners): if reached, the result says so
     budget = 4 * nf
     rules = remesh.Rules(opt.short, opt.limit, opt.bad, opt.flip_tolerance, opt.long, opt.step, opt.fallback, budget)
     done = remesh.clean(he, rules, np.zeros(0, bool))
