@@ -516,7 +516,8 @@ def _repair_corners(mesh: Mesh) -> None:
 
     Seen on degenerate input (hypothesis: 15 zero-width tubes 1e-12 apart) where
     manifold3d interpolates properties over a zero-area triangle.  The union's
-    own fresh arrays are repaired in place.
+    own fresh arrays are repaired in place, and their -0.0 made 0.0, as the
+    files store them (the exporter can then use the normals without a copy).
     """
     normals = mesh.normals
     bad = ~np.isfinite(normals).all(axis=2) | (normals == 0).all(axis=2)
@@ -524,6 +525,7 @@ def _repair_corners(mesh: Mesh) -> None:
         fn = np.nan_to_num(face_normals(mesh.vertices, mesh.faces).astype(np.float32))
         fn[np.abs(fn).sum(axis=1) == 0] = (0.0, 1.0, 0.0)
         normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad]
+    normals += normals.dtype.type(0.0)  # -0.0 -> 0.0, in place
     mesh.uv[~np.isfinite(mesh.uv)] = 0.0
 
 

@@ -161,7 +161,7 @@ def _unit_normals(normals: np.ndarray, faces: np.ndarray, vertices: np.ndarray) 
 
     Rows of zero or non-finite length take the normal of their face.
     """
-    off = _off_unit(normals)
+    off = np.concatenate([_off_unit(normals[lo : lo + _SLICE]) for lo in range(0, len(normals), _SLICE)] or [[]])
     if not off.any():
         return normals
     rows = np.flatnonzero(off)
