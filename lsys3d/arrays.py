@@ -1,5 +1,5 @@
 """Array helpers shared by the stages: CSR offsets, index ranges, unit vectors, row grouping and hashing,
-connected components.
+connected components, and handing the memory of freed arrays back to the system.
 
 Every stage stores variable-length groups (the segments of a chain, the rings
 of a tube, the points of a polygon) as one flat array plus ``offsets``, like a
