@@ -1,5 +1,5 @@
 """Array helpers shared by the stages: CSR offsets, index ranges, unit vectors, row grouping and hashing,
-connected components.
+connected components, and handing the memory of freed arrays back to the system.
 
 Every stage stores variable-length groups (the segments of a chain, the rings
 of a tube, the points of a polygon) as one flat array plus ``offsets``, like a
@@ -16,6 +16,10 @@ cost a match, never make a wrong one.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
+import sys
+
 import numpy as np
 
 __all__ = [
@@ -27,6 +31,7 @@ __all__ = [
     "local_index",
     "offsets",
     "ranges",
+    "release_memory",
     "row_hash",
     "unit",
 ]
@@ -190,3 +195,23 @@ def components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
                 break
             parent = jumped
     return parent
+
+
+try:  # glibc's malloc_trim, where there is one (Linux)
+    _LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6") if sys.platform.startswith("linux") else None
+    _LIBC.malloc_trim.argtypes = [ctypes.c_size_t] if _LIBC is not None else None
+except (OSError, AttributeError):  # pragma: no cover - not glibc
+    _LIBC = None
+
+
+def release_memory() -> None:
+    """Hand the memory freed by the last stage back to the system (glibc keeps freed heap memory otherwise).
+
+    numpy's medium-sized arrays come from the C heap, and glibc returns freed
+    heap memory only from its top; after a stage of many temporaries the
+    process would keep hundreds of megabytes it no longer uses (the
+    262,143-segment plant: 1.5 GB resident after its union, 0.7 GB of them
+    the bark).  A no-op where the C library is not glibc.
+    """
+    if _LIBC is not None:
+        _LIBC.malloc_trim(0)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 
 from . import bark as bark_stage
 from . import dialects
+from .arrays import release_memory
 from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
 from .cleanup import CleanupOptions, cleanup
 from .derive import DEFAULT_MAX_MODULES, derive, interpretation
@@ -431,6 +432,7 @@ def _bark(
     else:
         bark = stage("union", concatenate, tubes)
     del tubes
+    release_memory()  # the soup (kept for the cleanup) and the cleanup's temporaries: before the export's arrays
     return stage("color", bark_stage.color, bark, options.color, base_color, seed)
 
 

@@ -48,10 +48,7 @@ properties, and the normals are renormalised on the way out.
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import logging
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -60,7 +57,7 @@ import manifold3d
 import numpy as np
 
 from . import booleans, repeats, union_jobs
-from .arrays import components, find_rows, gather, ranges
+from .arrays import components, find_rows, gather, ranges, release_memory, row_hash
 from .arrays import first_equal_row as _first_equal_row
 from .arrays import offsets as _offsets
 from .booleans import BooleanError, Part
@@ -75,11 +72,6 @@ __all__ = ["UnionOptions", "concatenate", "may_touch", "union"]
 log = logging.getLogger("lsys3d")
 
 _NUM_PROP = 8  # x y z, nx ny nz, u v
-try:  # glibc's malloc_trim, where there is one (Linux)
-    _LIBC = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6") if sys.platform.startswith("linux") else None
-    _LIBC.malloc_trim.argtypes = [ctypes.c_size_t] if _LIBC is not None else None
-except (OSError, AttributeError):  # pragma: no cover - not glibc
-    _LIBC = None
 _JOB_TRIANGLES = 60_000  # smallest job worth its own boolean (a few tenths of a second in manifold)
 
 
@@ -226,7 +218,17 @@ def union(
     LimitError
         More than ``options.max_pairs`` pairs of tube pieces may touch.
     """
-    opt = UnionOptions() if options is None else options
+    held = [tubes]  # _union holds the tubes alone: the soup goes as soon as it is culled (if the caller let go)
+    del tubes
+    try:
+        return _union(held, UnionOptions() if options is None else options, progress)
+    finally:
+        release_memory()  # the union's temporaries, freed as _union returned
+
+
+def _union(held: list, opt: UnionOptions, progress: Callable[[float], None] | None) -> Mesh:
+    """:func:`union` of ``held.pop()``."""
+    tubes = held.pop()
     where = f"union of {len(tubes)} tubes"
     if not len(tubes):
         raise GeometryError("union: no tubes to union (empty skeleton?)")
@@ -254,7 +256,7 @@ def union(
         return _sourced(mesh, np.arange(nf), where)
     t0 = time.perf_counter()
     tubes, pcs, a, b, origin = _prepare(tubes, opt, progress)
-    _release_memory()
+    release_memory()
     log.debug("union: %d pieces, %d touching pairs (%.2f s)", len(pcs), len(a), time.perf_counter() - t0)
     progress(0.10)
     busy = np.zeros(len(pcs), bool)
@@ -264,7 +266,9 @@ def union(
         held = [_local_union(tubes, pcs, busy, a, b, where, workers, progress)]
         if held[0] is not None:
             progress(0.90)
-            held.append(_true_sources(held.pop(), tubes))
+            mesh, from_boolean = held.pop()
+            held.append(_true_sources(mesh, tubes, from_boolean))
+            del mesh
             del tubes, pcs, a, b, busy  # the weld's memory: the stitched mesh is all that is needed now
             mesh = _weld_float32(held)
             progress(1.0)
@@ -308,7 +312,7 @@ def _misplaced(vertices: np.ndarray, faces: np.ndarray, source: np.ndarray, tube
     out = np.zeros(len(faces), bool)
     for lo in range(0, len(faces), 1 << 18):
         src = source[lo : lo + (1 << 18)]
-        tri = tubes.points[tubes.face_points[src]]
+        tri = tubes.points[tubes.wedge_point[tubes.faces[src]]]  # these faces' corners only, not all of face_points
         p = vertices[faces[lo : lo + (1 << 18)]].mean(axis=1)
         reach = radius[np.searchsorted(tubes.face_offsets, src, side="right") - 1]
         out[lo : lo + len(src)] = _triangle_distance(p, tri) > reach * (1 + 1e-6) + 1e-9
@@ -332,8 +336,12 @@ def _triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return np.where(inside, np.abs(height), edge)
 
 
-def _true_sources(mesh: Mesh, tubes: Tubes) -> Mesh:
+def _true_sources(mesh: Mesh, tubes: Tubes, checked: int | None = None) -> Mesh:
     """The mesh with every face's source a tube face it lies on or next to.
+
+    Only the first ``checked`` faces (all by default) are checked: the local
+    path puts the boolean's output first and the untouched tube pieces, whose
+    faces are their own sources, after it.
 
     manifold3d keeps each input triangle's face id on its pieces, but where
     coplanar tubes cross (the flat presets: ``tree`` 31 of 279,780 faces,
@@ -344,7 +352,8 @@ def _true_sources(mesh: Mesh, tubes: Tubes) -> Mesh:
     long triangle across several coplanar tubes) keeps its id, and is logged.
     """
     faces, source = mesh.faces, mesh.face_source
-    bad = np.flatnonzero(_misplaced(mesh.vertices, faces, source, tubes))
+    checked = len(faces) if checked is None else checked
+    bad = np.flatnonzero(_misplaced(mesh.vertices, faces[:checked], source[:checked], tubes))
     if not len(bad):
         return mesh
     source = source.copy()
@@ -438,17 +447,6 @@ class _Progress:
         self(0.15 + 0.60 * fraction)
 
 
-def _release_memory() -> None:
-    """Hand the memory freed by the last stage back to the system (glibc keeps freed heap memory otherwise).
-
-    numpy's medium-sized arrays come from the C heap, and glibc returns freed
-    heap memory only from its top; after a stage of many temporaries the
-    process would keep hundreds of megabytes it no longer uses.
-    """
-    if _LIBC is not None:
-        _LIBC.malloc_trim(0)
-
-
 def _job_target(total: float) -> float:
     """Triangles per job: about 16 jobs (for the workers and for progress), none too small to pay for itself.
 
@@ -518,7 +516,8 @@ def _repair_corners(mesh: Mesh) -> None:
 
     Seen on degenerate input (hypothesis: 15 zero-width tubes 1e-12 apart) where
     manifold3d interpolates properties over a zero-area triangle.  The union's
-    own fresh arrays are repaired in place.
+    own fresh arrays are repaired in place, and their -0.0 made 0.0, as the
+    files store them (the exporter can then use the normals without a copy).
     """
     normals = mesh.normals
     bad = ~np.isfinite(normals).all(axis=2) | (normals == 0).all(axis=2)
@@ -526,6 +525,7 @@ def _repair_corners(mesh: Mesh) -> None:
         fn = np.nan_to_num(face_normals(mesh.vertices, mesh.faces).astype(np.float32))
         fn[np.abs(fn).sum(axis=1) == 0] = (0.0, 1.0, 0.0)
         normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad]
+    normals += normals.dtype.type(0.0)  # -0.0 -> 0.0, in place
     mesh.uv[~np.isfinite(mesh.uv)] = 0.0
 
 
@@ -552,8 +552,8 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
     v32 = vertices.astype(np.float32) + np.float32(0.0)  # + 0.0: -0.0 and 0.0 are one position
     owner = _first_equal_row(v32.view(np.int32))
     first = owner == np.arange(len(v32))
-    if first.all():
-        return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source))
+    if first.all():  # no two vertices share a float32 position
+        return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
     renumber = np.cumsum(first) - 1  # the points numbered in their first appearance
     welded = renumber[owner][faces]
     a, b, c = welded.T
@@ -573,10 +573,31 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
         normals = normals[keep]
         uv = uv[keep]
         source = None if source is None else source[keep]
-    return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source))
+    return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
 
 
-def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
+def _owners(keys: np.ndarray, dirty: np.ndarray) -> np.ndarray:
+    """:func:`~lsys3d.arrays.first_equal_row` of ``keys`` when only the rows ``dirty`` (ascending) may equal another.
+
+    The other rows are known to be pairwise distinct, so only the dirty rows
+    and the rows equal to one of them (found by hash) are grouped: the same
+    answer as grouping all rows, for a fraction of the sort.
+    """
+    n = len(keys)
+    if len(dirty) == n:
+        return _first_equal_row(keys)
+    owner = np.arange(n)
+    if not len(dirty):
+        return owner
+    h = row_hash(keys)
+    maybe = np.isin(h, h[dirty])  # a hash shared with a dirty row (a collision only adds a candidate)
+    maybe[dirty] = True
+    rows = np.flatnonzero(maybe)
+    owner[rows] = rows[_first_equal_row(keys[rows])]
+    return owner
+
+
+def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False) -> Mesh:
     """Give distinct vertices distinct float32 positions, far enough apart that readers do not weld them.
 
     Where a weld would break the mesh (crossings of coplanar tubes), a vertex
@@ -587,6 +608,8 @@ def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
     position, so coincident vertices part too).  The moves are micrometres at
     most on a plant metres tall; the faces do not change.  When no separation
     is found in ``rounds`` passes the mesh is returned as it was.
+    ``float32_unique`` says that no two vertices share a float32 position yet
+    (the weld just told them apart), which saves grouping them by it once.
     """
     v = np.array(mesh.vertices, np.float64)  # a copy: the mesh keeps its vertices unless a separation is found
     v32 = v.astype(np.float32)
@@ -599,14 +622,19 @@ def _separate_float32(mesh: Mesh, rounds: int = 32) -> Mesh:
     def weld_grid_cell():  # trimesh's merge_vertices rounds to 8 decimals
         return np.round(v32.astype(np.float64) * 1e8).astype(np.int64)
 
+    # the vertices moved since each key last grouped them: only those can share a key with another vertex
+    # (the rest were told apart then), so later rounds group a few candidates instead of all vertices
+    dirty = [np.zeros(0, np.int64) if float32_unique else everything, everything]
     for _ in range(rounds):
         moved = False
-        for key in (float32_bits, weld_grid_cell):
-            owner = _first_equal_row(key())
+        for k, key in enumerate((float32_bits, weld_grid_cell)):
+            owner = _owners(key(), dirty[k])
             later = np.flatnonzero(owner != everything)
+            dirty[k] = np.zeros(0, np.int64)
             if not len(later):
                 continue
             moved = True
+            dirty = [np.union1d(d, later) for d in dirty]
             axis = np.argmax(np.abs(v[later]), axis=1)
             # a vertex keeps the side it first moved to, so it cannot swing between two neighbours
             fresh = direction[later] == 0
@@ -649,8 +677,9 @@ def _local_union(
     closed by a temporary cap on that ring.  No other tube comes near such a
     ring (the free piece's capsule touches nothing), so manifold leaves the cap
     as it was; it is removed from the result, and the free pieces of the tube
-    (kept out of the boolean) are welded onto the ring.  Returns None when the
-    result does not stitch exactly (the caller then unions whole tubes).
+    (kept out of the boolean) are welded onto the ring.  Returns the mesh and
+    how many of its faces (the first ones) came out of the boolean, or None
+    when the result does not stitch exactly (the caller then unions whole tubes).
     """
     nt = len(tubes)
     rings, sides = tubes.rings, tubes.sides
@@ -772,7 +801,7 @@ def _local_union(
     progress(0.80)
     props, otri, fid, point_of, npts = _join(roots, where)
     del roots
-    _release_memory()
+    release_memory()
     seam_pos = np.empty((npts, 3), np.float64)
     seam_pos[point_of] = props[:, :3]
     temp = fid >= nf
@@ -840,7 +869,7 @@ def _local_union(
     if not _closed(faces, len(vertices), near):
         log.debug("union: the stitched mesh is not closed at a seam; unioning whole tubes")
         return None
-    return Mesh(vertices, faces, normals, uv, face_source=source)
+    return Mesh(vertices, faces, normals, uv, face_source=source), nb
 
 
 def _part(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray) -> Part:

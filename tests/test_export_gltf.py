@@ -103,6 +103,23 @@ def test_bad_normals_are_repaired():
     np.testing.assert_allclose(np.linalg.norm(arrays.normals, axis=1), 1.0, atol=1e-6)
 
 
+def test_unit_normals_are_gathered_without_a_copy():
+    """Unit normals without -0.0 are used as they are; with a -0.0 (or not unit) a private copy is fixed."""
+    mesh = fx.make_tube(8, 2)
+    normals = mesh.normals + np.float32(0.0)
+    mesh = replace(mesh, normals=normals)
+    arrays = gather_mesh(mesh, np.eye(3), "tube")
+    assert np.shares_memory(arrays.normals, mesh.normals)
+    signed = normals.copy()
+    signed[0, 0] = (0.0, -0.0, 1.0)
+    signed[0, 0] /= np.linalg.norm(signed[0, 0])
+    arrays = gather_mesh(replace(mesh, normals=signed), np.eye(3), "tube")
+    assert not np.shares_memory(arrays.normals, signed)
+    assert (signed.view(np.uint32) == 0x80000000).any()  # the mesh's own normals are left as they were
+    assert not (arrays.normals.view(np.uint32) == 0x80000000).any()
+    np.testing.assert_array_equal(arrays.normals, normals.reshape(-1, 3))
+
+
 def test_unsigned_int_indices_only_when_needed(tmp_path):
     tree = fx.tree_from_bark(fx.make_tube(600, 120))  # 72 600 points: past UNSIGNED_SHORT
     doc, binary = read_glb(export(tree, tmp_path / "big.glb"))

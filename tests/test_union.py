@@ -375,6 +375,49 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
     assert weld([_face_touching_boxes(1e-3)]).vertices.tolist() == _face_touching_boxes(1e-3).vertices.tolist()
 
 
+def test_regrouping_only_moved_vertices_finds_the_same_owners():
+    """_owners with the rows that may collide listed gives first_equal_row's answer; so does the separation."""
+    from lsys3d.arrays import first_equal_row
+
+    mod = sys.modules["lsys3d.union"]
+    rng = np.random.default_rng(7)
+    keys = rng.integers(0, 12, (2000, 3))
+    full = first_equal_row(keys)
+    dirty = np.flatnonzero(full != np.arange(len(keys)))  # the later copies; their owners are distinct
+    assert len(dirty) > 100
+    assert np.array_equal(mod._owners(keys, dirty), full)
+    assert np.array_equal(mod._owners(keys, np.arange(len(keys))), full)
+    distinct = np.unique(keys, axis=0)
+    assert np.array_equal(mod._owners(distinct, np.zeros(0, np.int64)), np.arange(len(distinct)))
+
+    # crowded vertices: exact duplicates and 1e-9 neighbours near the origin, where float32 steps are < 1e-8
+    v = rng.random((3000, 3)) * 0.05
+    v[:200] = v[200:400]
+    v[400:600] = v[600:800] + rng.normal(0, 1e-9, (200, 3))
+    tri = np.array([[0, 1, 2]])
+    mesh = lsys3d.Mesh(v, tri, np.tile([0, 0, 1.0], (1, 3, 1)), np.zeros((1, 3, 2)))
+    out = mod._separate_float32(mesh)
+    assert not np.array_equal(out.vertices, v)
+    v32 = out.vertices.astype(np.float32)
+    assert len(np.unique(v32, axis=0)) == len(v)
+    assert len(np.unique(np.round(v32.astype(np.float64) * 1e8), axis=0)) == len(v)
+    # what the weld hands on (no float32 position twice) is told apart the same way, one grouping fewer
+    unique32 = v.astype(np.float32).astype(np.float64)
+    keep = np.unique(unique32, axis=0, return_index=True)[1]
+    welded = lsys3d.Mesh(unique32[np.sort(keep)], tri, mesh.normals, mesh.uv)
+    assert np.array_equal(
+        mod._separate_float32(welded, float32_unique=True).vertices, mod._separate_float32(welded).vertices
+    )
+
+
+def test_union_normals_have_no_negative_zero():
+    """The exporter uses the union's corner normals without a copy only when no -0.0 needs folding."""
+    sk = make_skeleton([[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [0.3, 1.8, 0]], 0.1, parent=[-1, 0])  # had -0.0 before
+    mesh = union(sweep(sk, SweepOptions(sides=8)))
+    assert mesh.is_watertight
+    assert not (mesh.normals.view(np.uint32) == 0x80000000).any()
+
+
 # ---------------------------------------------------------------- at scale: culling, refinement, repeats, workers
 
 

@@ -123,6 +123,7 @@ class MeshArrays:
 
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
+_SLICE = 1 << 20  # corners compared at once when splitting (bounds the temporaries)
 
 
 def to_float32(values, what: str, where: str) -> np.ndarray:
@@ -137,18 +138,35 @@ def to_float32(values, what: str, where: str) -> np.ndarray:
     return values.astype(np.float32)
 
 
+def _off_unit(normals: np.ndarray) -> np.ndarray:
+    """``(n,) bool``: the rows of ``normals`` (float32) whose length is not 1 within float32 rounding, or NaN."""
+    x, y, z = normals[:, 0], normals[:, 1], normals[:, 2]
+    length2 = x * x + y * y + z * z
+    return ~(np.abs(length2 - 1) < 4e-7)  # also catches NaN
+
+
+def _needs_unit(normals: np.ndarray) -> bool:
+    """Whether :func:`_unit_normals` would change a row, a slice at a time (no full-size temporaries)."""
+    return any(_off_unit(normals[lo : lo + _SLICE]).any() for lo in range(0, len(normals), _SLICE))
+
+
+def _has_negative_zero(values: np.ndarray) -> bool:
+    """Whether ``values`` (float32) hold a -0.0, a slice at a time."""
+    bits = values.reshape(len(values), -1).view(np.uint32)
+    return any((bits[lo : lo + _SLICE] == 0x80000000).any() for lo in range(0, len(bits), _SLICE))
+
+
 def _unit_normals(normals: np.ndarray, faces: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     """Rows of ``normals`` (float32, ``(f * 3, 3)``) scaled to unit length, in place when possible.
 
     Rows of zero or non-finite length take the normal of their face.
     """
-    x, y, z = normals[:, 0], normals[:, 1], normals[:, 2]
-    length2 = x * x + y * y + z * z
-    off = ~(np.abs(length2 - 1) < 4e-7)  # also catches NaN
+    off = np.concatenate([_off_unit(normals[lo : lo + _SLICE]) for lo in range(0, len(normals), _SLICE)] or [[]])
     if not off.any():
         return normals
     rows = np.flatnonzero(off)
-    length = np.sqrt(length2[rows].astype(np.float64))
+    x, y, z = normals[rows].T
+    length = np.sqrt((x * x + y * y + z * z).astype(np.float64))  # float32 squares, as _off_unit found them
     fixed = normals[rows].astype(np.float64)
     bad = ~(np.isfinite(length) & (length > 1e-20))
     if bad.any():
@@ -179,9 +197,14 @@ def _first_use_order(corner_v: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarr
     old_of_new = np.flatnonzero(used)
     if not (np.diff(first[old_of_new]) > 0).all():
         old_of_new = old_of_new[np.argsort(first[old_of_new], kind="stable")]
-    new_of_old = np.full(n, -1, np.int64)
+    new_of_old = np.full(n, -1, _index_type(n))  # int32 where it fits: the corners renumbered are f * 3 of them
     new_of_old[old_of_new] = np.arange(old_of_new.size)
     return old_of_new, new_of_old
+
+
+def _index_type(n: int) -> type:
+    """The smaller integer type that can number ``n`` things (and -1)."""
+    return np.int32 if n < 2**31 else np.int64
 
 
 def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
@@ -204,8 +227,8 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
         raise ExportError(f"{where}: the mesh has non-finite vertices")
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise ExportError(f"{where}: a face points past the {len(vertices)} vertices")
-    # a private float32 copy: it is normalised and rotated in place
-    normals = np.array(mesh.normals, dtype=np.float32).reshape(-1, 3)
+    # float32 corner normals, copied only when they are rotated, normalised or have a -0.0 to fold
+    normals = np.asarray(mesh.normals, dtype=np.float32).reshape(-1, 3)
     uv = np.ascontiguousarray(mesh.uv, dtype=np.float32).reshape(-1, 2)
     if not np.isfinite(uv).all():
         raise ExportError(f"{where}: the uv hold a NaN or infinite value")
@@ -231,9 +254,13 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
     if not identity:
         rotation = (frame / np.cbrt(np.linalg.det(frame))).astype(np.float32)
         normals = normals @ rotation.T
-    normals = _unit_normals(normals, corner_v.reshape(-1, 3), points)
+    shared = np.may_share_memory(normals, mesh.normals)
+    if shared and (_needs_unit(normals) or _has_negative_zero(normals)):
+        normals, shared = normals.copy(), False  # a private copy, fixed in place below; the mesh's stay as they are
+    normals = _unit_normals(normals, corner_v.reshape(-1, 3), points)  # unchanged when shared: all unit already
     normals = np.ascontiguousarray(normals, dtype=np.float32)  # _split views the rows as bytes
-    normals += np.float32(0.0)  # -0.0 -> 0.0, so corners that compare equal are equal bit for bit
+    if not shared:
+        normals += np.float32(0.0)  # -0.0 -> 0.0, so corners that compare equal are equal bit for bit
 
     if not identity:  # positions among the attributes go into the file's frame like the vertices
         attributes = {
@@ -245,7 +272,7 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
     split_attributes = {k: a if vertex_of_split is None else a[vertex_of_split] for k, a in attributes.items()}
     return MeshArrays(
         points=points,
-        faces=corner_v.astype(np.int32).reshape(-1, 3),
+        faces=corner_v.astype(np.int32, copy=False).reshape(-1, 3),
         normals=normals,
         uv=uv,
         split_points=split_points,
@@ -268,18 +295,22 @@ def _split(points, corner_v, normals, uv, colors=None):
     """
     n = len(points)
     m = corner_v.size
-    rep = np.empty(n, np.int64)
-    rep[corner_v] = np.arange(m)  # any corner of each point will do
-    r = rep[corner_v]
-    # compare bit patterns, a few columns at a time (normals were normalised, -0.0 folded)
+    rep = np.empty(n, _index_type(m))
+    rep[corner_v] = np.arange(m, dtype=rep.dtype)  # any corner of each point will do
+    # compare bit patterns, a few columns and a slice of corners at a time (normals were normalised, -0.0 folded)
     raw = normals.view(np.uint8).reshape(-1)
     xy = np.ndarray((m,), np.dtype(np.uint64), raw, 0, (12,))
     z = normals.view(np.uint32)[:, 2]
-    same = xy == xy[r]
-    same &= z == z[r]
-    if uv is not None:
-        uv64 = uv.view(np.uint64).reshape(-1)
-        same &= uv64 == uv64[r]
+    uv64 = None if uv is None else uv.view(np.uint64).reshape(-1)
+    same = np.empty(m, bool)
+    for lo in range(0, m, _SLICE):
+        hi = min(lo + _SLICE, m)
+        r = rep[corner_v[lo:hi]]
+        same[lo:hi] = xy[lo:hi] == xy[r]
+        same[lo:hi] &= z[lo:hi] == z[r]
+        if uv64 is not None:
+            same[lo:hi] &= uv64[lo:hi] == uv64[r]
+    del r
     split_index = corner_v.astype(np.uint32)
     extra = np.flatnonzero(~same)
     corners = rep
