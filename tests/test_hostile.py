@@ -706,6 +706,15 @@ def test_full_disk_through_the_cli_keeps_the_old_files(tmp_path, monkeypatch, ca
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+def deliverable_signals() -> None:
+    """In a child before it runs Python: SIGINT and SIGHUP back to their defaults.
+
+    A shell's background job starts with SIGINT ignored (and ``nohup`` ignores SIGHUP); lsys3d keeps an ignored
+    signal ignored, as it should, so a test of what it does when the signal arrives must not inherit that."""
+    for signum in (signal.SIGINT, signal.SIGHUP):
+        signal.signal(signum, signal.SIG_DFL)
+
+
 def test_a_real_sigint_exits_130_and_keeps_the_old_file(tmp_path):
     target = tmp_path / "tree.glb"
     target.write_bytes(b"good old asset")
@@ -714,6 +723,7 @@ def test_a_real_sigint_exits_130_and_keeps_the_old_file(tmp_path):
         stderr=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,
+        preexec_fn=deliverable_signals,
     )
     seen = []
     for line in proc.stderr:  # -v logs each stage once it is done; interrupt the sweep or the union
@@ -1168,6 +1178,7 @@ def every_format(kind: str, value, folder: Path, suffixes=OUTPUTS) -> dict[str, 
         text=True,
         timeout=300,
         env=env,
+        preexec_fn=deliverable_signals,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     for suffix, (code, err) in json.loads(proc.stdout.splitlines()[-1]).items():
@@ -1238,6 +1249,7 @@ def test_a_real_sigterm_exits_143_and_keeps_the_old_file(tmp_path):
         stdout=subprocess.PIPE,
         text=True,
         env={**os.environ, "TMPDIR": str(scratch)},
+        preexec_fn=deliverable_signals,
     )
     seen = []
     for line in proc.stderr:  # -v logs each stage once it is done; terminate the sweep or the union
