@@ -51,6 +51,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .errors import LimitError, OptionsError
+from .hierarchy import Hierarchy
 from .leaves import LeafOptions, Leaves
 from .mesh import Mesh
 from .options import Options, option
@@ -64,6 +65,8 @@ __all__ = [
     "LodOptions",
     "cards",
     "fit_budget",
+    "kept_segments",
+    "level_hierarchy",
     "level_options",
     "lod_leaves",
     "prune",
@@ -172,15 +175,11 @@ def level_options(options, level: int):
     return options.replace(sweep=sweep, leaves=leaves)
 
 
-def prune(skeleton: Skeleton, fraction: float) -> Skeleton:
-    """The skeleton without the chains whose base is thinner than ``fraction`` of its widest width.
-
-    Everything that grows from a removed chain goes too; leaves and polygons
-    stay as they are.  Segments keep their order; ``parent`` is renumbered.
-    """
+def kept_segments(skeleton: Skeleton, fraction: float) -> np.ndarray:
+    """The segments :func:`prune` keeps, ascending, ``(m,) int64``."""
     n = len(skeleton)
     if fraction <= 0 or n == 0:
-        return skeleton
+        return np.arange(n)
     chains = skeleton.chains
     heads = chains.segments[chains.offsets[:-1]]
     widest = float(max(skeleton.width_start.max(), skeleton.width_end.max()))
@@ -193,15 +192,35 @@ def prune(skeleton: Skeleton, fraction: float) -> Skeleton:
         if np.array_equal(new, keep_chain):
             break
         keep_chain = new
-    keep = keep_chain[chains.chain_of]
-    if keep.all():
+    return np.flatnonzero(keep_chain[chains.chain_of])
+
+
+def prune(skeleton: Skeleton, fraction: float) -> Skeleton:
+    """The skeleton without the chains whose base is thinner than ``fraction`` of its widest width.
+
+    Everything that grows from a removed chain goes too; leaves and polygons
+    stay as they are.  Segments keep their order; ``parent`` is renumbered.
+    """
+    n = len(skeleton)
+    kept = kept_segments(skeleton, fraction)
+    if len(kept) == n:
         return skeleton
     index = np.full(n, -1, np.int64)
-    index[keep] = np.arange(int(keep.sum()))
-    old_parent = skeleton.parent[keep]
+    index[kept] = np.arange(len(kept))
+    old_parent = skeleton.parent[kept]
     new_parent = np.where(old_parent >= 0, index[np.maximum(old_parent, 0)], -1)
-    fields = {name: getattr(skeleton, name)[keep] for name in _SEGMENT_FIELDS}
+    fields = {name: getattr(skeleton, name)[kept] for name in _SEGMENT_FIELDS}
     return replace(skeleton, parent=new_parent, **fields)
+
+
+def level_hierarchy(h: Hierarchy, kept: np.ndarray) -> Hierarchy:
+    """The tree's hierarchy ``h`` seen from a pruned skeleton whose segments are the tree's ``kept`` ones.
+
+    The branches stay the tree's own (same ids, pivots, phases), so every
+    level's attributes index the one branch table and its skin binds to the
+    one rig; only the per-segment rows follow the pruned skeleton.
+    """
+    return replace(h, branch_of=h.branch_of[kept], t_start=h.t_start[kept], t_end=h.t_end[kept])
 
 
 _SEGMENT_FIELDS = ("start", "end", "width_start", "width_end", "heading", "left", "up", "order", "material", "module")
@@ -234,6 +253,8 @@ def thin_leaves(skeleton: Skeleton, keep: float) -> Skeleton:
         "leaf_size": skeleton.leaf_size[li] * grow,
         "leaf_material": skeleton.leaf_material[li],
     }
+    if skeleton.leaf_segment is not None and len(skeleton.leaf_segment) == len(skeleton.leaf_position):
+        leaf["leaf_segment"] = skeleton.leaf_segment[li]
     offsets = np.asarray(skeleton.polygon_offsets, np.int64)
     pi = _spread(len(offsets) - 1, keep)
     counts = offsets[pi + 1] - offsets[pi]
@@ -250,6 +271,8 @@ def thin_leaves(skeleton: Skeleton, keep: float) -> Skeleton:
         "polygon_offsets": np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
         "polygon_material": skeleton.polygon_material[pi],
     }
+    if skeleton.polygon_segment is not None and len(skeleton.polygon_segment) == len(offsets) - 1:
+        polygons["polygon_segment"] = skeleton.polygon_segment[pi]
     return replace(skeleton, **leaf, **polygons)
 
 
@@ -268,7 +291,10 @@ def cards(leaves: Mesh | None, trunk_axis_point: np.ndarray, count: int = CARDS)
     Returns
     -------
     Mesh or None
-        Two triangles per card, ``uv`` the unit square, flat normals.
+        Two triangles per card, ``uv`` the unit square, flat normals.  When
+        the leaves carry attributes (:mod:`lsys3d.attributes`, the rig's
+        skin), a card's four vertices carry those of its cell's largest leaf
+        triangle's first corner: the branch it sways with.
     """
     if leaves is None or not len(leaves.faces):
         return None
@@ -316,21 +342,39 @@ def cards(leaves: Mesh | None, trunk_axis_point: np.ndarray, count: int = CARDS)
     quad = np.array([[0, 1, 2], [0, 2, 3]])
     faces = (np.arange(k)[:, None, None] * 4 + quad[None]).reshape(-1, 3)
     uv = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])[quad]
-    return Mesh.flat(corners.reshape(-1, 3), faces, np.broadcast_to(uv, (k, 2, 3, 2)).reshape(-1, 3, 2))
+    card = Mesh.flat(corners.reshape(-1, 3), faces, np.broadcast_to(uv, (k, 2, 3, 2)).reshape(-1, 3, 2))
+    if not leaves.attributes:
+        return card
+    # each cell's largest triangle (ties: the first); its first corner speaks for the card
+    by_area = np.lexsort((-np.arange(len(area)), area, cell))
+    last = np.flatnonzero(np.append(cell[by_area][1:] != cell[by_area][:-1], True))
+    corner = leaves.faces[by_area[last], 0]
+    owner = np.repeat(np.arange(k), 4)  # card c's corners are vertices 4c .. 4c + 3
+    return card.with_attributes({key: np.asarray(a)[corner][owner] for key, a in leaves.attributes.items()})
 
 
-def lod_leaves(skeleton: Skeleton, level: int, options: LeafOptions, model: Mesh | None = None) -> Leaves:
+def lod_leaves(
+    skeleton: Skeleton,
+    level: int,
+    options: LeafOptions,
+    model: Mesh | None = None,
+    hierarchy: Hierarchy | None = None,
+    attributes=(),
+) -> Leaves:
     """The leaves of one level: thinned (levels 1, 2) or as cards (level 3), from the full skeleton's leaves.
 
     ``model`` is the leaf model (None: the built-in leaf of ``options``; a
-    grammar's ``[surfaces] leaf`` keeps its shape at every level).
+    grammar's ``[surfaces] leaf`` keeps its shape at every level).  With the
+    skeleton's ``hierarchy``, the leaves carry the ``attributes`` of the
+    branches they grow from, as at level 0.
     """
     from .leaves import leaves as build_leaves
 
     spec = LEVELS[level]
+    kw = {"hierarchy": hierarchy, "attributes": tuple(attributes)} if hierarchy is not None and attributes else {}
     if not spec.cards:
-        return build_leaves(thin_leaves(skeleton, spec.leaf_keep), model=model, options=options)
-    full = build_leaves(skeleton, model=model, options=options)
+        return build_leaves(thin_leaves(skeleton, spec.leaf_keep), model=model, options=options, **kw)
+    full = build_leaves(skeleton, model=model, options=options, **kw)
     axis = skeleton.start[0] if len(skeleton) else np.zeros(3)
     merged = cards(full.merged if full.merged is not None else full.polygons, axis)
     return Leaves(merged=merged, polygons=merged)
