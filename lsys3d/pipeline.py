@@ -483,7 +483,14 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod,
             bark, leaves = bind(bark, leaves, look.rig, branches)
             if keys != look.wanted:  # the rig's own use of them: not the user's attributes
                 bark, leaves = _keep_in(bark, leaves, look.wanted + SKIN_KEYS)
-        settings = {"sides": opts.sweep.sides, "prune": spec.prune, "merge_angle": opts.sweep.merge_angle}
+        sw = opts.sweep
+        settings = {
+            "sides": sw.sides,
+            "sides_step": sw.sides_step,
+            "min_sides": sw.min_sides,
+            "prune": spec.prune,
+            "merge_angle": sw.merge_angle,
+        }
         return Lod(level, bark, leaves, settings)
 
     budget = options.lod.target_triangles
