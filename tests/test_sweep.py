@@ -343,8 +343,11 @@ def test_v_runs_on_from_parent_into_child():
     assert junction_v > 0
 
 
-def test_uv_at_gives_each_vertex_its_own_uv():
-    tubes = sweep(y_junction(), SweepOptions(sides=7))
+@pytest.mark.parametrize(
+    "skeleton", [y_junction(), polyline([[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 2, 0]])], ids=["fork", "elbows"]
+)
+def test_uv_at_gives_each_vertex_its_own_uv(skeleton):
+    tubes = sweep(skeleton, SweepOptions(sides=7))
     from lsys3d.sweep import wrap_u
 
     m = tubes.mesh()
