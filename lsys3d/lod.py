@@ -7,7 +7,7 @@ switches), each by the same stages as the tree itself (sweep, union,
 cleanup, leaves) with lighter settings:
 
 =====  ==============  ================  ===========  ==================  ========================
-level  tube sides      branches kept     ring merge   leaves              leaf shape
+level  trunk sides     branches kept     ring merge   leaves              leaf shape
 =====  ==============  ================  ===========  ==================  ========================
 0      as given        all               as given     all                 as given
 1      5/8 (at least   wider than 6% of  5 degrees    half, each 1.41x    2 rows (8 triangles)
@@ -17,6 +17,13 @@ level  tube sides      branches kept     ring merge   leaves              leaf s
 3      3 (at least 3)  wider than 30%    20 degrees   cards: one quad     2 triangles
                                                       per cluster
 =====  ==============  ================  ===========  ==================  ========================
+
+* **Sides by branch order**: from level 1 on, each branch order has one side
+  fewer than its parent's (``SweepOptions.sides_step`` at least 1), down to
+  the level's fewest (4, 3, 3): a branch far from the trunk is thin on
+  screen.  tree3d's level 1 has a 5-sided trunk and 4-sided branches (bark
+  15,210 -> 12,304 triangles against 5 sides all through), which takes a
+  fifth off its union and cleanup.
 
 * **Branches kept**: a chain whose base is thinner than the given fraction of
   the skeleton's widest width goes, with everything that grows from it.  Its
@@ -51,6 +58,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .errors import LimitError, OptionsError
+from .hierarchy import Hierarchy
 from .leaves import LeafOptions, Leaves
 from .mesh import Mesh
 from .options import Options, option
@@ -64,6 +72,8 @@ __all__ = [
     "LodOptions",
     "cards",
     "fit_budget",
+    "kept_segments",
+    "level_hierarchy",
     "level_options",
     "lod_leaves",
     "prune",
@@ -155,14 +165,15 @@ class Lod:
 
 
 def level_options(options, level: int):
-    """The :class:`~lsys3d.pipeline.GenerateOptions` of a level: sides, ring merging and leaf shape lightened."""
+    """The :class:`~lsys3d.pipeline.GenerateOptions` of a level: sides (by order), ring merging and leaves lightened."""
     spec = LEVELS[level]
     sweep = options.sweep
     if level > 0:
         sides = max(spec.min_sides, min(sweep.sides, round(sweep.sides * spec.sides)))
         sweep = sweep.replace(
             sides=sides,
-            min_sides=min(sweep.min_sides, sides),
+            sides_step=max(sweep.sides_step, 1),
+            min_sides=min(max(sweep.min_sides, spec.min_sides), sides),
             merge_angle=max(sweep.merge_angle, spec.merge_angle),
             merge_width=max(sweep.merge_width, spec.merge_width),
         )
@@ -172,15 +183,11 @@ def level_options(options, level: int):
     return options.replace(sweep=sweep, leaves=leaves)
 
 
-def prune(skeleton: Skeleton, fraction: float) -> Skeleton:
-    """The skeleton without the chains whose base is thinner than ``fraction`` of its widest width.
-
-    Everything that grows from a removed chain goes too; leaves and polygons
-    stay as they are.  Segments keep their order; ``parent`` is renumbered.
-    """
+def kept_segments(skeleton: Skeleton, fraction: float) -> np.ndarray:
+    """The segments :func:`prune` keeps, ascending, ``(m,) int64``."""
     n = len(skeleton)
     if fraction <= 0 or n == 0:
-        return skeleton
+        return np.arange(n)
     chains = skeleton.chains
     heads = chains.segments[chains.offsets[:-1]]
     widest = float(max(skeleton.width_start.max(), skeleton.width_end.max()))
@@ -193,15 +200,35 @@ def prune(skeleton: Skeleton, fraction: float) -> Skeleton:
         if np.array_equal(new, keep_chain):
             break
         keep_chain = new
-    keep = keep_chain[chains.chain_of]
-    if keep.all():
+    return np.flatnonzero(keep_chain[chains.chain_of])
+
+
+def prune(skeleton: Skeleton, fraction: float) -> Skeleton:
+    """The skeleton without the chains whose base is thinner than ``fraction`` of its widest width.
+
+    Everything that grows from a removed chain goes too; leaves and polygons
+    stay as they are.  Segments keep their order; ``parent`` is renumbered.
+    """
+    n = len(skeleton)
+    kept = kept_segments(skeleton, fraction)
+    if len(kept) == n:
         return skeleton
     index = np.full(n, -1, np.int64)
-    index[keep] = np.arange(int(keep.sum()))
-    old_parent = skeleton.parent[keep]
+    index[kept] = np.arange(len(kept))
+    old_parent = skeleton.parent[kept]
     new_parent = np.where(old_parent >= 0, index[np.maximum(old_parent, 0)], -1)
-    fields = {name: getattr(skeleton, name)[keep] for name in _SEGMENT_FIELDS}
+    fields = {name: getattr(skeleton, name)[kept] for name in _SEGMENT_FIELDS}
     return replace(skeleton, parent=new_parent, **fields)
+
+
+def level_hierarchy(h: Hierarchy, kept: np.ndarray) -> Hierarchy:
+    """The tree's hierarchy ``h`` seen from a pruned skeleton whose segments are the tree's ``kept`` ones.
+
+    The branches stay the tree's own (same ids, pivots, phases), so every
+    level's attributes index the one branch table and its skin binds to the
+    one rig; only the per-segment rows follow the pruned skeleton.
+    """
+    return replace(h, branch_of=h.branch_of[kept], t_start=h.t_start[kept], t_end=h.t_end[kept])
 
 
 _SEGMENT_FIELDS = ("start", "end", "width_start", "width_end", "heading", "left", "up", "order", "material", "module")
@@ -234,6 +261,8 @@ def thin_leaves(skeleton: Skeleton, keep: float) -> Skeleton:
         "leaf_size": skeleton.leaf_size[li] * grow,
         "leaf_material": skeleton.leaf_material[li],
     }
+    if skeleton.leaf_segment is not None and len(skeleton.leaf_segment) == len(skeleton.leaf_position):
+        leaf["leaf_segment"] = skeleton.leaf_segment[li]
     offsets = np.asarray(skeleton.polygon_offsets, np.int64)
     pi = _spread(len(offsets) - 1, keep)
     counts = offsets[pi + 1] - offsets[pi]
@@ -250,6 +279,8 @@ def thin_leaves(skeleton: Skeleton, keep: float) -> Skeleton:
         "polygon_offsets": np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
         "polygon_material": skeleton.polygon_material[pi],
     }
+    if skeleton.polygon_segment is not None and len(skeleton.polygon_segment) == len(offsets) - 1:
+        polygons["polygon_segment"] = skeleton.polygon_segment[pi]
     return replace(skeleton, **leaf, **polygons)
 
 
@@ -268,7 +299,10 @@ def cards(leaves: Mesh | None, trunk_axis_point: np.ndarray, count: int = CARDS)
     Returns
     -------
     Mesh or None
-        Two triangles per card, ``uv`` the unit square, flat normals.
+        Two triangles per card, ``uv`` the unit square, flat normals.  When
+        the leaves carry attributes (:mod:`lsys3d.attributes`, the rig's
+        skin), a card's four vertices carry those of its cell's largest leaf
+        triangle's first corner: the branch it sways with.
     """
     if leaves is None or not len(leaves.faces):
         return None
@@ -278,20 +312,22 @@ def cards(leaves: Mesh | None, trunk_axis_point: np.ndarray, count: int = CARDS)
     lo, hi = centre.min(axis=0), centre.max(axis=0)
     extent = max(float((hi - lo).max()), 1e-9)
 
-    def cells_of(size):
-        ijk = np.floor((centre - lo) / size).astype(np.int64)
-        span = ijk.max(axis=0) + 1
+    def cells_of(points, size):
+        ijk = np.floor((points - lo) / size).astype(np.int64)
+        span = np.floor((hi - lo) / size).astype(np.int64) + 1
         return (ijk[:, 0] * span[1] + ijk[:, 1]) * span[2] + ijk[:, 2]
 
-    # the cell size that gives about ``count`` occupied cells: a geometric bisection
+    # the cell size that gives about ``count`` occupied cells: a geometric bisection, counted on a couple of
+    # thousand evenly strided triangles (about one per leaf: a leaf's triangles are neighbours in the mesh)
+    sample = centre[:: max(1, len(centre) // 2048)]
     small, large = extent / 1000.0, 2.0 * extent
     for _ in range(16):
         size = math.sqrt(small * large)
-        if len(np.unique(cells_of(size))) > count:
+        if len(np.unique(cells_of(sample, size))) > count:
             small = size
         else:
             large = size
-    _, cell = np.unique(cells_of(large), return_inverse=True)
+    _, cell = np.unique(cells_of(centre, large), return_inverse=True)
     cell = cell.reshape(-1)
     k = int(cell.max()) + 1
     weight = np.bincount(cell, weights=area, minlength=k)
@@ -316,21 +352,39 @@ def cards(leaves: Mesh | None, trunk_axis_point: np.ndarray, count: int = CARDS)
     quad = np.array([[0, 1, 2], [0, 2, 3]])
     faces = (np.arange(k)[:, None, None] * 4 + quad[None]).reshape(-1, 3)
     uv = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])[quad]
-    return Mesh.flat(corners.reshape(-1, 3), faces, np.broadcast_to(uv, (k, 2, 3, 2)).reshape(-1, 3, 2))
+    card = Mesh.flat(corners.reshape(-1, 3), faces, np.broadcast_to(uv, (k, 2, 3, 2)).reshape(-1, 3, 2))
+    if not leaves.attributes:
+        return card
+    # each cell's largest triangle (ties: the first); its first corner speaks for the card
+    by_area = np.lexsort((-np.arange(len(area)), area, cell))
+    last = np.flatnonzero(np.append(cell[by_area][1:] != cell[by_area][:-1], True))
+    corner = leaves.faces[by_area[last], 0]
+    owner = np.repeat(np.arange(k), 4)  # card c's corners are vertices 4c .. 4c + 3
+    return card.with_attributes({key: np.asarray(a)[corner][owner] for key, a in leaves.attributes.items()})
 
 
-def lod_leaves(skeleton: Skeleton, level: int, options: LeafOptions, model: Mesh | None = None) -> Leaves:
+def lod_leaves(
+    skeleton: Skeleton,
+    level: int,
+    options: LeafOptions,
+    model: Mesh | None = None,
+    hierarchy: Hierarchy | None = None,
+    attributes=(),
+) -> Leaves:
     """The leaves of one level: thinned (levels 1, 2) or as cards (level 3), from the full skeleton's leaves.
 
     ``model`` is the leaf model (None: the built-in leaf of ``options``; a
-    grammar's ``[surfaces] leaf`` keeps its shape at every level).
+    grammar's ``[surfaces] leaf`` keeps its shape at every level).  With the
+    skeleton's ``hierarchy``, the leaves carry the ``attributes`` of the
+    branches they grow from, as at level 0.
     """
     from .leaves import leaves as build_leaves
 
     spec = LEVELS[level]
+    kw = {"hierarchy": hierarchy, "attributes": tuple(attributes)} if hierarchy is not None and attributes else {}
     if not spec.cards:
-        return build_leaves(thin_leaves(skeleton, spec.leaf_keep), model=model, options=options)
-    full = build_leaves(skeleton, model=model, options=options)
+        return build_leaves(thin_leaves(skeleton, spec.leaf_keep), model=model, options=options, **kw)
+    full = build_leaves(skeleton, model=model, options=options, **kw)
     axis = skeleton.start[0] if len(skeleton) else np.zeros(3)
     merged = cards(full.merged if full.merged is not None else full.polygons, axis)
     return Leaves(merged=merged, polygons=merged)

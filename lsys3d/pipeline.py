@@ -27,7 +27,7 @@ from .grammar import Grammar
 from .hierarchy import hierarchy
 from .leaves import LeafOptions
 from .leaves import leaves as build_leaves
-from .lod import LEVELS, Lod, LodOptions, fit_budget, level_options, lod_leaves, prune
+from .lod import LEVELS, Lod, LodOptions, fit_budget, kept_segments, level_hierarchy, level_options, lod_leaves, prune
 from .materials import material_table, with_face_materials
 from .mesh import Mesh
 from .modules import ModuleString
@@ -149,11 +149,6 @@ class GenerateOptions(Options):
         if not isinstance(self.turtle, TurtleOverrides):
             object.__setattr__(self, "turtle", TurtleOverrides(self.turtle))
         super().__post_init__()
-        if (self.lod.levels or self.lod.target_triangles) and (self.rig.enabled or self.attributes.enabled):
-            raise OptionsError(
-                "LodOptions (--lod, --target-triangles): the levels of detail carry no attributes or rig yet; "
-                "drop --attributes / --rig, or build the levels without them"
-            )
         if self.wind.enabled and not self.rig.enabled:
             raise OptionsError(
                 "WindOptions.seconds (--wind-animation): the wind animation moves the rig's joints: "
@@ -389,7 +384,8 @@ def generate(
             animation = stage("wind", sway, rig, branches, options.wind)
     lods = ()
     if options.lod.levels or options.lod.target_triangles:
-        lods = stage("lod", _levels, skeleton, options, seed, Lod(0, bark, leaves), table, leaf_model)
+        look = _Look(table, leaf_model, branches, keys, wanted, rig)
+        lods = stage("lod", _levels, skeleton, options, seed, Lod(0, bark, leaves), look)
         if options.lod.target_triangles:  # the tree is the level that fits; it has no others
             bark, leaves, lods = lods[0].bark, lods[0].leaves, ()
     return Tree(
@@ -441,29 +437,62 @@ def _union_of_held(held: list, options: UnionOptions, progress: Callable[[float]
     return union(held.pop(), options, progress=progress)
 
 
-def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod, table, leaf_model) -> tuple[Lod, ...]:
+@dataclass(frozen=True)
+class _Look:
+    """What every level of detail shares with the tree: materials, leaf model, branches, attributes, rig."""
+
+    table: object
+    leaf_model: Mesh | None
+    branches: object  # Hierarchy or None
+    keys: tuple  # the attributes the stages compute (the user's, and the rig's own)
+    wanted: tuple  # the attributes the user asked for
+    rig: object  # Rig or None
+
+
+def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod, look: _Look) -> tuple[Lod, ...]:
     """The levels of detail asked for (:mod:`lsys3d.lod`), from one skeleton; ``first`` is level 0, built already.
 
-    With a triangle budget, the one level that fits: the most detailed one
-    whose bark and leaves stay within it (levels are built until one does).
+    Every level carries what level 0 does: face materials, the hierarchy and
+    wind attributes and the rig's skin, all indexing the tree's own branches
+    and joints (a pruned level is the tree's skeleton without some chains, not
+    a new plant), so one branch table and one rig serve every level.  With a
+    triangle budget, the one level that fits: the most detailed one whose bark
+    and leaves stay within it (levels are built until one does).
     """
 
     def quiet(name, fn, *args, **kw):
         return fn(*args, **kw)
+
+    table, keys, branches = look.table, look.keys, look.branches
 
     def build(level: int) -> Lod:
         if level == 0:
             return first
         spec = LEVELS[level]
         opts = level_options(options, level)
+        kept = kept_segments(skeleton, spec.prune)
         pruned = prune(skeleton, spec.prune)
         tubes = sweep(pruned, opts.sweep, max_triangles=options.limits.max_triangles, seed=seed)
         bark = _bark([tubes], opts, seed, quiet, table.bark.base_color)
+        seen = level_hierarchy(branches, kept) if branches is not None else None
+        bulge = opts.sweep.bark_displacement + opts.cleanup.bulge(min(opts.sweep.sides, opts.sweep.min_sides))
         if table and len(tubes):
-            bulge = opts.sweep.bark_displacement + opts.cleanup.bulge(min(opts.sweep.sides, opts.sweep.min_sides))
-            bark = with_face_materials(bark, pruned, hierarchy(pruned, seed), bulge)
-        leaves = lod_leaves(skeleton, level, opts.leaves, leaf_model)
-        settings = {"sides": opts.sweep.sides, "prune": spec.prune, "merge_angle": opts.sweep.merge_angle}
+            bark = with_face_materials(bark, pruned, seen, bulge)
+        if keys:
+            bark = with_attributes(bark, pruned, seen, keys, bulge)
+        leaves = lod_leaves(skeleton, level, opts.leaves, look.leaf_model, branches if keys else None, keys)
+        if look.rig is not None:
+            bark, leaves = bind(bark, leaves, look.rig, branches)
+            if keys != look.wanted:  # the rig's own use of them: not the user's attributes
+                bark, leaves = _keep_in(bark, leaves, look.wanted + SKIN_KEYS)
+        sw = opts.sweep
+        settings = {
+            "sides": sw.sides,
+            "sides_step": sw.sides_step,
+            "min_sides": sw.min_sides,
+            "prune": spec.prune,
+            "merge_angle": sw.merge_angle,
+        }
         return Lod(level, bark, leaves, settings)
 
     budget = options.lod.target_triangles
@@ -479,14 +508,20 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod,
     return tuple(build(level) for level in options.lod.levels)
 
 
-def _keep(bark: Mesh, leaves, organs, keys):
-    """``bark``, ``leaves`` and ``organs`` with only the attributes ``keys``."""
+def _keep_in(bark: Mesh, leaves, keys):
+    """``bark`` and ``leaves`` with only the attributes ``keys``."""
     merged = leaves.merged.keeping(keys) if leaves.merged is not None else None
     polygons = leaves.polygons.keeping(keys) if leaves.polygons is not None else None
     instance = {k: a for k, a in leaves.instance_attributes.items() if k in keys}
+    return bark.keeping(keys), replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance)
+
+
+def _keep(bark: Mesh, leaves, organs, keys):
+    """``bark``, ``leaves`` and ``organs`` with only the attributes ``keys``."""
+    bark, leaves = _keep_in(bark, leaves, keys)
     organs = replace(
         organs,
         merged=tuple(m.keeping(keys) if m is not None else None for m in organs.merged),
         instance_attributes={k: a for k, a in organs.instance_attributes.items() if k in keys},
     )
-    return bark.keeping(keys), replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance), organs
+    return bark, leaves, organs

@@ -24,7 +24,10 @@ Counts (exact, per tube with ``R`` rings of ``S`` sides)::
 
 ``R`` is the number of segments of the piece plus one, less the joint rings
 that add no shape: a joint where the chain goes straight on (within
-``merge_angle``) and the width tapers linearly through it needs no ring.
+``merge_angle``) and the width tapers linearly through it needs no ring;
+plus a ring on each side of a joint turning more than ``elbow_angle`` (the
+texture's shear and the bent normals of its mitre stay at the elbow), and the
+rings of ``ring_spacing``.
 
 A *wedge* is a vertex together with one set of shading attributes (Hoppe's
 term): the seam of a tube (``u = 0`` and ``u = 1``) and the cap rims share a
@@ -106,6 +109,13 @@ class SweepOptions(Options):
         low=0,
         high=1e6,
         help="rings at most this many tube sides apart (0: only at joints; 1 with bark displacement)",
+    )
+    elbow_angle: float = option(
+        45.0,
+        low=0,
+        high=180,
+        low_open=True,
+        help="degrees: a joint turning more gets a ring on each side of its mitre (180: never)",
     )
     uv_tile: float = option(
         0.5,
@@ -367,7 +377,7 @@ class Tubes:
         for s in np.unique(sides).tolist():
             which = np.flatnonzero(sides == s)
             _tube_faces(faces, s, new_rings[which], w_off[which], f_off[which])
-        # the rings themselves: an inserted ring lies on its span, perpendicular to it (as _subdivide makes them)
+        # the rings themselves: an inserted ring lies on its span, perpendicular to it (as _insert_rings makes them)
         old_ring = self.ring_offsets[rt] + rk
         nxt = np.minimum(old_ring + 1, len(self.ring_center) - 1)
         moved = rf > 0
@@ -639,15 +649,18 @@ def sweep(
     ext_end = np.zeros(k)
     ext_end[:-1] = extend
 
-    # ---- rotation-minimising frame: u[s] perpendicular to d[s]; all pieces advance together
+    # ---- rotation-minimising frame: u[s] perpendicular to d[s], carried along each chain (through its
+    # splits too) from the seam side at the chain's base; all chains advance together
     u = np.empty((k, 3))
-    u[piece_start] = _perpendicular(d[piece_start], _seam_side(d[piece_start]))
-    by_len = np.argsort(-piece_len, kind="stable")
-    starts_sorted = piece_start[by_len]
-    neg_len = -piece_len[by_len]
-    for step in range(1, int(piece_len.max())):
+    chain_head = np.flatnonzero(np.concatenate([[True], ~same]))
+    chain_len = np.diff(np.append(chain_head, k))
+    u[chain_head] = _perpendicular(d[chain_head], _seam_side(skeleton, seg[chain_head]))
+    by_len = np.argsort(-chain_len, kind="stable")
+    starts_sorted = chain_head[by_len]
+    neg_len = -chain_len[by_len]
+    for step in range(1, int(chain_len.max())):
         rows = starts_sorted[: np.searchsorted(neg_len, -step, side="left")] + step
-        u[rows] = _reflect_transport(u[rows - 1], d[rows - 1], d[rows])
+        u[rows] = _transport(u[rows - 1], d[rows - 1], d[rows])
 
     # ---- rings: one at each piece start, one at the end of every segment
     nr = k + npieces
@@ -706,10 +719,12 @@ def sweep(
     stretch, bend_dir, ring_piece = stretch[sel], bend_dir[sel], ring_piece[sel]
     chain_of_piece = chain[piece_start]
     sides_of_piece = chain_sides[chain_of_piece]
+    rows = (center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece)
+    if opt.elbow_angle < 180.0:
+        rows = _insert_rings(*_elbows(opt, *rows), *rows)
     if opt.spacing[0] > 0:
-        center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece = _subdivide(
-            opt.spacing, sides_of_piece, center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece
-        )
+        rows = _insert_rings(*_spans(opt.spacing, sides_of_piece, *rows), *rows)
+    center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece = rows
     rings = np.bincount(ring_piece, minlength=npieces)
     radius = 0.5 * width
     axis_b = np.cross(tangent, axis_a)
@@ -778,18 +793,33 @@ def sweep(
     )
 
 
-def _seam_side(d: np.ndarray) -> np.ndarray:
-    """Where each tube's seam (``u = 0``) starts: the top of a branch, the back (-Z) of an upright one.
+def _seam_side(skeleton: Skeleton, seg: np.ndarray) -> np.ndarray:
+    """Where the seam (``u = 0``) of the chains whose first kept segments are ``seg`` starts: the turtle's down.
 
     The seam of a texture rarely matches perfectly; it goes where it is least
-    seen.  A camera on the ground looks up at a crown and sees the undersides
-    of its branches, so the seam runs along the top; an upright stem has no
-    top, so its seam faces -Z, the back of a glTF asset (whose front is +Z).
-    The twist-free frame carries the seam along the chain: a branch bending
-    in a vertical plane (gravity, phototropism) keeps it on top.
+    seen.  It is placed by the plant's own frame, not the world's, so that
+    congruent parts of a plant (the same junction drawn again, turned) get
+    congruent texture coordinates, and :mod:`lsys3d.repeats` unions them
+    once.  The seam faces the turtle's down (``-U``) at the base of each
+    chain; the twist-free frame carries it along the chain.  For the default
+    turtle (heading +Y, up +Z) that is -Z at the trunk: the back of a glTF
+    asset, whose front is +Z.  Turns (``+``, ``-``) keep ``U``, so a plant drawn
+    in a plane has every seam at its back; a branch pitched down (``&``) from
+    an upright stem has ``U`` tilted to the sky and its seam underneath, one
+    pitched up (``^``) has it on top.
     """
-    upright = np.abs(d[:, 1]) > 0.99
-    return np.where(upright[:, None], [[0.0, 0.0, -1.0]], [[0.0, 1.0, 0.0]])
+    return -skeleton.up[seg]
+
+
+def _transport(u: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`_reflect_transport`, and ``u`` itself where ``b`` turns right back along ``a`` (a split chain)."""
+    back = dot(a, b) < -1.0 + 1e-9
+    if not back.any():
+        return _reflect_transport(u, a, b)
+    out = np.empty_like(u)
+    out[~back] = _reflect_transport(u[~back], a[~back], b[~back])
+    out[back] = _perpendicular(b[back], u[back])
+    return out
 
 
 def _inverse_mean(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
@@ -834,43 +864,79 @@ def _texture_v(skeleton: Skeleton, opt: SweepOptions, chain_sides, seg, chain, l
     return tiles, start[chain] + local
 
 
-def _subdivide(spacing, sides_of_piece, center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece):
-    """Extra rings between neighbouring rings of a piece farther apart than ``spacing`` (tube sides, metres).
+def _elbows(opt, center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece):
+    """Where the rings on both sides of each sharp joint go: ``(after, t)``, see :func:`_insert_rings`.
 
-    The new rings are evenly spaced, perpendicular to their span, with the
-    span's twist-free frame and the linear taper's width.
+    A joint ring lies in the mitre plane: along the wall its vertices stand
+    up to ``r tan(bend / 2)`` ahead of or behind its centre while the ring
+    keeps one texture ``v``, and its normals bisect the bend.  On a long span
+    ending at a sharp joint both would spread over the whole span (texture
+    sheared by up to ``tan(bend / 2)``, a straight pipe shaded as if bent).  A
+    ring across the span twice that far from the joint (at most 0.4 of the
+    span, and clear of the mitre) keeps them in a band at the elbow.
+    """
+    n = len(center)
+    sharp = np.flatnonzero(stretch > 1.0 / math.cos(math.radians(0.5 * opt.elbow_angle)))
+    if not len(sharp):
+        return np.zeros(0, np.int64), np.zeros(0)
+    reach = 0.5 * width[sharp] * np.sqrt(stretch[sharp] ** 2 - 1.0) * (1.0 + opt.bark_displacement)  # r tan(b/2)
+    after, t = [], []
+    for near, sign in ((sharp - 1, -1.0), (sharp + 1, 1.0)):
+        ok = (near >= 0) & (near < n)
+        ok[ok] &= ring_piece[near[ok]] == ring_piece[sharp[ok]]
+        gap = np.linalg.norm(center[np.clip(near, 0, n - 1)] - center[sharp], axis=1)
+        at = np.minimum(4.0 * reach, 0.4 * gap)
+        ok &= at > 1.25 * reach
+        share = at[ok] / gap[ok]
+        # the span runs from ring `after` to `after + 1`: before the joint it ends there, after it starts there
+        after.append(np.where(sign < 0, near, sharp)[ok])
+        t.append(1.0 - share if sign < 0 else share)
+    return np.concatenate(after), np.concatenate(t)
+
+
+def _spans(spacing, sides_of_piece, center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece):
+    """Where the rings between neighbouring rings of a piece farther apart than ``spacing`` go (``(after, t)``).
+
+    ``spacing`` is (tube sides, metres); the new rings are evenly spaced.
     """
     sides_apart, metres = spacing
-    n = len(center)
     same = ring_piece[1:] == ring_piece[:-1]
     sides = sides_of_piece[ring_piece[:-1]]
     gap = np.linalg.norm(center[1:] - center[:-1], axis=1)
     side = np.minimum(width[1:], width[:-1]) * np.sin(np.pi / sides)  # 2 r sin(pi / S)
     extra = np.where(same, np.ceil(gap / np.maximum(sides_apart * side, metres)) - 1, 0).astype(np.int64)
     extra = np.maximum(extra, 0)
-    if not extra.any():
+    after = np.repeat(np.arange(len(extra)), extra)
+    return after, (local_index(extra) + 1) / (extra + 1)[after]
+
+
+def _insert_rings(after, t, center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece):
+    """The ring arrays with a new ring at the fraction ``0 < t[i] < 1`` of the span from ring ``after[i]`` on.
+
+    A new ring is perpendicular to its span, with the span's twist-free frame
+    and the linear taper's width; its texture ``v`` grows as the integral of
+    ``1 / r`` (exact for the linear taper, so texels stay square).
+    """
+    if not len(after):
         return center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece
-    count = np.ones(n, np.int64)
-    count[:-1] += extra
-    first = offsets(count)[:-1]
-    total = int(count.sum())
-    pair = np.repeat(np.arange(n), count)  # the ring each new row follows
-    k = np.arange(total) - first[pair]  # 0 for the ring itself, 1.. for the inserted
-    t = k / np.append(extra + 1, 1)[pair]
+    n = len(center)
+    pair = np.concatenate([np.arange(n), after])
+    t = np.concatenate([np.zeros(n), t])
+    order = np.lexsort((t, pair))
+    pair, t = pair[order], t[order]
     nxt = np.minimum(pair + 1, n - 1)
 
     def lerp(a):
         tt = t.reshape(-1, *([1] * (a.ndim - 1)))
         return a[pair] + tt * (a[nxt] - a[pair])
 
-    inserted = k > 0
+    inserted = t > 0
     d = unit(center[nxt] - center[pair])
     out_tangent = np.where(inserted[:, None], d, tangent[pair])
     out_axis = axis_a[pair].copy()
     out_axis[inserted] = _reflect_transport(axis_a[pair][inserted], tangent[pair][inserted], d[inserted])
     out_stretch = np.where(inserted, 1.0, stretch[pair])
     out_bend = np.where(inserted[:, None], 0.0, bend_dir[pair])
-    # texture v grows as the integral of 1 / r: exact for the linear taper, so texels stay square
     r0, r1 = 0.5 * width[pair], 0.5 * width[nxt]
     rt = r0 + t * (r1 - r0)
     share = t * _inverse_mean(r0, rt) / _inverse_mean(r0, r1)

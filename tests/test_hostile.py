@@ -404,7 +404,7 @@ CASES = [
     ("limit-modules", grow('axiom = "A"\nrules = ["A -> AA"]\n', 40), LimitError, "1,099,511,627,776 modules"),
     ("limit-modules-parametric", grow(A + 'rules = ["A(x) -> A(x)F(x + 1)A(x)"]\n', 40), LimitError, "--max-modules"),
     ("limit-segments", cli("stats", "koch", "-n", "3", "--max-segments", "10"), LimitError, "up to 64 segments"),
-    ("limit-triangles", cli("stats", "koch", "--mesh", "--max-triangles", "1000"), LimitError, "4,944 tube triangles"),
+    ("limit-triangles", cli("stats", "koch", "--mesh", "--max-triangles", "1000"), LimitError, "11,440 tube triangles"),
     ("limit-iterations", grow(F + "iterations = 1_000_000_000\n"), LimitError, "MAX_ITERATIONS"),
     ("limit-depth", grow(A + f'rules = ["A(x) -> A({DEEP})"]\n'), GrammarError, "nested deeper than 64"),
     ("limit-length", grow(A + 'rules = ["A(x) -> A(' + "x+" * 2100 + 'x)"]\n'), GrammarError, "longer than 4096"),

@@ -133,3 +133,91 @@ def test_usd_levels_are_a_variant_set(tmp_path):
     top = faces()
     lod.SetVariantSelection("LOD3")
     assert 0 < faces() < top
+
+
+# ---------------------------------------------------------------- levels with attributes and the rig
+
+
+@pytest.fixture(scope="module")
+def rigged_lods():
+    return lsys3d.generate("tree3d", iterations=4, lod=(0, 1, 2, 3), rig=True, wind_animation=2.0, attributes="full")
+
+
+def test_every_level_carries_the_attributes_of_the_trees_own_branches(rigged_lods):
+    tree = rigged_lods
+    branches = len(tree.hierarchy)
+    for lod in tree.lods:
+        leaves = lod.leaves.merged
+        for mesh in (lod.bark, leaves):
+            assert set(mesh.attributes) >= {"branch_id", "branch_t", "pivot", "skin_joints", "skin_weights"}
+            ids = np.asarray(mesh.attributes["branch_id"])
+            assert ids.min() >= 0 and ids.max() < branches  # one branch table for every level
+            np.testing.assert_allclose(np.asarray(mesh.attributes["skin_weights"]).sum(axis=1), 1.0, atol=1e-5)
+            assert np.asarray(mesh.attributes["skin_joints"]).max() < len(tree.rig)  # one rig for every level
+    # a kept branch keeps its id and its pivot: the bark vertices of a branch of level 2 sway about level 0's pivot
+    top, low = tree.lods[0].bark, tree.lods[2].bark
+    pivot = {int(b): p for b, p in zip(top.attributes["branch_id"], top.attributes["pivot"], strict=True)}
+    for b, p in zip(low.attributes["branch_id"][::50], low.attributes["pivot"][::50], strict=True):
+        if int(b) in pivot:
+            np.testing.assert_allclose(p, pivot[int(b)], atol=1e-6)
+
+
+def test_cards_carry_the_attributes_of_their_largest_leaf(rigged_lods):
+    cards = rigged_lods.lods[3].leaves.merged
+    assert len(cards.faces) == 2 * len(cards.vertices) // 4
+    ids = np.asarray(cards.attributes["branch_id"]).reshape(-1, 4)
+    assert (ids == ids[:, :1]).all()  # one branch per card, all four corners
+    joints = np.asarray(cards.attributes["skin_joints"]).reshape(-1, 4, np.shape(cards.attributes["skin_joints"])[1])
+    assert (joints == joints[:, :1]).all()
+
+
+def test_without_rig_or_attributes_the_levels_carry_none():
+    tree = lsys3d.generate("tree3d", iterations=3, lod=(0, 2))
+    assert not tree.lods[1].bark.attributes
+    compact = lsys3d.generate("tree3d", iterations=3, lod=(0, 2), attributes="compact")
+    assert sorted(compact.lods[1].bark.attributes) == ["branch_id", "branch_t"]
+    rigged = lsys3d.generate("tree3d", iterations=3, lod=(0, 2), rig=True)
+    assert sorted(rigged.lods[1].bark.attributes) == ["skin_joints", "skin_weights"]  # the rig's own use is dropped
+
+
+def test_rigged_levels_are_one_skinned_node_each_in_gltf(rigged_lods, tmp_path):
+    from validators import HARMLESS_INFOS, gltf_issues, validate_gltf
+
+    path = export(rigged_lods, tmp_path / "t.glb")
+    report = validate_gltf(path)
+    assert gltf_issues(report, 0) == [] and gltf_issues(report, 1) == []
+    assert [i for i in gltf_issues(report, 2) if i.split(" ")[0] not in HARMLESS_INFOS] == []
+    gltf = export(rigged_lods, tmp_path / "t.gltf")
+    doc = json.loads(gltf.read_text())
+    nodes = doc["nodes"]
+    levels = [next(i for i, n in enumerate(nodes) if n.get("name") == f"{rigged_lods.name}_LOD{k}") for k in range(4)]
+    assert all(nodes[i].get("skin") == 0 for i in levels)  # every level bound to the one rig
+    scene = doc["scenes"][0]["nodes"]
+    assert levels[0] in scene and not any(i in scene for i in levels[1:])
+    assert nodes[levels[0]]["extensions"]["MSFT_lod"]["ids"] == levels[1:]
+    # bark and leaves: a primitive each, with their joints and weights
+    for i in levels:
+        primitives = doc["meshes"][nodes[i]["mesh"]]["primitives"]
+        assert len(primitives) >= 2
+        assert all({"JOINTS_0", "WEIGHTS_0"} <= set(p["attributes"]) for p in primitives)
+    assert len(doc["animations"]) == 1  # the wind, once, on the shared joints
+
+
+def test_rigged_levels_in_usd_bind_to_the_rig(rigged_lods, tmp_path):
+    pxr = pytest.importorskip("pxr")
+    from validators import usd_problems
+
+    path = export(rigged_lods, tmp_path / "t.usda")
+    assert usd_problems(path) == []
+    stage = pxr.Usd.Stage.Open(str(path))
+    root = stage.GetDefaultPrim()
+    assert root.IsA(pxr.UsdSkel.Root)
+    lod = root.GetVariantSets().GetVariantSet("lod")
+    for name in ("LOD0", "LOD1", "LOD2", "LOD3"):
+        lod.SetVariantSelection(name)
+        meshes = [p for p in stage.Traverse() if p.IsA(pxr.UsdGeom.Mesh)]
+        assert meshes
+        for prim in meshes:
+            binding = pxr.UsdSkel.BindingAPI(prim)
+            assert binding.GetSkeletonRel().GetTargets(), (name, prim.GetPath())
+            assert binding.GetJointIndicesPrimvar().IsDefined()

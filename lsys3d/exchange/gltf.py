@@ -14,6 +14,10 @@ Layout of the file::
 With levels of detail the root node is ``<asset name>_LOD0`` with the
 extension ``MSFT_lod`` naming the nodes ``<asset name>_LOD1`` ... (outside the
 scene), each holding its level's ``bark`` and ``leaf`` (see :func:`build`).
+A rigged tree's levels are each one skinned node ``<asset name>_LOD<k>`` (a
+mesh with a primitive per part, all bound to the one rig; glTF ignores a
+skinned mesh's parents, so they cannot sit under a level's node); level 0's is
+a scene root with ``MSFT_lod``, and the node ``<asset name>`` holds the joints.
 
 glTF is metres and Y up by definition, so ``units`` and ``up_axis`` other
 than the defaults are refused.  Vertices are split per unique (position,
@@ -253,8 +257,6 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
     extension shows level 0 alone.
     """
     check_options(options, where)
-    if tree.lods and tree.rig is not None:
-        raise ExportError(f"{where}: levels of detail carry no rig yet: export the rigged tree without them")
     eye = np.eye(3)
     buf = _Buffer()
     meshes, nodes, materials = [], [], []
@@ -264,8 +266,12 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
     joints = len(rig) if rig is not None else None
     roots = [0]  # scene roots: the asset's node, and skinned meshes (glTF ignores a skinned mesh's parents)
     asset = 0  # the node the parts go under: the asset's, or the level's
+    level_parts: list[dict] | None = None  # a rigged level's skinned primitives, gathered into one node
 
     def add_node(name: str, primitives: list[dict], extensions: dict | None = None, skinned: bool = False):
+        if level_parts is not None and skinned:  # the rest (the skeleton curves) go under the asset's node
+            level_parts.extend(primitives)
+            return
         meshes.append({"name": name, "primitives": primitives})
         node = {"name": name, "mesh": len(meshes) - 1}
         if extensions:
@@ -392,7 +398,20 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
                 }
                 add_node("skeleton", [primitive])
 
-    if tree.lods:
+    if tree.lods and rig is not None:
+        # a skinned mesh ignores its parents: each level is one skinned node of all its parts, level 0 in the
+        # scene; the asset's node holds the joints (and the branch table, the skeleton curves)
+        nodes.append({"name": tree.name, "children": []})
+        level_nodes = []
+        for i, lod in enumerate(tree.lods):
+            level_parts = []
+            add_parts(tree.at_level(i), i == 0)
+            meshes.append({"name": f"{tree.name}_LOD{lod.level}", "primitives": level_parts})
+            nodes.append({"name": f"{tree.name}_LOD{lod.level}", "mesh": len(meshes) - 1, "skin": 0})
+            level_nodes.append(len(nodes) - 1)
+        level_parts = None
+        roots.append(level_nodes[0])
+    elif tree.lods:
         level_nodes = []
         for i, lod in enumerate(tree.lods):
             nodes.append({"name": f"{tree.name}_LOD{lod.level}", "children": []})
@@ -400,10 +419,11 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
             level_nodes.append(asset)
             add_parts(tree.at_level(i), i == 0)
         asset = 0
+    if tree.lods:
         if len(level_nodes) > 1:  # the scene holds level 0; it names the others
-            nodes[0]["extensions"] = {LOD: {"ids": level_nodes[1:]}}
+            nodes[level_nodes[0]]["extensions"] = {LOD: {"ids": level_nodes[1:]}}
             coverage = [SCREEN_COVERAGE[lod.level] for lod in tree.lods]
-            nodes[0].setdefault("extras", {})["MSFT_screencoverage"] = coverage
+            nodes[level_nodes[0]].setdefault("extras", {})["MSFT_screencoverage"] = coverage
             extensions_used.append(LOD)
     else:
         nodes.append({"name": tree.name, "children": []})

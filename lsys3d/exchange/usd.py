@@ -25,7 +25,8 @@ at its true size.  Siblings (the same grammar grown with several seeds) go into
 one stage as the variants of the variant set ``seed`` on the root prim, each
 holding the whole layout above (:func:`build_variant_stage`).  Levels of detail
 are the variants ``LOD0`` .. ``LOD3`` of the variant set ``lod`` on the root
-prim (``LOD0`` selected), each holding the layout above for its level.
+prim (``LOD0`` selected), each holding the layout above for its level; a
+rigged tree's levels each hold the same ``Rig`` and bind to it.
 Points are numbered in the order faces first use them,
 which keeps the crate file's integer compression fast.
 """
@@ -352,8 +353,6 @@ def _author_levels(
     if not tree.lods:
         _author_tree(stage, prim, tree, options, where, textures)
         return
-    if tree.rig is not None:
-        raise ExportError(f"{where}: levels of detail carry no rig yet: export the rigged tree without them")
     levels = prim.GetVariantSets().AddVariantSet(LOD_SET)
     names = [f"LOD{lod.level}" for lod in tree.lods]
     for i, name in enumerate(names):
