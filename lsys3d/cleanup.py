@@ -116,6 +116,12 @@ class Cleaned:
     operations: dict
 
 
+_ROOM_SHARE, _ROOM_MIN = 0.125, 1024
+"""Room for the splits to start with: this share of the faces, plus this many (the presets make under 4 %)."""
+_CHUNK = 1 << 16
+"""Faces per chunk of :func:`tube_uv` (its temporaries are about 1 KB per face)."""
+
+
 def _tube_of_face(tubes: Tubes, source: np.ndarray) -> np.ndarray:
     return np.searchsorted(tubes.face_offsets, source, side="right") - 1
 
@@ -162,6 +168,46 @@ def _classify(bark: Mesh, tubes: Tubes):
     return part, flat, local, body, sides, scale, flags, reference
 
 
+def _full(he) -> bool:
+    """Whether the half-edges ran out of room for a split (a split that found none was not made)."""
+    return bool(he.counts[0] >= len(he.points) or he.counts[1] + 2 > len(he.faces))
+
+
+def _mark(he, bark: Mesh, part, flat, local, body, sides) -> None:
+    """Flag the vertices of seams and rims in ``he``; unflatten the caps the boolean cut."""
+    nf = len(bark.faces)
+    # seams (edges between two tubes) and rims (between a flat cap and the wall of one tube)
+    own = np.repeat(np.arange(nf), 3)
+    across = he.opp[: 3 * nf] // 3
+    org = bark.faces.reshape(-1)
+    dst = bark.faces[:, [1, 2, 0]].reshape(-1)
+    seam = part[own] != part[across]
+    # a cap the boolean cut (a thick child's base poking out of its parent: a ledge) is no rim to keep
+    cap = np.where(flat, 2 * part + (local >= body + sides), -1)
+    cut = np.unique(cap[own[seam]])
+    flat &= ~np.isin(cap, cut[cut >= 0])
+    he.face_flat[:nf] = flat
+    rim = (flat[own] != flat[across]) & ~seam
+    for mask, bit in ((seam, remesh.SEAM), (rim, remesh.FEATURE)):
+        he.flags[org[mask]] |= bit
+        he.flags[dst[mask]] |= bit
+
+
+def _clean(he, opt: CleanupOptions, budget: int):
+    """Clean, fair and rescue ``he`` in place; the operations done, faired, rescued."""
+    rules = remesh.Rules(opt.short, opt.limit, opt.bad, opt.flip_tolerance, opt.long, opt.step, opt.fallback, budget)
+    done = remesh.clean(he, rules, np.zeros(0, bool))
+    faired = 0
+    if opt.smooth:
+        closeness = np.zeros(len(he.points))
+        remesh.collar(he, opt.collar, closeness)
+        faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False)
+        remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
+        done += remesh.clean(he, rules, closeness > 0)  # the faired collars may have made a few needles
+    rescued = remesh.rescue(he, opt.rescue, opt.sliver, 10 * opt.flip_tolerance)
+    return done, faired, rescued
+
+
 def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) -> Cleaned:
     """Clean a unioned bark (see the module's documentation); the mesh and the map of its vertices.
 
@@ -186,39 +232,25 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     bark = _drop_crumbs(bark)
     part, flat, local, body, sides, scale, flags, reference = _classify(bark, tubes)
     nf = len(bark.faces)
-    try:
-        he = remesh.build(bark.vertices, bark.faces, flags, scale, part, flat, reference, bark.face_source, nf)
-    except ValueError as exc:
-        log.warning("cleanup: skipped, %s", exc)
-        return identity
-    # seams (edges between two tubes) and rims (between a flat cap and the wall of one tube)
-    own = np.repeat(np.arange(nf), 3)
-    across = he.opp[: 3 * nf] // 3
-    org = bark.faces.reshape(-1)
-    dst = bark.faces[:, [1, 2, 0]].reshape(-1)
-    seam = part[own] != part[across]
-    # a cap the boolean cut (a thick child's base poking out of its parent: a ledge) is no rim to keep
-    cap = np.where(flat, 2 * part + (local >= body + sides), -1)
-    cut = np.unique(cap[own[seam]])
-    flat &= ~np.isin(cap, cut[cut >= 0])
-    he.face_flat[:nf] = flat
-    rim = (flat[own] != flat[across]) & ~seam
-    for mask, bit in ((seam, remesh.SEAM), (rim, remesh.FEATURE)):
-        he.flags[org[mask]] |= bit
-        he.flags[dst[mask]] |= bit
+    # room for the splits: the presets make at most 4 % of the faces' count (bush); a run that fills the room
+    # is made again with four times as much, so the result never depends on the room (only memory does)
+    room = int(nf * _ROOM_SHARE) + _ROOM_MIN
     # a budget of operations, a guard the presets never reach (under one per face; flips cannot cycle since
     # the aspect is the same whatever the order of a triangle's corners): if reached, the result says so
     budget = 4 * nf
-    rules = remesh.Rules(opt.short, opt.limit, opt.bad, opt.flip_tolerance, opt.long, opt.step, opt.fallback, budget)
-    done = remesh.clean(he, rules, np.zeros(0, bool))
-    faired = 0
-    if opt.smooth:
-        closeness = np.zeros(len(he.points))
-        remesh.collar(he, opt.collar, closeness)
-        faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False)
-        remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
-        done += remesh.clean(he, rules, closeness > 0)  # the faired collars may have made a few needles
-    rescued = remesh.rescue(he, opt.rescue, opt.sliver, 10 * opt.flip_tolerance)
+    while True:
+        try:
+            he = remesh.build(bark.vertices, bark.faces, flags, scale, part, flat, reference, bark.face_source, room)
+        except ValueError as exc:
+            log.warning("cleanup: skipped, %s", exc)
+            return identity
+        _mark(he, bark, part, flat.copy(), local, body, sides)  # its full-size temporaries go before the cleaning
+        result = _clean(he, opt, budget)
+        if not _full(he):
+            break
+        log.debug("cleanup: %d splits filled the room; again with %d", room, 4 * room)
+        room *= 4
+    done, faired, rescued = result
     if done.sum() >= budget:
         log.warning("cleanup: stopped after %d operations (%d flips); some needles may remain", done.sum(), done[1])
     operations = {
@@ -244,8 +276,13 @@ def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndar
     Vertices the cleanup moved or made get the texture coordinates the tube
     itself would give them, so the texture is not dragged along.
     """
-    uv = tubes.uv_at(source, points[faces])
-    return wrap_u(uv, tubes.tiles[_tube_of_face(tubes, source)])
+    uv = np.empty((len(faces), 3, 2))
+    for start in range(0, len(faces), _CHUNK):  # a chunk at a time: uv_at's temporaries stay small
+        part = slice(start, start + _CHUNK)
+        uv[part] = wrap_u(
+            tubes.uv_at(source[part], points[faces[part]]), tubes.tiles[_tube_of_face(tubes, source[part])]
+        )
+    return uv
 
 
 def cleanup(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) -> Mesh:

@@ -96,6 +96,22 @@ def test_cleanup_is_deterministic(tree3d_parts):
     assert a.operations == b.operations and a.operations["collapses"] > 0
 
 
+def test_the_room_for_splits_changes_memory_not_the_result(tree3d_parts, monkeypatch):
+    """The half-edges start with room for splits of an eighth of the faces; a run that fills it is made again
+    with more room: the same mesh, whatever the room it started with."""
+    from lsys3d import cleanup as module
+
+    tubes, raw = tree3d_parts
+    roomy = clean_mesh(raw, tubes)
+    assert roomy.operations["splits"] > 100
+    monkeypatch.setattr(module, "_ROOM_SHARE", 0.0)
+    monkeypatch.setattr(module, "_ROOM_MIN", 7)  # fills after 7 splits, then 28, 112, 448, ...
+    tight = clean_mesh(raw, tubes)
+    for name in ("vertices", "faces", "normals", "uv", "face_source"):
+        assert np.array_equal(getattr(tight.mesh, name), getattr(roomy.mesh, name))
+    assert np.array_equal(tight.vertex_origin, roomy.vertex_origin) and tight.operations == roomy.operations
+
+
 def test_off_is_the_union():
     tubes = sweep(y_junction())
     raw = union(tubes)
