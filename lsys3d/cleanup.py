@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -126,7 +127,15 @@ def _tube_of_face(tubes: Tubes, source: np.ndarray) -> np.ndarray:
     return np.searchsorted(tubes.face_offsets, source, side="right") - 1
 
 
-def _drop_crumbs(bark: Mesh) -> Mesh:
+class _Surface(NamedTuple):
+    """What the cleaning reads of the union's bark: its normals and uv are made anew at the end."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_source: np.ndarray
+
+
+def _drop_crumbs(bark: Mesh) -> _Surface:
     """Remove closed pieces that enclose (almost) nothing: flat or inside-out crumbs of the boolean.
 
     Where coplanar tubes cross (the flat presets), a boolean can leave a
@@ -135,24 +144,29 @@ def _drop_crumbs(bark: Mesh) -> Mesh:
     area) and flat (volume under 1e-3 area^1.5; a thin branch's is about 0.2
     sqrt(r / L), far above).  A real separate part (after an ``f`` move) stays.
     """
+    whole = _Surface(bark.vertices, bark.faces, bark.face_source)
     label = components(len(bark.vertices), bark.faces.ravel(), np.roll(bark.faces, -1, axis=1).ravel())
     piece = label[bark.faces[:, 0]]
     names, face_piece = np.unique(piece, return_inverse=True)
     if len(names) < 2:
-        return bark
-    tri = bark.vertices[bark.faces]
-    six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
-    volume = np.bincount(face_piece, weights=six / 6.0)
-    area = np.bincount(face_piece, weights=bark.face_areas)
+        return whole
+    volume, area = np.zeros(len(names)), np.zeros(len(names))
+    for start in range(0, len(bark.faces), _CHUNK):  # a chunk at a time: no (f, 3, 3) temporaries
+        part = slice(start, start + _CHUNK)
+        tri = bark.vertices[bark.faces[part]]
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+        volume += np.bincount(face_piece[part], weights=six / 6.0, minlength=len(names))
+        area += np.bincount(face_piece[part], weights=0.5 * np.linalg.norm(cross, axis=1), minlength=len(names))
     crumb = (area < 1e-3 * area.sum()) & (volume < 1e-3 * area**1.5)
     if not crumb.any():
-        return bark
+        return whole
     keep = ~crumb[face_piece]
     log.debug("cleanup: dropped %d crumbs of %d triangles", crumb.sum(), (~keep).sum())
-    return Mesh(bark.vertices, bark.faces[keep], bark.normals[keep], bark.uv[keep], face_source=bark.face_source[keep])
+    return _Surface(bark.vertices, bark.faces[keep], bark.face_source[keep])
 
 
-def _classify(bark: Mesh, tubes: Tubes):
+def _classify(bark: _Surface, tubes: Tubes):
     """Per face: tube, flat (cap), reference normal; per vertex: scale and flags (:mod:`lsys3d.remesh`)."""
     src = bark.face_source
     part = _tube_of_face(tubes, src)
@@ -173,7 +187,7 @@ def _full(he) -> bool:
     return bool(he.counts[0] >= len(he.points) or he.counts[1] + 2 > len(he.faces))
 
 
-def _mark(he, bark: Mesh, part, flat, local, body, sides) -> None:
+def _mark(he, bark: _Surface, part, flat, local, body, sides) -> None:
     """Flag the vertices of seams and rims in ``he``; unflatten the caps the boolean cut."""
     nf = len(bark.faces)
     # seams (edges between two tubes) and rims (between a flat cap and the wall of one tube)
@@ -229,6 +243,20 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     identity = Cleaned(bark, np.arange(len(bark.vertices)), {})
     if not opt.enabled or bark.face_source is None or not len(bark.faces) or not len(tubes):
         return identity
+    cleaned = _clean_arrays(bark, tubes, opt)
+    if cleaned is None:
+        return identity
+    (points, faces, fflat, fsrc, origin), operations = cleaned  # the half-edges are gone: they took a third
+    normals = smooth_normals(points, faces, fflat)
+    uv = tube_uv(tubes, points, faces, fsrc)
+    # end as the union ends: no two vertices that a float32 file or a reader's weld would merge
+    mesh = _separate_float32(Mesh(points, faces, normals, uv, face_source=fsrc))
+    return Cleaned(mesh, origin, operations)
+
+
+def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions):
+    """The cleaned bark's points, faces, flat faces, face sources and vertex origins, and the operations done;
+    None when the bark is not a closed 2-manifold (a warning says so)."""
     bark = _drop_crumbs(bark)
     part, flat, local, body, sides, scale, flags, reference = _classify(bark, tubes)
     nf = len(bark.faces)
@@ -243,7 +271,7 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
             he = remesh.build(bark.vertices, bark.faces, flags, scale, part, flat, reference, bark.face_source, room)
         except ValueError as exc:
             log.warning("cleanup: skipped, %s", exc)
-            return identity
+            return None
         _mark(he, bark, part, flat.copy(), local, body, sides)  # its full-size temporaries go before the cleaning
         result = _clean(he, opt, budget)
         if not _full(he):
@@ -263,11 +291,7 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     }
     log.debug("cleanup: %s", operations)
     points, faces, _, fflat, fsrc, origin, _ = remesh.compact(he)
-    normals = smooth_normals(points, faces, fflat)
-    uv = tube_uv(tubes, points, faces, fsrc)
-    # end as the union ends: no two vertices that a float32 file or a reader's weld would merge
-    mesh = _separate_float32(Mesh(points, faces, normals, uv, face_source=fsrc))
-    return Cleaned(mesh, origin, operations)
+    return (points, faces, fflat, fsrc, origin), operations
 
 
 def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndarray) -> np.ndarray:
