@@ -393,25 +393,22 @@ class Tubes:
         d = unit(self.ring_center[nxt[moved]] - self.ring_center[old_ring[moved]])
         ring_axis[moved] = _reflect_transport(ring_axis[moved], ring_tangent[moved], d)
         ring_tangent[moved] = d
-        new = Tubes(
-            points,
-            wedge_point,
-            wedge_normal,
-            wedge_uv,
-            faces,
-            p_off,
-            w_off,
-            f_off,
-            self.chain,
-            self.sides,
-            new_rings,
-            self.order,
-            self.tiles,
-            ring_center,
-            ring_tangent,
-            ring_axis,
-            ring_radius,
-            ring_v,
+        new = replace(  # the same tubes (chain, sides, order, tiles) with more rings
+            self,
+            points=points,
+            wedge_point=wedge_point,
+            wedge_normal=wedge_normal,
+            wedge_uv=wedge_uv,
+            faces=faces,
+            point_offsets=p_off,
+            wedge_offsets=w_off,
+            face_offsets=f_off,
+            rings=new_rings,
+            ring_center=ring_center,
+            ring_tangent=ring_tangent,
+            ring_axis=ring_axis,
+            ring_radius=ring_radius,
+            ring_v=ring_v,
         )
         if not origin:
             return new
