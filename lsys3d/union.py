@@ -396,6 +396,12 @@ def _sourced(mesh: Mesh, origin: np.ndarray, where: str) -> Mesh:
     return replace(mesh, face_source=origin[src])
 
 
+def _leave_out(tubes: Tubes, origin: np.ndarray, drop: np.ndarray, why: str):
+    """The tubes without ``drop``, and ``origin`` (each face's face in the given tubes) for the faces kept."""
+    log.debug("union: %d tubes %s left out", int(drop.sum()), why)
+    return tubes.select(~drop), origin[gather(tubes.face_offsets, np.flatnonzero(~drop))[0]]
+
+
 def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None]):
     """Cull what adds nothing, find what may touch, refine long straight spans.
 
@@ -404,19 +410,16 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None])
     lies in, for a span split by new rings).
     """
     origin = np.arange(len(tubes.faces))
+
     dup = duplicate_tubes(tubes)
     if dup.any():
-        log.debug("union: %d tubes equal to another left out", int(dup.sum()))
-        origin = origin[gather(tubes.face_offsets, np.flatnonzero(~dup))[0]]
-        tubes = tubes.select(~dup)
+        tubes, origin = _leave_out(tubes, origin, dup, "equal to another")
     pcs = pieces(tubes)
     a, b = touching(pcs, opt.margin, opt.max_pairs)
     progress(0.04)
     buried = buried_tubes(tubes, pcs, a, b)
     if buried.any():
-        log.debug("union: %d tubes buried inside another left out", int(buried.sum()))
-        origin = origin[gather(tubes.face_offsets, np.flatnonzero(~buried))[0]]
-        tubes = tubes.select(~buried)
+        tubes, origin = _leave_out(tubes, origin, buried, "buried inside another")
         pcs = pieces(tubes)
         a, b = touching(pcs, opt.margin, opt.max_pairs)
     if opt.local:
