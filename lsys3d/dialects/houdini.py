@@ -20,6 +20,12 @@ def _rot(symbol, name, axis, sign, what):
     return Command(symbol, name, Op.ROTATE, "a", 1, what, axis, sign)
 
 
+def _copy(letter):
+    """The SOP's ``J``, ``K``, ``M``: copy the geometry of that input at the turtle (an organ)."""
+    what = f"Copy the geometry of input {letter} at the turtle: an organ."
+    return Command(letter, f"copy {letter}", Op.ORGAN, "s", 1, what, organ=Organ.INSTANCE, ignored=("x", "a", "b", "c"))
+
+
 COMMANDS_HOUDINI = (
     Command("F", "forward", Op.FORWARD, "l", 1, "Move forward, creating geometry.", ignored=("w", "s", "d")),
     Command(
@@ -53,36 +59,7 @@ COMMANDS_HOUDINI = (
         scale=0.5,
         ignored=("w", "s", "d"),
     ),
-    Command(
-        "J",
-        "copy J",
-        Op.ORGAN,
-        "s",
-        1,
-        "Copy the geometry of input J at the turtle: an organ.",
-        organ=Organ.INSTANCE,
-        ignored=("x", "a", "b", "c"),
-    ),
-    Command(
-        "K",
-        "copy K",
-        Op.ORGAN,
-        "s",
-        1,
-        "Copy the geometry of input K at the turtle: an organ.",
-        organ=Organ.INSTANCE,
-        ignored=("x", "a", "b", "c"),
-    ),
-    Command(
-        "M",
-        "copy M",
-        Op.ORGAN,
-        "s",
-        1,
-        "Copy the geometry of input M at the turtle: an organ.",
-        organ=Organ.INSTANCE,
-        ignored=("x", "a", "b", "c"),
-    ),
+    *(_copy(letter) for letter in "JKM"),
     Command("T", "tropism", Op.TROPISM, "g", 1, "Bend toward the tropism vector by `g` (default 0.2).", factor=0.2),
     _rot("+", "turn right", Axis.U, +1, "Turn (the SOP's 'right': ABOP's '+')."),
     _rot("-", "turn left", Axis.U, -1, "Turn the other way."),
