@@ -454,45 +454,94 @@ class Tubes:
         """
         face = np.asarray(face, np.int64)
         points = np.asarray(points, np.float64)
-        extra = (slice(None),) + (None,) * (points.ndim - 2)  # per-face values against the points' middle axes
+        flat = np.ascontiguousarray(points.reshape(len(face), -1, 3))
         tube = np.searchsorted(self.face_offsets, face, side="right") - 1
-        s = self.sides[tube]
-        local = face - self.face_offsets[tube]
-        body = 2 * s * (self.rings[tube] - 1)
-        first = self.ring_offsets[tube]
-        span = np.minimum(local // np.maximum(2 * s, 1), np.maximum(self.rings[tube] - 2, 0))
+        uv = _uv_at(
+            face,
+            tube,
+            flat,
+            self.face_offsets,
+            self.sides,
+            self.rings,
+            self.ring_offsets,
+            self.ring_center,
+            self.ring_tangent,
+            self.ring_axis,
+            self.ring_v,
+            self.ring_radius,
+            np.asarray(self.tiles, np.float64),
+        )
+        return uv.reshape((*points.shape[:-1], 2))
+
+
+@numba.njit(cache=True, nogil=True)
+def _uv_at(  # pragma: no cover - compiled
+    face, tube, points, face_offsets, sides, rings, ring_offsets, center, tangent, axis, ring_v, radius, tiles
+):
+    """:meth:`Tubes.uv_at` for ``points`` (k, m, 3): one pass per face, no (k, m, 3) temporaries."""
+    k, m = points.shape[0], points.shape[1]
+    out = np.empty((k, m, 2))
+    two_pi = 2.0 * np.pi
+    for i in range(k):
+        t = tube[i]
+        s = sides[t]
+        local = face[i] - face_offsets[t]
+        body = 2 * s * (rings[t] - 1)
+        first = ring_offsets[t]
+        if local >= body:  # a cap: planar, at the density of the wall at its ring
+            ring = first + rings[t] - 1 if local >= body + s else first
+            ax, ay, az = axis[ring, 0], axis[ring, 1], axis[ring, 2]
+            tx, ty, tz = tangent[ring, 0], tangent[ring, 1], tangent[ring, 2]
+            bx, by, bz = ty * az - tz * ay, tz * ax - tx * az, tx * ay - ty * ax
+            density = tiles[t] / (s * 2.0 * np.sin(np.pi / s) * radius[ring])
+            for j in range(m):
+                x = points[i, j, 0] - center[ring, 0]
+                y = points[i, j, 1] - center[ring, 1]
+                z = points[i, j, 2] - center[ring, 2]
+                out[i, j, 0] = 0.5 * tiles[t] + density * (x * ax + y * ay + z * az)
+                out[i, j, 1] = ring_v[ring] + density * (x * bx + y * by + z * bz)
+            continue
+        span = min(local // max(2 * s, 1), max(rings[t] - 2, 0))
         r0 = first + span
-        r1 = np.minimum(r0 + 1, first + self.rings[tube] - 1)
-        c0, c1 = self.ring_center[r0], self.ring_center[r1]
-        axis = c1 - c0
-        span_length = np.linalg.norm(axis, axis=1)
-        d = np.where(span_length[:, None] > 0, axis / np.maximum(span_length, 1e-300)[:, None], self.ring_tangent[r0])
-        a = _reflect_transport(self.ring_axis[r0], self.ring_tangent[r0], d)
-        b = np.cross(d, a)
-        x = points - c0[extra]
-        angle = np.arctan2(dot(x, b[extra]), dot(x, a[extra])) % (2.0 * np.pi)
-        angle[angle > 2.0 * np.pi * (1.0 - 1e-12)] = 0.0  # the seam itself is u = 0 (wrap_u decides per face)
-        u = self.tiles[tube][extra] * angle / (2.0 * np.pi)
-        # along: the share of the way from one ring's plane to the next's (a joint ring's plane is tilted)
-        h0 = dot(x, self.ring_tangent[r0][extra])
-        h1 = dot(c1[extra] - points, self.ring_tangent[r1][extra])
-        total = h0 + h1
-        t = np.where(np.abs(total) > 1e-300, h0 / np.where(np.abs(total) > 1e-300, total, 1.0), 0.0)
-        v0, v1 = self.ring_v[r0][extra], self.ring_v[r1][extra]
-        v = v0 + t * (v1 - v0)
-        # caps: planar, at the density of the wall at their ring
-        cap = local >= body
-        if cap.any():
-            tc = tube[cap]
-            tip = local[cap] >= body[cap] + s[cap]
-            ring = np.where(tip, first[cap] + self.rings[tc] - 1, first[cap])
-            xc = points[cap] - self.ring_center[ring][extra]
-            ca = self.ring_axis[ring]
-            cb = np.cross(self.ring_tangent[ring], ca)
-            density = self.tiles[tc] / (s[cap] * 2.0 * np.sin(np.pi / s[cap]) * self.ring_radius[ring])
-            u[cap] = (0.5 * self.tiles[tc])[extra] + density[extra] * dot(xc, ca[extra])
-            v[cap] = self.ring_v[ring][extra] + density[extra] * dot(xc, cb[extra])
-        return np.stack([u, v], axis=-1)
+        r1 = min(r0 + 1, first + rings[t] - 1)
+        # the span's axis, and the ring's frame carried onto it by the minimal rotation (two reflections)
+        dx, dy, dz = center[r1, 0] - center[r0, 0], center[r1, 1] - center[r0, 1], center[r1, 2] - center[r0, 2]
+        length = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if length > 0:
+            dx, dy, dz = dx / length, dy / length, dz / length
+        else:
+            dx, dy, dz = tangent[r0, 0], tangent[r0, 1], tangent[r0, 2]
+        ux, uy, uz = axis[r0, 0], axis[r0, 1], axis[r0, 2]
+        nx, ny, nz = tangent[r0, 0] + dx, tangent[r0, 1] + dy, tangent[r0, 2] + dz
+        f = 2.0 * (ux * nx + uy * ny + uz * nz) / max(nx * nx + ny * ny + nz * nz, 1e-30)
+        ux, uy, uz = ux - f * nx, uy - f * ny, uz - f * nz
+        f = 2.0 * (ux * dx + uy * dy + uz * dz)
+        ux, uy, uz = ux - f * dx, uy - f * dy, uz - f * dz
+        f = ux * dx + uy * dy + uz * dz
+        ux, uy, uz = ux - f * dx, uy - f * dy, uz - f * dz
+        f = np.sqrt(ux * ux + uy * uy + uz * uz)
+        if f > 0:
+            ux, uy, uz = ux / f, uy / f, uz / f
+        bx, by, bz = dy * uz - dz * uy, dz * ux - dx * uz, dx * uy - dy * ux
+        for j in range(m):
+            x = points[i, j, 0] - center[r0, 0]
+            y = points[i, j, 1] - center[r0, 1]
+            z = points[i, j, 2] - center[r0, 2]
+            angle = np.arctan2(x * bx + y * by + z * bz, x * ux + y * uy + z * uz) % two_pi
+            if angle > two_pi * (1.0 - 1e-12):
+                angle = 0.0  # the seam itself is u = 0 (wrap_u decides per face)
+            out[i, j, 0] = tiles[t] * angle / two_pi
+            # along: the share of the way from one ring's plane to the next's (a joint ring's plane is tilted)
+            h0 = x * tangent[r0, 0] + y * tangent[r0, 1] + z * tangent[r0, 2]
+            h1 = (
+                (center[r1, 0] - points[i, j, 0]) * tangent[r1, 0]
+                + (center[r1, 1] - points[i, j, 1]) * tangent[r1, 1]
+                + (center[r1, 2] - points[i, j, 2]) * tangent[r1, 2]
+            )
+            total = h0 + h1
+            share = h0 / total if abs(total) > 1e-300 else 0.0
+            out[i, j, 1] = ring_v[r0] + share * (ring_v[r1] - ring_v[r0])
+    return out
 
 
 def wrap_u(uv: np.ndarray, tiles: np.ndarray) -> np.ndarray:
