@@ -1154,11 +1154,20 @@ def rescue(he, worst, height, flip):
     fixed = 0
     splits = 0
     max_splits = 64 + he.counts[1] // 100
+    # After the first round a face is looked at again only if an operation changed something near it (within
+    # _NEAR edges of a vertex the operation moved, merged or changed the valence of): what a face needs and
+    # whether an operation on it is allowed depend on nothing farther, and a look that changes nothing has no
+    # effect, so the result is that of looking at every face every round, at the cost of the changes.
+    now = np.ones(len(faces), np.bool_)  # look at it this round
+    again = np.zeros(len(faces), np.bool_)  # and the next
+    seen = np.zeros(len(p) + 1, np.int64)  # per vertex, the last walk that reached it; the walks' count last
+    queue = np.empty(_NEAR_QUEUE, np.int64)
     for _ in range(12):
         changed = 0
         for f in range(he.counts[1]):
-            if not he.face_alive[f]:
+            if not he.face_alive[f] or not now[f]:
                 continue
+            now[f] = False
             a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
             # an edge readers would weld (float32, or trimesh's 1e-8 grid): merge it if the topology allows
             for k in range(3):
@@ -1168,6 +1177,7 @@ def rescue(he, worst, height, flip):
                 close = _length(p, u, w) < weld and not ((he.flags[u] | he.flags[w]) & LOCKED)
                 if close and _collapse_ok(he, g, p[w, 0], p[w, 1], p[w, 2], 1e300, buf_a, buf_b, False):
                     _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
+                    _touch_near(he, w, now, again, seen, queue)
                     changed += 1
                     break
             if not he.face_alive[f]:
@@ -1190,6 +1200,9 @@ def rescue(he, worst, height, flip):
                 g = 3 * f + k
                 if _flip_ok(he, g, flip * s) and _flip_volume(he, g) <= budget:
                     _flip(he, g)
+                    for k2 in range(3):
+                        _touch_near(he, faces[g // 3, k2], now, again, seen, queue)
+                    _touch_near(he, _apex(faces, he.opp[g]), now, again, seen, queue)
                     done = True
                     break
             # candidate half-edges: the face's own (both ways), then those leaving a corner of three neighbours
@@ -1204,6 +1217,7 @@ def rescue(he, worst, height, flip):
                     (_collapse_volume(he, g, p[w, 0], p[w, 1], p[w, 2])) <= budget
                 ):
                     _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
+                    _touch_near(he, w, now, again, seen, queue)
                     done = True
                     break
                 # or both ends meet on the edge (on a crease, either end may turn a face over, a point between not)
@@ -1217,6 +1231,7 @@ def rescue(he, worst, height, flip):
                             (_collapse_volume(he, g, x, y, z)) <= budget
                         ):
                             _collapse(he, g, x, y, z)
+                            _touch_near(he, w, now, again, seen, queue)
                             done = True
                             break
                     if done:
@@ -1237,6 +1252,7 @@ def rescue(he, worst, height, flip):
                             he, g, p[w, 0], p[w, 1], p[w, 2], 1e300 if near else allowed, buf_a, buf_b
                         ) and ((_collapse_volume(he, g, p[w, 0], p[w, 1], p[w, 2])) <= budget):
                             _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
+                            _touch_near(he, w, now, again, seen, queue)
                             done = True
                             break
                         g = he.opp[_prv(g)]
@@ -1254,6 +1270,7 @@ def rescue(he, worst, height, flip):
                 if he.flags[u] & he.flags[w] & SEAM and not ((he.flags[u] | he.flags[w]) & LOCKED):
                     v = _split(he, g, 0.5)
                     if v >= 0:
+                        _touch_near(he, v, now, again, seen, queue)
                         he.flags[v] |= SEAM if across else 0
                         splits += 1
                         done = True
@@ -1261,7 +1278,54 @@ def rescue(he, worst, height, flip):
         fixed += changed
         if changed == 0:
             break
+        now, again = again, now
+        again[:] = False
     return fixed
+
+
+_NEAR = 3
+"""How far (in edges from a vertex an operation changed) :func:`rescue` looks again: a bad face's look reads
+the faces around its corners, around the corners across its edges and around their neighbours (a vertex of
+three neighbours merges into one of them), which an operation changes within one edge of its vertex."""
+_NEAR_QUEUE = 1 << 14
+
+
+@numba.njit(cache=True)
+def _touch_near(he, v, now, again, seen, queue):
+    """Mark the faces around every vertex within :data:`_NEAR` edges of ``v`` to be looked at this round and
+    the next (every face, when the neighbourhood is too large to walk)."""
+    walk = seen[-1] + 1
+    seen[-1] = walk
+    seen[v] = walk
+    queue[0] = v
+    head, tail, level_end, depth = 0, 1, 1, 0
+    while head < tail:
+        if head == level_end:
+            depth += 1
+            level_end = tail
+        u = queue[head]
+        head += 1
+        g0 = he.out[u]
+        if g0 < 0:
+            continue
+        g = g0
+        n = 0
+        while True:
+            now[g // 3] = True
+            again[g // 3] = True
+            w = _dst(he.faces, g)
+            if depth < _NEAR and seen[w] != walk:
+                if tail == len(queue):
+                    now[:] = True
+                    again[:] = True
+                    return
+                seen[w] = walk
+                queue[tail] = w
+                tail += 1
+            g = he.opp[_prv(g)]
+            n += 1
+            if g == g0 or n > _MAX_RING:
+                break
 
 
 # ---------------------------------------------------------------------------------------- junction collars
