@@ -493,14 +493,14 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
                 corners = _corners(p, f0, f1, f2, v, x, y, z)
                 qx, qy, qz = _normal_xyz(*corners)
                 q = np.sqrt(qx * qx + qy * qy + qz * qz)
-                r = he.reference[f]
-                turned = qx * r[0] + qy * r[1] + qz * r[2]
+                r0, r1, r2 = he.reference[f, 0], he.reference[f, 1], he.reference[f, 2]
+                turned = qx * r0 + qy * r1 + qz * r2
                 if turned <= 0.17 * q:
                     # turned away: allowed only for a face that was turned as far already (a fold left by the
                     # boolean must not block every collapse around it), and not further
                     ox, oy, oz = _normal(p, f0, f1, f2)
                     o = np.sqrt(ox * ox + oy * oy + oz * oz)
-                    was = ox * r[0] + oy * r[1] + oz * r[2]
+                    was = ox * r0 + oy * r1 + oz * r2
                     if q <= 0.0 or o <= 0.0 or was > 0.17 * o or turned / q < was / o:
                         return False
                 worst_old = max(worst_old, _aspect(p, f0, f1, f2))
@@ -910,8 +910,8 @@ def _snap(he, f, k, rules, buf_a, buf_b):
             f0, f1, f2 = faces[ff, 0], faces[ff, 1], faces[ff, 2]
             corners = _corners(p, f0, f1, f2, x, fx, fy, fz)
             qx, qy, qz = _normal_xyz(*corners)
-            r = he.reference[ff]
-            if qx * r[0] + qy * r[1] + qz * r[2] <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
+            r0, r1, r2 = he.reference[ff, 0], he.reference[ff, 1], he.reference[ff, 2]
+            if qx * r0 + qy * r1 + qz * r2 <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
                 return -1
             worst_old = max(worst_old, _aspect(p, f0, f1, f2))
             worst_new = max(worst_new, _aspect_xyz(*corners))
@@ -1420,8 +1420,8 @@ def _faces_turned(he, v):
     while True:
         f = g // 3
         qx, qy, qz = _normal(p, faces[f, 0], faces[f, 1], faces[f, 2])
-        r = he.reference[f]
-        if qx * r[0] + qy * r[1] + qz * r[2] <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
+        r0, r1, r2 = he.reference[f, 0], he.reference[f, 1], he.reference[f, 2]
+        if qx * r0 + qy * r1 + qz * r2 <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
             return True
         g = he.opp[_prv(g)]
         if g == h0:
@@ -1574,8 +1574,8 @@ def fair(he, closeness, iterations, step, reach, inward):
             while True:
                 f = g // 3
                 qx, qy, qz = _normal(p, faces[f, 0], faces[f, 1], faces[f, 2])
-                r = he.reference[f]
-                if qx * r[0] + qy * r[1] + qz * r[2] <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
+                r0, r1, r2 = he.reference[f, 0], he.reference[f, 1], he.reference[f, 2]
+                if qx * r0 + qy * r1 + qz * r2 <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
                     p[v, 0], p[v, 1], p[v, 2] = start[i, 0], start[i, 1], start[i, 2]
                     reverted += 1
                     break
@@ -1715,14 +1715,14 @@ def settle(he, closeness):
             continue
         qx, qy, qz = _normal(p, a, b, c)
         q = np.sqrt(qx * qx + qy * qy + qz * qz)
-        r = he.reference[f]
-        if q <= 0.0 or qx * r[0] + qy * r[1] + qz * r[2] <= 0.17 * q:
+        r0, r1, r2 = he.reference[f, 0], he.reference[f, 1], he.reference[f, 2]
+        if q <= 0.0 or qx * r0 + qy * r1 + qz * r2 <= 0.17 * q:
             continue
         # halfway between the tube's and the faired face's: the later operations may turn a face at most 80
         # degrees from that, so a collar face still never turns over against its tube
-        hx, hy, hz = r[0] + qx / q, r[1] + qy / q, r[2] + qz / q
+        hx, hy, hz = r0 + qx / q, r1 + qy / q, r2 + qz / q
         h = np.sqrt(hx * hx + hy * hy + hz * hz)
-        r[0], r[1], r[2] = hx / h, hy / h, hz / h
+        he.reference[f, 0], he.reference[f, 1], he.reference[f, 2] = hx / h, hy / h, hz / h
         n += 1
     return n
 
