@@ -10,9 +10,11 @@ them and records the provenance that lets an exported asset be regenerated::
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections import Counter
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 from . import bark as bark_stage
@@ -505,7 +507,15 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod,
                 yield level, built[level].triangles
 
         return (built[fit_budget(counts(), budget)],)
-    return tuple(build(level) for level in options.lod.levels)
+    rest = [level for level in options.lod.levels if level != 0]
+    threads = min(len(rest), os.cpu_count() or 1)
+    if threads < 2:
+        return tuple(build(level) for level in options.lod.levels)
+    # the other levels at once, one per core: each is its own sweep, union and cleanup of its own arrays (the
+    # compiled kernels and manifold3d release the GIL); the same levels, whatever the order they finish in
+    with ThreadPoolExecutor(threads, thread_name_prefix="lsys3d-lod") as pool:
+        others = dict(zip(rest, pool.map(build, rest), strict=True))
+    return tuple(first if level == 0 else others[level] for level in options.lod.levels)
 
 
 def _keep_in(bark: Mesh, leaves, keys):

@@ -127,7 +127,7 @@ class Rules(NamedTuple):
     """Stop after this many operations (a guard; never reached on sane input)."""
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _opposites(faces, nv):
     """The opposite of each half-edge (-1 where none); ``[-2, ...]`` when a directed edge is used twice.
 
@@ -238,33 +238,33 @@ def compact(he: HalfEdges):
 
 
 # ---------------------------------------------------------------------------------------- navigation
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _nxt(h):
     return h - h % 3 + (h % 3 + 1) % 3
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _prv(h):
     return h - h % 3 + (h % 3 + 2) % 3
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _org(faces, h):
     return faces[h // 3, h % 3]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _dst(faces, h):
     return faces[h // 3, (h % 3 + 1) % 3]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _apex(faces, h):
     """The corner of ``h``'s face across from it."""
     return faces[h // 3, (h % 3 + 2) % 3]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _fan_sizes(he, fan):
     """Faces met walking once around each vertex (equals its face count when they form one fan)."""
     for v in range(he.counts[0]):
@@ -281,7 +281,7 @@ def _fan_sizes(he, fan):
         fan[v] = n
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _ring(he, v, buf):
     """Neighbours of ``v`` into ``buf``; their number, or -1 if more than fit."""
     h0 = he.out[v]
@@ -297,7 +297,7 @@ def _ring(he, v, buf):
             return n
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _valence(he, v):
     h0 = he.out[v]
     h = h0
@@ -309,7 +309,7 @@ def _valence(he, v):
             return n
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _half_edge(he, u, w):
     """The half-edge from ``u`` to ``w``, or -1."""
     h0 = he.out[u]
@@ -325,17 +325,17 @@ def _half_edge(he, u, w):
 
 
 # ---------------------------------------------------------------------------------------- geometry
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _normal_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
     return _cross(bx - ax, by - ay, bz - az, cx - ax, cy - ay, cz - az)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _before(ax, ay, az, bx, by, bz):
     """Whether point ``a`` comes before ``b`` in lexicographic order (a tie-break that ignores vertex order)."""
     if ax != bx:
@@ -345,7 +345,7 @@ def _before(ax, ay, az, bx, by, bz):
     return az < bz
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _aspect_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
     """Aspect (longest edge / (2 sqrt 3 inradius)) of a triangle given by coordinates; 1e30 when flat.
 
@@ -381,7 +381,7 @@ def _aspect_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
     return max(l0, max(l1, l2)) * s / (2.0 * np.sqrt(3.0) * area)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _corners(p, a, b, c, moved, x, y, z):
     """The coordinates of triangle ``a b c``, vertex ``moved`` placed at ``x y z``."""
     ax, ay, az = p[a, 0], p[a, 1], p[a, 2]
@@ -396,22 +396,22 @@ def _corners(p, a, b, c, moved, x, y, z):
     return ax, ay, az, bx, by, bz, cx, cy, cz
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _aspect(p, a, b, c):
     return _aspect_xyz(p[a, 0], p[a, 1], p[a, 2], p[b, 0], p[b, 1], p[b, 2], p[c, 0], p[c, 1], p[c, 2])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _normal(p, a, b, c):
     return _normal_xyz(p[a, 0], p[a, 1], p[a, 2], p[b, 0], p[b, 1], p[b, 2], p[c, 0], p[c, 1], p[c, 2])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _length(p, u, w):
     return np.sqrt((p[u, 0] - p[w, 0]) ** 2 + (p[u, 1] - p[w, 1]) ** 2 + (p[u, 2] - p[w, 2]) ** 2)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _segment_distance(p, a, b, c, d):
     """Distance between segments ``a b`` and ``c d``."""
     d1x, d1y, d1z = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1], p[b, 2] - p[a, 2]
@@ -441,7 +441,7 @@ def _segment_distance(p, a, b, c, d):
 
 
 # ---------------------------------------------------------------------------------------- collapse
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _collapse_topology_ok(he, h, buf_a, buf_b):
     """Whether collapsing half-edge ``h`` keeps a 2-manifold: the link condition, and valences of at least three."""
     faces = he.faces
@@ -467,7 +467,7 @@ def _collapse_topology_ok(he, h, buf_a, buf_b):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _collapse_geometry_ok(he, h, x, y, z, limit):
     """Whether the faces around half-edge ``h``'s ends, with both at ``x, y, z``, keep their side and shapes.
 
@@ -511,7 +511,7 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
     return worst_new <= limit or worst_new < worst_old
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _collapse_ok(he, h, x, y, z, limit, buf_a, buf_b, geometry=True):
     """Whether collapsing half-edge ``h`` (its origin into its end, placed at ``x, y, z``) is allowed.
 
@@ -523,7 +523,7 @@ def _collapse_ok(he, h, x, y, z, limit, buf_a, buf_b, geometry=True):
     return not geometry or _collapse_geometry_ok(he, h, x, y, z, limit)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _collapse(he, h, x, y, z):
     """Collapse half-edge ``h``: its origin ``a`` merges into its end ``b``, placed at ``x, y, z``.
 
@@ -567,7 +567,7 @@ def _collapse(he, h, x, y, z):
     he.scale[b] = min(he.scale[a], he.scale[b])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _volume_neutral(he, h, x, y, z):
     """Where to put the merged vertex of collapsing ``h``, near ``x, y, z``, so the enclosed volume stays.
 
@@ -619,7 +619,7 @@ def _volume_neutral(he, h, x, y, z):
     return x + sx, y + sy, z + sz
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _rank(flags, v):
     """Which end of a collapse keeps its place: a rim vertex, then a tube vertex, then a seam vertex."""
     f = flags[v]
@@ -632,7 +632,7 @@ def _rank(flags, v):
     return 0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _try_collapse(he, h, limit, short, buf_a, buf_b):
     """Collapse the edge of half-edge ``h`` the best way that is allowed; the kept vertex, or -1.
 
@@ -687,7 +687,7 @@ def _try_collapse(he, h, limit, short, buf_a, buf_b):
 
 
 # ---------------------------------------------------------------------------------------- flip
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _flip_ok(he, h, tolerance):
     """Whether flipping the edge of half-edge ``h`` improves its two faces without changing the shape much.
 
@@ -731,7 +731,7 @@ def _flip_ok(he, h, tolerance):
     return new < 0.999 * old
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _flip(he, h):
     """Flip the edge of half-edge ``h`` (faces ``a b c`` and ``b a d`` become ``c a d`` and ``d b c``)."""
     faces, opp, out = he.faces, he.opp, he.out
@@ -760,7 +760,7 @@ def _flip(he, h):
 
 
 # ---------------------------------------------------------------------------------------- split
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _split(he, h, t):
     """Split the edge of half-edge ``h`` at ``a + t (b - a)``: one new vertex, two new faces; the vertex or -1.
 
@@ -818,7 +818,7 @@ def _split(he, h, t):
 
 
 # ---------------------------------------------------------------------------------------- the driver
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _needs_work(he, f, rules):
     faces, p = he.faces, he.points
     a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
@@ -829,7 +829,7 @@ def _needs_work(he, f, rules):
     return _aspect(p, a, b, c) > rules.bad
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _push_fan(he, v, stack, queued, top, rules):
     """Queue the faces around ``v`` that need work; the new stack height."""
     h0 = he.out[v]
@@ -849,7 +849,7 @@ def _push_fan(he, v, stack, queued, top, rules):
             return top
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _snap(he, f, k, rules, buf_a, buf_b):
     """A cap: move its far corner ``x`` onto its edge ``k`` (``u w``) and give the face across the edge to it.
 
@@ -939,7 +939,7 @@ def _snap(he, f, k, rules, buf_a, buf_b):
     return x
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _split_fan(he, f, order, lengths, rules, spawned):
     """A needle of a seam's fan: split its longest edge that leaves the seam ``step`` scales from it; the vertex or -1.
 
@@ -966,7 +966,7 @@ def _split_fan(he, f, order, lengths, rules, spawned):
     return -1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def clean(he, rules, region):
     """Remove the needles and caps of ``he`` by local operations; returns how many of each kind were done.
 
@@ -1077,7 +1077,7 @@ def clean(he, rules, region):
     return done
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _collapse_volume(he, h, x, y, z):
     """How far collapsing half-edge ``h`` (ends placed at ``x, y, z``) moves the surface around, on average.
 
@@ -1112,7 +1112,7 @@ def _collapse_volume(he, h, x, y, z):
     return 3.0 * abs(change) / max(area, 1e-300)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _flip_volume(he, h):
     """How far flipping the edge of half-edge ``h`` moves the surface, on average (see :func:`_collapse_volume`)."""
     faces, p = he.faces, he.points
@@ -1127,7 +1127,7 @@ def _flip_volume(he, h):
     return 3.0 * abs(ex * cx + ey * cy + ez * cz) / max(area, 1e-300)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def rescue(he, worst, height, flip):
     """The last resort for faces still worse than aspect ``worst`` or lower than ``height``; returns the count fixed.
 
@@ -1290,7 +1290,7 @@ three neighbours merges into one of them), which an operation changes within one
 _NEAR_QUEUE = 1 << 14
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _touch_near(he, v, now, again, seen, queue):
     """Mark the faces around every vertex within :data:`_NEAR` edges of ``v`` to be looked at this round and
     the next (every face, when the neighbourhood is too large to walk)."""
@@ -1329,7 +1329,7 @@ def _touch_near(he, v, now, again, seen, queue):
 
 
 # ---------------------------------------------------------------------------------------- junction collars
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def collar(he, width, closeness):
     """How close each vertex is to a seam, in ``closeness`` (1 on the seam, 0 at ``width`` scales or beyond).
 
@@ -1369,7 +1369,7 @@ def collar(he, width, closeness):
     return n
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _vertex_normal(he, v):
     faces, p = he.faces, he.points
     h0 = he.out[v]
@@ -1390,7 +1390,7 @@ def _vertex_normal(he, v):
     return nx / n, ny / n, nz / n
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _fan_volume(p, faces, he, v):
     """Six times the volume of the cone from the origin over the faces around ``v``, and its gradient in ``v``."""
     h0 = he.out[v]
@@ -1411,7 +1411,7 @@ def _fan_volume(p, faces, he, v):
     return six, gx, gy, gz
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _faces_turned(he, v):
     """Whether a face around ``v`` is turned more than 80 degrees from its reference normal."""
     faces, p = he.faces, he.points
@@ -1428,7 +1428,7 @@ def _faces_turned(he, v):
             return False
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _find(parent, i):
     while parent[i] != i:
         parent[i] = parent[parent[i]]
@@ -1436,7 +1436,7 @@ def _find(parent, i):
     return i
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def fair(he, closeness, iterations, step, reach, inward):
     """Round the junction creases: make each collar as smooth as a thin plate bent between its tubes.
 
@@ -1591,7 +1591,7 @@ def fair(he, closeness, iterations, step, reach, inward):
     return moves
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, nogil=True, inline="always")
 def _at(p, start, slot, m, v):
     """Where vertex ``v`` was before the fairing: ``start`` for a collar vertex, else where it is."""
     j = slot[v]
@@ -1600,7 +1600,7 @@ def _at(p, start, slot, m, v):
     return p[v, 0], p[v, 1], p[v, 2]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _collar_gain(he, slot, around, start, m, root, gained):
     """Into ``gained[root]``: six times the volume each collar's moves added (faces with a collar corner, once each)."""
     faces, p = he.faces, he.points
@@ -1629,7 +1629,7 @@ def _collar_gain(he, slot, around, start, m, root, gained):
                 break
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _give_back_volume(he, closeness, members, start):
     """Sink each collar along its normals by what its fairing added to the volume (see :func:`fair`).
 
@@ -1693,7 +1693,7 @@ def _give_back_volume(he, closeness, members, start):
             p[v, 0], p[v, 1], p[v, 2] = faired[i, 0], faired[i, 1], faired[i, 2]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def settle(he, closeness):
     """Turn the faired collars' reference normals halfway to their own normals; returns how many changed.
 
@@ -1728,7 +1728,7 @@ def settle(he, closeness):
 
 
 # ---------------------------------------------------------------------------------------- per-corner helpers
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def corner_normals(points, faces, flat):
     """Corner normals ``(f, 3, 3) float32``: angle-weighted vertex normals of the curved faces; flat faces' own.
 
@@ -1769,7 +1769,7 @@ def corner_normals(points, faces, flat):
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def tube_faces(points, faces, tube_points, wedge_point, tube_faces, source, relative, absolute):
     """What each face of the union learns from the tube face it is a piece of (``source``), in one pass.
 
