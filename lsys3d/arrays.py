@@ -1,5 +1,6 @@
 """Array helpers shared by the stages: CSR offsets, index ranges, unit vectors, row grouping and hashing,
-connected components, and handing the memory of freed arrays back to the system.
+distinct values and membership by sorting, connected components, and handing the memory of freed arrays back
+to the system.
 
 Every stage stores variable-length groups (the segments of a chain, the rings
 of a tube, the points of a polygon) as one flat array plus ``offsets``, like a
@@ -12,6 +13,13 @@ sort instead of sorting rows (``np.unique(a, axis=0)`` and ``lexsort`` compare
 rows column by column and are several times slower).  Every match found
 through a hash is confirmed on the rows themselves, so a collision can only
 cost a match, never make a wrong one.
+
+Distinct values and membership (:func:`unique`, :func:`isin`) go through one
+sort too: numpy 2.3 and later find ``np.unique``'s values with a hash table
+(also inside ``np.isin``, ``np.union1d`` and ``np.setdiff1d``), which is 10 to
+80 times slower than sorting on arrays of a million distinct integers (numpy
+2.4.6 here: 1.7 s against 0.03 s for 10**6 values, 22 s against 0.26 s for 10**7):
+the 262,143-segment plant's union spent 6 s in it.
 """
 
 from __future__ import annotations
@@ -28,11 +36,13 @@ __all__ = [
     "find_rows",
     "first_equal_row",
     "gather",
+    "isin",
     "local_index",
     "offsets",
     "ranges",
     "release_memory",
     "row_hash",
+    "unique",
     "unit",
 ]
 
@@ -93,6 +103,32 @@ def gather(offsets_: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndar
     new = offsets(counts)
     old = offsets_[which]
     return ranges(old, counts), old, new
+
+
+def unique(a) -> np.ndarray:
+    """The distinct values of ``a`` (flattened), ascending: ``np.unique(a)`` for integers, by a sort.
+
+    >>> unique(np.array([[3, 1], [3, 2]])).tolist()
+    [1, 2, 3]
+    """
+    s = np.sort(np.asarray(a).ravel())
+    keep = np.ones(len(s), bool)
+    np.not_equal(s[1:], s[:-1], out=keep[1:])
+    return s[keep]
+
+
+def isin(a, b) -> np.ndarray:
+    """``np.isin(a, b)`` for integers, by a sort of ``b``: whether each element of ``a`` is one of ``b``'s.
+
+    >>> isin(np.array([1, 5, 2]), [2, 3]).tolist()
+    [False, False, True]
+    """
+    a = np.asarray(a)
+    values = unique(b)
+    if not len(values):
+        return np.zeros(a.shape, bool)
+    at = np.minimum(np.searchsorted(values, a), len(values) - 1)
+    return values[at] == a
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:

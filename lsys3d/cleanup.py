@@ -46,7 +46,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import remesh
-from .arrays import components
+from .arrays import components, isin, unique
 from .errors import GeometryError
 from .mesh import Mesh
 from .options import Options, option
@@ -198,8 +198,8 @@ def _mark(he, bark: _Surface, part, flat, local, body, sides) -> None:
     seam = part[own] != part[across]
     # a cap the boolean cut (a thick child's base poking out of its parent: a ledge) is no rim to keep
     cap = np.where(flat, 2 * part + (local >= body + sides), -1)
-    cut = np.unique(cap[own[seam]])
-    flat &= ~np.isin(cap, cut[cut >= 0])
+    cut = unique(cap[own[seam]])
+    flat &= ~isin(cap, cut[cut >= 0])
     he.face_flat[:nf] = flat
     rim = (flat[own] != flat[across]) & ~seam
     for mask, bit in ((seam, remesh.SEAM), (rim, remesh.FEATURE)):

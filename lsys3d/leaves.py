@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import manifold3d
 import numpy as np
 
+from .arrays import unique
 from .errors import GeometryError, LimitError
 from .hierarchy import Hierarchy
 from .mesh import Mesh
@@ -259,7 +260,7 @@ def polygon_leaves(skeleton: Skeleton, attributes: Mapping | None = None) -> Mes
     np.maximum.at(hi, poly, uv2)
     uv = (uv2 - lo[poly]) / np.maximum(hi - lo, 1e-300)[poly]
     normals = np.repeat(normal[fpoly][:, None, :], 3, axis=1)
-    used = np.unique(faces)
+    used = unique(faces)
     remap = np.full(len(points), -1, np.int64)
     remap[used] = np.arange(len(used))
     per_vertex = {name: np.asarray(a)[sel[poly[used]]] for name, a in (attributes or {}).items()}

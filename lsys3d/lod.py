@@ -57,6 +57,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .arrays import unique
 from .errors import LimitError, OptionsError
 from .hierarchy import Hierarchy
 from .leaves import LeafOptions, Leaves
@@ -323,7 +324,7 @@ def cards(leaves: Mesh | None, trunk_axis_point: np.ndarray, count: int = CARDS)
     small, large = extent / 1000.0, 2.0 * extent
     for _ in range(16):
         size = math.sqrt(small * large)
-        if len(np.unique(cells_of(sample, size))) > count:
+        if len(unique(cells_of(sample, size))) > count:
             small = size
         else:
             large = size

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .arrays import find_rows, row_hash
+from .arrays import find_rows, row_hash, unique
 from .arrays import local_index as _local_counts
 from .arrays import offsets as _offsets
 from .booleans import Part
@@ -80,7 +80,7 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
     corners = tubes.wedge_point[faces_of(tri)]  # (n, 3) points
     # the points of each cluster, ascending
     npts = len(tubes.points)
-    key = np.unique(cluster_of_tri[:, None] * npts + corners)
+    key = unique(cluster_of_tri[:, None] * npts + corners)
     point = key % npts
     point_cluster = key // npts
     point_off = np.searchsorted(point_cluster, np.arange(nc + 1))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .arrays import components as _labels
+from .arrays import unique
 from .modules import ModuleString
 from .quality import quality
 from .skeleton import Skeleton
@@ -74,7 +75,7 @@ def components(faces: np.ndarray, n_vertices: int) -> int:
     if len(faces) == 0:
         return 0
     label = _labels(n_vertices, faces.ravel(), np.roll(faces, -1, axis=1).ravel())
-    return len(np.unique(label[faces[:, 0]]))
+    return len(unique(label[faces[:, 0]]))
 
 
 def mesh_stats(tree) -> dict:

@@ -45,7 +45,7 @@ from dataclasses import dataclass, replace
 import numba
 import numpy as np
 
-from .arrays import dot, gather, local_index, offsets, unit
+from .arrays import dot, gather, local_index, offsets, unique, unit
 from .bark import bark_noise
 from .errors import GeometryError, LimitError
 from .mesh import Mesh
@@ -374,7 +374,7 @@ class Tubes:
         )
 
         faces = np.empty((f_off[-1], 3), np.int64)
-        for s in np.unique(sides).tolist():
+        for s in unique(sides).tolist():
             which = np.flatnonzero(sides == s)
             _tube_faces(faces, s, new_rings[which], w_off[which], f_off[which])
         # the rings themselves: an inserted ring lies on its span, perpendicular to it (as _insert_rings makes them)
@@ -805,7 +805,7 @@ def sweep(
             return amplitude * bark_noise(points, noise_seed, octaves=opt.bark_octaves, frequency=opt.bark_frequency)
 
     parts = []
-    for s in np.unique(sides_of_piece).tolist():
+    for s in unique(sides_of_piece).tolist():
         pieces = np.flatnonzero(sides_of_piece == s)
         rsel = np.flatnonzero(sides_of_piece[ring_piece] == s)
         parts.append(

@@ -41,6 +41,7 @@ import numpy as np
 from .arrays import dot as _dot
 from .arrays import local_index as _local
 from .arrays import offsets as _offsets
+from .arrays import unique
 from .errors import LimitError
 from .sweep import Tubes
 
@@ -209,7 +210,7 @@ def touching(pcs: Pieces, margin: float = 0.01, max_pairs: int = DEFAULT_MAX_PAI
     """
     m = len(pcs)
     none = np.zeros(0, np.int64)
-    if m < 2 or len(np.unique(pcs.tube)) < 2:
+    if m < 2 or len(unique(pcs.tube)) < 2:
         return none, none
     lo, hi, owner = pcs.lo, pcs.hi, pcs.tube
     scale = float(np.abs(np.concatenate([lo, hi])).max()) + 1.0
@@ -287,7 +288,7 @@ def duplicate_tubes(tubes: Tubes) -> np.ndarray:
     """``(t,) bool``: tubes whose points equal an earlier tube's, bit for bit (coincident branches)."""
     dup = np.zeros(len(tubes), bool)
     npts = np.diff(tubes.point_offsets)
-    for count in np.unique(npts).tolist():
+    for count in unique(npts).tolist():
         which = np.flatnonzero(npts == count)
         if len(which) < 2:
             continue
@@ -315,7 +316,7 @@ def straight_spans(tubes: Tubes, tube: np.ndarray, ring: np.ndarray, rtol: float
         return np.zeros(0, bool)
     s = tubes.sides[tube]
     out = np.zeros(len(tube), bool)
-    for side in np.unique(s).tolist():
+    for side in unique(s).tolist():
         sel = np.flatnonzero(s == side)
         base = tubes.point_offsets[tube[sel]] + ring[sel] * side
         A = tubes.points[base[:, None] + np.arange(side)]
@@ -341,7 +342,7 @@ def _inscribed(tubes: Tubes, tube: np.ndarray, ring: np.ndarray) -> np.ndarray:
     """Distance from each ring's centre to its nearest wall edge (the radius of the circle the ring contains)."""
     out = np.empty(len(tube))
     s = tubes.sides[tube]
-    for side in np.unique(s).tolist():
+    for side in unique(s).tolist():
         sel = np.flatnonzero(s == side)
         base = tubes.point_offsets[tube[sel]] + ring[sel] * side
         A = tubes.points[base[:, None] + np.arange(side)]
@@ -433,7 +434,7 @@ def free_stretches(
     if not len(me):
         return empty
     span_ok = np.zeros(len(pcs), bool)
-    uniq = np.unique(me)
+    uniq = unique(me)
     span_ok[uniq] = straight_spans(tubes, pcs.tube[uniq], pcs.first[uniq])
     keep = span_ok[me]
     me, other = me[keep], other[keep]

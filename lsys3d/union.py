@@ -57,7 +57,7 @@ import manifold3d
 import numpy as np
 
 from . import booleans, repeats, union_jobs
-from .arrays import components, find_rows, gather, ranges, release_memory, row_hash
+from .arrays import components, find_rows, gather, isin, ranges, release_memory, row_hash, unique
 from .arrays import first_equal_row as _first_equal_row
 from .arrays import offsets as _offsets
 from .booleans import BooleanError, Part
@@ -184,7 +184,7 @@ def _unique_pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     lo, hi = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
     if not len(lo):
         return np.zeros((0, 2), np.int64)
-    key = np.unique(lo * (int(hi.max()) + 1) + hi)
+    key = unique(lo * (int(hi.max()) + 1) + hi)
     return np.stack([key // (int(hi.max()) + 1), key % (int(hi.max()) + 1)], axis=1)
 
 
@@ -283,7 +283,7 @@ def _union(held: list, opt: UnionOptions, progress: Callable[[float], None] | No
     def leaf(i: int) -> list[Part]:
         items = jobs.leaves[i]
         out = []
-        for c in np.unique(colour[items]).tolist():
+        for c in unique(colour[items]).tolist():
             which = np.sort(items[colour[items] == c])
             sel = tubes.select(which)
             out.append(_part(sel, sel.faces, gather(tubes.face_offsets, which)[0]))
@@ -375,7 +375,8 @@ def _true_sources(mesh: Mesh, tubes: Tubes, checked: int | None = None) -> Mesh:
         ok = ~_misplaced(mesh.vertices, faces[pair_face], pair_src, tubes)
         fixed, first = np.unique(pair_face[ok], return_index=True)
         source[fixed] = pair_src[ok][first]
-        bad = np.setdiff1d(bad, fixed)
+        bad = unique(bad)
+        bad = bad[~isin(bad, fixed)]
         if not len(bad) or not len(fixed):
             break
     log.debug("union: %d faces given a neighbour's source face, %d left as manifold3d gave them", found, len(bad))
@@ -593,7 +594,7 @@ def _owners(keys: np.ndarray, dirty: np.ndarray) -> np.ndarray:
     if not len(dirty):
         return owner
     h = row_hash(keys)
-    maybe = np.isin(h, h[dirty])  # a hash shared with a dirty row (a collision only adds a candidate)
+    maybe = isin(h, h[dirty])  # a hash shared with a dirty row (a collision only adds a candidate)
     maybe[dirty] = True
     rows = np.flatnonzero(maybe)
     owner[rows] = rows[_first_equal_row(keys[rows])]
@@ -637,7 +638,7 @@ def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False
             if not len(later):
                 continue
             moved = True
-            dirty = [np.union1d(d, later) for d in dirty]
+            dirty = [unique(np.concatenate([d, later])) for d in dirty]
             axis = np.argmax(np.abs(v[later]), axis=1)
             # a vertex keeps the side it first moved to, so it cannot swing between two neighbours
             fresh = direction[later] == 0
@@ -719,7 +720,7 @@ def _local_union(
     cut_run = np.concatenate([np.flatnonzero(open_base), np.flatnonzero(open_tip)])
     cut_tip = np.concatenate([np.zeros(open_base.sum(), bool), np.ones(open_tip.sum(), bool)])
     cap_faces, cap_run = [], []
-    for s in np.unique(sides[cut_tube]).tolist() if len(cut_tube) else []:
+    for s in unique(sides[cut_tube]).tolist() if len(cut_tube) else []:
         c = np.flatnonzero(sides[cut_tube] == s)
         j = np.arange(1, s - 1)
         fan_tip = np.stack([np.zeros_like(j), j, j + 1], axis=1)
@@ -766,7 +767,7 @@ def _local_union(
     def leaf(i: int) -> list[Part]:
         items = jobs.leaves[i]
         out = []
-        for c in np.unique(colour[items]).tolist():
+        for c in unique(colour[items]).tolist():
             runs = todo[np.sort(items[colour[items] == c])]
             ids = np.concatenate([tri_id[tri_off[r] : tri_off[r + 1]] for r in runs.tolist()])
             out.append(_part(tubes, faces_of(ids), ids))
@@ -817,7 +818,7 @@ def _local_union(
         tubes.point_offsets[cut_tube][:, None] + (cut_ring * sides[cut_tube])[:, None] + np.arange(sides.max())[None]
     )
     cut_points = cut_points[np.arange(sides.max())[None] < sides[cut_tube][:, None]]
-    seam = np.unique(point_of[otri[temp]])
+    seam = unique(point_of[otri[temp]])
     if len(seam) != len(cut_points):
         log.debug("union: the temporary caps do not meet the boolean at their rings; unioning whole tubes")
         return None
@@ -960,7 +961,7 @@ def _unit_rows(v: np.ndarray) -> np.ndarray:
 def _match_rows(have: np.ndarray, want: np.ndarray):
     """Index into ``have`` of every row of ``want`` (exact match), or None if any is missing or twice."""
     found = find_rows(have, want)
-    if (found < 0).any() or len(np.unique(found)) != len(found):
+    if (found < 0).any() or len(unique(found)) != len(found):
         return None
     return found
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..arrays import first_equal_row
+from ..arrays import first_equal_row, isin, unique
 from ..attributes import ATTRIBUTES
 from ..errors import ExportError
 from ..images import Image
@@ -390,13 +390,13 @@ def material_groups(index: np.ndarray | None, material_of) -> list[tuple[object,
     """
     if index is None or not len(index):
         return [(material_of(-1), -1, None)]
-    used = np.unique(index).tolist()
+    used = unique(index).tolist()
     first: dict = {}
     for i in used:
         first.setdefault(material_of(i), i)
     if len(first) == 1:
         return [(next(iter(first)), used[0], None)]
-    rows = {m: np.flatnonzero(np.isin(index, [i for i in used if material_of(i) == m])) for m in first}
+    rows = {m: np.flatnonzero(isin(index, [i for i in used if material_of(i) == m])) for m in first}
     return [(m, i, rows[m]) for m, i in first.items()]
 
 

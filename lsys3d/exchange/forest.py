@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, Vt
 
+from ..arrays import unique
 from ..errors import ExportError, ForestError
 from .atomic import atomic_path, write_bytes
 from .common import ExportOptions, decompose_transforms, file_frame, frame_transforms
@@ -88,7 +89,7 @@ def write_forest_usd(
     from .. import __version__
 
     path = Path(path)
-    used = np.unique(scatter.variant)  # prototypes without instances are left out
+    used = unique(scatter.variant)  # prototypes without instances are left out
     remap = np.full(len(prototypes), -1, np.int64)
     remap[used] = np.arange(len(used))
     frame = file_frame(frame_options)
@@ -303,7 +304,7 @@ def write_forest_glb(path: Path, prototypes: Sequence[tuple[str, Path]], scatter
     merged = _Merged()
     translation, quaternion, scale = decompose_transforms(scatter.transforms(), str(path))
     roots = []
-    for i in np.unique(scatter.variant).tolist():
+    for i in unique(scatter.variant).tolist():
         name, glb = prototypes[i]
         meshes = merged.add_asset(name, Path(glb))
         if not meshes:
