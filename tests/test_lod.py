@@ -41,6 +41,17 @@ def test_level_zero_is_the_tree(tree3d_lods):
     assert np.array_equal(plain.bark.faces, tree3d_lods.bark.faces)
 
 
+def test_levels_built_at_once_are_the_levels_built_one_after_another(tree3d_lods, monkeypatch):
+    """The levels after level 0 are built one thread per core; on one core, one after another: the same bytes."""
+    monkeypatch.setattr("lsys3d.pipeline.os.cpu_count", lambda: 1)
+    alone = lsys3d.generate("tree3d", lod=(0, 1, 3))
+    assert [lod.level for lod in alone.lods] == [0, 1, 3]
+    for lod in alone.lods:
+        threaded = tree3d_lods.lods[lod.level]
+        for name in ("vertices", "faces", "normals", "uv", "face_source"):
+            assert np.array_equal(getattr(lod.bark, name), getattr(threaded.bark, name)), (lod.level, name)
+
+
 def test_levels_keep_the_silhouette(tree3d_lods):
     """Every level is grown from the one skeleton: bark and leaves span the same box (no pop when switching).
 
