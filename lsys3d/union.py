@@ -834,6 +834,8 @@ def _local_union(
     release_memory()
     seam_pos = np.empty((npts, 3), np.float64)
     seam_pos[point_of] = props[:, :3]
+    if not corners:
+        props = None  # only the positions were needed: the normals and uv are not made
     temp = fid >= nf
     if temp.sum() != len(cap_faces):
         log.debug("union: a temporary cap was changed by the boolean; unioning whole tubes")
@@ -862,6 +864,8 @@ def _local_union(
     faces = np.empty((nb + len(ff), 3), np.int64)
     np.take(point_of, kept, out=faces[:nb])
     del point_of
+    if not corners:
+        kept = None
     if corners:
         normals = np.empty((len(faces), 3, 3), np.float32)
         uv = np.empty((len(faces), 3, 2), np.float32)
@@ -1005,17 +1009,20 @@ def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> b
     are checked: the rest of the mesh is known to be closed (a boolean's output,
     whole tube pieces) and only the seams where the parts were joined need it.
     """
-    if near is not None:
-        faces = faces[near[faces].any(axis=1)]
-    a, b = faces.ravel(), np.roll(faces, -1, axis=1).ravel()
-    if near is not None:
-        mine = near[a] | near[b]
-        a, b = a[mine], b[mine]
-    fwd = a * nverts + b
+    # the edges' keys written a corner column at a time: no copy of the faces (a stitched plant's are 0.15 GB)
+    mine = [
+        np.ones(len(faces), bool) if near is None else near[faces[:, k]] | near[faces[:, (k + 1) % 3]] for k in range(3)
+    ]
+    ends = np.cumsum([0] + [int(m.sum()) for m in mine])
+    fwd, rev = np.empty(ends[-1], np.int64), np.empty(ends[-1], np.int64)
+    for k in range(3):
+        a, b = faces[mine[k], k], faces[mine[k], (k + 1) % 3]
+        np.add(a * nverts, b, out=fwd[ends[k] : ends[k + 1]])
+        np.add(b * nverts, a, out=rev[ends[k] : ends[k + 1]])
+    del a, b, mine
     fwd.sort()
     if len(fwd) > 1 and (fwd[1:] == fwd[:-1]).any():
         return False
-    rev = b * nverts + a
     rev.sort()
     return bool(np.array_equal(fwd, rev))
 
