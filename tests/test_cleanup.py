@@ -135,6 +135,19 @@ def test_int32_half_edges_clean_as_int64_ones(tree3d_parts, monkeypatch):
     assert remesh.index_dtype(2**31 - 1) == np.int32 and remesh.index_dtype(2**31) == np.int64
 
 
+def test_a_bark_the_cleanup_leaves_as_it_was_gets_the_unions_corners(monkeypatch):
+    """The pipeline asks the union for no corner normals and uv when the cleanup makes its own; should the cleanup
+    leave the union's bark as it was (not a closed 2-manifold), the bark is the union's with its corners."""
+    from lsys3d import pipeline
+
+    raw = lsys3d.generate("abop-1.24a", iterations=2, cleanup=False).bark
+    monkeypatch.setattr(pipeline, "cleanup", lambda bark, tubes, options: bark)
+    kept = lsys3d.generate("abop-1.24a", iterations=2).bark
+    assert np.abs(kept.normals).sum() > 0 and kept.normals.strides[0] != 0
+    for name in ("vertices", "faces", "normals", "uv", "face_source"):
+        assert getattr(kept, name).tobytes() == getattr(raw, name).tobytes()
+
+
 def test_off_is_the_union():
     tubes = sweep(y_junction())
     raw = union(tubes)
