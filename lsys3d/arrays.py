@@ -206,25 +206,33 @@ def first_equal_row(keys: np.ndarray) -> np.ndarray:
     return owner
 
 
-def components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def components(n: int, a: np.ndarray, b: np.ndarray, chunk: int = 1 << 20) -> np.ndarray:
     """Connected component of each of ``n`` nodes joined by edges ``a - b``: the smallest node index in it.
 
     Label propagation with pointer jumping, in numpy: each pass hooks every
     root under the smallest root it touches, then compresses the paths; a few
-    passes over the edges, whatever the graph's diameter.
+    passes over the edges, whatever the graph's diameter.  The edges are read
+    ``chunk`` at a time (a mesh's 19 million edges would otherwise make
+    temporaries of a gigabyte); the labels do not depend on it.
 
     >>> components(6, np.array([0, 4, 2]), np.array([1, 5, 1])).tolist()
     [0, 0, 0, 3, 4, 4]
     """
     parent = np.arange(n, dtype=np.int64)
-    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    a, b = np.asarray(a), np.asarray(b)
     while len(a):
-        pa, pb = parent[a], parent[b]
-        differ = pa != pb
-        if not differ.any():
+        hooked = False
+        for lo in range(0, len(a), chunk):
+            pa, pb = parent[a[lo : lo + chunk]], parent[b[lo : lo + chunk]]
+            differ = pa != pb
+            if differ.any():
+                hooked = True
+                pa, pb = pa[differ], pb[differ]
+                # hook each root under the smaller root it touches (a node hooked by an earlier chunk of this
+                # pass may be hooked again: the labels only decrease, to the smallest node of each component)
+                np.minimum.at(parent, np.maximum(pa, pb), np.minimum(pa, pb))
+        if not hooked:
             break
-        lo, hi = np.minimum(pa[differ], pb[differ]), np.maximum(pa[differ], pb[differ])
-        np.minimum.at(parent, hi, lo)  # hook each root under the smaller root it touches
         while True:  # compress paths until every node points at a root
             jumped = parent[parent]
             if np.array_equal(jumped, parent):

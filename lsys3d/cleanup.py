@@ -167,19 +167,24 @@ def _drop_crumbs(bark: Mesh) -> _Surface:
 
 
 def _classify(bark: _Surface, tubes: Tubes):
-    """Per face: tube, flat (cap), reference normal; per vertex: scale and flags (:mod:`lsys3d.remesh`)."""
+    """Per face: tube, flat (cap), which cap, reference normal; per vertex: scale and flags (:mod:`lsys3d.remesh`).
+
+    A face's cap is ``2 tube + (0 at the base, 1 at the tip)``, -1 on the wall.
+    """
     src = bark.face_source
     part = _tube_of_face(tubes, src)
     sides = tubes.sides[part]
     local = src - tubes.face_offsets[part]
     body = 2 * sides * (tubes.rings[part] - 1)
     flat = local >= body
+    cap = np.where(flat, 2 * part + (local >= body + sides), -1)
+    del sides, local, body
     # the shortest edge of the tube faces around each vertex, whether it is a tube vertex, each face's tube normal
     scale, original, reference = remesh.tube_faces(
         bark.vertices, bark.faces, tubes.points, tubes.wedge_point, tubes.faces, src, 1e-4, 1e-5
     )
     flags = np.where(original, remesh.ORIGINAL, 0).astype(np.int64)
-    return part, flat, local, body, sides, scale, flags, reference
+    return part, flat, cap, scale, flags, reference
 
 
 def _full(he) -> bool:
@@ -187,24 +192,36 @@ def _full(he) -> bool:
     return bool(he.counts[0] >= len(he.points) or he.counts[1] + 2 > len(he.faces))
 
 
-def _mark(he, bark: _Surface, part, flat, local, body, sides) -> None:
-    """Flag the vertices of seams and rims in ``he``; unflatten the caps the boolean cut."""
+def _mark(he, bark: _Surface, part, flat, cap) -> None:
+    """Flag the vertices of seams and rims in ``he``; unflatten the caps the boolean cut (``flat`` is changed).
+
+    A chunk of faces at a time: no temporaries of the size of the half-edges.
+    """
     nf = len(bark.faces)
+
+    def half_edges(start):  # each half-edge's face, the face across it, its two ends
+        stop = min(start + _CHUNK, nf)
+        own = np.repeat(np.arange(start, stop), 3)
+        corners = bark.faces[start:stop]
+        return own, he.opp[3 * start : 3 * stop] // 3, corners.reshape(-1), corners[:, [1, 2, 0]].reshape(-1)
+
     # seams (edges between two tubes) and rims (between a flat cap and the wall of one tube)
-    own = np.repeat(np.arange(nf), 3)
-    across = he.opp[: 3 * nf] // 3
-    org = bark.faces.reshape(-1)
-    dst = bark.faces[:, [1, 2, 0]].reshape(-1)
-    seam = part[own] != part[across]
+    cut = [np.zeros(0, np.int64)]
+    for start in range(0, nf, _CHUNK):
+        own, across, org, dst = half_edges(start)
+        seam = part[own] != part[across]
+        he.flags[org[seam]] |= remesh.SEAM
+        he.flags[dst[seam]] |= remesh.SEAM
+        cut.append(unique(cap[own[seam]]))
     # a cap the boolean cut (a thick child's base poking out of its parent: a ledge) is no rim to keep
-    cap = np.where(flat, 2 * part + (local >= body + sides), -1)
-    cut = unique(cap[own[seam]])
+    cut = unique(np.concatenate(cut))
     flat &= ~isin(cap, cut[cut >= 0])
     he.face_flat[:nf] = flat
-    rim = (flat[own] != flat[across]) & ~seam
-    for mask, bit in ((seam, remesh.SEAM), (rim, remesh.FEATURE)):
-        he.flags[org[mask]] |= bit
-        he.flags[dst[mask]] |= bit
+    for start in range(0, nf, _CHUNK):
+        own, across, org, dst = half_edges(start)
+        rim = (flat[own] != flat[across]) & (part[own] == part[across])
+        he.flags[org[rim]] |= remesh.FEATURE
+        he.flags[dst[rim]] |= remesh.FEATURE
 
 
 def _clean(he, opt: CleanupOptions, budget: int):
@@ -258,7 +275,6 @@ def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions):
     """The cleaned bark's points, faces, flat faces, face sources and vertex origins, and the operations done;
     None when the bark is not a closed 2-manifold (a warning says so)."""
     bark = _drop_crumbs(bark)
-    part, flat, local, body, sides, scale, flags, reference = _classify(bark, tubes)
     nf = len(bark.faces)
     # room for the splits: the presets make at most 4 % of the faces' count (bush); a run that fills the room
     # is made again with four times as much, so the result never depends on the room (only memory does)
@@ -267,12 +283,17 @@ def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions):
     # the aspect is the same whatever the order of a triangle's corners): if reached, the result says so
     budget = 4 * nf
     while True:
+        # made again for each try (a try changes the flags and flat faces): what the half-edges hold a copy of
+        # is not kept while they are cleaned
+        part, flat, cap, scale, flags, reference = _classify(bark, tubes)
         try:
             he = remesh.build(bark.vertices, bark.faces, flags, scale, part, flat, reference, bark.face_source, room)
         except ValueError as exc:
             log.warning("cleanup: skipped, %s", exc)
             return None
-        _mark(he, bark, part, flat.copy(), local, body, sides)  # its full-size temporaries go before the cleaning
+        del scale, flags, reference
+        _mark(he, bark, part, flat, cap)
+        del part, flat, cap
         result = _clean(he, opt, budget)
         if not _full(he):
             break

@@ -416,7 +416,8 @@ def _bark(
     cleanup the union is given the only reference, so that it frees the soup
     once it is culled (the 262,143-segment plant's soup is over a gigabyte);
     the cleanup needs the tubes after the union (``Mesh.face_source`` names
-    their faces), so with it they are kept until the cleanup is done.
+    their faces), so with it they are kept until the cleanup is done; the
+    union then makes no corner normals and uv (the cleanup makes its own).
     """
     if options.union.enabled and not options.cleanup.enabled and len(held[0]):
         bark = stage("union", _union_of_held, held, options.union, progress)
@@ -425,8 +426,13 @@ def _bark(
     if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
         bark = stage("union", Mesh.empty)
     elif options.union.enabled:
-        bark = stage("union", _union_of_held, [tubes], options.union, progress)  # tubes kept: the cleanup needs them
-        bark = stage("cleanup", cleanup, bark, tubes, options.cleanup)
+        # tubes kept: the cleanup needs them; no corner normals and uv: the cleanup makes its own
+        raw = stage("union", _union_of_held, [tubes], options.union, progress, False)
+        bark = stage("cleanup", cleanup, raw, tubes, options.cleanup)
+        if bark is raw:  # the cleanup left the union as it was (not a closed 2-manifold): it needs the corners
+            raw = bark = None
+            bark = stage("union", _union_of_held, [tubes], options.union, progress)
+        del raw
     else:
         bark = stage("union", concatenate, tubes)
     del tubes
@@ -434,9 +440,11 @@ def _bark(
     return stage("color", bark_stage.color, bark, options.color, base_color, seed)
 
 
-def _union_of_held(held: list, options: UnionOptions, progress: Callable[[float], None] | None) -> Mesh:
+def _union_of_held(
+    held: list, options: UnionOptions, progress: Callable[[float], None] | None, corners: bool = True
+) -> Mesh:
     """``union(held.pop(), options)``: the list is emptied, so the union holds the tube soup alone."""
-    return union(held.pop(), options, progress=progress)
+    return union(held.pop(), options, progress=progress, corners=corners)
 
 
 @dataclass(frozen=True)

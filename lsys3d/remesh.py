@@ -44,6 +44,7 @@ __all__ = [
     "build",
     "clean",
     "compact",
+    "index_dtype",
     "rescue",
 ]
 
@@ -64,27 +65,30 @@ _MAX_SPAWN = 8  # splits one seam vertex's fan may make
 class HalfEdges(NamedTuple):
     """A closed triangle mesh as half-edges, with room to grow (arrays are longer than the mesh).
 
+    The integer arrays but ``counts`` are of one index type (:func:`index_dtype`):
+    int32 while every half-edge fits, int64 beyond (the kernels take either).
+
     points : (vcap, 3) float64
-    faces : (fcap, 3) int64
-    opp : (3 fcap,) int64
+    faces : (fcap, 3) int32 or int64
+    opp : (3 fcap,) int32 or int64
         The opposite half-edge of each half-edge.
-    out : (vcap,) int64
+    out : (vcap,) int32 or int64
         One half-edge leaving each vertex.
     face_alive, vertex_alive : bool
-    flags : (vcap,) int64
+    flags : (vcap,) int32 or int64
         :data:`SEAM`, :data:`FEATURE`, :data:`ORIGINAL`, :data:`LOCKED` bits.
     scale : (vcap,) float64
         The local length scale at each vertex (the side of the thinnest tube there).
-    face_part : (fcap,) int64
+    face_part : (fcap,) int32 or int64
         The part (tube) of each face; an edge between two parts is a seam.
     face_flat : (fcap,) bool
         Faces of a flat cap: an edge between a flat and a curved face is a rim.
     reference : (fcap, 3) float64
         The unit normal each face should keep (of the tube face it lies on):
         exact even for a sliver, whose own normal is noise.
-    face_source : (fcap,) int64
+    face_source : (fcap,) int32 or int64
         The input face each face descends from.
-    vertex_origin : (vcap,) int64
+    vertex_origin : (vcap,) int32 or int64
         The input vertex each vertex descends from.
     counts : (2,) int64
         Vertices and faces in use (alive or dead): the next free slots.
@@ -166,17 +170,41 @@ def _opposites(faces, nv):
     return opp
 
 
-def build(points, faces, flags, scale, face_part, face_flat, reference, face_source, extra_vertices: int = 0):
+INDEX_LIMIT = 2**31 - 1
+"""The largest index :class:`HalfEdges` keep as int32 (half the memory of int64); beyond it, int64."""
+
+
+def index_dtype(largest: int, limit: int = INDEX_LIMIT) -> type:
+    """The integer type of :class:`HalfEdges`' indices, given the largest number they hold: int32 up to ``limit``."""
+    return np.int32 if largest <= limit else np.int64
+
+
+def build(
+    points,
+    faces,
+    flags,
+    scale,
+    face_part,
+    face_flat,
+    reference,
+    face_source,
+    extra_vertices: int = 0,
+    index_limit: int | None = None,
+):
     """Half-edges of a closed, consistently oriented mesh (every directed edge once, its reverse once).
 
     ``extra_vertices`` reserves room for splits (each adds one vertex and two
     faces).  Vertices whose faces do not form one fan are flagged
-    :data:`LOCKED`.  Raises ValueError for a mesh that is not closed.
+    :data:`LOCKED`.  The indices are int32 when the half-edges, vertices, face
+    sources and parts are all at most ``index_limit`` (:data:`INDEX_LIMIT`),
+    int64 otherwise (:func:`index_dtype`).  Raises ValueError for a mesh that is not closed.
     """
     points = np.asarray(points, np.float64)
     faces = np.asarray(faces, np.int64)
     nv, nf = len(points), len(faces)
     vcap, fcap = nv + extra_vertices, nf + 2 * extra_vertices
+    largest = max(3 * fcap, vcap, int(np.max(face_source, initial=0)), int(np.max(face_part, initial=0)))
+    index = index_dtype(largest, INDEX_LIMIT if index_limit is None else index_limit)
     org = faces.reshape(-1)
     opp = _opposites(faces, nv)
     if len(opp) and opp[0] == -2:
@@ -190,22 +218,23 @@ def build(points, faces, flags, scale, face_part, face_flat, reference, face_sou
         out[: len(a)] = a
         return out
 
-    out = np.full(vcap, -1, np.int64)
-    out[org[::-1]] = np.arange(3 * nf)[::-1]
+    opp = grow(opp, 3 * fcap, -1, index)  # the int64 one goes here: it is the largest array
+    out = np.full(vcap, -1, index)
+    out[org[::-1]] = np.arange(3 * nf, dtype=index)[::-1]
     he = HalfEdges(
         points=grow(points, vcap, 0.0),
-        faces=grow(faces, fcap, 0),
-        opp=grow(opp, 3 * fcap, -1, np.int64),
+        faces=grow(faces, fcap, 0, index),
+        opp=opp,
         out=out,
         face_alive=grow(np.ones(nf, bool), fcap, False),
         vertex_alive=grow(np.ones(nv, bool), vcap, False),
-        flags=grow(flags, vcap, 0, np.int64),
+        flags=grow(flags, vcap, 0, index),
         scale=grow(scale, vcap, 0.0, np.float64),
-        face_part=grow(face_part, fcap, -1, np.int64),
+        face_part=grow(face_part, fcap, -1, index),
         face_flat=grow(face_flat, fcap, False, bool),
         reference=grow(reference, fcap, 0.0, np.float64),
-        face_source=grow(face_source, fcap, -1, np.int64),
-        vertex_origin=grow(np.arange(nv), vcap, -1, np.int64),
+        face_source=grow(face_source, fcap, -1, index),
+        vertex_origin=grow(np.arange(nv, dtype=index), vcap, -1),
         counts=np.array([nv, nf], np.int64),
     )
     # a vertex whose faces are not one fan (two cones touching at a point) is locked
@@ -226,14 +255,14 @@ def compact(he: HalfEdges):
     keep = np.flatnonzero(used)
     renumber = np.full(nv, -1, np.int64)
     renumber[keep] = np.arange(len(keep))
-    return (
-        he.points[keep].copy(),
+    return (  # int64 whatever the half-edges' index type
+        he.points[keep],
         renumber[faces],
-        he.face_part[fa].copy(),
-        he.face_flat[fa].copy(),
-        he.face_source[fa].copy(),
-        he.vertex_origin[keep].copy(),
-        he.flags[keep].copy(),
+        he.face_part[fa].astype(np.int64),
+        he.face_flat[fa],
+        he.face_source[fa].astype(np.int64),
+        he.vertex_origin[keep].astype(np.int64),
+        he.flags[keep].astype(np.int64),
     )
 
 

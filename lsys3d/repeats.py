@@ -34,6 +34,7 @@ __all__ = ["Clusters", "copies", "find"]
 
 _KEY = 1e-6  # relative size of the grid that buckets candidate clusters
 _POINTS = 1e-7  # relative tolerance of congruent points (and 1/100 of a float32 step at the coordinates' size)
+_CHECKED = 1 << 18  # triangles of candidates whose shading is compared at a time (about 200 bytes each)
 _SHADING = 1e-5  # tolerance of congruent normals (unit) and u, and of the per-run v offset (texture tiles)
 
 
@@ -138,18 +139,28 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
             continue
         rr = r[cand]
         ok = np.abs(loc[cand] - loc[rr]).max(axis=(1, 2)) <= np.minimum(_POINTS * size[rr], stored) + 1e-300
-        wedges = faces_of(tri[tris].ravel()).reshape(g, t, 3)
-        normal = np.einsum("gtcj,gkj->gtck", tubes.wedge_normal[wedges].astype(np.float64), frame[m])
-        ok &= np.abs(normal[cand] - normal[rr]).max(axis=(1, 2, 3)) <= _SHADING
-        uv = wedge_uv[wedges].astype(np.float64)  # (g, t, 3, 2)
-        ok &= np.abs(uv[cand, ..., 0] - uv[rr, ..., 0]).max(axis=(1, 2)) <= _SHADING
-        dv = uv[cand, ..., 1] - uv[rr, ..., 1]  # (k, t, 3)
         # one v offset per run: the runs split the triangle list the same way in every member
         lens = np.asarray(run_sig[members[0]], np.int64)
         run_of = np.repeat(np.arange(len(lens)), lens)
         first_tri = _offsets(lens)[:-1]
-        offset = dv[:, first_tri, 0]  # (k, runs)
-        ok &= np.abs(dv - offset[:, run_of, None]).max(axis=(1, 2)) <= v_tolerance
+        offset = np.empty((len(cand), len(lens)))
+        step = max(1, _CHECKED // t)  # the shading of a block of candidates and their representatives at a time
+        for lo in range(0, len(cand), step):
+            block = slice(lo, lo + step)
+            normal, uv = [], []
+            for rows in (cand[block], rr[block]):
+                wedges = faces_of(tri[tris[rows]].ravel()).reshape(len(rows), t, 3)
+                normal.append(
+                    np.einsum("gtcj,gkj->gtck", tubes.wedge_normal[wedges].astype(np.float64), frame[m[rows]])
+                )
+                uv.append(wedge_uv[wedges].astype(np.float64))  # (k, t, 3, 2)
+            good = np.abs(normal[0] - normal[1]).max(axis=(1, 2, 3)) <= _SHADING
+            good &= np.abs(uv[0][..., 0] - uv[1][..., 0]).max(axis=(1, 2)) <= _SHADING
+            dv = uv[0][..., 1] - uv[1][..., 1]  # (k, t, 3)
+            offset[block] = dv[:, first_tri, 0]  # (k, runs)
+            good &= np.abs(dv - offset[block][:, run_of, None]).max(axis=(1, 2)) <= v_tolerance
+            ok[block] &= good
+            del normal, uv, dv
         take = cand[ok]
         rep[m[take]] = m[r[take]]
         for row, k in zip(take.tolist(), np.flatnonzero(ok).tolist(), strict=True):

@@ -112,6 +112,42 @@ def test_the_room_for_splits_changes_memory_not_the_result(tree3d_parts, monkeyp
     assert np.array_equal(tight.vertex_origin, roomy.vertex_origin) and tight.operations == roomy.operations
 
 
+def test_int32_half_edges_clean_as_int64_ones(tree3d_parts, monkeypatch):
+    """The half-edges hold their indices as int32 (half the memory) while they fit, as int64 beyond: every
+    kernel takes both, and the cleaned mesh is the same bytes."""
+    tubes, raw = tree3d_parts
+    dtypes = []
+    build = remesh.build
+
+    def spy(*args, **kw):
+        he = build(*args, **kw)
+        dtypes.append({a.dtype for a in (he.faces, he.opp, he.out, he.flags, he.face_part, he.face_source)})
+        return he
+
+    monkeypatch.setattr(remesh, "build", spy)
+    narrow = clean_mesh(raw, tubes)
+    monkeypatch.setattr(remesh, "INDEX_LIMIT", 3 * len(raw.faces) // 2)  # fewer half-edges than the mesh has
+    wide = clean_mesh(raw, tubes)
+    assert dtypes == [{np.dtype(np.int32)}, {np.dtype(np.int64)}]
+    for name in ("vertices", "faces", "normals", "uv", "face_source"):
+        assert getattr(wide.mesh, name).tobytes() == getattr(narrow.mesh, name).tobytes()
+    assert np.array_equal(wide.vertex_origin, narrow.vertex_origin) and wide.operations == narrow.operations
+    assert remesh.index_dtype(2**31 - 1) == np.int32 and remesh.index_dtype(2**31) == np.int64
+
+
+def test_a_bark_the_cleanup_leaves_as_it_was_gets_the_unions_corners(monkeypatch):
+    """The pipeline asks the union for no corner normals and uv when the cleanup makes its own; should the cleanup
+    leave the union's bark as it was (not a closed 2-manifold), the bark is the union's with its corners."""
+    from lsys3d import pipeline
+
+    raw = lsys3d.generate("abop-1.24a", iterations=2, cleanup=False).bark
+    monkeypatch.setattr(pipeline, "cleanup", lambda bark, tubes, options: bark)
+    kept = lsys3d.generate("abop-1.24a", iterations=2).bark
+    assert np.abs(kept.normals).sum() > 0 and kept.normals.strides[0] != 0
+    for name in ("vertices", "faces", "normals", "uv", "face_source"):
+        assert getattr(kept, name).tobytes() == getattr(raw, name).tobytes()
+
+
 def test_off_is_the_union():
     tubes = sweep(y_junction())
     raw = union(tubes)

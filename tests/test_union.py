@@ -673,3 +673,56 @@ def test_face_source_names_the_tube_face_on_every_path(path, caplog, monkeypatch
         # the faces of tubes left out are never named: of equal tubes the first is unioned
         tube = np.searchsorted(tubes.face_offsets, mesh.face_source, side="right") - 1
         assert not np.isin([1, len(tubes) - 2, len(tubes) - 1], tube).any()
+
+
+# ---------------------------------------------------------------- memory (issue 19): the same result, less held
+
+
+@pytest.mark.parametrize("options", [UnionOptions(), UnionOptions(local=False), UnionOptions(layers=False)])
+def test_without_corners_the_same_geometry(options):
+    """``corners=False`` (the cleanup makes its own normals and uv) changes no vertex, face or face source, and
+    its zero normals and uv take no memory."""
+    tubes = sweep(chainy_tree(11, 120))
+    full, bare = union(tubes, options), union(tubes, options, corners=False)
+    for name in ("vertices", "faces", "face_source"):
+        assert getattr(bare, name).tobytes() == getattr(full, name).tobytes()
+    for name, shape in (("normals", (3, 3)), ("uv", (3, 2))):
+        values = getattr(bare, name)
+        assert values.shape == (len(bare.faces), *shape) and values.strides[0] == 0 and not values.any()
+    assert np.abs(full.normals).sum() > 0
+
+
+@pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
+def test_repeated_junctions_found_the_same_a_block_at_a_time(monkeypatch):
+    """repeats.find compares the shading of candidates a block at a time: the blocks' size changes nothing."""
+    from lsys3d import repeats
+
+    g = lsys3d.Grammar(axiom="X", rules=["X -> F[!+X][!&X]F[!-X]X", "F -> FF"], angle=22.5, iterations=4)
+    tubes = sweep(interpret(lsys3d.derive(g), g))
+    found = []
+    find = repeats.find
+
+    def spy(*args):
+        found.append(find(*args))
+        return found[-1]
+
+    monkeypatch.setattr(repeats, "find", spy)
+    whole = union(tubes)
+    monkeypatch.setattr(repeats, "_CHECKED", 1)  # one candidate at a time
+    blocks = union(tubes)
+    a, b = found
+    assert (a.rep != np.arange(len(a))).sum() > 10
+    assert np.array_equal(a.rep, b.rep) and np.array_equal(a.shift, b.shift)
+    for name in ("vertices", "faces", "normals", "uv", "face_source"):
+        assert getattr(blocks, name).tobytes() == getattr(whole, name).tobytes()
+
+
+def test_components_do_not_depend_on_the_chunk():
+    from lsys3d.arrays import components
+
+    rng = np.random.default_rng(3)
+    a, b = rng.integers(0, 5000, 4000), rng.integers(0, 5000, 4000)
+    labels = components(5000, a, b)
+    assert len(np.unique(labels)) > 1000
+    for chunk in (1, 7, 1000):
+        assert np.array_equal(components(5000, a, b, chunk=chunk), labels)
