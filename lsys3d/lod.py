@@ -166,7 +166,8 @@ class Lod:
 
 
 def level_options(options, level: int):
-    """The :class:`~lsys3d.pipeline.GenerateOptions` of a level: sides (by order), ring merging and leaves lightened."""
+    """The :class:`~lsys3d.pipeline.GenerateOptions` of a level: sides (by order), ring merging and leaves lightened,
+    thick forks not blended (``SweepOptions.fork_blend``)."""
     spec = LEVELS[level]
     sweep = options.sweep
     if level > 0:
@@ -177,6 +178,7 @@ def level_options(options, level: int):
             min_sides=min(max(sweep.min_sides, spec.min_sides), sides),
             merge_angle=max(sweep.merge_angle, spec.merge_angle),
             merge_width=max(sweep.merge_width, spec.merge_width),
+            fork_blend=0.0,  # the curves of thick forks cost 3 rings a child: a close-up's detail, level 0's
         )
     leaves = options.leaves
     if spec.leaf_rows:

@@ -7,6 +7,7 @@ import pytest
 from grown import grown
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from skeletons import make_skeleton
 from test_union import chainy_tree, random_tree, y_junction
 
 import lsys3d
@@ -300,3 +301,90 @@ def test_a_cut_cap_is_no_rim():
     closed_solid(bark)
     q = quality(bark)
     assert q.over_1000 == 0 and q.slivers == 0
+
+
+# ---------------------------------------------------------------- the ledge of a thick fork (fork_blend)
+
+
+def thick_fork(lean: float = 23.0, width: float = 0.2, ratio: float = 1.0):
+    """tree3d's trunk-top fork: a trunk 1 m tall, three children as wide leaning ``lean`` degrees, 120 apart."""
+    tip = np.array([0.0, 1.0, 0.0])
+    ends = [tip]
+    for k in range(3):
+        az, t = np.radians(30 + 120 * k), np.radians(lean)
+        ends.append(tip + 0.8 * np.array([np.sin(t) * np.cos(az), np.cos(t), np.sin(t) * np.sin(az)]))
+    w = [width] + [width * ratio] * 3
+    return make_skeleton([[0, 0, 0], tip, tip, tip], ends, w, w, [-1, 0, 0, 0], [0, 0, 1, 1])
+
+
+def outline_turn(mesh: Mesh, top: np.ndarray, radius: float, azimuths: np.ndarray) -> np.ndarray:
+    """How sharply the outline of a vertical trunk's fork turns: per azimuth, degrees over 0.1 radius of height.
+
+    Rays from outside toward the trunk's axis (+Y through ``top``) at heights
+    -0.6..0.6 radius around the fork find the outermost surface, ``rho(h)``;
+    the outline's slope ``atan(d rho / d h)`` turns by the child's lean at a
+    ledge all at once, and gradually where the child blends out of the trunk.
+    """
+    h = np.arange(-0.6, 0.61, 0.02) * radius
+    tri = mesh.vertices[mesh.faces]
+    near = ((tri.min(1) < top + 3.5 * radius) & (tri.max(1) > top - 3.5 * radius)).all(1)
+    v0, e1, e2 = tri[near, 0], tri[near, 1] - tri[near, 0], tri[near, 2] - tri[near, 0]
+    th = np.radians(azimuths)
+    out = np.stack([np.cos(th), np.zeros_like(th), np.sin(th)], 1)
+    origin = (top + h[None, :, None] * [0, 1, 0] + 3 * radius * out[:, None]).reshape(-1, 3)[:, None]
+    ray = np.repeat(-out, len(h), 0)[:, None]
+    p = np.cross(ray, e2)
+    det = (e1 * p).sum(-1)
+    det = np.where(np.abs(det) < 1e-300, 1e-300, det)
+    s = origin - v0
+    u = (s * p).sum(-1) / det
+    q = np.cross(s, e1)
+    w = (ray * q).sum(-1) / det
+    t = (e2 * q).sum(-1) / det
+    hit = (u >= 0) & (w >= 0) & (u + w <= 1) & (t > 0)
+    rho = (3 * radius - np.where(hit, t, np.inf).min(1)).reshape(len(th), len(h)) / radius
+    rho = np.where(rho < 0.5, np.nan, rho)  # a ray through an edge that reached the far side
+    slope = np.degrees(np.arctan(np.diff(rho, axis=1) / 0.02))
+    return np.nanmax(slope[:, 5:] - slope[:, :-5], axis=1)
+
+
+@pytest.mark.parametrize("lean", [23.0, 35.0])
+def test_fork_blend_leaves_no_ledge_where_thick_children_leave_the_trunk(lean):
+    skeleton = thick_fork(lean)
+    # the three children's own azimuths, 15 degrees either side (the crotches between them are no ledge)
+    azimuths = (np.arange(-15, 16, 3)[None, :] + [[30], [150], [270]]).ravel() * 1.0
+    top = np.array([0.0, 1.0, 0.0])
+    turns = {}
+    for blend in (0.0, 1.5):
+        tubes = sweep(skeleton, SweepOptions(fork_blend=blend))
+        raw = union(tubes)
+        bark = clean_mesh(raw, tubes, CleanupOptions()).mesh
+        assert bark.is_watertight and bark.is_winding_consistent
+        assert components(bark.faces, len(bark.vertices)) == 1
+        assert abs(bark.volume / raw.volume - 1) < 0.005
+        q = quality(bark)
+        assert q.over_1000 == 0 and q.slivers == 0
+        turns[blend] = outline_turn(bark, top, 0.1, -azimuths)  # the rays' azimuth turns the other way
+    # straight children: the outline turns by most of the lean at the seam (a ledge; 8 facets blur it a little);
+    # blended, by about a third of it at each ring of the curve (measured: 23 deg 16.0 -> 8.5, 35 deg 27.5 -> 6.4)
+    assert np.nanmedian(turns[0.0]) > 0.65 * lean
+    assert np.nanmedian(turns[1.5]) < 0.6 * np.nanmedian(turns[0.0])
+    assert np.nanmax(turns[1.5]) < 0.6 * np.nanmax(turns[0.0])
+
+
+def test_fork_blend_leaves_thin_children_and_straight_chains_alone():
+    thin = thick_fork(ratio=0.4)
+    assert sweep(thin, SweepOptions(fork_blend=1.5)).rings.tolist() == sweep(thin, SweepOptions()).rings.tolist()
+    thick = sweep(thick_fork(), SweepOptions(fork_blend=1.5))
+    # three rings more on each blended child: the continuation (the curve replaces the trunk's joint ring) and two
+    assert thick.rings.tolist() == [2 + 1 + 3, 2 + 3, 2 + 3]
+    # the curves are the shape: a merge_angle wider than their bends (the lighter levels of detail) keeps them
+    # (it once left out every ring of the trunk's curve, and the trunk ran straight from its base past the fork)
+    merged = sweep(thick_fork(), SweepOptions(fork_blend=1.5, merge_angle=20.0, merge_width=0.2))
+    assert merged.rings.tolist() == thick.rings.tolist()
+    straight = sweep(polyline_up(), SweepOptions(fork_blend=1.5))
+    assert straight.rings.tolist() == [2]
+
+
+def polyline_up():
+    return make_skeleton([[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [0, 2, 0]], 0.2, None, [-1, 0], [0, 0])

@@ -331,8 +331,13 @@ def test_tapering_tube_keeps_square_texels():
     assert np.nanmax(stretch) < 1.1
 
 
-def test_v_runs_on_from_parent_into_child():
-    tubes = sweep(y_junction())
+@pytest.mark.parametrize("blend", [0.0, 1.5])
+def test_v_runs_on_from_parent_into_child(blend):
+    tubes = sweep(y_junction(), SweepOptions(fork_blend=0.0))
+    blended = sweep(y_junction(), SweepOptions(fork_blend=blend))
+    # a blended base (fork_blend) changes the first radii of the children, not the v of their tips
+    ends = np.cumsum(tubes.rings) - 1
+    assert blended.ring_v[np.cumsum(blended.rings) - 1] == pytest.approx(tubes.ring_v[ends])
     # the second child is a tube of its own: its base ring's v is the trunk's v at the junction
     trunk = np.flatnonzero(tubes.order == 0)[0]
     child = np.flatnonzero(tubes.order == 1)[0]
@@ -369,12 +374,14 @@ def test_seam_faces_the_turtles_down():
     assert skeleton.up[trunk] == pytest.approx([0, 0, 1])
     ring0 = tubes.points[tubes.point_offsets[0]] - tubes.ring_center[0]
     assert ring0 / np.linalg.norm(ring0) == pytest.approx([0, 0, -1])
-    # every chain: its first ring's u = 0 vertex lies along -U of its first segment
+    # every chain: its first ring's u = 0 vertex lies along -U of its first segment, in the ring's plane (a
+    # blended thick child's first ring, fork_blend, faces along its parent's heading rather than its own)
     for t in range(len(tubes)):
         seg = skeleton.chains.segments[skeleton.chains.offsets[tubes.chain[t]]]
         r = tubes.ring_offsets[t]
         first = tubes.points[tubes.point_offsets[t]] - tubes.ring_center[r]
-        assert np.dot(first / np.linalg.norm(first), -skeleton.up[seg]) > 0.999
+        down = -skeleton.up[seg] + np.dot(skeleton.up[seg], tubes.ring_tangent[r]) * tubes.ring_tangent[r]
+        assert np.dot(first / np.linalg.norm(first), down / np.linalg.norm(down)) > 0.999
 
 
 def _rotated(skeleton, rotation, shift):
