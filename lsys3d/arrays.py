@@ -155,12 +155,20 @@ def row_hash(rows: np.ndarray) -> np.ndarray:
     (True, False)
     """
     rows = np.ascontiguousarray(rows)
-    words = rows.view(np.uint64 if rows.dtype.itemsize == 8 else np.uint32).astype(np.uint64)
-    h = np.zeros(len(rows), np.uint64)
-    with np.errstate(over="ignore"):
+    return _row_hash(rows.view(np.uint64 if rows.dtype.itemsize == 8 else np.uint32), _MIX)
+
+
+@numba.njit(cache=True, nogil=True)
+def _row_hash(words, mix):  # pragma: no cover - compiled
+    """:func:`row_hash` of the rows' words (uint32 or uint64), a row at a time: wrapping uint64 arithmetic."""
+    h = np.empty(len(words), np.uint64)
+    shift = np.uint64(29)
+    for i in range(len(words)):
+        x = np.uint64(0)
         for j in range(words.shape[1]):
-            h = (h ^ words[:, j]) * _MIX[j % len(_MIX)]
-            h ^= h >> np.uint64(29)
+            x = (x ^ np.uint64(words[i, j])) * mix[j % len(mix)]
+            x ^= x >> shift
+        h[i] = x
     return h
 
 
