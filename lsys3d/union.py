@@ -1019,9 +1019,9 @@ def _concat(parts: list[Part]) -> Part:
         p = parts[i]
         parts[i] = None
         out.props[v_off[i] : v_off[i + 1]] = p.props
-        out.tri[t_off[i] : t_off[i + 1]] = p.tri + v_off[i]
-        out.merge_from[m_off[i] : m_off[i + 1]] = p.merge_from + v_off[i]
-        out.merge_to[m_off[i] : m_off[i + 1]] = p.merge_to + v_off[i]
+        np.add(p.tri, v_off[i], out=out.tri[t_off[i] : t_off[i + 1]])  # shifted in place: no temporary copy
+        np.add(p.merge_from, v_off[i], out=out.merge_from[m_off[i] : m_off[i + 1]])
+        np.add(p.merge_to, v_off[i], out=out.merge_to[m_off[i] : m_off[i + 1]])
         out.face_id[t_off[i] : t_off[i + 1]] = p.face_id
         del p
     parts.clear()
