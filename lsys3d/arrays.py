@@ -28,6 +28,7 @@ import ctypes
 import ctypes.util
 import sys
 
+import numba
 import numpy as np
 
 __all__ = [
@@ -154,12 +155,20 @@ def row_hash(rows: np.ndarray) -> np.ndarray:
     (True, False)
     """
     rows = np.ascontiguousarray(rows)
-    words = rows.view(np.uint64 if rows.dtype.itemsize == 8 else np.uint32).astype(np.uint64)
-    h = np.zeros(len(rows), np.uint64)
-    with np.errstate(over="ignore"):
+    return _row_hash(rows.view(np.uint64 if rows.dtype.itemsize == 8 else np.uint32), _MIX)
+
+
+@numba.njit(cache=True, nogil=True)
+def _row_hash(words, mix):  # pragma: no cover - compiled
+    """:func:`row_hash` of the rows' words (uint32 or uint64), a row at a time: wrapping uint64 arithmetic."""
+    h = np.empty(len(words), np.uint64)
+    shift = np.uint64(29)
+    for i in range(len(words)):
+        x = np.uint64(0)
         for j in range(words.shape[1]):
-            h = (h ^ words[:, j]) * _MIX[j % len(_MIX)]
-            h ^= h >> np.uint64(29)
+            x = (x ^ np.uint64(words[i, j])) * mix[j % len(mix)]
+            x ^= x >> shift
+        h[i] = x
     return h
 
 
@@ -184,25 +193,50 @@ def first_equal_row(keys: np.ndarray) -> np.ndarray:
     """For each row of an integer array ``(n, k)``, the index of the first row equal to it.
 
     What ``np.unique(keys, axis=0, return_index=True, return_inverse=True)``
-    gives, from one stable sort of a 64-bit hash of the rows (several times
-    faster); should two different rows share a hash, the rows are sorted
-    themselves.
+    gives, from a hash table of the rows (a 64-bit hash; rows sharing one are
+    compared): one pass, several times faster than a sort.
 
     >>> first_equal_row(np.array([[1, 2, 3], [0, 0, 0], [1, 2, 3], [0, 0, 0]])).tolist()
     [0, 1, 0, 1]
     """
-    h = row_hash(keys)
-    order = np.argsort(h, kind="stable")  # stable: equal rows keep their order, the first comes first
-    ranked = keys[order]
-    same = (ranked[1:] == ranked[:-1]).all(axis=1)
-    if ((h[order][1:] == h[order][:-1]) & ~same).any():  # two rows share a hash: sort the rows
-        order = np.lexsort(keys.T[::-1])
-        ranked = keys[order]
-        same = (ranked[1:] == ranked[:-1]).all(axis=1)
-    starts = np.ones(len(keys), bool)
-    starts[1:] = ~same
-    owner = np.empty(len(keys), np.int64)
-    owner[order] = order[np.flatnonzero(starts)][np.cumsum(starts) - 1]
+    keys = np.ascontiguousarray(keys)
+    return _first_equal_row(keys, row_hash(keys))
+
+
+@numba.njit(cache=True, nogil=True)
+def _first_equal_row(keys, h):  # pragma: no cover - compiled
+    """:func:`first_equal_row` by an open-addressing table of the rows seen, slot from the hash's top bits.
+
+    One pass in row order: a row finds the first equal row before it (hashes
+    equal, then the rows compared), or is the first of its kind.  The answer
+    is defined by the rows alone, so it is the one a sort gives.
+    """
+    n = len(keys)
+    bits = 1
+    while (1 << bits) < 2 * n:
+        bits += 1
+    size = 1 << bits
+    table = np.full(size, -1, np.int64)
+    shift = np.uint64(64 - bits)
+    owner = np.empty(n, np.int64)
+    for i in range(n):
+        s = np.int64(h[i] >> shift)
+        while True:
+            j = table[s]
+            if j < 0:
+                table[s] = i
+                owner[i] = i
+                break
+            if h[j] == h[i]:
+                same = True
+                for c in range(keys.shape[1]):
+                    if keys[j, c] != keys[i, c]:
+                        same = False
+                        break
+                if same:
+                    owner[i] = j
+                    break
+            s = (s + 1) & (size - 1)
     return owner
 
 

@@ -23,6 +23,7 @@ offset, and face ids renumbered to the copy's own triangles.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from .arrays import find_rows, row_hash, unique
@@ -60,6 +61,35 @@ class Clusters:
 
     def __len__(self) -> int:
         return len(self.rep)
+
+
+@numba.njit(cache=True, nogil=True)
+def _same_normals(wedge_normal, wa, fa, wb, fb):  # pragma: no cover - compiled
+    """``(k,) bool``: the corner normals ``wedge_normal[wa[i]]`` in frame ``fa[i]`` are those of ``wb[i]`` in ``fb[i]``.
+
+    Within ``_SHADING`` in every coordinate.  The rotated normals are
+    ``np.einsum("gtcj,gkj->gtck", ...)``'s bits (it sums x, z, then y), computed
+    a corner at a time and compared at once: no (k, t, 3, 3) temporaries, and
+    a candidate stops at its first difference.
+    """
+    out = np.ones(len(wa), np.bool_)
+    for i in range(len(wa)):
+        for tt in range(wa.shape[1]):
+            for c in range(3):
+                na, nb = wedge_normal[wa[i, tt, c]], wedge_normal[wb[i, tt, c]]
+                a0, a1, a2 = np.float64(na[0]), np.float64(na[1]), np.float64(na[2])
+                b0, b1, b2 = np.float64(nb[0]), np.float64(nb[1]), np.float64(nb[2])
+                for k in range(3):
+                    x = (a0 * fa[i, k, 0] + a2 * fa[i, k, 2]) + a1 * fa[i, k, 1]
+                    y = (b0 * fb[i, k, 0] + b2 * fb[i, k, 2]) + b1 * fb[i, k, 1]
+                    if not abs(x - y) <= _SHADING:  # NaN is a difference too, as in np.max
+                        out[i] = False
+                        break
+                if not out[i]:
+                    break
+            if not out[i]:
+                break
+    return out
 
 
 def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: int) -> Clusters:
@@ -147,20 +177,17 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
         step = max(1, _CHECKED // t)  # the shading of a block of candidates and their representatives at a time
         for lo in range(0, len(cand), step):
             block = slice(lo, lo + step)
-            normal, uv = [], []
+            wedges, uv = [], []
             for rows in (cand[block], rr[block]):
-                wedges = faces_of(tri[tris[rows]].ravel()).reshape(len(rows), t, 3)
-                normal.append(
-                    np.einsum("gtcj,gkj->gtck", tubes.wedge_normal[wedges].astype(np.float64), frame[m[rows]])
-                )
-                uv.append(wedge_uv[wedges].astype(np.float64))  # (k, t, 3, 2)
-            good = np.abs(normal[0] - normal[1]).max(axis=(1, 2, 3)) <= _SHADING
+                wedges.append(faces_of(tri[tris[rows]].ravel()).reshape(len(rows), t, 3))
+                uv.append(wedge_uv[wedges[-1]].astype(np.float64))  # (k, t, 3, 2)
+            good = _same_normals(tubes.wedge_normal, wedges[0], frame[m[cand[block]]], wedges[1], frame[m[rr[block]]])
             good &= np.abs(uv[0][..., 0] - uv[1][..., 0]).max(axis=(1, 2)) <= _SHADING
             dv = uv[0][..., 1] - uv[1][..., 1]  # (k, t, 3)
             offset[block] = dv[:, first_tri, 0]  # (k, runs)
             good &= np.abs(dv - offset[block][:, run_of, None]).max(axis=(1, 2)) <= v_tolerance
             ok[block] &= good
-            del normal, uv, dv
+            del wedges, uv, dv
         take = cand[ok]
         rep[m[take]] = m[r[take]]
         for row, k in zip(take.tolist(), np.flatnonzero(ok).tolist(), strict=True):

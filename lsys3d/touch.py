@@ -36,6 +36,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .arrays import dot as _dot
@@ -107,6 +108,34 @@ class Pieces:
         return len(self.tube)
 
 
+@numba.njit(cache=True, nogil=True)
+def _capsule_radius(pts, point_of, piece_of_point, p, q, n):  # pragma: no cover - compiled
+    """``(n,)``: the farthest of each piece's points ``pts[point_of]`` from its axis segment ``p q``.
+
+    One pass, no full-size temporaries; the arithmetic is numpy's, in its order (``np.einsum``'s
+    dot products sum x, z then y; ``np.linalg.norm`` x, y, z), so the radii are the same bits.
+    """
+    radius = np.zeros(n)
+    for i in range(len(point_of)):
+        k, j = piece_of_point[i], point_of[i]
+        p0, p1, p2 = p[k, 0], p[k, 1], p[k, 2]
+        d0, d1, d2 = q[k, 0] - p0, q[k, 1] - p1, q[k, 2] - p2
+        r0, r1, r2 = pts[j, 0] - p0, pts[j, 1] - p1, pts[j, 2] - p2
+        dd = (d0 * d0 + d2 * d2) + d1 * d1
+        if dd < 1e-300:  # np.maximum(dd, 1e-300), NaN kept
+            dd = 1e-300
+        t = ((r0 * d0 + r2 * d2) + r1 * d1) / dd
+        if t < 0.0:  # np.clip(t, 0, 1), NaN kept
+            t = 0.0
+        elif t > 1.0:
+            t = 1.0
+        e0, e1, e2 = r0 - t * d0, r1 - t * d1, r2 - t * d2
+        off = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        if off > radius[k] or np.isnan(off):  # np.maximum.at, NaN kept
+            radius[k] = off
+    return radius
+
+
 def pieces(tubes: Tubes, chunk: float = 2.0) -> Pieces:
     """Cut every tube into pieces: single spans, or runs of short spans about ``chunk`` ring radii long.
 
@@ -162,13 +191,7 @@ def pieces(tubes: Tubes, chunk: float = 2.0) -> Pieces:
     rsides = ring_sides[ring_of]
     point_of = np.repeat(first_pt[ring_of], rsides) + _local(rsides)
     piece_of_point = np.repeat(piece_of_ring, rsides)
-    x = pts[point_of]
-    pp, qq = p[piece_of_point], q[piece_of_point]
-    d = qq - pp
-    t = np.clip(_dot(x - pp, d) / np.maximum(_dot(d, d), 1e-300), 0.0, 1.0)
-    off = np.linalg.norm(x - pp - t[:, None] * d, axis=1)
-    radius = np.zeros(len(head))
-    np.maximum.at(radius, piece_of_point, off)
+    radius = _capsule_radius(pts, point_of, piece_of_point, p, q, len(head))
     ring_start = _offsets(piece_rings)[:-1]
     lo = np.minimum.reduceat(ring_lo[ring_of], ring_start, axis=0)
     hi = np.maximum.reduceat(ring_hi[ring_of], ring_start, axis=0)

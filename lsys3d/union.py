@@ -54,6 +54,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import manifold3d
+import numba
 import numpy as np
 
 from . import booleans, repeats, union_jobs
@@ -320,31 +321,75 @@ def _misplaced(vertices: np.ndarray, faces: np.ndarray, source: np.ndarray, tube
     """
     radius = np.maximum.reduceat(tubes.ring_radius, tubes.ring_offsets[:-1])
     radius = radius * (1.0 + 2.0 * np.sin(np.pi / tubes.sides))
-    out = np.zeros(len(faces), bool)
-    for lo in range(0, len(faces), 1 << 18):
-        src = source[lo : lo + (1 << 18)]
-        tri = tubes.points[tubes.wedge_point[tubes.faces[src]]]  # these faces' corners only, not all of face_points
-        p = vertices[faces[lo : lo + (1 << 18)]].mean(axis=1)
-        reach = radius[np.searchsorted(tubes.face_offsets, src, side="right") - 1]
-        out[lo : lo + len(src)] = _triangle_distance(p, tri) > reach * (1 + 1e-6) + 1e-9
+    reach = radius[np.searchsorted(tubes.face_offsets, source, side="right") - 1] * (1 + 1e-6) + 1e-9
+    return _far_from_source(vertices, faces, source, tubes.points, tubes.wedge_point, tubes.faces, reach)
+
+
+@numba.njit(cache=True, nogil=True)
+def _far_from_source(vertices, faces, source, points, wedge_point, tube_faces, reach):  # pragma: no cover - compiled
+    """``(f,) bool``: the centroid of face ``f`` is farther than ``reach[f]`` from tube face ``source[f]``.
+
+    A face at a time, without the (f, 3, 3) gathers.  The arithmetic is numpy's,
+    in its order (``np.cross``; ``np.einsum`` dot products sum x, z, then y;
+    ``np.linalg.norm`` x, y, z; ``mean`` divides the sum by 3), so the answer
+    is the same as the vectorised distance's at every face.
+    """
+    out = np.zeros(len(faces), np.bool_)
+    p = np.empty(3)
+    tri = np.empty((3, 3))
+    for f in range(len(faces)):
+        for j in range(3):
+            p[j] = (vertices[faces[f, 0], j] + vertices[faces[f, 1], j] + vertices[faces[f, 2], j]) / 3.0
+        for c in range(3):
+            w = wedge_point[tube_faces[source[f], c]]
+            for j in range(3):
+                tri[c, j] = points[w, j]
+        d = _triangle_distance(p, tri)
+        out[f] = d > reach[f]
     return out
 
 
-def _triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Distance of the points ``p`` (n, 3) from the triangles ``tri`` (n, 3, 3)."""
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    n = np.cross(b - a, c - a)
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    height = np.einsum("ij,ij->i", p - a, n)
-    q = p - height[:, None] * n
-    inside = np.ones(len(p), bool)
-    edge = np.full(len(p), np.inf)
-    for u, v in ((a, b), (b, c), (c, a)):
-        e = v - u
-        inside &= np.einsum("ij,ij->i", np.cross(e, q - u), n) >= 0
-        t = np.clip(np.einsum("ij,ij->i", p - u, e) / np.maximum(np.einsum("ij,ij->i", e, e), 1e-300), 0.0, 1.0)
-        edge = np.minimum(edge, np.linalg.norm(p - (u + t[:, None] * e), axis=1))
-    return np.where(inside, np.abs(height), edge)
+@numba.njit(cache=True, nogil=True, inline="always")
+def _dot3(x0, x1, x2, y0, y1, y2):  # pragma: no cover - compiled
+    return (x0 * y0 + x2 * y2) + x1 * y1  # np.einsum's order
+
+
+@numba.njit(cache=True, nogil=True)
+def _triangle_distance(p, tri):  # pragma: no cover - compiled
+    """Distance of the point ``p`` (3,) from the triangle ``tri`` (3, 3)."""
+    a0, a1, a2 = tri[0, 0], tri[0, 1], tri[0, 2]
+    u0, u1, u2 = tri[1, 0] - a0, tri[1, 1] - a1, tri[1, 2] - a2
+    v0, v1, v2 = tri[2, 0] - a0, tri[2, 1] - a1, tri[2, 2] - a2
+    n0, n1, n2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+    length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if length < 1e-300:  # np.maximum(length, 1e-300), NaN kept
+        length = 1e-300
+    n0, n1, n2 = n0 / length, n1 / length, n2 / length
+    height = _dot3(p[0] - a0, p[1] - a1, p[2] - a2, n0, n1, n2)
+    q0, q1, q2 = p[0] - height * n0, p[1] - height * n1, p[2] - height * n2
+    inside = True
+    edge = np.inf
+    for k in range(3):
+        s0, s1, s2 = tri[k, 0], tri[k, 1], tri[k, 2]
+        e0, e1, e2 = tri[(k + 1) % 3, 0] - s0, tri[(k + 1) % 3, 1] - s1, tri[(k + 1) % 3, 2] - s2
+        w0, w1, w2 = q0 - s0, q1 - s1, q2 - s2
+        c0, c1, c2 = e1 * w2 - e2 * w1, e2 * w0 - e0 * w2, e0 * w1 - e1 * w0
+        inside &= _dot3(c0, c1, c2, n0, n1, n2) >= 0
+        ee = _dot3(e0, e1, e2, e0, e1, e2)
+        if ee < 1e-300:  # np.maximum(ee, 1e-300), NaN kept
+            ee = 1e-300
+        t = _dot3(p[0] - s0, p[1] - s1, p[2] - s2, e0, e1, e2) / ee
+        if t < 0.0:  # np.clip(t, 0, 1), NaN kept
+            t = 0.0
+        elif t > 1.0:
+            t = 1.0
+        r0, r1, r2 = p[0] - (s0 + t * e0), p[1] - (s1 + t * e1), p[2] - (s2 + t * e2)
+        d = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        if np.isnan(d) or np.isnan(edge):  # np.minimum propagates NaN
+            edge = np.nan
+        elif d < edge:
+            edge = d
+    return abs(height) if inside else edge
 
 
 def _true_sources(mesh: Mesh, tubes: Tubes, checked: int | None = None) -> Mesh:
@@ -870,11 +915,7 @@ def _local_union(
     if corners:
         normals = np.empty((len(faces), 3, 3), np.float32)
         uv = np.empty((len(faces), 3, 2), np.float32)
-        for lo in range(0, nb, 1 << 18):
-            corner = props[kept[lo : lo + (1 << 18)]]
-            normals[lo : lo + len(corner)] = _unit_rows(corner[..., 3:6])
-            uv[lo : lo + len(corner)] = corner[..., 6:]
-            del corner
+        _corner_attributes(props, kept, normals, uv)
     else:
         normals, uv = _no_corners(len(faces), 3, 3), _no_corners(len(faces), 3, 2)
     del props, kept, face_tube, face_piece
@@ -911,6 +952,27 @@ def _local_union(
         log.debug("union: the stitched mesh is not closed at a seam; unioning whole tubes")
         return None
     return Mesh(vertices, faces, normals, uv, face_source=source), nb
+
+
+@numba.njit(cache=True, nogil=True)
+def _corner_attributes(props, tri, normals, uv):  # pragma: no cover - compiled
+    """Write the unit corner normals and the uv of the triangles ``tri`` from manifold's ``props`` into the first rows.
+
+    :func:`_unit_rows` of ``props[tri, 3:6]`` and ``props[tri, 6:]``, as float32, in one pass without the
+    (f, 3, 8) gather: the same bits (the norm sums x, y, z as ``np.linalg.norm`` does).
+    """
+    for f in range(len(tri)):
+        for c in range(3):
+            r = tri[f, c]
+            x, y, z = props[r, 3], props[r, 4], props[r, 5]
+            length = np.sqrt(x * x + y * y + z * z)
+            if not length > 1e-12:
+                length = 1.0
+            normals[f, c, 0] = np.float32(x / length)
+            normals[f, c, 1] = np.float32(y / length)
+            normals[f, c, 2] = np.float32(z / length)
+            uv[f, c, 0] = np.float32(props[r, 6])
+            uv[f, c, 1] = np.float32(props[r, 7])
 
 
 def _part(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray) -> Part:
@@ -957,9 +1019,9 @@ def _concat(parts: list[Part]) -> Part:
         p = parts[i]
         parts[i] = None
         out.props[v_off[i] : v_off[i + 1]] = p.props
-        out.tri[t_off[i] : t_off[i + 1]] = p.tri + v_off[i]
-        out.merge_from[m_off[i] : m_off[i + 1]] = p.merge_from + v_off[i]
-        out.merge_to[m_off[i] : m_off[i + 1]] = p.merge_to + v_off[i]
+        np.add(p.tri, v_off[i], out=out.tri[t_off[i] : t_off[i + 1]])  # shifted in place: no temporary copy
+        np.add(p.merge_from, v_off[i], out=out.merge_from[m_off[i] : m_off[i + 1]])
+        np.add(p.merge_to, v_off[i], out=out.merge_to[m_off[i] : m_off[i + 1]])
         out.face_id[t_off[i] : t_off[i + 1]] = p.face_id
         del p
     parts.clear()
