@@ -897,7 +897,10 @@ def _fork_bases(skeleton: Skeleton, opt: SweepOptions, chain_sides, seg, chain, 
     skeleton's box: at 0.002 a child under 2 pixels wide in a 1,000-pixel
     picture of the whole plant, whose ledge cannot be seen), one that does
     not start at its parent's end, one that leans less than a degree or more
-    than 90, and a bend where no other branch leaves, are left as they are.
+    than 90, one whose curve does not fit in 0.45 of its own and its parent's
+    segment (short thick segments: a crowd, where curves would only add
+    pieces that touch), and a bend where no other branch leaves, are left as
+    they are.
     """
     k = len(seg)
     none = (seg, chain, p0, p1, v0, v1, w0, w1, tv0, tv1, rate, np.zeros(k, bool))
@@ -923,8 +926,11 @@ def _fork_bases(skeleton: Skeleton, opt: SweepOptions, chain_sides, seg, chain, 
     scale = np.abs(p1).max() + 1.0
     cont = on[rows]
     room = np.where(cont, np.linalg.norm(p1[rows - cont] - p0[rows - cont], axis=1), parent_length)
-    # at most 0.45 of either segment: a segment may lose as much at each end (a child that is a fork itself)
-    delta = np.minimum(opt.fork_blend * 0.5 * w0[rows], 0.45 * np.minimum(length, room))
+    # the whole curve fits in 0.45 of either segment (a segment may lose as much at each end: a child that is a
+    # fork itself), or there is no blend: segments shorter than a blend are a crowd of short thick pieces (the
+    # constant-width fern), where a curve in each would only add pieces that touch (over the union's limit)
+    delta = opt.fork_blend * 0.5 * w0[rows]
+    fits = delta <= 0.45 * np.minimum(length, room)
     size = float(np.linalg.norm(np.diff(skeleton.bounds(), axis=0)))
     ok = (
         (w0[rows] >= FORK_RATIO * w_parent)
@@ -933,6 +939,7 @@ def _fork_bases(skeleton: Skeleton, opt: SweepOptions, chain_sides, seg, chain, 
         & (lean >= 1.0)
         & (lean <= 90.0)
         & (delta > 0)
+        & fits
     )
     if not ok.any():
         return none

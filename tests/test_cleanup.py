@@ -306,13 +306,14 @@ def test_a_cut_cap_is_no_rim():
 # ---------------------------------------------------------------- the ledge of a thick fork (fork_blend)
 
 
-def thick_fork(lean: float = 23.0, width: float = 0.2, ratio: float = 1.0):
-    """tree3d's trunk-top fork: a trunk 1 m tall, three children as wide leaning ``lean`` degrees, 120 apart."""
+def thick_fork(lean: float = 23.0, width: float = 0.2, ratio: float = 1.0, length: float = 0.8):
+    """tree3d's trunk-top fork: a trunk 1 m tall, three children as wide, ``length`` long, leaning ``lean`` degrees,
+    120 apart."""
     tip = np.array([0.0, 1.0, 0.0])
     ends = [tip]
     for k in range(3):
         az, t = np.radians(30 + 120 * k), np.radians(lean)
-        ends.append(tip + 0.8 * np.array([np.sin(t) * np.cos(az), np.cos(t), np.sin(t) * np.sin(az)]))
+        ends.append(tip + length * np.array([np.sin(t) * np.cos(az), np.cos(t), np.sin(t) * np.sin(az)]))
     w = [width] + [width * ratio] * 3
     return make_skeleton([[0, 0, 0], tip, tip, tip], ends, w, w, [-1, 0, 0, 0], [0, 0, 1, 1])
 
@@ -384,6 +385,11 @@ def test_fork_blend_leaves_thin_children_and_straight_chains_alone():
     assert merged.rings.tolist() == thick.rings.tolist()
     straight = sweep(polyline_up(), SweepOptions(fork_blend=1.5))
     assert straight.rings.tolist() == [2]
+    # children shorter than a blend needs (0.45 of a segment at most: 0.2 m here) are a crowd of short thick
+    # pieces, not a ledge: a curve in each made the constant-width fern's union exceed its limit of touching pairs
+    short = thick_fork(length=0.2)
+    blended, plain = sweep(short, SweepOptions(fork_blend=1.5)), sweep(short, SweepOptions(fork_blend=0))
+    assert blended.rings.tolist() == plain.rings.tolist()
 
 
 def polyline_up():
