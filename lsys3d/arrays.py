@@ -34,6 +34,7 @@ import numpy as np
 __all__ = [
     "components",
     "dot",
+    "dot3",
     "find_rows",
     "first_equal_row",
     "gather",
@@ -135,6 +136,13 @@ def isin(a, b) -> np.ndarray:
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise dot product over the last axis."""
     return np.einsum("...i,...i->...", a, b)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def dot3(x0, x1, x2, y0, y1, y2):  # pragma: no cover - compiled
+    """One dot product of 3-vectors in a compiled kernel, with the bits of :func:`dot` (``np.einsum`` adds x, z,
+    then y), so a kernel that replaces numpy rows gives the same answer."""
+    return (x0 * y0 + x2 * y2) + x1 * y1
 
 
 def unit(v: np.ndarray, eps: float = 0.0) -> np.ndarray:

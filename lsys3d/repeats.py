@@ -26,7 +26,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .arrays import find_rows, row_hash, unique
+from .arrays import dot3, find_rows, row_hash, unique
 from .arrays import local_index as _local_counts
 from .arrays import offsets as _offsets
 from .booleans import Part
@@ -80,8 +80,8 @@ def _same_normals(wedge_normal, wa, fa, wb, fb):  # pragma: no cover - compiled
                 a0, a1, a2 = np.float64(na[0]), np.float64(na[1]), np.float64(na[2])
                 b0, b1, b2 = np.float64(nb[0]), np.float64(nb[1]), np.float64(nb[2])
                 for k in range(3):
-                    x = (a0 * fa[i, k, 0] + a2 * fa[i, k, 2]) + a1 * fa[i, k, 1]
-                    y = (b0 * fb[i, k, 0] + b2 * fb[i, k, 2]) + b1 * fb[i, k, 1]
+                    x = dot3(a0, a1, a2, fa[i, k, 0], fa[i, k, 1], fa[i, k, 2])
+                    y = dot3(b0, b1, b2, fb[i, k, 0], fb[i, k, 1], fb[i, k, 2])
                     if not abs(x - y) <= _SHADING:  # NaN is a difference too, as in np.max
                         out[i] = False
                         break

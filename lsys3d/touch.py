@@ -40,9 +40,9 @@ import numba
 import numpy as np
 
 from .arrays import dot as _dot
+from .arrays import dot3, unique
 from .arrays import local_index as _local
 from .arrays import offsets as _offsets
-from .arrays import unique
 from .errors import LimitError
 from .sweep import Tubes
 
@@ -121,10 +121,10 @@ def _capsule_radius(pts, point_of, piece_of_point, p, q, n):  # pragma: no cover
         p0, p1, p2 = p[k, 0], p[k, 1], p[k, 2]
         d0, d1, d2 = q[k, 0] - p0, q[k, 1] - p1, q[k, 2] - p2
         r0, r1, r2 = pts[j, 0] - p0, pts[j, 1] - p1, pts[j, 2] - p2
-        dd = (d0 * d0 + d2 * d2) + d1 * d1
+        dd = dot3(d0, d1, d2, d0, d1, d2)
         if dd < 1e-300:  # np.maximum(dd, 1e-300), NaN kept
             dd = 1e-300
-        t = ((r0 * d0 + r2 * d2) + r1 * d1) / dd
+        t = dot3(r0, r1, r2, d0, d1, d2) / dd
         if t < 0.0:  # np.clip(t, 0, 1), NaN kept
             t = 0.0
         elif t > 1.0:

@@ -58,7 +58,7 @@ import numba
 import numpy as np
 
 from . import booleans, repeats, union_jobs
-from .arrays import components, find_rows, gather, isin, ranges, release_memory, row_hash, unique
+from .arrays import components, dot3, find_rows, gather, isin, ranges, release_memory, row_hash, unique
 from .arrays import first_equal_row as _first_equal_row
 from .arrays import offsets as _offsets
 from .booleans import BooleanError, Part
@@ -349,11 +349,6 @@ def _far_from_source(vertices, faces, source, points, wedge_point, tube_faces, r
     return out
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def _dot3(x0, x1, x2, y0, y1, y2):  # pragma: no cover - compiled
-    return (x0 * y0 + x2 * y2) + x1 * y1  # np.einsum's order
-
-
 @numba.njit(cache=True, nogil=True)
 def _triangle_distance(p, tri):  # pragma: no cover - compiled
     """Distance of the point ``p`` (3,) from the triangle ``tri`` (3, 3)."""
@@ -365,7 +360,7 @@ def _triangle_distance(p, tri):  # pragma: no cover - compiled
     if length < 1e-300:  # np.maximum(length, 1e-300), NaN kept
         length = 1e-300
     n0, n1, n2 = n0 / length, n1 / length, n2 / length
-    height = _dot3(p[0] - a0, p[1] - a1, p[2] - a2, n0, n1, n2)
+    height = dot3(p[0] - a0, p[1] - a1, p[2] - a2, n0, n1, n2)
     q0, q1, q2 = p[0] - height * n0, p[1] - height * n1, p[2] - height * n2
     inside = True
     edge = np.inf
@@ -374,11 +369,11 @@ def _triangle_distance(p, tri):  # pragma: no cover - compiled
         e0, e1, e2 = tri[(k + 1) % 3, 0] - s0, tri[(k + 1) % 3, 1] - s1, tri[(k + 1) % 3, 2] - s2
         w0, w1, w2 = q0 - s0, q1 - s1, q2 - s2
         c0, c1, c2 = e1 * w2 - e2 * w1, e2 * w0 - e0 * w2, e0 * w1 - e1 * w0
-        inside &= _dot3(c0, c1, c2, n0, n1, n2) >= 0
-        ee = _dot3(e0, e1, e2, e0, e1, e2)
+        inside &= dot3(c0, c1, c2, n0, n1, n2) >= 0
+        ee = dot3(e0, e1, e2, e0, e1, e2)
         if ee < 1e-300:  # np.maximum(ee, 1e-300), NaN kept
             ee = 1e-300
-        t = _dot3(p[0] - s0, p[1] - s1, p[2] - s2, e0, e1, e2) / ee
+        t = dot3(p[0] - s0, p[1] - s1, p[2] - s2, e0, e1, e2) / ee
         if t < 0.0:  # np.clip(t, 0, 1), NaN kept
             t = 0.0
         elif t > 1.0:
