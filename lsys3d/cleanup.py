@@ -40,6 +40,7 @@ Examples
 from __future__ import annotations
 
 import logging
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -189,7 +190,50 @@ def _classify(bark: _Surface, tubes: Tubes):
 
 def _full(he) -> bool:
     """Whether the half-edges ran out of room for a split (a split that found none was not made)."""
-    return bool(he.counts[0] >= len(he.points) or he.counts[1] + 2 > len(he.faces))
+    return bool(he.counts[0] >= he.counts[2] or he.counts[1] + 2 > he.counts[3])
+
+
+_HALVES_MIN = 4096
+"""Faces under which the first cleaning is not split in halves (two threads would cost more than they save)."""
+_BAND = 3
+"""Edges from the cut between the halves that neither half touches (see :func:`lsys3d.remesh.halves`)."""
+_NO_REGION, _NO_SIDE = np.zeros(0, bool), np.zeros(0, np.int8)
+
+
+def _clean_halves(he, rules, order=None) -> tuple[np.ndarray, bool]:
+    """The first cleaning, both halves at once (:func:`lsys3d.remesh.halves`), then the band between them.
+
+    Each half splits into its own share of the room.  The result does not
+    depend on the threads: ``order`` (a test's) runs the halves one after
+    the other in that order instead.  The operations done, and whether a
+    half ran out of room.
+    """
+    nv, nf, vcap, fcap = (int(c) for c in he.counts)
+    spawned = np.zeros(vcap, np.int64)
+    if nf < _HALVES_MIN:
+        return remesh.clean(he, rules, _NO_REGION, _NO_SIDE, 0, spawned), _full(he)
+    side, band, near = remesh.halves(he, _BAND)
+    lock = band & ((he.flags & remesh.LOCKED) == 0)
+    he.flags[lock] |= remesh.LOCKED
+    half = (vcap - nv) // 2
+    counts = (
+        np.array([nv, nf, nv + half, nf + 2 * half], np.int64),
+        np.array([nv + half, nf + 2 * half, vcap, fcap], np.int64),
+    )
+
+    def run(own):
+        return remesh.clean(he._replace(counts=counts[own]), rules, _NO_REGION, side, own, spawned)
+
+    if order is None:
+        with ThreadPoolExecutor(2) as pool:
+            done = sum(pool.map(run, (0, 1)))
+    else:
+        done = sum(run(own) for own in order)
+    he.flags[lock] &= ~remesh.LOCKED
+    full = any(_full(he._replace(counts=c)) for c in counts)
+    he.counts[:2] = counts[1][:2]  # the second half's room is after the first's: the rest splits after it
+    done = done + remesh.clean(he, rules, near, _NO_SIDE, 0, spawned)
+    return done, full or _full(he)
 
 
 def _mark(he, bark: _Surface, part, flat, cap) -> None:
@@ -224,19 +268,20 @@ def _mark(he, bark: _Surface, part, flat, cap) -> None:
         he.flags[dst[rim]] |= remesh.FEATURE
 
 
-def _clean(he, opt: CleanupOptions, budget: int):
-    """Clean, fair and rescue ``he`` in place; the operations done, faired, rescued."""
+def _clean(he, opt: CleanupOptions, budget: int, order=None):
+    """Clean, fair and rescue ``he`` in place; the operations done, faired, rescued, and whether it ran out of room."""
     rules = remesh.Rules(opt.short, opt.limit, opt.bad, opt.flip_tolerance, opt.long, opt.step, opt.fallback, budget)
-    done = remesh.clean(he, rules, np.zeros(0, bool))
+    done, full = _clean_halves(he, rules, order)
     faired = 0
     if opt.smooth:
         closeness = np.zeros(len(he.points))
         remesh.collar(he, opt.collar, closeness)
         faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False)
         remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
-        done += remesh.clean(he, rules, closeness > 0)  # the faired collars may have made a few needles
+        # the faired collars may have made a few needles
+        done += remesh.clean(he, rules, closeness > 0, _NO_SIDE, 0, np.zeros(len(he.points), np.int64))
     rescued = remesh.rescue(he, opt.rescue, opt.sliver, 10 * opt.flip_tolerance)
-    return done, faired, rescued
+    return done, faired, rescued, full or _full(he)
 
 
 def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) -> Cleaned:
@@ -271,9 +316,9 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     return Cleaned(mesh, origin, operations)
 
 
-def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions):
+def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None):
     """The cleaned bark's points, faces, flat faces, face sources and vertex origins, and the operations done;
-    None when the bark is not a closed 2-manifold (a warning says so)."""
+    None when the bark is not a closed 2-manifold (a warning says so).  ``order``: see :func:`_clean_halves`."""
     bark = _drop_crumbs(bark)
     nf = len(bark.faces)
     # room for the splits: the presets make at most 4 % of the faces' count (bush); a run that fills the room
@@ -294,8 +339,8 @@ def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions):
         del scale, flags, reference
         _mark(he, bark, part, flat, cap)
         del part, flat, cap
-        result = _clean(he, opt, budget)
-        if not _full(he):
+        *result, full = _clean(he, opt, budget, order)
+        if not full:
             break
         log.debug("cleanup: %d splits filled the room; again with %d", room, 4 * room)
         room *= 4

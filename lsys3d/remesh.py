@@ -90,8 +90,10 @@ class HalfEdges(NamedTuple):
         The input face each face descends from.
     vertex_origin : (vcap,) int32 or int64
         The input vertex each vertex descends from.
-    counts : (2,) int64
-        Vertices and faces in use (alive or dead): the next free slots.
+    counts : (4,) int64
+        Vertices and faces in use (alive or dead): the next free slots; then
+        the ends of the room a split may take (``len(points)`` and
+        ``len(faces)``, or a share of the room: :func:`halves`).
     """
 
     points: np.ndarray
@@ -235,7 +237,7 @@ def build(
         reference=grow(reference, fcap, 0.0, np.float64),
         face_source=grow(face_source, fcap, -1, index),
         vertex_origin=grow(np.arange(nv, dtype=index), vcap, -1),
-        counts=np.array([nv, nf], np.int64),
+        counts=np.array([nv, nf, vcap, fcap], np.int64),
     )
     # a vertex whose faces are not one fan (two cones touching at a point) is locked
     fan = np.zeros(vcap, np.int64)
@@ -798,7 +800,7 @@ def _split(he, h, t):
     """
     faces, opp, out, p = he.faces, he.opp, he.out, he.points
     nv, nf = he.counts[0], he.counts[1]
-    if nv >= len(p) or nf + 2 > len(faces):
+    if nv >= he.counts[2] or nf + 2 > he.counts[3]:
         return -1
     o = opp[h]
     f0, f1 = h // 3, o // 3
@@ -996,7 +998,7 @@ def _split_fan(he, f, order, lengths, rules, spawned):
 
 
 @numba.njit(cache=True, nogil=True)
-def clean(he, rules, region):
+def clean(he, rules, region, side, own, spawned):
     """Remove the needles and caps of ``he`` by local operations; returns how many of each kind were done.
 
     Every face that needs work (an edge shorter than ``rules.short`` local
@@ -1016,8 +1018,12 @@ def clean(he, rules, region):
 
     Lengths are in local scales (``he.scale``: the side of the thinnest tube there).
     ``region`` (a flag per vertex) limits the work to the faces touching it
-    (empty: everywhere).  Returns the counts of collapses, flips, snaps, fan
-    splits and fallback collapses.
+    (empty: everywhere).  ``side`` (a number per face, or empty) limits it to
+    the faces of side ``own``, and the faces a split makes join it: one half
+    of :func:`halves`, while another thread cleans the other.  ``spawned``
+    counts the fan splits each vertex made (zeros at first; the halves and
+    the pass after them share it).  Returns the counts of collapses, flips,
+    snaps, fan splits and fallback collapses.
     """
     faces, p = he.faces, he.points
     fcap = len(faces)
@@ -1026,12 +1032,12 @@ def clean(he, rules, region):
     lengths = np.empty(3)
     order = np.empty(3, np.int64)
     queued = np.zeros(fcap, np.bool_)
-    spawned = np.zeros(len(p), np.int64)
     stack = np.empty(fcap, np.int64)
     top = 0
     everywhere = len(region) == 0
+    halved = len(side) > 0
     for f in range(he.counts[1] - 1, -1, -1):
-        if not he.face_alive[f]:
+        if (halved and side[f] != own) or not he.face_alive[f]:
             continue
         if not everywhere and not (region[faces[f, 0]] or region[faces[f, 1]] or region[faces[f, 2]]):
             continue
@@ -1045,7 +1051,7 @@ def clean(he, rules, region):
         top -= 1
         f = stack[top]
         queued[f] = False
-        if not he.face_alive[f]:
+        if not he.face_alive[f] or (halved and side[f] != own):
             continue
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
         s = min(he.scale[a], min(he.scale[b], he.scale[c]))
@@ -1083,6 +1089,9 @@ def clean(he, rules, region):
                 touched = _split_fan(he, f, order, lengths, rules, spawned)
                 order[0], order[2] = order[2], order[0]
                 done[3] += touched >= 0
+                if halved and touched >= 0:
+                    side[he.counts[1] - 2] = own
+                    side[he.counts[1] - 1] = own
             if touched < 0 and lengths[order[0]] < rules.fallback * s:
                 touched = _try_collapse(he, 3 * f + order[0], rules.limit, rules.short, buf_a, buf_b)
                 done[4] += touched >= 0
@@ -1099,11 +1108,76 @@ def clean(he, rules, region):
             # faces an operation changed only by the valences around them: look at everything again
             rounds += 1
             for g in range(he.counts[1] - 1, -1, -1):
-                if he.face_alive[g] and _needs_work(he, g, rules):
+                if (halved and side[g] != own) or not he.face_alive[g]:
+                    continue
+                if _needs_work(he, g, rules):
                     queued[g] = True
                     stack[top] = g
                     top += 1
     return done
+
+
+def halves(he: HalfEdges, width: int):
+    """Two halves of ``he`` that :func:`clean` can work on at once: ``side`` per face; ``band``, ``near`` per vertex.
+
+    The cut is a plane across the mesh's longest extent, through the median
+    of its vertices.  The ``band`` is every vertex within ``width`` edges of
+    one with faces on both sides of it, and ``side`` is 0 or 1 for a face by
+    where its centre lies, 3 for a face with a vertex within ``width + 1``
+    edges (the band's faces and those next to them: left to the pass after
+    the halves over the vertices ``near`` the cut, within ``width + 1``), 2
+    for the faces splits will make.  An
+    operation on a face of one side changes at most the faces around its
+    vertices and their neighbours, none locked; with the band :data:`LOCKED`
+    as well, neither half reads or writes what the other may change, so the
+    result does not depend on which runs first, or on both running at once.
+    """
+    nv = int(he.counts[0])
+    points = he.points[:nv][he.vertex_alive[:nv]]
+    axis = int(np.argmax(np.ptp(points, axis=0))) if len(points) else 0
+    cut = float(np.median(points[:, axis])) if len(points) else 0.0
+    side = np.full(len(he.faces), 2, np.int8)
+    band = np.zeros(len(he.points), np.bool_)
+    near = np.zeros(len(he.points), np.bool_)
+    _sides(he, axis, cut, width, side, band, near)
+    return side, band, near
+
+
+@numba.njit(cache=True, nogil=True)
+def _sides(he, axis, cut, width, side, band, near):
+    """:func:`halves`' passes: each face's side, the vertices with faces on both, ``width + 1`` rings more."""
+    faces, p = he.faces, he.points
+    nv, nf = he.counts[0], he.counts[1]
+    reach = np.zeros(nv, np.int8)  # bit s: the vertex has a face of side s
+    for f in range(nf):
+        if not he.face_alive[f]:
+            continue
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        s = 0 if p[a, axis] + p[b, axis] + p[c, axis] < 3.0 * cut else 1
+        side[f] = s
+        reach[a] |= 1 << s
+        reach[b] |= 1 << s
+        reach[c] |= 1 << s
+    far = width + 2
+    dist = np.full(nv, far, np.int64)
+    for v in range(nv):
+        if reach[v] == 3:
+            dist[v] = 0
+    for level in range(1, width + 2):
+        for f in range(nf):
+            if not he.face_alive[f]:
+                continue
+            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+            if min(dist[a], min(dist[b], dist[c])) == level - 1:
+                for k in range(3):
+                    if dist[faces[f, k]] > level:
+                        dist[faces[f, k]] = level
+    for f in range(nf):
+        if he.face_alive[f] and min(dist[faces[f, 0]], min(dist[faces[f, 1]], dist[faces[f, 2]])) <= width + 1:
+            side[f] = 3
+    for v in range(nv):
+        band[v] = dist[v] <= width
+        near[v] = dist[v] <= width + 1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -1182,7 +1256,7 @@ def rescue(he, worst, height, flip):
     buf_b = np.empty(_MAX_RING, np.int64)
     fixed = 0
     splits = 0
-    max_splits = 64 + he.counts[1] // 100
+    max_splits = 64 + np.count_nonzero(he.face_alive[: he.counts[1]]) // 100  # (not counts: a room's gaps)
     # After the first round a face is looked at again only if an operation changed something near it (within
     # _NEAR edges of a vertex the operation moved, merged or changed the valence of): what a face needs and
     # whether an operation on it is allowed depend on nothing farther, and a look that changes nothing has no

@@ -113,6 +113,51 @@ def test_the_room_for_splits_changes_memory_not_the_result(tree3d_parts, monkeyp
     assert np.array_equal(tight.vertex_origin, roomy.vertex_origin) and tight.operations == roomy.operations
 
 
+def test_the_halves_clean_the_same_at_once_or_one_after_the_other(tree3d_parts):
+    """The first cleaning runs on two halves of the mesh at once (two threads); neither reads what the other
+    changes, so the mesh is the same bytes whichever half runs first, and with both at once."""
+    from lsys3d import cleanup as module
+
+    tubes, raw = tree3d_parts
+    assert len(raw.faces) >= module._HALVES_MIN
+    runs = [module._clean_arrays(raw, tubes, CleanupOptions(), order) for order in (None, (0, 1), (1, 0))]
+    (arrays, operations) = runs[0]
+    assert operations["collapses"] > 1000
+    for other, ops in runs[1:]:
+        assert ops == operations
+        for a, b in zip(arrays, other, strict=True):
+            assert a.tobytes() == b.tobytes()
+
+
+def test_the_halves_are_kept_apart_by_a_band_of_locked_vertices(tree3d_parts):
+    """Every face is on one side of the cut; the band holds every vertex within its width of the cut, so
+    no edge joins a vertex only one half may change to one only the other half may change."""
+    from lsys3d import cleanup as module
+
+    tubes, raw = tree3d_parts
+    part, flat, _, scale, flags, reference = module._classify(raw, tubes)
+    he = remesh.build(raw.vertices, raw.faces, flags, scale, part, flat, reference, raw.face_source, 16)
+    side, band, near = remesh.halves(he, 3)
+    nf = len(raw.faces)
+    assert set(np.unique(side[:nf])) == {0, 1, 3} and (side[nf:] == 2).all() and (band <= near).all()
+    assert 0.7 < np.sum(side[:nf] == 0) / np.sum(side[:nf] == 1) < 1.4  # about half each
+    assert 0 < band.sum() < 0.5 * len(raw.vertices)
+    free = np.full(len(raw.vertices), -1)  # the half that may change a vertex, -1 for the band
+    for s in (0, 1):
+        free[raw.faces[side[:nf] == s].ravel()] = s
+    free[band[: len(raw.vertices)]] = -1
+    assert not near[raw.faces[side[:nf] < 2]].any()  # the halves' faces are farther than the band's neighbours
+    edges = np.concatenate([raw.faces[:, [0, 1]], raw.faces[:, [1, 2]], raw.faces[:, [2, 0]]])
+    ends = free[edges]
+    assert not ((ends[:, 0] >= 0) & (ends[:, 1] >= 0) & (ends[:, 0] != ends[:, 1])).any()
+    # and within the width: a vertex next to an unlocked one of the other half is at least 4 edges away
+    rings = np.zeros(len(raw.vertices), bool)
+    rings[edges[(free[edges[:, 0]] == 0), 1]] = True
+    for _ in range(3):
+        rings[edges[rings[edges[:, 0]], 1]] = True
+    assert not (rings & (free == 1)).any()
+
+
 def test_int32_half_edges_clean_as_int64_ones(tree3d_parts, monkeypatch):
     """The half-edges hold their indices as int32 (half the memory) while they fit, as int64 beyond: every
     kernel takes both, and the cleaned mesh is the same bytes."""
