@@ -188,6 +188,20 @@ def _classify(bark: _Surface, tubes: Tubes):
     return part, flat, cap, scale, flags, reference
 
 
+def _half_edges(bark: _Surface, tubes: Tubes, room: int, pool=None):
+    """The half-edges of ``bark`` with ``room`` for splits, classified and marked; the reason if it is not closed."""
+    part, flat, cap, scale, flags, reference = _classify(bark, tubes)
+    try:
+        he = remesh.build(
+            bark.vertices, bark.faces, flags, scale, part, flat, reference, bark.face_source, room, pool=pool
+        )
+    except ValueError as exc:
+        return str(exc)
+    del scale, flags, reference
+    _mark(he, bark, part, flat, cap)
+    return he
+
+
 def _full(he) -> bool:
     """Whether the half-edges ran out of room for a split (a split that found none was not made)."""
     return bool(he.counts[0] >= he.counts[2] or he.counts[1] + 2 > he.counts[3])
@@ -309,8 +323,10 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     if cleaned is None:
         return identity
     (points, faces, fflat, fsrc, origin), operations = cleaned  # the half-edges are gone: they took a third
-    normals = smooth_normals(points, faces, fflat)
-    uv = tube_uv(tubes, points, faces, fsrc)
+    with ThreadPoolExecutor(2) as pool:  # the normals beside the uv, the uv in two halves (compiled: no GIL)
+        normals = pool.submit(smooth_normals, points, faces, fflat)
+        uv = tube_uv(tubes, points, faces, fsrc, pool)
+        normals = normals.result()
     # end as the union ends: no two vertices that a float32 file or a reader's weld would merge
     mesh = _separate_float32(Mesh(points, faces, normals, uv, face_source=fsrc))
     return Cleaned(mesh, origin, operations)
@@ -319,7 +335,18 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
 def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None):
     """The cleaned bark's points, faces, flat faces, face sources and vertex origins, and the operations done;
     None when the bark is not a closed 2-manifold (a warning says so).  ``order``: see :func:`_clean_halves`."""
-    bark = _drop_crumbs(bark)
+    whole = _Surface(bark.vertices, bark.faces, bark.face_source)
+    with ThreadPoolExecutor(2) as pool:
+        # the crumbs are looked for beside the half-edges' making, which is made again if some are dropped
+        crumbs = pool.submit(_drop_crumbs, bark)
+        room = int(len(whole.faces) * _ROOM_SHARE) + _ROOM_MIN
+        try:
+            made = _half_edges(whole, tubes, room, pool)
+        finally:
+            bark = crumbs.result()
+    if len(bark.faces) != len(whole.faces):
+        made = None
+    del whole
     nf = len(bark.faces)
     # room for the splits: the presets make at most 4 % of the faces' count (bush); a run that fills the room
     # is made again with four times as much, so the result never depends on the room (only memory does)
@@ -330,15 +357,11 @@ def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None):
     while True:
         # made again for each try (a try changes the flags and flat faces): what the half-edges hold a copy of
         # is not kept while they are cleaned
-        part, flat, cap, scale, flags, reference = _classify(bark, tubes)
-        try:
-            he = remesh.build(bark.vertices, bark.faces, flags, scale, part, flat, reference, bark.face_source, room)
-        except ValueError as exc:
-            log.warning("cleanup: skipped, %s", exc)
+        he = made if made is not None else _half_edges(bark, tubes, room)
+        made = None
+        if isinstance(he, str):
+            log.warning("cleanup: skipped, %s", he)
             return None
-        del scale, flags, reference
-        _mark(he, bark, part, flat, cap)
-        del part, flat, cap
         *result, full = _clean(he, opt, budget, order)
         if not full:
             break
@@ -360,18 +383,25 @@ def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None):
     return (points, faces, fflat, fsrc, origin), operations
 
 
-def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndarray) -> np.ndarray:
+def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndarray, pool=None) -> np.ndarray:
     """Corner uv ``(f, 3, 2)``: each face's corners in the chart of the tube face it lies on (:meth:`Tubes.uv_at`).
 
     Vertices the cleanup moved or made get the texture coordinates the tube
-    itself would give them, so the texture is not dragged along.
+    itself would give them, so the texture is not dragged along.  With a
+    ``pool`` (an executor), its threads share the chunks (the same values).
     """
     uv = np.empty((len(faces), 3, 2))
-    for start in range(0, len(faces), _CHUNK):  # a chunk at a time: uv_at's temporaries stay small
-        part = slice(start, start + _CHUNK)
+
+    def chunk(part):
         uv[part] = wrap_u(
             tubes.uv_at(source[part], points[faces[part]]), tubes.tiles[_tube_of_face(tubes, source[part])]
         )
+
+    # a chunk at a time, uv_at's temporaries stay small; at least two, for two threads
+    size = max(min(_CHUNK, -(-len(faces) // 2)), 1)
+    parts = [slice(start, start + size) for start in range(0, len(faces), size)]
+    for _ in map(chunk, parts) if pool is None else pool.map(chunk, parts):
+        pass
     return uv
 
 

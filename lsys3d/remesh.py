@@ -133,43 +133,65 @@ class Rules(NamedTuple):
     """Stop after this many operations (a guard; never reached on sane input)."""
 
 
-@numba.njit(cache=True, nogil=True)
-def _opposites(faces, nv):
+def opposites(faces: np.ndarray, nv: int, pool=None) -> np.ndarray:
     """The opposite of each half-edge (-1 where none); ``[-2, ...]`` when a directed edge is used twice.
 
-    Half-edges are listed by their origin (counting sort), and each finds its
-    reverse among those leaving its end: linear in the half-edges times the valence.
+    Half-edges are listed by their origin (a counting sort), and each finds
+    its reverse among those leaving its end: linear in the half-edges times
+    the valence.  With a ``pool`` (an executor), one of its threads matches
+    the half-edges of the second half of the vertices (the same result).
     """
-    nh = 3 * len(faces)
+    index = index_dtype(max(3 * len(faces), nv))  # int32 while it fits: half the memory
+    half, head = np.empty(3 * len(faces), index), np.empty(3 * len(faces), index)
+    start = _leaving(faces, nv, half, head)
+    opp = np.full(3 * len(faces), -1, np.int64)
+    middle = int(np.searchsorted(start, len(head) // 2))  # about as many half-edges on either side
+    if pool is None:
+        ok = _match(start, half, head, 0, middle, opp) and _match(start, half, head, middle, nv, opp)
+    else:
+        second = pool.submit(_match, start, half, head, middle, nv, opp)
+        ok = _match(start, half, head, 0, middle, opp)
+        ok = second.result() and ok
+    if not ok:
+        opp[0] = -2
+    return opp
+
+
+@numba.njit(cache=True, nogil=True)
+def _leaving(faces, nv, half, head):
+    """Fill the half-edges leaving each vertex ``half[start[v]:start[v + 1]]`` and their ends ``head``; start."""
+    nf = len(faces)
     start = np.zeros(nv + 1, np.int64)
-    for h in range(nh):
-        start[faces[h // 3, h % 3] + 1] += 1
+    for f in range(nf):
+        for k in range(3):
+            start[faces[f, k] + 1] += 1
     for v in range(nv):
         start[v + 1] += start[v]
     fill = start[:-1].copy()
-    leaving = np.empty(nh, np.int64)
-    for h in range(nh):
-        u = faces[h // 3, h % 3]
-        leaving[fill[u]] = h
-        fill[u] += 1
-    opp = np.full(nh, -1, np.int64)
-    for h in range(nh):
-        u = faces[h // 3, h % 3]
-        w = faces[h // 3, (h % 3 + 1) % 3]
-        seen = 0
+    for f in range(nf):
+        for k in range(3):
+            u = faces[f, k]
+            i = fill[u]
+            half[i] = 3 * f + k
+            head[i] = faces[f, (k + 1) % 3]
+            fill[u] = i + 1
+    return start
+
+
+@numba.njit(cache=True, nogil=True)
+def _match(start, half, head, lo, hi, opp):
+    """:func:`opposites` for the half-edges leaving the vertices ``lo .. hi - 1``; False if one is there twice."""
+    for u in range(lo, hi):
         for i in range(start[u], start[u + 1]):
-            g = leaving[i]
-            if faces[g // 3, (g % 3 + 1) % 3] == w:
-                seen += 1
-        if seen > 1:
-            opp[0] = -2
-            return opp
-        for i in range(start[w], start[w + 1]):
-            g = leaving[i]
-            if faces[g // 3, (g % 3 + 1) % 3] == u:
-                opp[h] = g
-                break
-    return opp
+            w = head[i]
+            for j in range(start[u], i):
+                if head[j] == w:
+                    return False
+            for j in range(start[w], start[w + 1]):
+                if head[j] == u:
+                    opp[half[i]] = half[j]
+                    break
+    return True
 
 
 INDEX_LIMIT = 2**31 - 1
@@ -192,6 +214,7 @@ def build(
     face_source,
     extra_vertices: int = 0,
     index_limit: int | None = None,
+    pool=None,
 ):
     """Half-edges of a closed, consistently oriented mesh (every directed edge once, its reverse once).
 
@@ -208,7 +231,7 @@ def build(
     largest = max(3 * fcap, vcap, int(np.max(face_source, initial=0)), int(np.max(face_part, initial=0)))
     index = index_dtype(largest, INDEX_LIMIT if index_limit is None else index_limit)
     org = faces.reshape(-1)
-    opp = _opposites(faces, nv)
+    opp = opposites(faces, nv, pool)
     if len(opp) and opp[0] == -2:
         raise ValueError("remesh.build: a directed edge is used twice (the mesh is not a consistent 2-manifold)")
     if len(opp) and opp.min() < 0:
