@@ -20,7 +20,10 @@ with operations that keep the mesh closed (:mod:`lsys3d.remesh`):
   ``step`` scales from it; a last pass removes what is still worse than
   aspect 500 or lower than 1 um;
 * where a cap of a tube was cut by the boolean (a thick child's base poking
-  out of its parent), the cap is no rim to keep: it is part of the junction.
+  out of its parent), the cap is no rim to keep: it is part of the junction;
+* the first cleaning runs on two halves of the mesh at once, kept apart by a
+  locked band that a pass cleans after them (:func:`lsys3d.remesh.halves`):
+  the same bytes with one thread or two.
 
 Per-vertex attributes made before the cleanup (branch id, order...) follow
 the map :attr:`Cleaned.vertex_origin`: ``attribute[cleaned.vertex_origin]``
