@@ -293,7 +293,8 @@ def _clean(he, opt: CleanupOptions, budget: int, order=None):
     if opt.smooth:
         closeness = np.zeros(len(he.points))
         remesh.collar(he, opt.collar, closeness)
-        faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False)
+        with ThreadPoolExecutor(1) as pool:  # the calling thread and this one share the fairing's steps
+            faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False, pool)
         remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
         # the faired collars may have made a few needles
         done += remesh.clean(he, rules, closeness > 0, _NO_SIDE, 0, np.zeros(len(he.points), np.int64))

@@ -1562,8 +1562,11 @@ def _find(parent, i):
     return i
 
 
-@numba.njit(cache=True, nogil=True)
-def fair(he, closeness, iterations, step, reach, inward):
+_FAIR_SHARE_MIN = 4096
+"""Collar vertices from which :func:`fair` shares its steps with a second thread."""
+
+
+def fair(he, closeness, iterations, step, reach, inward, pool=None):
     """Round the junction creases: make each collar as smooth as a thin plate bent between its tubes.
 
     The collar vertices (``closeness > 0``) move along their normals to make
@@ -1586,8 +1589,37 @@ def fair(he, closeness, iterations, step, reach, inward):
     collar vertices) then gives the volume it gained back: its vertices sink
     along their normals in proportion to their closeness to the seam and
     their scale (a slight waist under the fillet), so a collar blends
-    without inflating the junction.  Returns the vertices moved.
+    without inflating the junction.  With a ``pool`` (an executor) of
+    two threads, each Jacobi step's two passes are shared by the calling
+    thread and one of the pool's (the same bits).  Returns the vertices moved.
     """
+    members, slot, around, first, nbr, start, normal = _fair_setup(he, closeness)
+    na, m = len(around), len(members)
+    lap = np.zeros((na, 3))
+    target = np.zeros((m, 3))
+    p = he.points
+    halves = pool is not None and m >= _FAIR_SHARE_MIN
+    for _ in range(iterations):
+        if halves:
+            other = pool.submit(_laplacians, p, around, first, nbr, lap, na // 2, na)
+            _laplacians(p, around, first, nbr, lap, 0, na // 2)
+            other.result()
+            other = pool.submit(
+                _fair_targets, he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target, m // 2, m
+            )
+            _fair_targets(he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target, 0, m // 2)
+            other.result()
+        else:
+            _laplacians(p, around, first, nbr, lap, 0, na)
+            _fair_targets(he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target, 0, m)
+        p[members] = target
+    return _fair_finish(he, closeness, members, start)
+
+
+@numba.njit(cache=True, nogil=True)
+def _fair_setup(he, closeness):
+    """:func:`fair`'s collar vertices, their slots among them and their neighbours (``around``), the
+    neighbours of those as CSR lists, and the collar's positions and normals before the fairing."""
     faces, p = he.faces, he.points
     nv = he.counts[0]
     member = np.zeros(nv, np.bool_)
@@ -1632,62 +1664,74 @@ def fair(he, closeness, iterations, step, reach, inward):
     for i in range(len(members)):
         v = members[i]
         start[i, 0], start[i, 1], start[i, 2] = p[v, 0], p[v, 1], p[v, 2]
-    lap = np.zeros((na, 3))
-    target = np.zeros((len(members), 3))
     # each vertex moves along its normal before the fairing (the moves are a fraction of a side; recomputing
     # it every step cost 60% of the fairing)
     normal = np.empty((len(members), 3))
     for i in range(len(members)):
         normal[i, 0], normal[i, 1], normal[i, 2] = _vertex_normal(he, members[i])
-    moves = 0
-    for _ in range(iterations):
-        for i in range(na):
-            v = around[i]
-            mx, my, mz, total = 0.0, 0.0, 0.0, 0.0
-            for k in range(first[i], first[i + 1]):
-                w = nbr[k]
-                dx, dy, dz = p[w, 0] - p[v, 0], p[w, 1] - p[v, 1], p[w, 2] - p[v, 2]
-                weight = 1.0 / max(dx * dx + dy * dy + dz * dz, 1e-300)
-                mx += weight * dx
-                my += weight * dy
-                mz += weight * dz
-                total += weight
-            lap[i, 0], lap[i, 1], lap[i, 2] = mx / total, my / total, mz / total
-        for i in range(len(members)):
-            v = members[i]
-            j = slot[v]
-            mx, my, mz, total = 0.0, 0.0, 0.0, 0.0
-            for k in range(first[j], first[j + 1]):
-                w = nbr[k]
-                dx, dy, dz = p[w, 0] - p[v, 0], p[w, 1] - p[v, 1], p[w, 2] - p[v, 2]
-                weight = 1.0 / max(dx * dx + dy * dy + dz * dz, 1e-300)
-                lw = slot[w]
-                mx += weight * (lap[lw, 0] - lap[j, 0])
-                my += weight * (lap[lw, 1] - lap[j, 1])
-                mz += weight * (lap[lw, 2] - lap[j, 2])
-                total += weight
-            bx, by, bz = mx / total, my / total, mz / total
-            nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
-            along = bx * nx + by * ny + bz * nz
-            if along > 0.0 and not inward:  # only outwards: creases fill, tubes do not shrink
-                along = 0.0
-            # d(L(L(x)))/dx_v is about 2 for a regular neighbourhood
-            tx = p[v, 0] - 0.5 * step * along * nx
-            ty = p[v, 1] - 0.5 * step * along * ny
-            tz = p[v, 2] - 0.5 * step * along * nz
-            ox, oy, oz = tx - start[i, 0], ty - start[i, 1], tz - start[i, 2]
-            far = np.sqrt(ox * ox + oy * oy + oz * oz)
-            limit = reach * he.scale[v]
-            if far > limit:
-                tx, ty, tz = (
-                    start[i, 0] + ox * limit / far,
-                    start[i, 1] + oy * limit / far,
-                    start[i, 2] + oz * limit / far,
-                )
-            target[i, 0], target[i, 1], target[i, 2] = tx, ty, tz
-        for i in range(len(members)):
-            v = members[i]
-            p[v, 0], p[v, 1], p[v, 2] = target[i, 0], target[i, 1], target[i, 2]
+    return members, slot, around, first, nbr, start, normal
+
+
+@numba.njit(cache=True, nogil=True)
+def _laplacians(p, around, first, nbr, lap, lo, hi):
+    """One Jacobi step of :func:`fair`, first pass: the weighted Laplacian at ``around[lo:hi]``."""
+    for i in range(lo, hi):
+        v = around[i]
+        mx, my, mz, total = 0.0, 0.0, 0.0, 0.0
+        for k in range(first[i], first[i + 1]):
+            w = nbr[k]
+            dx, dy, dz = p[w, 0] - p[v, 0], p[w, 1] - p[v, 1], p[w, 2] - p[v, 2]
+            weight = 1.0 / max(dx * dx + dy * dy + dz * dz, 1e-300)
+            mx += weight * dx
+            my += weight * dy
+            mz += weight * dz
+            total += weight
+        lap[i, 0], lap[i, 1], lap[i, 2] = mx / total, my / total, mz / total
+
+
+@numba.njit(cache=True, nogil=True)
+def _fair_targets(he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target, lo, hi):
+    """One Jacobi step of :func:`fair`, second pass: where ``members[lo:hi]`` move (into ``target``)."""
+    p = he.points
+    for i in range(lo, hi):
+        v = members[i]
+        j = slot[v]
+        mx, my, mz, total = 0.0, 0.0, 0.0, 0.0
+        for k in range(first[j], first[j + 1]):
+            w = nbr[k]
+            dx, dy, dz = p[w, 0] - p[v, 0], p[w, 1] - p[v, 1], p[w, 2] - p[v, 2]
+            weight = 1.0 / max(dx * dx + dy * dy + dz * dz, 1e-300)
+            lw = slot[w]
+            mx += weight * (lap[lw, 0] - lap[j, 0])
+            my += weight * (lap[lw, 1] - lap[j, 1])
+            mz += weight * (lap[lw, 2] - lap[j, 2])
+            total += weight
+        bx, by, bz = mx / total, my / total, mz / total
+        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+        along = bx * nx + by * ny + bz * nz
+        if along > 0.0 and not inward:  # only outwards: creases fill, tubes do not shrink
+            along = 0.0
+        # d(L(L(x)))/dx_v is about 2 for a regular neighbourhood
+        tx = p[v, 0] - 0.5 * step * along * nx
+        ty = p[v, 1] - 0.5 * step * along * ny
+        tz = p[v, 2] - 0.5 * step * along * nz
+        ox, oy, oz = tx - start[i, 0], ty - start[i, 1], tz - start[i, 2]
+        far = np.sqrt(ox * ox + oy * oy + oz * oz)
+        limit = reach * he.scale[v]
+        if far > limit:
+            tx, ty, tz = (
+                start[i, 0] + ox * limit / far,
+                start[i, 1] + oy * limit / far,
+                start[i, 2] + oz * limit / far,
+            )
+        target[i, 0], target[i, 1], target[i, 2] = tx, ty, tz
+
+
+@numba.njit(cache=True, nogil=True)
+def _fair_finish(he, closeness, members, start):
+    """:func:`fair`'s end: a vertex with a face turned away goes back, the collars give their volume back;
+    the vertices moved."""
+    faces, p = he.faces, he.points
     # a vertex with a face turned away from its surface goes back, until none is left
     for _ in range(10):
         reverted = 0
@@ -1711,6 +1755,7 @@ def fair(he, closeness, iterations, step, reach, inward):
         if reverted == 0:
             break
     _give_back_volume(he, closeness, members, start)
+    moves = 0
     for i in range(len(members)):
         v = members[i]
         moves += p[v, 0] != start[i, 0] or p[v, 1] != start[i, 1] or p[v, 2] != start[i, 2]
