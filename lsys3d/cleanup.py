@@ -217,19 +217,24 @@ _BAND = 3
 _NO_REGION, _NO_SIDE = np.zeros(0, bool), np.zeros(0, np.int8)
 
 
-def _clean_halves(he, rules, order=None) -> tuple[np.ndarray, bool]:
-    """The first cleaning, both halves at once (:func:`lsys3d.remesh.halves`), then the band between them.
+def _clean_halves(
+    he, rules, order=None, spawned=None, region=_NO_REGION, skip: int = -1, depth: int = 2
+) -> tuple[np.ndarray, bool]:
+    """The first cleaning, both halves at once (:func:`lsys3d.remesh.halves`), then the band between them,
+    itself in two halves across it, then what is near that second cut.
 
     Each half splits into its own share of the room.  The result does not
     depend on the threads: ``order`` (a test's) runs the halves one after
-    the other in that order instead.  The operations done, and whether a
-    half ran out of room.
+    the other in that order instead.  ``spawned`` counts each vertex's fan
+    splits through all of it; ``region``, ``skip`` and ``depth`` are the
+    second cut's.  The operations done, and whether a half ran out of room.
     """
     nv, nf, vcap, fcap = (int(c) for c in he.counts)
-    spawned = np.zeros(vcap, np.int64)
-    if nf < _HALVES_MIN:
-        return remesh.clean(he, rules, _NO_REGION, _NO_SIDE, 0, spawned), _full(he)
-    side, band, near = remesh.halves(he, _BAND)
+    if spawned is None:
+        spawned = np.zeros(vcap, np.int64)
+    if nf < _HALVES_MIN or depth == 0:
+        return remesh.clean(he, rules, region, _NO_SIDE, 0, spawned), _full(he)
+    side, band, near, axis = remesh.halves(he, _BAND, region if len(region) else None, skip)
     lock = band & ((he.flags & remesh.LOCKED) == 0)
     he.flags[lock] |= remesh.LOCKED
     half = (vcap - nv) // 2
@@ -239,7 +244,7 @@ def _clean_halves(he, rules, order=None) -> tuple[np.ndarray, bool]:
     )
 
     def run(own):
-        return remesh.clean(he._replace(counts=counts[own]), rules, _NO_REGION, side, own, spawned)
+        return remesh.clean(he._replace(counts=counts[own]), rules, region, side, own, spawned)
 
     if order is None:
         with ThreadPoolExecutor(2) as pool:
@@ -249,8 +254,9 @@ def _clean_halves(he, rules, order=None) -> tuple[np.ndarray, bool]:
     he.flags[lock] &= ~remesh.LOCKED
     full = any(_full(he._replace(counts=c)) for c in counts)
     he.counts[:2] = counts[1][:2]  # the second half's room is after the first's: the rest splits after it
-    done = done + remesh.clean(he, rules, near, _NO_SIDE, 0, spawned)
-    return done, full or _full(he)
+    del band, lock
+    rest, rest_full = _clean_halves(he, rules, order, spawned, near, axis, depth - 1)
+    return done + rest, full or rest_full
 
 
 def _mark(he, bark: _Surface, part, flat, cap) -> None:

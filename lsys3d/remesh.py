@@ -1140,7 +1140,7 @@ def clean(he, rules, region, side, own, spawned):
     return done
 
 
-def halves(he: HalfEdges, width: int):
+def halves(he: HalfEdges, width: int, region=None, skip: int = -1):
     """Two halves of ``he`` that :func:`clean` can work on at once: ``side`` per face; ``band``, ``near`` per vertex.
 
     The cut is a plane across the mesh's longest extent, through the median
@@ -1154,16 +1154,31 @@ def halves(he: HalfEdges, width: int):
     vertices and their neighbours, none locked; with the band :data:`LOCKED`
     as well, neither half reads or writes what the other may change, so the
     result does not depend on which runs first, or on both running at once.
+    With a ``region`` (a flag per vertex), the median is that of its
+    vertices, and the cut is across their longest extent but along axis
+    ``skip`` (the band of a first cut, cut again across).  Also returns the axis.
     """
     nv = int(he.counts[0])
-    points = he.points[:nv][he.vertex_alive[:nv]]
-    axis = int(np.argmax(np.ptp(points, axis=0))) if len(points) else 0
+    alive = he.vertex_alive[:nv] if region is None else he.vertex_alive[:nv] & region[:nv]
+    points = he.points[:nv][alive]
+    extent = np.ptp(points, axis=0) if len(points) else np.zeros(3)
+    if 0 <= skip < 3:
+        extent[skip] = -1.0
+    axis = int(np.argmax(extent))
     cut = float(np.median(points[:, axis])) if len(points) else 0.0
+    if region is not None and len(points):
+        # across a band, the median may run along a trunk, its junctions all near the cut: of the middle
+        # positions, the one with the fewest seam vertices within a few of their scales
+        seam = (he.flags[:nv][alive] & SEAM) != 0
+        x, reach = points[seam, axis], 4.0 * he.scale[:nv][alive][seam]
+        cuts = np.quantile(points[:, axis], np.linspace(0.3, 0.7, 9))
+        crowd = [np.count_nonzero(np.abs(x - c) < reach) for c in cuts]
+        cut = float(cuts[int(np.argmin(crowd))])
     side = np.full(len(he.faces), 2, np.int8)
     band = np.zeros(len(he.points), np.bool_)
     near = np.zeros(len(he.points), np.bool_)
     _sides(he, axis, cut, width, side, band, near)
-    return side, band, near
+    return side, band, near, axis
 
 
 @numba.njit(cache=True, nogil=True)

@@ -137,7 +137,7 @@ def test_the_halves_are_kept_apart_by_a_band_of_locked_vertices(tree3d_parts):
     tubes, raw = tree3d_parts
     part, flat, _, scale, flags, reference = module._classify(raw, tubes)
     he = remesh.build(raw.vertices, raw.faces, flags, scale, part, flat, reference, raw.face_source, 16)
-    side, band, near = remesh.halves(he, 3)
+    side, band, near, _ = remesh.halves(he, 3)
     nf = len(raw.faces)
     assert set(np.unique(side[:nf])) == {0, 1, 3} and (side[nf:] == 2).all() and (band <= near).all()
     assert 0.7 < np.sum(side[:nf] == 0) / np.sum(side[:nf] == 1) < 1.4  # about half each
