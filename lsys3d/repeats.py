@@ -64,25 +64,41 @@ class Clusters:
 
 
 @numba.njit(cache=True, nogil=True)
-def _same_normals(wedge_normal, wa, fa, wb, fb):  # pragma: no cover - compiled
-    """``(k,) bool``: the corner normals ``wedge_normal[wa[i]]`` in frame ``fa[i]`` are those of ``wb[i]`` in ``fb[i]``.
+def _same_shading(wedge_normal, wedge_uv, wa, fa, wb, fb, run_of, first_tri, v_tolerance, offset):  # pragma: no cover
+    """``(k,) bool``: the corners ``wa[i]`` in frame ``fa[i]`` are shaded as the corners ``wb[i]`` in frame ``fb[i]``.
 
-    Within ``_SHADING`` in every coordinate.  The rotated normals are
-    ``np.einsum("gtcj,gkj->gtck", ...)``'s bits (it sums x, z, then y), computed
-    a corner at a time and compared at once: no (k, t, 3, 3) temporaries, and
-    a candidate stops at its first difference.
+    Normals (rotated into each frame) and ``u`` within ``_SHADING`` in every
+    coordinate; ``v`` differs by one offset per run (``offset[i, run]``, written
+    for every candidate: the difference at corner 0 of the run's first
+    triangle ``first_tri[run]``; ``run_of[t]`` is the run of triangle ``t``)
+    within ``v_tolerance``.  The rotated normals are ``np.einsum("gtcj,gkj->gtck",
+    ...)``'s bits (it sums x, z, then y), the uv differences those of float64
+    rows, computed a corner at a time: no (k, t, 3, ...) temporaries, and a
+    candidate stops at its first difference.  NaN is a difference too, as in
+    ``np.max``.
     """
     out = np.ones(len(wa), np.bool_)
     for i in range(len(wa)):
+        for r in range(len(first_tri)):
+            t = first_tri[r]
+            offset[i, r] = np.float64(wedge_uv[wa[i, t, 0], 1]) - np.float64(wedge_uv[wb[i, t, 0], 1])
         for tt in range(wa.shape[1]):
             for c in range(3):
+                ua, ub = wedge_uv[wa[i, tt, c]], wedge_uv[wb[i, tt, c]]
+                if not abs(np.float64(ua[0]) - np.float64(ub[0])) <= _SHADING:
+                    out[i] = False
+                    break
+                dv = np.float64(ua[1]) - np.float64(ub[1])
+                if not abs(dv - offset[i, run_of[tt]]) <= v_tolerance:
+                    out[i] = False
+                    break
                 na, nb = wedge_normal[wa[i, tt, c]], wedge_normal[wb[i, tt, c]]
                 a0, a1, a2 = np.float64(na[0]), np.float64(na[1]), np.float64(na[2])
                 b0, b1, b2 = np.float64(nb[0]), np.float64(nb[1]), np.float64(nb[2])
                 for k in range(3):
                     x = dot3(a0, a1, a2, fa[i, k, 0], fa[i, k, 1], fa[i, k, 2])
                     y = dot3(b0, b1, b2, fb[i, k, 0], fb[i, k, 1], fb[i, k, 2])
-                    if not abs(x - y) <= _SHADING:  # NaN is a difference too, as in np.max
+                    if not abs(x - y) <= _SHADING:
                         out[i] = False
                         break
                 if not out[i]:
@@ -177,22 +193,15 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
         step = max(1, _CHECKED // t)  # the shading of a block of candidates and their representatives at a time
         for lo in range(0, len(cand), step):
             block = slice(lo, lo + step)
-            wedges, uv = [], []
-            for rows in (cand[block], rr[block]):
-                wedges.append(faces_of(tri[tris[rows]].ravel()).reshape(len(rows), t, 3))
-                uv.append(wedge_uv[wedges[-1]].astype(np.float64))  # (k, t, 3, 2)
-            good = _same_normals(tubes.wedge_normal, wedges[0], frame[m[cand[block]]], wedges[1], frame[m[rr[block]]])
-            good &= np.abs(uv[0][..., 0] - uv[1][..., 0]).max(axis=(1, 2)) <= _SHADING
-            dv = uv[0][..., 1] - uv[1][..., 1]  # (k, t, 3)
-            offset[block] = dv[:, first_tri, 0]  # (k, runs)
-            good &= np.abs(dv - offset[block][:, run_of, None]).max(axis=(1, 2)) <= v_tolerance
-            ok[block] &= good
-            del wedges, uv, dv
+            wa, wb = (faces_of(tri[tris[rows]].ravel()).reshape(len(rows), t, 3) for rows in (cand[block], rr[block]))
+            fa, fb = frame[m[cand[block]]], frame[m[rr[block]]]
+            ok[block] &= _same_shading(
+                tubes.wedge_normal, wedge_uv, wa, fa, wb, fb, run_of, first_tri, v_tolerance, offset[block]
+            )
+            del wa, wb
         take = cand[ok]
         rep[m[take]] = m[r[take]]
-        for row, k in zip(take.tolist(), np.flatnonzero(ok).tolist(), strict=True):
-            c = int(m[row])
-            shift[run_off[c] : run_off[c + 1]] = offset[k]
+        shift[run_off[m[take]][:, None] + np.arange(len(lens))] = offset[ok]  # every member has len(lens) runs
     return Clusters(tri, tri_off_c, point, point_off, run_len, run_off, rep, origin, frame, shift)
 
 
