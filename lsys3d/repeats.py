@@ -31,7 +31,7 @@ from .arrays import local_index as _local_counts
 from .arrays import offsets as _offsets
 from .booleans import Part
 
-__all__ = ["Clusters", "copies", "find"]
+__all__ = ["Clusters", "find", "with_copies"]
 
 _KEY = 1e-6  # relative size of the grid that buckets candidate clusters
 _POINTS = 1e-7  # relative tolerance of congruent points (and 1/100 of a float32 step at the coordinates' size)
@@ -205,22 +205,24 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
     return Clusters(tri, tri_off_c, point, point_off, run_len, run_off, rep, origin, frame, shift)
 
 
-def copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> list[Part]:
-    """The representatives' boolean results (``out``, face ids as given to the boolean) moved onto their copies.
+def with_copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> Part:
+    """The representatives' boolean results (``out``, face ids as given to the boolean) and their copies, as one Part.
 
-    Returns one :class:`Part` per representative that has copies: all its
-    copies side by side, with their own face ids.
+    ``out`` first, then for every representative that has copies all its
+    copies side by side, with their own face ids: the arrays ``union._concat``
+    makes of ``out`` and one part per representative, written in place (no
+    per-copy temporaries and no second copy of the whole).
     """
     nc = len(cl)
+    members = np.flatnonzero(cl.rep != np.arange(nc))
+    if not len(members):
+        return out
     cluster_of_id = np.full(nf + n_caps, -1, np.int64)
     pos_of_id = np.zeros(nf + n_caps, np.int64)
     per = np.diff(cl.tri_off)
     cluster_of_id[cl.tri] = np.repeat(np.arange(nc), per)
     pos_of_id[cl.tri] = _local_counts(per)
     out_cluster = cluster_of_id[out.face_id]
-    members = np.flatnonzero(cl.rep != np.arange(nc))
-    if not len(members):
-        return []
     order = np.argsort(cl.rep[members], kind="stable")
     members = members[order]
     reps, starts = np.unique(cl.rep[members], return_index=True)
@@ -235,16 +237,34 @@ def copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> list[Part]:
     merge_cluster = vert_cluster[out.merge_from]
     merge_order = np.argsort(merge_cluster, kind="stable")
     merge_bounds = np.searchsorted(merge_cluster[merge_order], np.concatenate([reps, reps + 1]))
-    parts = []
+    # what each representative's copies need, and where they go
+    plans = []
+    sizes = np.zeros((len(reps) + 1, 3), np.int64)  # vertices, triangles, merge pairs
+    sizes[0] = len(out.props), len(out.tri), len(out.merge_from)
     for i, r in enumerate(reps.tolist()):
         mine = members[bounds[i] : bounds[i + 1]]
         sel = tri_order[tri_bounds[i] : tri_bounds[len(reps) + i]]  # the representative's output triangles
         used = vert_order[vert_bounds[i] : vert_bounds[len(reps) + i]]  # ascending: the sort was stable
         tri = np.searchsorted(used, out.tri[sel])
-        props = out.props[used]
         msel = merge_order[merge_bounds[i] : merge_bounds[len(reps) + i]]
-        mfrom = np.searchsorted(used, out.merge_from[msel])
-        mto = np.searchsorted(used, out.merge_to[msel])
+        merge = np.stack([np.searchsorted(used, out.merge_from[msel]), np.searchsorted(used, out.merge_to[msel])])
+        plans.append((r, mine, sel, used, tri, merge))
+        sizes[i + 1] = len(mine) * len(used), len(mine) * len(tri), len(mine) * merge.shape[1]
+    off = np.concatenate([np.zeros((1, 3), np.int64), np.cumsum(sizes, axis=0)])
+    joined = Part(
+        np.empty((off[-1, 0], out.props.shape[1])),
+        np.empty((off[-1, 1], 3), np.int64),
+        np.empty(off[-1, 2], np.int64),
+        np.empty(off[-1, 2], np.int64),
+        np.empty(off[-1, 1], np.int64),
+    )
+    joined.props[: len(out.props)] = out.props
+    joined.tri[: len(out.tri)] = out.tri
+    joined.merge_from[: len(out.merge_from)] = out.merge_from
+    joined.merge_to[: len(out.merge_to)] = out.merge_to
+    joined.face_id[: len(out.face_id)] = out.face_id
+    for i, (r, mine, sel, used, tri, merge) in enumerate(plans):
+        props = out.props[used]
         # the representative's own input points among the output vertices (exact positions)
         rp = cl.point[cl.point_off[r] : cl.point_off[r + 1]]
         j = find_rows(tubes.points[rp], props[:, :3])
@@ -256,28 +276,53 @@ def copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> list[Part]:
         vertex_run[tri[::-1].ravel()] = np.repeat(run_of_tri[::-1], 3)
         # into every copy's frame
         loc = (props[:, :3] - cl.origin[r]) @ cl.frame[r].T
-        xyz = np.einsum("vk,gkj->gvj", loc, cl.frame[mine]) + cl.origin[mine][:, None, :]
-        hit = np.flatnonzero(j >= 0)
-        mp = cl.point[cl.point_off[mine][:, None] + j[hit][None, :]]  # (g, hits)
-        xyz[:, hit] = tubes.points[mp]
-        nrm = np.einsum("vk,gkj->gvj", props[:, 3:6] @ cl.frame[r].T, cl.frame[mine])
-        g = len(mine)
-        new = np.empty((g, len(used), props.shape[1]))
-        new[:, :, :3] = xyz
-        new[:, :, 3:6] = nrm
-        new[:, :, 6:] = props[None, :, 6:]
+        nrm = props[:, 3:6] @ cl.frame[r].T
         shift = cl.shift[cl.run_off[mine][:, None] + np.arange(len(run_bounds))]  # (g, runs)
-        new[:, :, 7] += shift[:, vertex_run]
-        ids = cl.tri[cl.tri_off[mine][:, None] + pos[None, :]]  # (g, t): each copy's own triangle ids
-        nv = len(used)
-        step = (np.arange(g) * nv)[:, None]
-        parts.append(
-            Part(
-                new.reshape(-1, props.shape[1]),
-                (tri[None, :, :] + step[:, :, None]).reshape(-1, 3),
-                (mfrom[None, :] + step).ravel(),
-                (mto[None, :] + step).ravel(),
-                ids.ravel(),
-            )
+        v0, t0, m0 = off[i + 1]
+        _place(
+            joined.props[v0 : off[i + 2, 0]],
+            (loc, nrm, props, j, vertex_run),
+            (cl.frame[mine], cl.origin[mine], cl.point_off[mine], shift),
+            cl.point,
+            tubes.points,
         )
-    return parts
+        g, nv = len(mine), len(used)
+        step = (v0 + np.arange(g) * nv)[:, None]
+        np.add(tri[None, :, :], step[:, :, None], out=joined.tri[t0 : off[i + 2, 1]].reshape(g, len(tri), 3))
+        nm = merge.shape[1]
+        np.add(merge[0][None, :], step, out=joined.merge_from[m0 : off[i + 2, 2]].reshape(g, nm))
+        np.add(merge[1][None, :], step, out=joined.merge_to[m0 : off[i + 2, 2]].reshape(g, nm))
+        joined.face_id[t0 : off[i + 2, 1]] = cl.tri[cl.tri_off[mine][:, None] + pos[None, :]].ravel()  # their own ids
+    return joined
+
+
+@numba.njit(cache=True, nogil=True)
+def _place(new, rep, copy, cluster_point, points):  # pragma: no cover - compiled
+    """Write the properties of ``g`` copies of one representative's output vertices, copy after copy, into ``new``.
+
+    ``rep``: the vertices in the representative's frame (positions ``loc``,
+    normals ``nrm``), its properties, the index ``j`` among its own points
+    (or -1) and run of every vertex; ``copy``: each copy's frame, origin,
+    first point in ``cluster_point`` and v offset per run.  Positions and
+    normals are ``np.einsum("vk,gkj->gvj", ...)``'s bits (it adds x, y, then z
+    onto 0.0), positions plus the origin; a vertex that is one of the
+    cluster's input points takes the copy's point exactly; ``v`` is shifted
+    by its run's offset.
+    """
+    loc, nrm, props, j, vertex_run = rep
+    frame, origin, point_off, shift = copy
+    nv = len(loc)
+    for g in range(len(frame)):
+        for v in range(nv):
+            row = g * nv + v
+            for c in range(3):
+                x = ((0.0 + loc[v, 0] * frame[g, 0, c]) + loc[v, 1] * frame[g, 1, c]) + loc[v, 2] * frame[g, 2, c]
+                new[row, c] = x + origin[g, c]
+                n = ((0.0 + nrm[v, 0] * frame[g, 0, c]) + nrm[v, 1] * frame[g, 1, c]) + nrm[v, 2] * frame[g, 2, c]
+                new[row, 3 + c] = n
+            if j[v] >= 0:
+                p = cluster_point[point_off[g] + j[v]]
+                for c in range(3):
+                    new[row, c] = points[p, c]
+            new[row, 6] = props[v, 6]
+            new[row, 7] = props[v, 7] + shift[g, vertex_run[v]]

@@ -861,9 +861,7 @@ def _local_union(
     if crumb.any():
         done = Part(done.props, done.tri[~crumb], done.merge_from, done.merge_to, done.face_id[~crumb])
     del point_of, positions
-    roots = [done]
-    if not is_rep.all():
-        roots.extend(repeats.copies(clusters, tubes, done, nf, len(cap_faces)))
+    roots = [repeats.with_copies(clusters, tubes, done, nf, len(cap_faces))]
     del done, clusters
     progress(0.80)
     props, otri, fid, point_of, npts = _join(roots, where)
