@@ -26,7 +26,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .arrays import dot3, find_rows, row_hash, unique
+from .arrays import dot3, find_rows, row_hash
 from .arrays import local_index as _local_counts
 from .arrays import offsets as _offsets
 from .booleans import Part
@@ -108,6 +108,29 @@ def _same_shading(wedge_normal, wedge_uv, wa, fa, wb, fb, run_of, first_tri, v_t
     return out
 
 
+@numba.njit(cache=True, nogil=True)
+def _cluster_points(corners, tri_off, npts):  # pragma: no cover - compiled
+    """The points of every cluster (CSR, ascending), and each point's index among its cluster's.
+
+    ``corners`` are the points of the clusters' triangles, cluster after
+    cluster (``tri_off``).  Each cluster's few corners are sorted on their own:
+    the order of one sort of all ``(cluster, point)`` keys, for a fraction of it.
+    """
+    point = np.empty(corners.size, np.int64)
+    point_off = np.zeros(len(tri_off), np.int64)
+    local_of_point = np.empty(npts, np.int64)
+    n = 0
+    for c in range(len(tri_off) - 1):
+        mine = np.sort(corners[tri_off[c] : tri_off[c + 1]].ravel())
+        for i in range(len(mine)):
+            if i == 0 or mine[i] != mine[i - 1]:
+                local_of_point[mine[i]] = n - point_off[c]
+                point[n] = mine[i]
+                n += 1
+        point_off[c + 1] = n
+    return point[:n].copy(), point_off, local_of_point
+
+
 def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: int) -> Clusters:
     """Describe the clusters and find the congruent ones.
 
@@ -123,16 +146,9 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
     tri = tri_id[np.repeat(tri_off[runs], run_len) + _local_counts(run_len)]
     per_cluster = np.add.reduceat(run_len, run_off[:-1]) if nc else np.zeros(0, np.int64)
     tri_off_c = _offsets(per_cluster)
-    cluster_of_tri = np.repeat(np.arange(nc), per_cluster)
     corners = tubes.wedge_point[faces_of(tri)]  # (n, 3) points
     # the points of each cluster, ascending
-    npts = len(tubes.points)
-    key = unique(cluster_of_tri[:, None] * npts + corners)
-    point = key % npts
-    point_cluster = key // npts
-    point_off = np.searchsorted(point_cluster, np.arange(nc + 1))
-    local_of_point = np.empty(npts, np.int64)
-    local_of_point[point] = np.arange(len(point)) - point_off[point_cluster]
+    point, point_off, local_of_point = _cluster_points(corners, tri_off_c, len(tubes.points))
     n_points = np.diff(point_off)
 
     # every cluster's frame: centre of its first ring, the ring's first two points
