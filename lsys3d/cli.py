@@ -14,6 +14,7 @@ import threading
 import time
 import warnings
 
+from .arrays import small_pages
 from .derive import derive
 from .errors import LSystemError, OptionsError, clip, printable
 from .exchange.common import ExportOptions
@@ -638,6 +639,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    small_pages()  # numpy's huge pages stall on this kind of machine; this process is the command line's own
     level = logging.INFO if args.verbose else logging.ERROR if args.quiet else logging.WARNING
     logging.basicConfig(format="lsys3d: %(message)s", level=level)
     with _signals_interrupt(), warnings.catch_warnings():

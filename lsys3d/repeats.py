@@ -26,12 +26,12 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .arrays import dot3, find_rows, row_hash, unique
+from .arrays import dot3, find_rows, row_hash
 from .arrays import local_index as _local_counts
 from .arrays import offsets as _offsets
 from .booleans import Part
 
-__all__ = ["Clusters", "copies", "find"]
+__all__ = ["Clusters", "find", "with_copies"]
 
 _KEY = 1e-6  # relative size of the grid that buckets candidate clusters
 _POINTS = 1e-7  # relative tolerance of congruent points (and 1/100 of a float32 step at the coordinates' size)
@@ -64,25 +64,41 @@ class Clusters:
 
 
 @numba.njit(cache=True, nogil=True)
-def _same_normals(wedge_normal, wa, fa, wb, fb):  # pragma: no cover - compiled
-    """``(k,) bool``: the corner normals ``wedge_normal[wa[i]]`` in frame ``fa[i]`` are those of ``wb[i]`` in ``fb[i]``.
+def _same_shading(wedge_normal, wedge_uv, wa, fa, wb, fb, run_of, first_tri, v_tolerance, offset):  # pragma: no cover
+    """``(k,) bool``: the corners ``wa[i]`` in frame ``fa[i]`` are shaded as the corners ``wb[i]`` in frame ``fb[i]``.
 
-    Within ``_SHADING`` in every coordinate.  The rotated normals are
-    ``np.einsum("gtcj,gkj->gtck", ...)``'s bits (it sums x, z, then y), computed
-    a corner at a time and compared at once: no (k, t, 3, 3) temporaries, and
-    a candidate stops at its first difference.
+    Normals (rotated into each frame) and ``u`` within ``_SHADING`` in every
+    coordinate; ``v`` differs by one offset per run (``offset[i, run]``, written
+    for every candidate: the difference at corner 0 of the run's first
+    triangle ``first_tri[run]``; ``run_of[t]`` is the run of triangle ``t``)
+    within ``v_tolerance``.  The rotated normals are ``np.einsum("gtcj,gkj->gtck",
+    ...)``'s bits (it sums x, z, then y), the uv differences those of float64
+    rows, computed a corner at a time: no (k, t, 3, ...) temporaries, and a
+    candidate stops at its first difference.  NaN is a difference too, as in
+    ``np.max``.
     """
     out = np.ones(len(wa), np.bool_)
     for i in range(len(wa)):
+        for r in range(len(first_tri)):
+            t = first_tri[r]
+            offset[i, r] = np.float64(wedge_uv[wa[i, t, 0], 1]) - np.float64(wedge_uv[wb[i, t, 0], 1])
         for tt in range(wa.shape[1]):
             for c in range(3):
+                ua, ub = wedge_uv[wa[i, tt, c]], wedge_uv[wb[i, tt, c]]
+                if not abs(np.float64(ua[0]) - np.float64(ub[0])) <= _SHADING:
+                    out[i] = False
+                    break
+                dv = np.float64(ua[1]) - np.float64(ub[1])
+                if not abs(dv - offset[i, run_of[tt]]) <= v_tolerance:
+                    out[i] = False
+                    break
                 na, nb = wedge_normal[wa[i, tt, c]], wedge_normal[wb[i, tt, c]]
                 a0, a1, a2 = np.float64(na[0]), np.float64(na[1]), np.float64(na[2])
                 b0, b1, b2 = np.float64(nb[0]), np.float64(nb[1]), np.float64(nb[2])
                 for k in range(3):
                     x = dot3(a0, a1, a2, fa[i, k, 0], fa[i, k, 1], fa[i, k, 2])
                     y = dot3(b0, b1, b2, fb[i, k, 0], fb[i, k, 1], fb[i, k, 2])
-                    if not abs(x - y) <= _SHADING:  # NaN is a difference too, as in np.max
+                    if not abs(x - y) <= _SHADING:
                         out[i] = False
                         break
                 if not out[i]:
@@ -90,6 +106,29 @@ def _same_normals(wedge_normal, wa, fa, wb, fb):  # pragma: no cover - compiled
             if not out[i]:
                 break
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _cluster_points(corners, tri_off, npts):  # pragma: no cover - compiled
+    """The points of every cluster (CSR, ascending), and each point's index among its cluster's.
+
+    ``corners`` are the points of the clusters' triangles, cluster after
+    cluster (``tri_off``).  Each cluster's few corners are sorted on their own:
+    the order of one sort of all ``(cluster, point)`` keys, for a fraction of it.
+    """
+    point = np.empty(corners.size, np.int64)
+    point_off = np.zeros(len(tri_off), np.int64)
+    local_of_point = np.empty(npts, np.int64)
+    n = 0
+    for c in range(len(tri_off) - 1):
+        mine = np.sort(corners[tri_off[c] : tri_off[c + 1]].ravel())
+        for i in range(len(mine)):
+            if i == 0 or mine[i] != mine[i - 1]:
+                local_of_point[mine[i]] = n - point_off[c]
+                point[n] = mine[i]
+                n += 1
+        point_off[c + 1] = n
+    return point[:n].copy(), point_off, local_of_point
 
 
 def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: int) -> Clusters:
@@ -107,16 +146,9 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
     tri = tri_id[np.repeat(tri_off[runs], run_len) + _local_counts(run_len)]
     per_cluster = np.add.reduceat(run_len, run_off[:-1]) if nc else np.zeros(0, np.int64)
     tri_off_c = _offsets(per_cluster)
-    cluster_of_tri = np.repeat(np.arange(nc), per_cluster)
     corners = tubes.wedge_point[faces_of(tri)]  # (n, 3) points
     # the points of each cluster, ascending
-    npts = len(tubes.points)
-    key = unique(cluster_of_tri[:, None] * npts + corners)
-    point = key % npts
-    point_cluster = key // npts
-    point_off = np.searchsorted(point_cluster, np.arange(nc + 1))
-    local_of_point = np.empty(npts, np.int64)
-    local_of_point[point] = np.arange(len(point)) - point_off[point_cluster]
+    point, point_off, local_of_point = _cluster_points(corners, tri_off_c, len(tubes.points))
     n_points = np.diff(point_off)
 
     # every cluster's frame: centre of its first ring, the ring's first two points
@@ -177,41 +209,36 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
         step = max(1, _CHECKED // t)  # the shading of a block of candidates and their representatives at a time
         for lo in range(0, len(cand), step):
             block = slice(lo, lo + step)
-            wedges, uv = [], []
-            for rows in (cand[block], rr[block]):
-                wedges.append(faces_of(tri[tris[rows]].ravel()).reshape(len(rows), t, 3))
-                uv.append(wedge_uv[wedges[-1]].astype(np.float64))  # (k, t, 3, 2)
-            good = _same_normals(tubes.wedge_normal, wedges[0], frame[m[cand[block]]], wedges[1], frame[m[rr[block]]])
-            good &= np.abs(uv[0][..., 0] - uv[1][..., 0]).max(axis=(1, 2)) <= _SHADING
-            dv = uv[0][..., 1] - uv[1][..., 1]  # (k, t, 3)
-            offset[block] = dv[:, first_tri, 0]  # (k, runs)
-            good &= np.abs(dv - offset[block][:, run_of, None]).max(axis=(1, 2)) <= v_tolerance
-            ok[block] &= good
-            del wedges, uv, dv
+            wa, wb = (faces_of(tri[tris[rows]].ravel()).reshape(len(rows), t, 3) for rows in (cand[block], rr[block]))
+            fa, fb = frame[m[cand[block]]], frame[m[rr[block]]]
+            ok[block] &= _same_shading(
+                tubes.wedge_normal, wedge_uv, wa, fa, wb, fb, run_of, first_tri, v_tolerance, offset[block]
+            )
+            del wa, wb
         take = cand[ok]
         rep[m[take]] = m[r[take]]
-        for row, k in zip(take.tolist(), np.flatnonzero(ok).tolist(), strict=True):
-            c = int(m[row])
-            shift[run_off[c] : run_off[c + 1]] = offset[k]
+        shift[run_off[m[take]][:, None] + np.arange(len(lens))] = offset[ok]  # every member has len(lens) runs
     return Clusters(tri, tri_off_c, point, point_off, run_len, run_off, rep, origin, frame, shift)
 
 
-def copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> list[Part]:
-    """The representatives' boolean results (``out``, face ids as given to the boolean) moved onto their copies.
+def with_copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> Part:
+    """The representatives' boolean results (``out``, face ids as given to the boolean) and their copies, as one Part.
 
-    Returns one :class:`Part` per representative that has copies: all its
-    copies side by side, with their own face ids.
+    ``out`` first, then for every representative that has copies all its
+    copies side by side, with their own face ids: the arrays ``union._concat``
+    makes of ``out`` and one part per representative, written in place (no
+    per-copy temporaries and no second copy of the whole).
     """
     nc = len(cl)
+    members = np.flatnonzero(cl.rep != np.arange(nc))
+    if not len(members):
+        return out
     cluster_of_id = np.full(nf + n_caps, -1, np.int64)
     pos_of_id = np.zeros(nf + n_caps, np.int64)
     per = np.diff(cl.tri_off)
     cluster_of_id[cl.tri] = np.repeat(np.arange(nc), per)
     pos_of_id[cl.tri] = _local_counts(per)
     out_cluster = cluster_of_id[out.face_id]
-    members = np.flatnonzero(cl.rep != np.arange(nc))
-    if not len(members):
-        return []
     order = np.argsort(cl.rep[members], kind="stable")
     members = members[order]
     reps, starts = np.unique(cl.rep[members], return_index=True)
@@ -226,16 +253,34 @@ def copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> list[Part]:
     merge_cluster = vert_cluster[out.merge_from]
     merge_order = np.argsort(merge_cluster, kind="stable")
     merge_bounds = np.searchsorted(merge_cluster[merge_order], np.concatenate([reps, reps + 1]))
-    parts = []
+    # what each representative's copies need, and where they go
+    plans = []
+    sizes = np.zeros((len(reps) + 1, 3), np.int64)  # vertices, triangles, merge pairs
+    sizes[0] = len(out.props), len(out.tri), len(out.merge_from)
     for i, r in enumerate(reps.tolist()):
         mine = members[bounds[i] : bounds[i + 1]]
         sel = tri_order[tri_bounds[i] : tri_bounds[len(reps) + i]]  # the representative's output triangles
         used = vert_order[vert_bounds[i] : vert_bounds[len(reps) + i]]  # ascending: the sort was stable
         tri = np.searchsorted(used, out.tri[sel])
-        props = out.props[used]
         msel = merge_order[merge_bounds[i] : merge_bounds[len(reps) + i]]
-        mfrom = np.searchsorted(used, out.merge_from[msel])
-        mto = np.searchsorted(used, out.merge_to[msel])
+        merge = np.stack([np.searchsorted(used, out.merge_from[msel]), np.searchsorted(used, out.merge_to[msel])])
+        plans.append((r, mine, sel, used, tri, merge))
+        sizes[i + 1] = len(mine) * len(used), len(mine) * len(tri), len(mine) * merge.shape[1]
+    off = np.concatenate([np.zeros((1, 3), np.int64), np.cumsum(sizes, axis=0)])
+    joined = Part(
+        np.empty((off[-1, 0], out.props.shape[1])),
+        np.empty((off[-1, 1], 3), np.int64),
+        np.empty(off[-1, 2], np.int64),
+        np.empty(off[-1, 2], np.int64),
+        np.empty(off[-1, 1], np.int64),
+    )
+    joined.props[: len(out.props)] = out.props
+    joined.tri[: len(out.tri)] = out.tri
+    joined.merge_from[: len(out.merge_from)] = out.merge_from
+    joined.merge_to[: len(out.merge_to)] = out.merge_to
+    joined.face_id[: len(out.face_id)] = out.face_id
+    for i, (r, mine, sel, used, tri, merge) in enumerate(plans):
+        props = out.props[used]
         # the representative's own input points among the output vertices (exact positions)
         rp = cl.point[cl.point_off[r] : cl.point_off[r + 1]]
         j = find_rows(tubes.points[rp], props[:, :3])
@@ -247,28 +292,53 @@ def copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> list[Part]:
         vertex_run[tri[::-1].ravel()] = np.repeat(run_of_tri[::-1], 3)
         # into every copy's frame
         loc = (props[:, :3] - cl.origin[r]) @ cl.frame[r].T
-        xyz = np.einsum("vk,gkj->gvj", loc, cl.frame[mine]) + cl.origin[mine][:, None, :]
-        hit = np.flatnonzero(j >= 0)
-        mp = cl.point[cl.point_off[mine][:, None] + j[hit][None, :]]  # (g, hits)
-        xyz[:, hit] = tubes.points[mp]
-        nrm = np.einsum("vk,gkj->gvj", props[:, 3:6] @ cl.frame[r].T, cl.frame[mine])
-        g = len(mine)
-        new = np.empty((g, len(used), props.shape[1]))
-        new[:, :, :3] = xyz
-        new[:, :, 3:6] = nrm
-        new[:, :, 6:] = props[None, :, 6:]
+        nrm = props[:, 3:6] @ cl.frame[r].T
         shift = cl.shift[cl.run_off[mine][:, None] + np.arange(len(run_bounds))]  # (g, runs)
-        new[:, :, 7] += shift[:, vertex_run]
-        ids = cl.tri[cl.tri_off[mine][:, None] + pos[None, :]]  # (g, t): each copy's own triangle ids
-        nv = len(used)
-        step = (np.arange(g) * nv)[:, None]
-        parts.append(
-            Part(
-                new.reshape(-1, props.shape[1]),
-                (tri[None, :, :] + step[:, :, None]).reshape(-1, 3),
-                (mfrom[None, :] + step).ravel(),
-                (mto[None, :] + step).ravel(),
-                ids.ravel(),
-            )
+        v0, t0, m0 = off[i + 1]
+        _place(
+            joined.props[v0 : off[i + 2, 0]],
+            (loc, nrm, props, j, vertex_run),
+            (cl.frame[mine], cl.origin[mine], cl.point_off[mine], shift),
+            cl.point,
+            tubes.points,
         )
-    return parts
+        g, nv = len(mine), len(used)
+        step = (v0 + np.arange(g) * nv)[:, None]
+        np.add(tri[None, :, :], step[:, :, None], out=joined.tri[t0 : off[i + 2, 1]].reshape(g, len(tri), 3))
+        nm = merge.shape[1]
+        np.add(merge[0][None, :], step, out=joined.merge_from[m0 : off[i + 2, 2]].reshape(g, nm))
+        np.add(merge[1][None, :], step, out=joined.merge_to[m0 : off[i + 2, 2]].reshape(g, nm))
+        joined.face_id[t0 : off[i + 2, 1]] = cl.tri[cl.tri_off[mine][:, None] + pos[None, :]].ravel()  # their own ids
+    return joined
+
+
+@numba.njit(cache=True, nogil=True)
+def _place(new, rep, copy, cluster_point, points):  # pragma: no cover - compiled
+    """Write the properties of ``g`` copies of one representative's output vertices, copy after copy, into ``new``.
+
+    ``rep``: the vertices in the representative's frame (positions ``loc``,
+    normals ``nrm``), its properties, the index ``j`` among its own points
+    (or -1) and run of every vertex; ``copy``: each copy's frame, origin,
+    first point in ``cluster_point`` and v offset per run.  Positions and
+    normals are ``np.einsum("vk,gkj->gvj", ...)``'s bits (it adds x, y, then z
+    onto 0.0), positions plus the origin; a vertex that is one of the
+    cluster's input points takes the copy's point exactly; ``v`` is shifted
+    by its run's offset.
+    """
+    loc, nrm, props, j, vertex_run = rep
+    frame, origin, point_off, shift = copy
+    nv = len(loc)
+    for g in range(len(frame)):
+        for v in range(nv):
+            row = g * nv + v
+            for c in range(3):
+                x = ((0.0 + loc[v, 0] * frame[g, 0, c]) + loc[v, 1] * frame[g, 1, c]) + loc[v, 2] * frame[g, 2, c]
+                new[row, c] = x + origin[g, c]
+                n = ((0.0 + nrm[v, 0] * frame[g, 0, c]) + nrm[v, 1] * frame[g, 1, c]) + nrm[v, 2] * frame[g, 2, c]
+                new[row, 3 + c] = n
+            if j[v] >= 0:
+                p = cluster_point[point_off[g] + j[v]]
+                for c in range(3):
+                    new[row, c] = points[p, c]
+            new[row, 6] = props[v, 6]
+            new[row, 7] = props[v, 7] + shift[g, vertex_run[v]]

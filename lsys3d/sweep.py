@@ -338,39 +338,22 @@ class Tubes:
         f_off = offsets(2 * sides * new_rings)
 
         points = np.empty((p_off[-1], 3))
-        s_ring = sides[rt]
-        vert_ring = np.repeat(np.arange(len(rt)), s_ring)
-        j = local_index(s_ring)
-        src = self.point_offsets[rt[vert_ring]] + rk[vert_ring] * s_ring[vert_ring] + j
-        f = rf[vert_ring]
-        moved = f > 0
-        dest = p_off[rt[vert_ring]] + local[vert_ring] * s_ring[vert_ring] + j
-        points[dest] = self.points[src]
-        a, b, fm = src[moved], src[moved] + s_ring[vert_ring[moved]], f[moved][:, None]
-        points[dest[moved]] = (1.0 - fm) * self.points[a] + fm * self.points[b]
-        points[p_off[1:] - 2] = self.points[self.point_offsets[1:] - 2]
-        points[p_off[1:] - 1] = self.points[self.point_offsets[1:] - 1]
-
         nw = w_off[-1]
         wedge_point = np.empty(nw, np.int64)
         wedge_normal = np.empty((nw, 3), np.float32)
         wedge_uv = np.empty((nw, 2), np.float32)
-        w_ring = s_ring + 1
-        wedge_ring = np.repeat(np.arange(len(rt)), w_ring)
-        jw = local_index(w_ring)
-        s_w = w_ring[wedge_ring]
-        src = self.wedge_offsets[rt[wedge_ring]] + rk[wedge_ring] * s_w + jw
-        dest = w_off[rt[wedge_ring]] + local[wedge_ring] * s_w + jw
-        wedge_point[dest] = p_off[rt[wedge_ring]] + local[wedge_ring] * (s_w - 1) + jw % (s_w - 1)
-        wedge_normal[dest] = self.wedge_normal[src]
-        wedge_uv[dest] = self.wedge_uv[src]
-        f = rf[wedge_ring]
-        moved = f > 0
-        a, b, fm = src[moved], src[moved] + s_w[moved], f[moved][:, None]
-        wedge_normal[dest[moved]] = unit(
-            (1.0 - fm) * self.wedge_normal[a].astype(np.float64) + fm * self.wedge_normal[b]
+        _ring_rows(
+            (points, wedge_point, wedge_normal, wedge_uv),
+            (self.points, self.wedge_normal, self.wedge_uv),
+            rt,
+            rk,
+            rf,
+            local,
+            sides,
+            (self.point_offsets, self.wedge_offsets, p_off, w_off),
         )
-        wedge_uv[dest[moved]] = (1.0 - fm) * self.wedge_uv[a].astype(np.float64) + fm * self.wedge_uv[b]
+        points[p_off[1:] - 2] = self.points[self.point_offsets[1:] - 2]
+        points[p_off[1:] - 1] = self.points[self.point_offsets[1:] - 1]
         # caps: centre and rim, base then tip, as they were; the rims point at the first and last ring
         cap_len = 2 * (sides + 1)
         cap_tube = np.repeat(np.arange(nt), cap_len)
@@ -427,18 +410,9 @@ class Tubes:
         if not origin:
             return new
         # each new face's face before: wall faces by the span their first ring splits, caps as they were
-        face_tube = np.repeat(np.arange(nt), np.diff(f_off))
-        local_face = np.arange(f_off[-1]) - f_off[face_tube]
-        s2 = 2 * sides[face_tube]
-        body = s2 * (new_rings[face_tube] - 1)
-        wall = local_face < body
-        span_row = offsets(new_rings)[face_tube] + local_face // s2  # the row (in rt, rk) of the span's first ring
-        old_local = np.where(
-            wall,
-            rk[np.minimum(span_row, len(rk) - 1)] * s2 + local_face % s2,
-            local_face - body + s2 * (rings[face_tube] - 1),
-        )
-        return new, self.face_offsets[face_tube] + old_local
+        face_origin = np.empty(f_off[-1], np.int64)
+        _face_origin(face_origin, f_off, sides, new_rings, offsets(new_rings), rings, rk, self.face_offsets)
+        return new, face_origin
 
     def mesh(self, i: int | None = None) -> Mesh:
         """Tube ``i`` (or all tubes, as one tube soup) as a welded :class:`~lsys3d.mesh.Mesh`.
@@ -1228,6 +1202,73 @@ def _check_finite(skeleton: Skeleton) -> None:
         )
 
 
+@numba.njit(cache=True, nogil=True)
+def _ring_rows(out, old, rt, rk, rf, local, sides, offs):  # pragma: no cover - compiled
+    """The ring points and wedges of :meth:`Tubes.insert_rings`, a ring at a time (no gathered temporaries).
+
+    Row ``r`` of the sorted rings is old ring ``rk[r]`` of tube ``rt[r]`` (``rf[r] == 0``) or a new ring at
+    the fraction ``rf[r]`` of the way to the next one, and becomes ring ``local[r]`` of its tube.  The
+    arithmetic is the vectorised one's, element by element: ``(1 - f) a + f b`` in float64 (float32 normals
+    and uv widened first), normals scaled by their norm (x, y, z summed in that order, as ``np.linalg.norm``
+    does) and stored as float32.
+    """
+    points, wedge_point, wedge_normal, wedge_uv = out
+    old_points, old_normal, old_uv = old
+    point_offsets, wedge_offsets, p_off, w_off = offs
+    for r in range(len(rt)):
+        tube, s, f = rt[r], sides[rt[r]], rf[r]
+        moved = f > 0
+        src = point_offsets[tube] + rk[r] * s
+        dest = p_off[tube] + local[r] * s
+        for j in range(s):
+            for c in range(3):
+                if moved:
+                    points[dest + j, c] = (1.0 - f) * old_points[src + j, c] + f * old_points[src + j + s, c]
+                else:
+                    points[dest + j, c] = old_points[src + j, c]
+        w = s + 1
+        src = wedge_offsets[tube] + rk[r] * w
+        wdest = w_off[tube] + local[r] * w
+        for j in range(w):
+            wedge_point[wdest + j] = dest + j % s
+            if not moved:
+                for c in range(3):
+                    wedge_normal[wdest + j, c] = old_normal[src + j, c]
+                for c in range(2):
+                    wedge_uv[wdest + j, c] = old_uv[src + j, c]
+                continue
+            a, b = src + j, src + j + w
+            x = (1.0 - f) * np.float64(old_normal[a, 0]) + f * np.float64(old_normal[b, 0])
+            y = (1.0 - f) * np.float64(old_normal[a, 1]) + f * np.float64(old_normal[b, 1])
+            z = (1.0 - f) * np.float64(old_normal[a, 2]) + f * np.float64(old_normal[b, 2])
+            length = np.sqrt(x * x + y * y + z * z)
+            if not length > 0.0:
+                length = 1.0
+            wedge_normal[wdest + j, 0] = np.float32(x / length)
+            wedge_normal[wdest + j, 1] = np.float32(y / length)
+            wedge_normal[wdest + j, 2] = np.float32(z / length)
+            for c in range(2):
+                wedge_uv[wdest + j, c] = np.float32((1.0 - f) * np.float64(old_uv[a, c]) + f * np.float64(old_uv[b, c]))
+
+
+@numba.njit(cache=True, nogil=True)
+def _face_origin(out, f_off, sides, new_rings, ring_off, rings, rk, old_f_off):  # pragma: no cover - compiled
+    """The face before :meth:`Tubes.insert_rings` of every face after it, a face at a time.
+
+    A wall face of tube ``i`` lies in the quad of the same place in the old span that its span's first ring
+    (row ``ring_off[i] + span`` of the sorted rings, old ring ``rk``) starts; a cap face is the same cap face.
+    """
+    last = len(rk) - 1
+    for i in range(len(f_off) - 1):
+        s2 = 2 * sides[i]
+        body = s2 * (new_rings[i] - 1)
+        for lf in range(body):
+            out[f_off[i] + lf] = old_f_off[i] + rk[min(ring_off[i] + lf // s2, last)] * s2 + lf % s2
+        cap = s2 * (rings[i] - 1) - body
+        for lf in range(body, f_off[i + 1] - f_off[i]):
+            out[f_off[i] + lf] = old_f_off[i] + lf + cap
+
+
 def _tube_faces(faces: np.ndarray, s: int, rings: np.ndarray, wedge_start: np.ndarray, face_start: np.ndarray) -> None:
     """Write the faces of tubes of ``s`` sides into ``faces`` (in place): the one layout every tube has.
 
@@ -1235,23 +1276,28 @@ def _tube_faces(faces: np.ndarray, s: int, rings: np.ndarray, wedge_start: np.nd
     (centre and rim, ``s + 1`` wedges each); its ``2 s (rings[i] - 1)`` wall faces (two per quad, ring after
     ring) and ``2 s`` cap faces (base fan, tip fan) start at ``face_start[i]``.
     """
-    if not len(rings):
-        return
-    js = np.arange(s)
-    template = np.empty((2 * s, 3), np.int64)
-    template[0::2] = np.stack([js, js + 1, js + s + 2], axis=1)
-    template[1::2] = np.stack([js, js + s + 2, js + s + 1], axis=1)
-    spans = rings - 1
-    tube = np.repeat(np.arange(len(rings)), spans)
-    k = local_index(spans)  # span within its tube
-    dest = (face_start[tube] + k * 2 * s)[:, None] + np.arange(2 * s)
-    faces[dest] = (wedge_start[tube] + k * (s + 1))[:, None, None] + template[None]
-    cap_f = face_start + 2 * s * spans
-    cap_w = wedge_start + rings * (s + 1)
-    fan = np.stack([np.zeros(s, np.int64), js + 2, js + 1], axis=1)
-    fan[-1, 1] = 1  # wrap the rim
-    faces[cap_f[:, None] + js] = cap_w[:, None, None] + fan[None]
-    faces[(cap_f + s)[:, None] + js] = (cap_w + s + 1)[:, None, None] + fan[None][:, :, [0, 2, 1]]
+    if len(rings):
+        _write_tube_faces(faces, s, np.asarray(rings, np.int64), wedge_start, face_start)
+
+
+@numba.njit(cache=True, nogil=True)
+def _write_tube_faces(faces, s, rings, wedge_start, face_start):  # pragma: no cover - compiled
+    """:func:`_tube_faces`, a face at a time: no (spans, 2 s, 3) index temporaries."""
+    for i in range(len(rings)):
+        f = face_start[i]
+        for k in range(rings[i] - 1):  # wall quads: (j, j + 1, j + s + 2) and (j, j + s + 2, j + s + 1)
+            w = wedge_start[i] + k * (s + 1)
+            for j in range(s):
+                faces[f, 0], faces[f, 1], faces[f, 2] = w + j, w + j + 1, w + j + s + 2
+                faces[f + 1, 0], faces[f + 1, 1], faces[f + 1, 2] = w + j, w + j + s + 2, w + j + s + 1
+                f += 2
+        base = wedge_start[i] + rings[i] * (s + 1)  # base cap fan (0, j + 2, j + 1), tip fan reversed
+        tip = base + s + 1
+        for j in range(s):
+            nxt = j + 2 if j < s - 1 else 1  # the rim wraps
+            faces[f, 0], faces[f, 1], faces[f, 2] = base, base + nxt, base + j + 1
+            faces[f + s, 0], faces[f + s, 1], faces[f + s, 2] = tip, tip + j + 1, tip + nxt
+            f += 1
 
 
 def _build(

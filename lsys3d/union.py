@@ -807,11 +807,7 @@ def _local_union(
     del tri_run, by_run, bf
 
     def faces_of(ids: np.ndarray) -> np.ndarray:
-        out = np.empty((len(ids), 3), np.int64)
-        tube_face = ids < nf
-        out[tube_face] = tubes.faces[ids[tube_face]]
-        out[~tube_face] = cap_faces[ids[~tube_face] - nf]
-        return out
+        return _faces_of(np.asarray(ids, np.int64), nf, tubes.faces, cap_faces)
 
     # clusters of runs that touch; congruent clusters are unioned once
     run_pairs = _unique_pairs(run_of_piece[a], run_of_piece[b])
@@ -865,9 +861,7 @@ def _local_union(
     if crumb.any():
         done = Part(done.props, done.tri[~crumb], done.merge_from, done.merge_to, done.face_id[~crumb])
     del point_of, positions
-    roots = [done]
-    if not is_rep.all():
-        roots.extend(repeats.copies(clusters, tubes, done, nf, len(cap_faces)))
+    roots = [repeats.with_copies(clusters, tubes, done, nf, len(cap_faces))]
     del done, clusters
     progress(0.80)
     props, otri, fid, point_of, npts = _join(roots, where)
@@ -947,6 +941,17 @@ def _local_union(
         log.debug("union: the stitched mesh is not closed at a seam; unioning whole tubes")
         return None
     return Mesh(vertices, faces, normals, uv, face_source=source), nb
+
+
+@numba.njit(cache=True, nogil=True)
+def _faces_of(ids, nf, tube_faces, cap_faces):  # pragma: no cover - compiled
+    """``(k, 3)`` wedge-indexed faces of the triangle ids ``ids``: tube face ``i < nf``, temporary cap ``i - nf``."""
+    out = np.empty((len(ids), 3), np.int64)
+    for i in range(len(ids)):
+        k = ids[i]
+        for c in range(3):
+            out[i, c] = tube_faces[k, c] if k < nf else cap_faces[k - nf, c]
+    return out
 
 
 @numba.njit(cache=True, nogil=True)

@@ -175,3 +175,27 @@ def test_the_union_shows_a_percentage_on_a_terminal(capsys):
     assert "lsys3d: union 25%" in err and "lsys3d: union 3.00 s" in err
     _Progress(False)("union", "progress", 0.5)
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("given", [None, "1"])
+def test_small_pages_for_the_command_line_unless_told(monkeypatch, capsys, given):
+    """The command line keeps numpy out of transparent huge pages (and tells its workers so), unless the
+    environment says otherwise; numpy's own setting is restored after the test."""
+    import os
+
+    import numpy as np
+
+    setting = getattr(getattr(np, "_core", None), "multiarray", None)
+    if not hasattr(setting, "_set_madvise_hugepage"):
+        pytest.skip("this numpy has no huge page setting")
+    if given is None:
+        monkeypatch.delenv("NUMPY_MADVISE_HUGEPAGE", raising=False)
+    else:
+        monkeypatch.setenv("NUMPY_MADVISE_HUGEPAGE", given)
+    before = setting._set_madvise_hugepage(True)
+    try:
+        assert main(["presets"]) == 0
+        assert setting._set_madvise_hugepage(True) is (given is not None)  # returns the setting it replaces
+    finally:
+        setting._set_madvise_hugepage(before)
+    assert os.environ["NUMPY_MADVISE_HUGEPAGE"] == ("0" if given is None else given)
