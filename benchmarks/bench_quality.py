@@ -15,7 +15,8 @@ levels of detail against level 0 alone, on the wall clock and in CPU seconds
 (steadier on a busy machine; the union's worker processes are not counted, and
 tree3d's union is too small to use them).  Times are the best of ``--repeat``
 runs (the first run of a process compiles the numba kernels: one warm-up
-run is not counted).
+run is not counted).  numpy's arrays are kept in small pages, as the command
+line keeps them (:func:`lsys3d.arrays.small_pages`).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from pathlib import Path
 from timing import best_of
 
 import lsys3d
+from lsys3d.arrays import small_pages
 from lsys3d.quality import quality
 
 SKIP = ("algae", "dog", "dog-growing")  # no mesh: a string, a 2D drawing
@@ -40,6 +42,7 @@ def main(argv=None):
     ap.add_argument("--lod", action="store_true", help="also time tree3d's levels 0-3 against level 0 alone")
     ap.add_argument("--export", action="store_true", help="also time generate + writing the .glb, both ways")
     args = ap.parse_args(argv)
+    small_pages()  # as the command line does (numpy's huge pages stall on a fault here): both ways alike
     names = args.presets or [n for n in lsys3d.list_presets() if n not in SKIP]
     lsys3d.generate("abop-1.24a", iterations=3)  # compile the kernels
     print(
