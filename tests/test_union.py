@@ -601,6 +601,50 @@ def test_the_result_does_not_depend_on_the_number_of_workers(monkeypatch, caplog
     check_union(tubes, two)
 
 
+@pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
+def test_inner_merges_run_in_the_job_of_their_halves(monkeypatch):
+    # a crowded cluster split into leaves: the merges of up to a quarter of the work are done in the leaves' job
+    from lsys3d import union_jobs
+
+    monkeypatch.setattr(sys.modules["lsys3d.union"], "_JOB_TRIANGLES", 300)
+    tubes = sweep(random_tree(8, 150, spread=0.4))
+    plans = []
+    real_plan = union_jobs.plan
+
+    def spy(*args, **kw):
+        plans.append(real_plan(*args, **kw))
+        return plans[-1]
+
+    monkeypatch.setattr(union_jobs, "plan", spy)
+    with_inner = union(tubes, UnionOptions(workers=1, local=False))
+    jobs = plans[-1]
+    total = jobs.weight[: len(jobs.leaves)].sum()
+    merge_weight = jobs.weight[len(jobs.leaves) :]
+    assert jobs.inner.any() and not jobs.inner.all()
+    assert np.array_equal(jobs.inner, merge_weight <= total / 4)
+    for k, (x, y) in enumerate(jobs.merges):  # the halves of an inner merge are inner too
+        for child in (x, y):
+            if jobs.inner[k] and child >= len(jobs.leaves):
+                assert jobs.inner[child - len(jobs.leaves)]
+
+    # the same plan with every merge going out as a mesh: the same solid
+    monkeypatch.setattr(union_jobs, "plan", lambda *args, **kw: real_plan(*args, **{**kw, "job": 0.0}))
+    without = union(tubes, UnionOptions(workers=1, local=False))
+    check_union(tubes, with_inner)
+    assert with_inner.volume == pytest.approx(without.volume, rel=1e-9)
+    assert with_inner.area == pytest.approx(without.area, rel=1e-6)
+
+    # run() runs one job per leaf or merge that is not a half of an inner merge (the same bytes again)
+    ran = []
+    real_run_job = union_jobs.run_job
+    monkeypatch.setattr(union_jobs, "run_job", lambda *args: ran.append(args) or real_run_job(*args))
+    monkeypatch.setattr(union_jobs, "plan", lambda *args, **kw: jobs)
+    again = union(tubes, UnionOptions(workers=1, local=False))
+    assert len(ran) == len(jobs.weight) - 2 * int(jobs.inner.sum())  # each inner merge takes in its two halves
+    assert any(tree for _, _, tree in ran)
+    assert np.array_equal(again.vertices, with_inner.vertices) and np.array_equal(again.faces, with_inner.faces)
+
+
 def test_a_failing_worker_job_raises_a_geometry_error(monkeypatch):
     from lsys3d import union_jobs
 
