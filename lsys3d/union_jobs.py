@@ -70,7 +70,15 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def plan(weight: np.ndarray, centre: np.ndarray, a: np.ndarray, b: np.ndarray, target: float, job: float = 0.0) -> Plan:
+def plan(
+    weight: np.ndarray,
+    centre: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    target: float,
+    job: float = 0.0,
+    leaf: float | None = None,
+) -> Plan:
     """Group items into jobs of about ``target`` triangles.
 
     Items that touch (``a - b``) form clusters.  Small clusters are packed into
@@ -78,10 +86,12 @@ def plan(weight: np.ndarray, centre: np.ndarray, a: np.ndarray, b: np.ndarray, t
     heavier than ``2 target`` is split in halves at the median of its items'
     ``centre`` along its longest extent, recursively, and the halves are
     merged back pairwise (siblings first), so that the pieces of one crowded
-    cluster are unioned side by side and neighbours meet early.  A merge of
-    at most ``job`` triangles is inner (:attr:`Plan.inner`): it runs in the
-    job of its halves, and so do theirs.
+    cluster are unioned side by side and neighbours meet early; its leaves
+    hold at most ``leaf`` triangles (``target`` if None).  A merge of at most
+    ``job`` triangles is inner (:attr:`Plan.inner`): it runs in the job of its
+    halves, and so do theirs.
     """
+    leaf = target if leaf is None else leaf
     n = len(weight)
     label = components(n, a, b)
     order = np.argsort(label, kind="stable")
@@ -103,7 +113,7 @@ def plan(weight: np.ndarray, centre: np.ndarray, a: np.ndarray, b: np.ndarray, t
 
     def split(items: np.ndarray):
         """A tree of leaves for one heavy cluster: returns its node (("leaf", i) or ("merge", k))."""
-        if weight[items].sum() <= target or len(items) < 2:
+        if weight[items].sum() <= leaf or len(items) < 2:
             leaves.append(items)
             return ("leaf", len(leaves) - 1)
         c = centre[items]

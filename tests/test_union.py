@@ -645,6 +645,28 @@ def test_inner_merges_run_in_the_job_of_their_halves(monkeypatch):
     assert np.array_equal(again.vertices, with_inner.vertices) and np.array_equal(again.faces, with_inner.faces)
 
 
+def test_plan_splits_a_crowded_cluster_into_leaves_of_its_own_size():
+    from lsys3d import union_jobs
+
+    # a chain of 64 touching items (one crowded cluster) and 20 lone ones, 10 triangles each
+    n = 84
+    weight = np.full(n, 10.0)
+    centre = np.stack([np.arange(n, dtype=float), np.zeros(n), np.zeros(n)], axis=1)
+    a, b = np.arange(63), np.arange(1, 64)
+    jobs = union_jobs.plan(weight, centre, a, b, target=100.0, job=160.0, leaf=40.0)
+    sizes = [weight[items].sum() for items in jobs.leaves]
+    crowded = [s for items, s in zip(jobs.leaves, sizes, strict=True) if items.max() < 64]
+    packed = [s for items, s in zip(jobs.leaves, sizes, strict=True) if items.min() >= 64]
+    assert max(crowded) <= 40 and min(crowded) > 10  # 640 triangles halved (at the median) down to 40 at most
+    assert packed == [100.0, 100.0]  # lone items are still packed to the target
+    assert sorted(np.concatenate(jobs.leaves).tolist()) == list(range(n))
+    assert len(jobs.merges) == len(crowded) - 1 and len(jobs.weight) - 1 in jobs.roots
+    merge_weight = jobs.weight[len(jobs.leaves) :]
+    assert np.array_equal(jobs.inner, merge_weight <= 160)
+    assert jobs.inner.any() and not jobs.inner.all() and merge_weight[-1] == 640  # the top merges go out
+    assert union_jobs.plan(weight, centre, a, b, target=100.0).inner.sum() == 0  # by default none is inner
+
+
 def test_a_failing_worker_job_raises_a_geometry_error(monkeypatch):
     from lsys3d import union_jobs
 
