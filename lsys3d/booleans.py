@@ -71,20 +71,39 @@ def part_of(manifold: manifold3d.Manifold) -> Part:
     )
 
 
-def run_job(parts: Sequence[Part], where: str) -> tuple[Part, int, float]:
+def run_job(parts: Sequence[Part], where: str, tree: Sequence[tuple[int, int]] = ()) -> tuple[Part, int, float]:
     """Union the parts; returns the mesh, this process's peak resident memory in KiB and the CPU seconds taken.
+
+    Without ``tree`` the parts are unioned with one ``Manifold.batch_boolean``.
+    With ``tree``, ``parts`` is a list of groups (each a list of parts, unioned
+    with one ``batch_boolean``: nodes ``0..len(parts)-1``) and ``tree[k]``
+    unions two earlier nodes into node ``len(parts) + k``, the last one being
+    the result: the merges of a crowded cluster's halves done here, on
+    manifold3d's own objects, instead of each half going out as a mesh and
+    coming back (measured on the dense fern: its 15 merges take 20 s through
+    meshes and 9 s here, the export and rebuild of each half costing more than
+    the boolean that merges them).
 
     Raises :class:`BooleanError` for a part manifold3d rejects, a failed
     boolean or an empty result.
     """
     start = time.process_time()
-    manifolds = [manifold_of(p, f"{where} (layer {i})" if len(parts) > 1 else where) for i, p in enumerate(parts)]
+    groups = [parts] if not tree else list(parts)
     del parts
-    if len(manifolds) == 1:
-        result = manifolds[0]
-    else:
-        result = manifold3d.Manifold.batch_boolean(manifolds, manifold3d.OpType.Add)
-    del manifolds
+    nodes = []
+    for g in range(len(groups)):
+        group, groups[g] = groups[g], None  # each group's arrays go as soon as manifold3d holds them
+        name = where if len(groups) == 1 else f"{where} (part {g})"
+        layers = [manifold_of(p, f"{name} (layer {i})" if len(group) > 1 else name) for i, p in enumerate(group)]
+        del group
+        nodes.append(_union(layers))
+        del layers
+        check(nodes[-1], name)
+    for x, y in tree:
+        nodes.append(_union([nodes[x], nodes[y]]))
+        nodes[x] = nodes[y] = None
+    result = nodes[-1]
+    del nodes
     check(result, where)
     if result.is_empty() or result.num_tri() == 0:
         raise BooleanError(f"{where}: manifold3d returned an empty mesh")
@@ -95,8 +114,16 @@ def run_job(parts: Sequence[Part], where: str) -> tuple[Part, int, float]:
     return out, peak, time.process_time() - start
 
 
+def _union(manifolds: list[manifold3d.Manifold]) -> manifold3d.Manifold:
+    """The union of the manifolds (one ``batch_boolean``; one manifold is itself)."""
+    if len(manifolds) == 1:
+        return manifolds[0]
+    return manifold3d.Manifold.batch_boolean(manifolds, manifold3d.OpType.Add)
+
+
 def worker() -> None:
-    """Serve jobs: read ``(parts, where)`` from stdin, write ``("ok", (part, peak))`` or ``("error", message)``.
+    """Serve jobs: read ``(parts, where, tree)`` (:func:`run_job`'s arguments) from stdin, write
+    ``("ok", (part, peak))`` or ``("error", message)``.
 
     Parts travel as plain tuples of arrays (a :class:`Part` pickled here would
     name this script's ``__main__``, which the caller cannot import).
@@ -105,11 +132,12 @@ def worker() -> None:
     source, sink = sys.stdin.buffer, sys.stdout.buffer
     while True:
         try:
-            parts, where = pickle.load(source)
+            parts, where, tree = pickle.load(source)
         except EOFError:
             return
         try:
-            out, peak, seconds = run_job([Part(*p) for p in parts], where)
+            parts = [[Part(*p) for p in group] for group in parts] if tree else [Part(*p) for p in parts]
+            out, peak, seconds = run_job(parts, where, tree)
             reply = ("ok", (tuple(out), peak, seconds))
         except BooleanError as exc:
             reply = ("error", str(exc))

@@ -6,7 +6,10 @@ A union (:mod:`lsys3d.union`) is planned as a forest of jobs on plain arrays:
   parts (what may touch goes into different layers), with one
   ``Manifold.batch_boolean``;
 * a *merge* job unions the results of two jobs (two halves of one crowded
-  cluster, split in space so that both can run at once);
+  cluster, split in space so that both can run at once); the merges of a
+  small enough subtree are *inner*: the subtree is one job, its halves
+  merged in the same process on manifold3d's own objects (a half exported
+  as a mesh and rebuilt costs more than the boolean that merges it);
 * the *roots* of the forest are pairwise disjoint: their meshes are simply put
   side by side.
 
@@ -56,6 +59,7 @@ class Plan(NamedTuple):
     merges: list[tuple[int, int]]
     roots: list[int]
     weight: np.ndarray  # (nodes,) triangles each job handles, for progress
+    inner: np.ndarray | None = None  # (merges,) bool: merge k runs in the job of its children (None: none does)
 
 
 def default_workers() -> int:
@@ -66,7 +70,15 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def plan(weight: np.ndarray, centre: np.ndarray, a: np.ndarray, b: np.ndarray, target: float) -> Plan:
+def plan(
+    weight: np.ndarray,
+    centre: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    target: float,
+    job: float = 0.0,
+    leaf: float | None = None,
+) -> Plan:
     """Group items into jobs of about ``target`` triangles.
 
     Items that touch (``a - b``) form clusters.  Small clusters are packed into
@@ -74,8 +86,12 @@ def plan(weight: np.ndarray, centre: np.ndarray, a: np.ndarray, b: np.ndarray, t
     heavier than ``2 target`` is split in halves at the median of its items'
     ``centre`` along its longest extent, recursively, and the halves are
     merged back pairwise (siblings first), so that the pieces of one crowded
-    cluster are unioned side by side and neighbours meet early.
+    cluster are unioned side by side and neighbours meet early; its leaves
+    hold at most ``leaf`` triangles (``target`` if None).  A merge of at most
+    ``job`` triangles is inner (:attr:`Plan.inner`): it runs in the job of its
+    halves, and so do theirs.
     """
+    leaf = target if leaf is None else leaf
     n = len(weight)
     label = components(n, a, b)
     order = np.argsort(label, kind="stable")
@@ -97,7 +113,7 @@ def plan(weight: np.ndarray, centre: np.ndarray, a: np.ndarray, b: np.ndarray, t
 
     def split(items: np.ndarray):
         """A tree of leaves for one heavy cluster: returns its node (("leaf", i) or ("merge", k))."""
-        if weight[items].sum() <= target or len(items) < 2:
+        if weight[items].sum() <= leaf or len(items) < 2:
             leaves.append(items)
             return ("leaf", len(leaves) - 1)
         c = centre[items]
@@ -133,7 +149,8 @@ def plan(weight: np.ndarray, centre: np.ndarray, a: np.ndarray, b: np.ndarray, t
         w[i] = weight[items].sum()
     for k, (x, y) in enumerate(merges_ids):  # children come before their merge
         w[len(leaves) + k] = w[x] + w[y]
-    return Plan(leaves, merges_ids, [node_id(r) for r in roots], w)
+    inner = w[len(leaves) :] <= job
+    return Plan(leaves, merges_ids, [node_id(r) for r in roots], w, inner)
 
 
 # ---------------------------------------------------------------- the scheduler
@@ -161,10 +178,11 @@ class _Worker:
             item = self.inbox.get()
             if item is None:
                 return
-            node, parts, where = item
+            node, parts, tree, where = item
             try:
-                plain = [tuple(p) for p in parts]  # the worker knows no lsys3d class
-                pickle.dump((plain, where), self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+                # the worker knows no lsys3d class
+                plain = [[tuple(p) for p in group] for group in parts] if tree else [tuple(p) for p in parts]
+                pickle.dump((plain, where, tree), self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
                 self.proc.stdin.flush()
                 del parts, item, plain
                 reply = pickle.load(self.proc.stdout)
@@ -228,23 +246,50 @@ def run(
     parent = np.full(nodes, -1)
     for k, (x, y) in enumerate(jobs.merges):
         parent[x] = parent[y] = n_leaves + k
+    # the job of every node: its own, or that of the inner merge it goes into (merges come after their children)
+    top = np.arange(nodes)
+    inner = np.zeros(len(jobs.merges), bool) if jobs.inner is None else jobs.inner
+    for k in range(len(jobs.merges) - 1, -1, -1):
+        if inner[k]:
+            x, y = jobs.merges[k]
+            top[x] = top[y] = top[n_leaves + k]
+    units = np.flatnonzero(top == np.arange(nodes))
+    unit_weight = np.bincount(top, jobs.weight, minlength=nodes)
     total = float(jobs.weight.sum()) or 1.0
     results: dict[int, Part] = {}
     waiting: dict[int, int] = {}  # merge node -> children done
-    ready = list(range(n_leaves))[::-1]  # pop() takes the leaves in order
-    stats = {"jobs": nodes, "workers": 1, "worker_maxrss_kib": 0, "boolean_cpu": 0.0}
+    # the jobs that need no other job's result (leaves, inner subtrees), in the order of their first leaf
+    first_leaf = np.full(nodes, nodes)
+    np.minimum.at(first_leaf, top[:n_leaves], np.arange(n_leaves))
+    needs = np.zeros(nodes, bool)  # the jobs that take other jobs' results: the merges that are not inner
+    needs[n_leaves:] = ~inner
+    free = units[~needs[units]]
+    ready = free[np.argsort(first_leaf[free], kind="stable")][::-1].tolist()  # pop() takes them in order
+    stats = {"jobs": len(units), "workers": 1, "worker_maxrss_kib": 0, "boolean_cpu": 0.0}
     done_weight = 0.0
 
-    def inputs(node: int) -> list[Part]:
+    def inputs(node: int) -> tuple[list, list[tuple[int, int]]]:
+        """The arguments of :func:`lsys3d.booleans.run_job` for the job ``node``: parts and merge tree."""
         if node < n_leaves:
-            return leaf_parts(node)
-        x, y = jobs.merges[node - n_leaves]
-        return [results.pop(x), results.pop(y)]
+            return leaf_parts(node), []
+        k = node - n_leaves
+        if not inner[k]:
+            x, y = jobs.merges[k]
+            return [results.pop(x), results.pop(y)], []
+        members = np.flatnonzero(top == node)
+        leaves = members[members < n_leaves].tolist()
+        local = {v: i for i, v in enumerate(leaves)}
+        tree = []
+        for m in members[members >= n_leaves].tolist():  # children before their merge, this job's root last
+            x, y = jobs.merges[m - n_leaves]
+            local[m] = len(leaves) + len(tree)
+            tree.append((local[x], local[y]))
+        return [leaf_parts(i) for i in leaves], tree
 
     def finished(node: int, out: Part) -> None:
         nonlocal done_weight
         results[node] = out
-        done_weight += jobs.weight[node]
+        done_weight += unit_weight[node]
         up = parent[node]
         if up >= 0:
             waiting[up] = waiting.get(up, 0) + 1
@@ -253,11 +298,13 @@ def run(
         if progress:
             progress(min(done_weight / total, 1.0))
 
-    if workers <= 1 or nodes < 2:
+    if workers <= 1 or len(units) < 2:
         while ready:
             node = ready.pop()
             try:
-                out, _, seconds = run_job(inputs(node), where(node))
+                parts, tree = inputs(node)
+                out, _, seconds = run_job(parts, where(node), tree)
+                del parts
             except BooleanError as exc:
                 raise GeometryError(str(exc)) from None
             stats["boolean_cpu"] += seconds
@@ -265,7 +312,7 @@ def run(
         return [results[r] for r in jobs.roots], stats
 
     outbox: queue.Queue = queue.Queue()
-    pool = [_Worker(outbox) for _ in range(min(workers, nodes))]
+    pool = [_Worker(outbox) for _ in range(min(workers, len(units)))]
     stats["workers"] = len(pool)
     load = [0] * len(pool)  # jobs in flight per worker
     owner: dict[int, int] = {}
@@ -277,7 +324,7 @@ def run(
                 node = ready.pop()
                 owner[node] = w
                 load[w] += 1
-                pool[w].inbox.put((node, inputs(node), where(node)))
+                pool[w].inbox.put((node, *inputs(node), where(node)))
             node, name, reply = outbox.get()
             load[owner.pop(node)] -= 1
             if reply[0] == "error":

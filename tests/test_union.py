@@ -601,6 +601,72 @@ def test_the_result_does_not_depend_on_the_number_of_workers(monkeypatch, caplog
     check_union(tubes, two)
 
 
+@pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
+def test_inner_merges_run_in_the_job_of_their_halves(monkeypatch):
+    # a crowded cluster split into leaves: the merges of up to a quarter of the work are done in the leaves' job
+    from lsys3d import union_jobs
+
+    monkeypatch.setattr(sys.modules["lsys3d.union"], "_JOB_TRIANGLES", 300)
+    tubes = sweep(random_tree(8, 150, spread=0.4))
+    plans = []
+    real_plan = union_jobs.plan
+
+    def spy(*args, **kw):
+        plans.append(real_plan(*args, **kw))
+        return plans[-1]
+
+    monkeypatch.setattr(union_jobs, "plan", spy)
+    with_inner = union(tubes, UnionOptions(workers=1, local=False))
+    jobs = plans[-1]
+    total = jobs.weight[: len(jobs.leaves)].sum()
+    merge_weight = jobs.weight[len(jobs.leaves) :]
+    assert jobs.inner.any() and not jobs.inner.all()
+    assert np.array_equal(jobs.inner, merge_weight <= total / 4)
+    for k, (x, y) in enumerate(jobs.merges):  # the halves of an inner merge are inner too
+        for child in (x, y):
+            if jobs.inner[k] and child >= len(jobs.leaves):
+                assert jobs.inner[child - len(jobs.leaves)]
+
+    # the same plan with every merge going out as a mesh: the same solid
+    monkeypatch.setattr(union_jobs, "plan", lambda *args, **kw: real_plan(*args, **{**kw, "job": 0.0}))
+    without = union(tubes, UnionOptions(workers=1, local=False))
+    check_union(tubes, with_inner)
+    assert with_inner.volume == pytest.approx(without.volume, rel=1e-9)
+    assert with_inner.area == pytest.approx(without.area, rel=1e-6)
+
+    # run() runs one job per leaf or merge that is not a half of an inner merge (the same bytes again)
+    ran = []
+    real_run_job = union_jobs.run_job
+    monkeypatch.setattr(union_jobs, "run_job", lambda *args: ran.append(args) or real_run_job(*args))
+    monkeypatch.setattr(union_jobs, "plan", lambda *args, **kw: jobs)
+    again = union(tubes, UnionOptions(workers=1, local=False))
+    assert len(ran) == len(jobs.weight) - 2 * int(jobs.inner.sum())  # each inner merge takes in its two halves
+    assert any(tree for _, _, tree in ran)
+    assert np.array_equal(again.vertices, with_inner.vertices) and np.array_equal(again.faces, with_inner.faces)
+
+
+def test_plan_splits_a_crowded_cluster_into_leaves_of_its_own_size():
+    from lsys3d import union_jobs
+
+    # a chain of 64 touching items (one crowded cluster) and 20 lone ones, 10 triangles each
+    n = 84
+    weight = np.full(n, 10.0)
+    centre = np.stack([np.arange(n, dtype=float), np.zeros(n), np.zeros(n)], axis=1)
+    a, b = np.arange(63), np.arange(1, 64)
+    jobs = union_jobs.plan(weight, centre, a, b, target=100.0, job=160.0, leaf=40.0)
+    sizes = [weight[items].sum() for items in jobs.leaves]
+    crowded = [s for items, s in zip(jobs.leaves, sizes, strict=True) if items.max() < 64]
+    packed = [s for items, s in zip(jobs.leaves, sizes, strict=True) if items.min() >= 64]
+    assert max(crowded) <= 40 and min(crowded) > 10  # 640 triangles halved (at the median) down to 40 at most
+    assert packed == [100.0, 100.0]  # lone items are still packed to the target
+    assert sorted(np.concatenate(jobs.leaves).tolist()) == list(range(n))
+    assert len(jobs.merges) == len(crowded) - 1 and len(jobs.weight) - 1 in jobs.roots
+    merge_weight = jobs.weight[len(jobs.leaves) :]
+    assert np.array_equal(jobs.inner, merge_weight <= 160)
+    assert jobs.inner.any() and not jobs.inner.all() and merge_weight[-1] == 640  # the top merges go out
+    assert union_jobs.plan(weight, centre, a, b, target=100.0).inner.sum() == 0  # by default none is inner
+
+
 def test_a_failing_worker_job_raises_a_geometry_error(monkeypatch):
     from lsys3d import union_jobs
 
