@@ -43,7 +43,7 @@ Examples
 from __future__ import annotations
 
 import logging
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -217,17 +217,44 @@ _BAND = 3
 _NO_REGION, _NO_SIDE = np.zeros(0, bool), np.zeros(0, np.int8)
 
 
+class _Inline:
+    """An executor that runs each call at once in the calling thread (the cleanup on one core): the same results."""
+
+    def submit(self, fn, *args) -> Future:
+        done = Future()
+        try:
+            done.set_result(fn(*args))
+        except BaseException as exc:  # handed to whoever asks for the result, as a thread's would be
+            done.set_exception(exc)
+        return done
+
+    def map(self, fn, *iterables):
+        return map(fn, *iterables)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
+
+def _executor(threads: int, count: int):
+    """``count`` threads to share the cleanup's passes with, or none (``threads`` 1): the same bytes either way."""
+    return ThreadPoolExecutor(count) if threads > 1 else _Inline()
+
+
 def _clean_halves(
-    he, rules, order=None, spawned=None, region=_NO_REGION, skip: int = -1, depth: int = 2
+    he, rules, order=None, spawned=None, region=_NO_REGION, skip: int = -1, depth: int = 2, threads: int = 2
 ) -> tuple[np.ndarray, bool]:
     """The first cleaning, both halves at once (:func:`lsys3d.remesh.halves`), then the band between them,
     itself in two halves across it, then what is near that second cut.
 
     Each half splits into its own share of the room.  The result does not
     depend on the threads: ``order`` (a test's) runs the halves one after
-    the other in that order instead.  ``spawned`` counts each vertex's fan
-    splits through all of it; ``region``, ``skip`` and ``depth`` are the
-    second cut's.  The operations done, and whether a half ran out of room.
+    the other in that order instead (as does ``threads`` 1).  ``spawned``
+    counts each vertex's fan splits through all of it; ``region``, ``skip``
+    and ``depth`` are the second cut's.  The operations done, and whether a
+    half ran out of room.
     """
     nv, nf, vcap, fcap = (int(c) for c in he.counts)
     if spawned is None:
@@ -246,16 +273,16 @@ def _clean_halves(
     def run(own):
         return remesh.clean(he._replace(counts=counts[own]), rules, region, side, own, spawned)
 
-    if order is None:
+    if order is None and threads > 1:
         with ThreadPoolExecutor(2) as pool:
             done = sum(pool.map(run, (0, 1)))
     else:
-        done = sum(run(own) for own in order)
+        done = sum(run(own) for own in order or (0, 1))
     he.flags[lock] &= ~remesh.LOCKED
     full = any(_full(he._replace(counts=c)) for c in counts)
     he.counts[:2] = counts[1][:2]  # the second half's room is after the first's: the rest splits after it
     del band, lock
-    rest, rest_full = _clean_halves(he, rules, order, spawned, near, axis, depth - 1)
+    rest, rest_full = _clean_halves(he, rules, order, spawned, near, axis, depth - 1, threads)
     return done + rest, full or rest_full
 
 
@@ -291,16 +318,16 @@ def _mark(he, bark: _Surface, part, flat, cap) -> None:
         he.flags[dst[rim]] |= remesh.FEATURE
 
 
-def _clean(he, opt: CleanupOptions, budget: int, order=None):
+def _clean(he, opt: CleanupOptions, budget: int, order=None, threads: int = 2):
     """Clean, fair and rescue ``he`` in place; the operations done, faired, rescued, and whether it ran out of room."""
     rules = remesh.Rules(opt.short, opt.limit, opt.bad, opt.flip_tolerance, opt.long, opt.step, opt.fallback, budget)
-    done, full = _clean_halves(he, rules, order)
+    done, full = _clean_halves(he, rules, order, threads=threads)
     faired = 0
     if opt.smooth:
         closeness = np.zeros(len(he.points))
         remesh.collar(he, opt.collar, closeness)
-        with ThreadPoolExecutor(1) as pool:  # the calling thread and this one share the fairing's steps
-            faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False, pool)
+        with _executor(threads, 1) as pool:  # the calling thread and this one share the fairing's steps
+            faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False, pool if threads > 1 else None)
         remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
         # the faired collars may have made a few needles
         done += remesh.clean(he, rules, closeness > 0, _NO_SIDE, 0, np.zeros(len(he.points), np.int64))
@@ -308,7 +335,7 @@ def _clean(he, opt: CleanupOptions, budget: int, order=None):
     return done, faired, rescued, full or _full(he)
 
 
-def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) -> Cleaned:
+def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None, threads: int = 2) -> Cleaned:
     """Clean a unioned bark (see the module's documentation); the mesh and the map of its vertices.
 
     Parameters
@@ -318,6 +345,9 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     tubes : Tubes
         The tubes it was made of.
     options : CleanupOptions, optional
+    threads : int
+        2 (the default): the passes that can are shared with other threads;
+        1: all in the calling thread (a tree per core).  The same bytes either way.
 
     Returns
     -------
@@ -329,11 +359,11 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     identity = Cleaned(bark, np.arange(len(bark.vertices)), {})
     if not opt.enabled or bark.face_source is None or not len(bark.faces) or not len(tubes):
         return identity
-    cleaned = _clean_arrays(bark, tubes, opt)
+    cleaned = _clean_arrays(bark, tubes, opt, threads=threads)
     if cleaned is None:
         return identity
     (points, faces, fflat, fsrc, origin), operations = cleaned  # the half-edges are gone: they took a third
-    with ThreadPoolExecutor(2) as pool:  # the normals beside the uv, the uv in two halves (compiled: no GIL)
+    with _executor(threads, 2) as pool:  # the normals beside the uv, the uv in two halves (compiled: no GIL)
         normals = pool.submit(smooth_normals, points, faces, fflat)
         uv = tube_uv(tubes, points, faces, fsrc, pool)
         normals = normals.result()
@@ -342,21 +372,24 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) 
     return Cleaned(mesh, origin, operations)
 
 
-def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None):
+def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None, threads: int = 2):
     """The cleaned bark's points, faces, flat faces, face sources and vertex origins, and the operations done;
     None when the bark is not a closed 2-manifold (a warning says so).  ``order``: see :func:`_clean_halves`."""
-    whole = _Surface(bark.vertices, bark.faces, bark.face_source)
-    with ThreadPoolExecutor(2) as pool:
-        # the crumbs are looked for beside the half-edges' making, which is made again if some are dropped
-        crumbs = pool.submit(_drop_crumbs, bark)
-        room = int(len(whole.faces) * _ROOM_SHARE) + _ROOM_MIN
-        try:
-            made = _half_edges(whole, tubes, room, pool)
-        finally:
-            bark = crumbs.result()
-    if len(bark.faces) != len(whole.faces):
-        made = None
-    del whole
+    if threads > 1:
+        whole = _Surface(bark.vertices, bark.faces, bark.face_source)
+        with ThreadPoolExecutor(2) as pool:
+            # the crumbs are looked for beside the half-edges' making, which is made again if some are dropped
+            crumbs = pool.submit(_drop_crumbs, bark)
+            room = int(len(whole.faces) * _ROOM_SHARE) + _ROOM_MIN
+            try:
+                made = _half_edges(whole, tubes, room, pool)
+            finally:
+                bark = crumbs.result()
+        if len(bark.faces) != len(whole.faces):
+            made = None
+        del whole
+    else:
+        bark, made = _drop_crumbs(bark), None
     nf = len(bark.faces)
     # room for the splits: the presets make at most 4 % of the faces' count (bush); a run that fills the room
     # is made again with four times as much, so the result never depends on the room (only memory does)
@@ -372,7 +405,7 @@ def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None):
         if isinstance(he, str):
             log.warning("cleanup: skipped, %s", he)
             return None
-        *result, full = _clean(he, opt, budget, order)
+        *result, full = _clean(he, opt, budget, order, threads)
         if not full:
             break
         log.debug("cleanup: %d splits filled the room; again with %d", room, 4 * room)
@@ -415,8 +448,8 @@ def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndar
     return uv
 
 
-def cleanup(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) -> Mesh:
-    """The cleanup stage: :func:`clean_mesh`'s mesh.
+def cleanup(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None, threads: int = 2) -> Mesh:
+    """The cleanup stage: :func:`clean_mesh`'s mesh (``threads``: see there).
 
     Raises
     ------
@@ -428,7 +461,7 @@ def cleanup(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None) -> 
     opt = CleanupOptions() if options is None else options
     if opt.enabled and len(bark.faces) and bark.face_source is None:
         raise GeometryError("cleanup: the bark has no face sources (Mesh.face_source); it is not the union's output")
-    return clean_mesh(bark, tubes, opt).mesh
+    return clean_mesh(bark, tubes, opt, threads).mesh
 
 
 def smooth_normals(vertices: np.ndarray, faces: np.ndarray, flat: np.ndarray) -> np.ndarray:

@@ -18,7 +18,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 from . import bark as bark_stage
-from . import dialects
+from . import dialects, union_jobs
 from .arrays import release_memory
 from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
 from .cleanup import CleanupOptions, cleanup
@@ -428,7 +428,10 @@ def _bark(
     elif options.union.enabled:
         # tubes kept: the cleanup needs them; no corner normals and uv: the cleanup makes its own
         raw = stage("union", _union_of_held, [tubes], options.union, progress, False)
-        bark = stage("cleanup", cleanup, raw, tubes, options.cleanup)
+        # the cleanup shares its passes with a second thread unless the union may use one process only (a
+        # batch's tree per core) or this process may run on one core; the same bytes either way
+        threads = 1 if options.union.workers == 1 or union_jobs.default_workers() < 2 else 2
+        bark = stage("cleanup", cleanup, raw, tubes, options.cleanup, threads)
         if bark is raw:  # the cleanup left the union as it was (not a closed 2-manifold): it needs the corners
             raw = bark = None
             bark = stage("union", _union_of_held, [tubes], options.union, progress)

@@ -106,7 +106,8 @@ class UnionOptions(Options):
         0,
         low=0,
         high=4096,
-        help="processes the union may use (0: one per core this process may run on; the result is the same)",
+        help="processes the union may use (0: one per core this process may run on; 1 also keeps the cleanup on "
+        "one thread; the result is the same)",
     )
     max_pairs: int = option(
         DEFAULT_MAX_PAIRS,

@@ -129,6 +129,29 @@ def test_the_halves_clean_the_same_at_once_or_one_after_the_other(tree3d_parts):
             assert a.tobytes() == b.tobytes()
 
 
+def test_one_thread_cleans_the_same_bytes_and_a_one_process_union_asks_for_it(tree3d_parts, monkeypatch):
+    """threads=1 keeps every pass in the calling thread (a batch's tree per core: its union has workers=1)."""
+    from lsys3d import pipeline
+
+    tubes, raw = tree3d_parts
+    two, one = clean_mesh(raw, tubes, threads=2), clean_mesh(raw, tubes, threads=1)
+    for name in ("vertices", "faces", "normals", "uv", "face_source"):
+        assert getattr(one.mesh, name).tobytes() == getattr(two.mesh, name).tobytes()
+    assert np.array_equal(one.vertex_origin, two.vertex_origin) and one.operations == two.operations
+    asked = []
+    real = pipeline.cleanup
+
+    def spy(bark, tubes, options, threads):
+        asked.append(threads)
+        return real(bark, tubes, options, threads)
+
+    monkeypatch.setattr(pipeline, "cleanup", spy)
+    monkeypatch.setattr(pipeline.union_jobs, "default_workers", lambda: 2)
+    lsys3d.generate("koch", iterations=2, workers=1)
+    lsys3d.generate("koch", iterations=2)
+    assert asked == [1, 2]
+
+
 def test_the_halves_are_kept_apart_by_a_band_of_locked_vertices(tree3d_parts):
     """Every face is on one side of the cut; the band holds every vertex within its width of the cut, so
     no edge joins a vertex only one half may change to one only the other half may change."""
@@ -187,7 +210,7 @@ def test_a_bark_the_cleanup_leaves_as_it_was_gets_the_unions_corners(monkeypatch
     from lsys3d import pipeline
 
     raw = lsys3d.generate("abop-1.24a", iterations=2, cleanup=False).bark
-    monkeypatch.setattr(pipeline, "cleanup", lambda bark, tubes, options: bark)
+    monkeypatch.setattr(pipeline, "cleanup", lambda bark, tubes, options, threads: bark)
     kept = lsys3d.generate("abop-1.24a", iterations=2).bark
     assert np.abs(kept.normals).sum() > 0 and kept.normals.strides[0] != 0
     for name in ("vertices", "faces", "normals", "uv", "face_source"):
