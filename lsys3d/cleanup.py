@@ -273,11 +273,8 @@ def _clean_halves(
     def run(own):
         return remesh.clean(he._replace(counts=counts[own]), rules, region, side, own, spawned)
 
-    if order is None and threads > 1:
-        with ThreadPoolExecutor(2) as pool:
-            done = sum(pool.map(run, (0, 1)))
-    else:
-        done = sum(run(own) for own in order or (0, 1))
+    with _executor(threads if order is None else 1, 2) as pool:
+        done = sum(pool.map(run, order or (0, 1)))
     he.flags[lock] &= ~remesh.LOCKED
     full = any(_full(he._replace(counts=c)) for c in counts)
     he.counts[:2] = counts[1][:2]  # the second half's room is after the first's: the rest splits after it
@@ -327,7 +324,7 @@ def _clean(he, opt: CleanupOptions, budget: int, order=None, threads: int = 2):
         closeness = np.zeros(len(he.points))
         remesh.collar(he, opt.collar, closeness)
         with _executor(threads, 1) as pool:  # the calling thread and this one share the fairing's steps
-            faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False, pool if threads > 1 else None)
+            faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False, pool)
         remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
         # the faired collars may have made a few needles
         done += remesh.clean(he, rules, closeness > 0, _NO_SIDE, 0, np.zeros(len(he.points), np.int64))

@@ -146,15 +146,19 @@ def opposites(faces: np.ndarray, nv: int, pool=None) -> np.ndarray:
     start = _leaving(faces, nv, half, head)
     opp = np.full(3 * len(faces), -1, np.int64)
     middle = int(np.searchsorted(start, len(head) // 2))  # about as many half-edges on either side
-    if pool is None:
-        ok = _match(start, half, head, 0, middle, opp) and _match(start, half, head, middle, nv, opp)
-    else:
-        second = pool.submit(_match, start, half, head, middle, nv, opp)
-        ok = _match(start, half, head, 0, middle, opp)
-        ok = second.result() and ok
-    if not ok:
+    if not all(_in_two(pool, _match, (start, half, head, opp), 0, middle, nv)):
         opp[0] = -2
     return opp
+
+
+def _in_two(pool, kernel, args: tuple, lo: int, middle: int, hi: int) -> tuple:
+    """``kernel(*args, lo, middle)`` here and ``kernel(*args, middle, hi)`` in a thread of ``pool`` (an executor;
+    None: here too, after it); both results.  For kernels whose two ranges read and write apart."""
+    if pool is None:
+        return kernel(*args, lo, middle), kernel(*args, middle, hi)
+    second = pool.submit(kernel, *args, middle, hi)
+    first = kernel(*args, lo, middle)
+    return first, second.result()
 
 
 @numba.njit(cache=True, nogil=True)
@@ -179,7 +183,7 @@ def _leaving(faces, nv, half, head):
 
 
 @numba.njit(cache=True, nogil=True)
-def _match(start, half, head, lo, hi, opp):
+def _match(start, half, head, opp, lo, hi):
     """:func:`opposites` for the half-edges leaving the vertices ``lo .. hi - 1``; False if one is there twice."""
     for u in range(lo, hi):
         for i in range(start[u], start[u + 1]):
@@ -1165,8 +1169,11 @@ def halves(he: HalfEdges, width: int, region=None, skip: int = -1):
     if 0 <= skip < 3:
         extent[skip] = -1.0
     axis = int(np.argmax(extent))
-    cut = float(np.median(points[:, axis])) if len(points) else 0.0
-    if region is not None and len(points):
+    if not len(points):
+        cut = 0.0
+    elif region is None:
+        cut = float(np.median(points[:, axis]))
+    else:
         # across a band, the median may run along a trunk, its junctions all near the cut: of the middle
         # positions, the one with the fewest seam vertices within a few of their scales
         seam = (he.flags[:nv][alive] & SEAM) != 0
@@ -1604,29 +1611,20 @@ def fair(he, closeness, iterations, step, reach, inward, pool=None):
     collar vertices) then gives the volume it gained back: its vertices sink
     along their normals in proportion to their closeness to the seam and
     their scale (a slight waist under the fillet), so a collar blends
-    without inflating the junction.  With a ``pool`` (an executor) of
-    two threads, each Jacobi step's two passes are shared by the calling
-    thread and one of the pool's (the same bits).  Returns the vertices moved.
+    without inflating the junction.  With a ``pool`` (an executor), each
+    Jacobi step's two passes are shared by the calling thread and one of the
+    pool's (:func:`_in_two`; the same bits).  Returns the vertices moved.
     """
     members, slot, around, first, nbr, start, normal = _fair_setup(he, closeness)
     na, m = len(around), len(members)
     lap = np.zeros((na, 3))
     target = np.zeros((m, 3))
     p = he.points
-    halves = pool is not None and m >= _FAIR_SHARE_MIN
+    pool = pool if m >= _FAIR_SHARE_MIN else None
+    moving = (he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target)
     for _ in range(iterations):
-        if halves:
-            other = pool.submit(_laplacians, p, around, first, nbr, lap, na // 2, na)
-            _laplacians(p, around, first, nbr, lap, 0, na // 2)
-            other.result()
-            other = pool.submit(
-                _fair_targets, he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target, m // 2, m
-            )
-            _fair_targets(he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target, 0, m // 2)
-            other.result()
-        else:
-            _laplacians(p, around, first, nbr, lap, 0, na)
-            _fair_targets(he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target, 0, m)
+        _in_two(pool, _laplacians, (p, around, first, nbr, lap), 0, na // 2, na)
+        _in_two(pool, _fair_targets, moving, 0, m // 2, m)
         p[members] = target
     return _fair_finish(he, closeness, members, start)
 
