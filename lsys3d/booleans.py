@@ -71,13 +71,14 @@ def part_of(manifold: manifold3d.Manifold) -> Part:
     )
 
 
-def run_job(parts: Sequence[Part], where: str, tree: Sequence[tuple[int, int]] = ()) -> tuple[Part, int, float]:
-    """Union the parts; returns the mesh, this process's peak resident memory in KiB and the CPU seconds taken.
+def run_job(
+    groups: Sequence[Sequence[Part]], where: str, tree: Sequence[tuple[int, int]] = ()
+) -> tuple[Part, int, float]:
+    """Union groups of parts; returns the mesh, this process's peak resident memory in KiB and the CPU seconds taken.
 
-    Without ``tree`` the parts are unioned with one ``Manifold.batch_boolean``.
-    With ``tree``, ``parts`` is a list of groups (each a list of parts, unioned
-    with one ``batch_boolean``: nodes ``0..len(parts)-1``) and ``tree[k]``
-    unions two earlier nodes into node ``len(parts) + k``, the last one being
+    Each group is unioned with one ``Manifold.batch_boolean`` (nodes
+    ``0..len(groups)-1``; a leaf or a merge job is one group), and ``tree[k]``
+    unions two earlier nodes into node ``len(groups) + k``, the last one being
     the result: the merges of a crowded cluster's halves done here, on
     manifold3d's own objects, instead of each half going out as a mesh and
     coming back (measured on the dense fern: its 15 merges take 20 s through
@@ -88,8 +89,7 @@ def run_job(parts: Sequence[Part], where: str, tree: Sequence[tuple[int, int]] =
     boolean or an empty result.
     """
     start = time.process_time()
-    groups = [parts] if not tree else list(parts)
-    del parts
+    groups = list(groups)  # emptied as manifold3d takes them
     nodes = []
     for g in range(len(groups)):
         group, groups[g] = groups[g], None  # each group's arrays go as soon as manifold3d holds them
@@ -122,7 +122,7 @@ def _union(manifolds: list[manifold3d.Manifold]) -> manifold3d.Manifold:
 
 
 def worker() -> None:
-    """Serve jobs: read ``(parts, where, tree)`` (:func:`run_job`'s arguments) from stdin, write
+    """Serve jobs: read ``(groups, where, tree)`` (:func:`run_job`'s arguments) from stdin, write
     ``("ok", (part, peak))`` or ``("error", message)``.
 
     Parts travel as plain tuples of arrays (a :class:`Part` pickled here would
@@ -132,18 +132,17 @@ def worker() -> None:
     source, sink = sys.stdin.buffer, sys.stdout.buffer
     while True:
         try:
-            parts, where, tree = pickle.load(source)
+            groups, where, tree = pickle.load(source)
         except EOFError:
             return
         try:
-            parts = [[Part(*p) for p in group] for group in parts] if tree else [Part(*p) for p in parts]
-            out, peak, seconds = run_job(parts, where, tree)
+            out, peak, seconds = run_job([[Part(*p) for p in group] for group in groups], where, tree)
             reply = ("ok", (tuple(out), peak, seconds))
         except BooleanError as exc:
             reply = ("error", str(exc))
         except MemoryError:
             reply = ("error", f"{where}: out of memory in a union worker")
-        del parts
+        del groups
         pickle.dump(reply, sink, protocol=pickle.HIGHEST_PROTOCOL)
         sink.flush()
 

@@ -178,13 +178,12 @@ class _Worker:
             item = self.inbox.get()
             if item is None:
                 return
-            node, parts, tree, where = item
+            node, groups, tree, where = item
             try:
-                # the worker knows no lsys3d class
-                plain = [[tuple(p) for p in group] for group in parts] if tree else [tuple(p) for p in parts]
+                plain = [[tuple(p) for p in group] for group in groups]  # the worker knows no lsys3d class
                 pickle.dump((plain, where, tree), self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
                 self.proc.stdin.flush()
-                del parts, item, plain
+                del groups, item, plain
                 reply = pickle.load(self.proc.stdout)
                 if reply[0] == "ok":
                     reply = ("ok", (Part(*reply[1][0]), *reply[1][1:]))
@@ -268,14 +267,14 @@ def run(
     stats = {"jobs": len(units), "workers": 1, "worker_maxrss_kib": 0, "boolean_cpu": 0.0}
     done_weight = 0.0
 
-    def inputs(node: int) -> tuple[list, list[tuple[int, int]]]:
-        """The arguments of :func:`lsys3d.booleans.run_job` for the job ``node``: parts and merge tree."""
+    def inputs(node: int) -> tuple[list[list[Part]], list[tuple[int, int]]]:
+        """The arguments of :func:`lsys3d.booleans.run_job` for the job ``node``: groups of parts, merge tree."""
         if node < n_leaves:
-            return leaf_parts(node), []
+            return [leaf_parts(node)], []
         k = node - n_leaves
         if not inner[k]:
             x, y = jobs.merges[k]
-            return [results.pop(x), results.pop(y)], []
+            return [[results.pop(x), results.pop(y)]], []
         members = np.flatnonzero(top == node)
         leaves = members[members < n_leaves].tolist()
         local = {v: i for i, v in enumerate(leaves)}
@@ -302,9 +301,9 @@ def run(
         while ready:
             node = ready.pop()
             try:
-                parts, tree = inputs(node)
-                out, _, seconds = run_job(parts, where(node), tree)
-                del parts
+                groups, tree = inputs(node)
+                out, _, seconds = run_job(groups, where(node), tree)
+                del groups
             except BooleanError as exc:
                 raise GeometryError(str(exc)) from None
             stats["boolean_cpu"] += seconds
