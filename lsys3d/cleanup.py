@@ -50,11 +50,11 @@ from typing import NamedTuple
 import numpy as np
 
 from . import remesh
-from .arrays import components, isin, unique
+from .arrays import components
 from .errors import GeometryError
 from .mesh import Mesh
 from .options import Options, option
-from .sweep import Tubes, wrap_u
+from .sweep import Tubes
 from .union import _separate_float32  # the union's last step, which the cleanup's moves must keep true
 
 __all__ = ["Cleaned", "CleanupOptions", "clean_mesh", "cleanup", "smooth_normals", "tube_uv"]
@@ -124,7 +124,7 @@ class Cleaned:
 _ROOM_SHARE, _ROOM_MIN = 0.125, 1024
 """Room for the splits to start with: this share of the faces, plus this many (the presets make under 4 %)."""
 _CHUNK = 1 << 16
-"""Faces per chunk of :func:`tube_uv` (its temporaries are about 1 KB per face)."""
+"""Faces per chunk of the passes over every face in numpy (their temporaries stay small)."""
 
 
 def _tube_of_face(tubes: Tubes, source: np.ndarray) -> np.ndarray:
@@ -151,9 +151,9 @@ def _drop_crumbs(bark: Mesh) -> _Surface:
     whole = _Surface(bark.vertices, bark.faces, bark.face_source)
     label = components(len(bark.vertices), bark.faces.ravel(), np.roll(bark.faces, -1, axis=1).ravel())
     piece = label[bark.faces[:, 0]]
-    names, face_piece = np.unique(piece, return_inverse=True)
-    if len(names) < 2:
+    if not len(piece) or (piece == piece[0]).all():  # one piece (most barks): no sort
         return whole
+    names, face_piece = np.unique(piece, return_inverse=True)
     volume, area = np.zeros(len(names)), np.zeros(len(names))
     for start in range(0, len(bark.faces), _CHUNK):  # a chunk at a time: no (f, 3, 3) temporaries
         part = slice(start, start + _CHUNK)
@@ -284,35 +284,9 @@ def _clean_halves(
 
 
 def _mark(he, bark: _Surface, part, flat, cap) -> None:
-    """Flag the vertices of seams and rims in ``he``; unflatten the caps the boolean cut (``flat`` is changed).
-
-    A chunk of faces at a time: no temporaries of the size of the half-edges.
-    """
-    nf = len(bark.faces)
-
-    def half_edges(start):  # each half-edge's face, the face across it, its two ends
-        stop = min(start + _CHUNK, nf)
-        own = np.repeat(np.arange(start, stop), 3)
-        corners = bark.faces[start:stop]
-        return own, he.opp[3 * start : 3 * stop] // 3, corners.reshape(-1), corners[:, [1, 2, 0]].reshape(-1)
-
-    # seams (edges between two tubes) and rims (between a flat cap and the wall of one tube)
-    cut = [np.zeros(0, np.int64)]
-    for start in range(0, nf, _CHUNK):
-        own, across, org, dst = half_edges(start)
-        seam = part[own] != part[across]
-        he.flags[org[seam]] |= remesh.SEAM
-        he.flags[dst[seam]] |= remesh.SEAM
-        cut.append(unique(cap[own[seam]]))
-    # a cap the boolean cut (a thick child's base poking out of its parent: a ledge) is no rim to keep
-    cut = unique(np.concatenate(cut))
-    flat &= ~isin(cap, cut[cut >= 0])
-    he.face_flat[:nf] = flat
-    for start in range(0, nf, _CHUNK):
-        own, across, org, dst = half_edges(start)
-        rim = (flat[own] != flat[across]) & (part[own] == part[across])
-        he.flags[org[rim]] |= remesh.FEATURE
-        he.flags[dst[rim]] |= remesh.FEATURE
+    """Flag the vertices of seams and rims in ``he``; unflatten the caps the boolean cut (``flat`` is changed)."""
+    cut = np.zeros(int(cap.max(initial=-1)) + 1, bool)
+    remesh.mark(he, len(bark.faces), part, cap, flat, cut)
 
 
 def _clean(he, opt: CleanupOptions, budget: int, order=None, threads: int = 2):
@@ -428,20 +402,11 @@ def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndar
 
     Vertices the cleanup moved or made get the texture coordinates the tube
     itself would give them, so the texture is not dragged along.  With a
-    ``pool`` (an executor), its threads share the chunks (the same values).
+    ``pool`` (an executor), one of its threads fills the second half (the same values).
     """
     uv = np.empty((len(faces), 3, 2))
-
-    def chunk(part):
-        uv[part] = wrap_u(
-            tubes.uv_at(source[part], points[faces[part]]), tubes.tiles[_tube_of_face(tubes, source[part])]
-        )
-
-    # a chunk at a time, uv_at's temporaries stay small; at least two, for two threads
-    size = max(min(_CHUNK, -(-len(faces) // 2)), 1)
-    parts = [slice(start, start + size) for start in range(0, len(faces), size)]
-    for _ in map(chunk, parts) if pool is None else pool.map(chunk, parts):
-        pass
+    source, points, faces = (np.ascontiguousarray(a) for a in (source, np.asarray(points, np.float64), faces))
+    remesh._in_two(pool, tubes.corner_uv, (source, points, faces, uv), 0, len(faces) // 2, len(faces))
     return uv
 
 

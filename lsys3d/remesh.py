@@ -45,6 +45,7 @@ __all__ = [
     "clean",
     "compact",
     "index_dtype",
+    "mark",
     "rescue",
 ]
 
@@ -293,6 +294,33 @@ def compact(he: HalfEdges):
         he.vertex_origin[keep].astype(np.int64),
         he.flags[keep].astype(np.int64),
     )
+
+
+@numba.njit(cache=True, nogil=True)
+def mark(he, nf, part, cap, flat, cut):
+    """Flag the vertices of seams (:data:`SEAM`: an edge between two parts) and rims (:data:`FEATURE`: between a
+    flat and a curved face of one part) of the first ``nf`` faces; a cap (``cap``: its number per face, -1 on a
+    wall) that a seam crosses is cut (``cut[cap]``, False on entry): its faces are no longer ``flat`` (a thick
+    child's base poking out of its parent is a ledge, no rim to keep).  ``he.face_flat`` takes ``flat``."""
+    faces, opp, flags = he.faces, he.opp, he.flags
+    for f in range(nf):
+        for k in range(3):
+            across = opp[3 * f + k] // 3
+            if part[f] != part[across]:
+                flags[faces[f, k]] |= SEAM
+                flags[faces[f, (k + 1) % 3]] |= SEAM
+                if cap[f] >= 0:
+                    cut[cap[f]] = True
+    for f in range(nf):
+        if flat[f] and cap[f] >= 0 and cut[cap[f]]:
+            flat[f] = False
+        he.face_flat[f] = flat[f]
+    for f in range(nf):
+        for k in range(3):
+            across = opp[3 * f + k] // 3
+            if flat[f] != flat[across] and part[f] == part[across]:
+                flags[faces[f, k]] |= FEATURE
+                flags[faces[f, (k + 1) % 3]] |= FEATURE
 
 
 # ---------------------------------------------------------------------------------------- navigation

@@ -438,16 +438,32 @@ class Tubes:
         This is what lets a stage that moves or adds vertices (the cleanup)
         give them texture coordinates that match the tube's: points need not
         lie on the face.  ``u`` is in ``[0, tiles)``; wrap it per triangle
-        (:func:`wrap_u`).  Returns ``points``' shape with 2 in place of 3.
+        (:func:`wrap_u`, or :meth:`corner_uv`, which does).  Returns ``points``' shape with 2 in place of 3.
         """
         face = np.asarray(face, np.int64)
         points = np.asarray(points, np.float64)
-        flat = np.ascontiguousarray(points.reshape(len(face), -1, 3))
-        tube = np.searchsorted(self.face_offsets, face, side="right") - 1
-        uv = _uv_at(
-            face,
-            tube,
-            flat,
+        flat = np.ascontiguousarray(points.reshape(-1, 3))
+        corners = np.arange(len(flat), dtype=np.int64).reshape(len(face), -1)
+        uv = np.empty((*corners.shape, 2))
+        _uv_at(face, flat, corners, False, uv, 0, len(face), *self._charts())
+        return uv.reshape((*points.shape[:-1], 2))
+
+    def corner_uv(
+        self, face: np.ndarray, points: np.ndarray, faces: np.ndarray, out: np.ndarray, lo: int = 0, hi: int = -1
+    ) -> np.ndarray:
+        """Corner uv of triangles ``faces[lo:hi]`` (vertices of ``points``) into ``out[lo:hi]`` ``(f, 3, 2)``.
+
+        Each corner in the chart of its triangle's tube face ``face`` (:meth:`uv_at`),
+        wrapped per triangle as :func:`wrap_u` does; one compiled pass, no
+        temporaries (two ranges may be filled by two threads at once).
+        """
+        hi = len(faces) if hi < 0 else hi
+        _uv_at(face, points, faces, True, out, lo, hi, *self._charts())
+        return out
+
+    def _charts(self) -> tuple:
+        """What :func:`_uv_at` reads of the tubes."""
+        return (
             self.face_offsets,
             self.sides,
             self.rings,
@@ -459,77 +475,111 @@ class Tubes:
             self.ring_radius,
             np.asarray(self.tiles, np.float64),
         )
-        return uv.reshape((*points.shape[:-1], 2))
 
 
 @numba.njit(cache=True, nogil=True)
 def _uv_at(  # pragma: no cover - compiled
-    face, tube, points, face_offsets, sides, rings, ring_offsets, center, tangent, axis, ring_v, radius, tiles
+    face,
+    points,
+    corners,
+    wrap,
+    out,
+    lo,
+    hi,
+    offsets,
+    sides,
+    rings,
+    ring_offsets,
+    center,
+    tangent,
+    axis,
+    ring_v,
+    radius,
+    tiles,
 ):
-    """:meth:`Tubes.uv_at` for ``points`` (k, m, 3): one pass per face, no (k, m, 3) temporaries."""
-    k, m = points.shape[0], points.shape[1]
-    out = np.empty((k, m, 2))
+    """:meth:`Tubes.uv_at` of ``points[corners[lo:hi]]`` into ``out[lo:hi]``, wrapped per row if ``wrap``
+    (:func:`wrap_u`): one pass per face, no temporaries."""
+    m = corners.shape[1]
     two_pi = 2.0 * np.pi
-    for i in range(k):
-        t = tube[i]
+    t = -1
+    last = -1  # the wall span whose frame is in (ux, uy, uz), (bx, by, bz): the faces of a span come together
+    ux = uy = uz = bx = by = bz = 0.0
+    for i in range(lo, hi):
+        if t < 0 or not (offsets[t] <= face[i] < offsets[t + 1]):
+            t = np.searchsorted(offsets, face[i], side="right") - 1
         s = sides[t]
-        local = face[i] - face_offsets[t]
+        local = face[i] - offsets[t]
         body = 2 * s * (rings[t] - 1)
         first = ring_offsets[t]
         if local >= body:  # a cap: planar, at the density of the wall at its ring
             ring = first + rings[t] - 1 if local >= body + s else first
             ax, ay, az = axis[ring, 0], axis[ring, 1], axis[ring, 2]
             tx, ty, tz = tangent[ring, 0], tangent[ring, 1], tangent[ring, 2]
-            bx, by, bz = ty * az - tz * ay, tz * ax - tx * az, tx * ay - ty * ax
+            cx, cy, cz = ty * az - tz * ay, tz * ax - tx * az, tx * ay - ty * ax
             density = tiles[t] / (s * 2.0 * np.sin(np.pi / s) * radius[ring])
             for j in range(m):
-                x = points[i, j, 0] - center[ring, 0]
-                y = points[i, j, 1] - center[ring, 1]
-                z = points[i, j, 2] - center[ring, 2]
+                q = corners[i, j]
+                x = points[q, 0] - center[ring, 0]
+                y = points[q, 1] - center[ring, 1]
+                z = points[q, 2] - center[ring, 2]
                 out[i, j, 0] = 0.5 * tiles[t] + density * (x * ax + y * ay + z * az)
-                out[i, j, 1] = ring_v[ring] + density * (x * bx + y * by + z * bz)
-            continue
-        span = min(local // max(2 * s, 1), max(rings[t] - 2, 0))
-        r0 = first + span
-        r1 = min(r0 + 1, first + rings[t] - 1)
-        # the span's axis, and the ring's frame carried onto it by the minimal rotation (two reflections)
-        dx, dy, dz = center[r1, 0] - center[r0, 0], center[r1, 1] - center[r0, 1], center[r1, 2] - center[r0, 2]
-        length = np.sqrt(dx * dx + dy * dy + dz * dz)
-        if length > 0:
-            dx, dy, dz = dx / length, dy / length, dz / length
+                out[i, j, 1] = ring_v[ring] + density * (x * cx + y * cy + z * cz)
         else:
-            dx, dy, dz = tangent[r0, 0], tangent[r0, 1], tangent[r0, 2]
-        ux, uy, uz = axis[r0, 0], axis[r0, 1], axis[r0, 2]
-        nx, ny, nz = tangent[r0, 0] + dx, tangent[r0, 1] + dy, tangent[r0, 2] + dz
-        f = 2.0 * (ux * nx + uy * ny + uz * nz) / max(nx * nx + ny * ny + nz * nz, 1e-30)
-        ux, uy, uz = ux - f * nx, uy - f * ny, uz - f * nz
-        f = 2.0 * (ux * dx + uy * dy + uz * dz)
-        ux, uy, uz = ux - f * dx, uy - f * dy, uz - f * dz
-        f = ux * dx + uy * dy + uz * dz
-        ux, uy, uz = ux - f * dx, uy - f * dy, uz - f * dz
-        f = np.sqrt(ux * ux + uy * uy + uz * uz)
-        if f > 0:
-            ux, uy, uz = ux / f, uy / f, uz / f
-        bx, by, bz = dy * uz - dz * uy, dz * ux - dx * uz, dx * uy - dy * ux
-        for j in range(m):
-            x = points[i, j, 0] - center[r0, 0]
-            y = points[i, j, 1] - center[r0, 1]
-            z = points[i, j, 2] - center[r0, 2]
-            angle = np.arctan2(x * bx + y * by + z * bz, x * ux + y * uy + z * uz) % two_pi
-            if angle > two_pi * (1.0 - 1e-12):
-                angle = 0.0  # the seam itself is u = 0 (wrap_u decides per face)
-            out[i, j, 0] = tiles[t] * angle / two_pi
-            # along: the share of the way from one ring's plane to the next's (a joint ring's plane is tilted)
-            h0 = x * tangent[r0, 0] + y * tangent[r0, 1] + z * tangent[r0, 2]
-            h1 = (
-                (center[r1, 0] - points[i, j, 0]) * tangent[r1, 0]
-                + (center[r1, 1] - points[i, j, 1]) * tangent[r1, 1]
-                + (center[r1, 2] - points[i, j, 2]) * tangent[r1, 2]
-            )
-            total = h0 + h1
-            share = h0 / total if abs(total) > 1e-300 else 0.0
-            out[i, j, 1] = ring_v[r0] + share * (ring_v[r1] - ring_v[r0])
-    return out
+            r0 = first + min(local // max(2 * s, 1), max(rings[t] - 2, 0))
+            r1 = min(r0 + 1, first + rings[t] - 1)
+            if r0 != last:
+                ux, uy, uz, bx, by, bz = _span_frame(center, tangent, axis, r0, r1)
+                last = r0
+            for j in range(m):
+                q = corners[i, j]
+                x = points[q, 0] - center[r0, 0]
+                y = points[q, 1] - center[r0, 1]
+                z = points[q, 2] - center[r0, 2]
+                angle = np.arctan2(x * bx + y * by + z * bz, x * ux + y * uy + z * uz) % two_pi
+                if angle > two_pi * (1.0 - 1e-12):
+                    angle = 0.0  # the seam itself is u = 0 (wrap_u decides per face)
+                out[i, j, 0] = tiles[t] * angle / two_pi
+                # along: the share of the way from one ring's plane to the next's (a joint ring's plane is tilted)
+                h0 = x * tangent[r0, 0] + y * tangent[r0, 1] + z * tangent[r0, 2]
+                h1 = (
+                    (center[r1, 0] - points[q, 0]) * tangent[r1, 0]
+                    + (center[r1, 1] - points[q, 1]) * tangent[r1, 1]
+                    + (center[r1, 2] - points[q, 2]) * tangent[r1, 2]
+                )
+                total = h0 + h1
+                share = h0 / total if abs(total) > 1e-300 else 0.0
+                out[i, j, 1] = ring_v[r0] + share * (ring_v[r1] - ring_v[r0])
+        if wrap:  # as wrap_u: corners more than half a turn below the row's highest u go round once
+            top = out[i, 0, 0]
+            for j in range(1, m):
+                top = max(top, out[i, j, 0])
+            for j in range(m):
+                if top - out[i, j, 0] > 0.5 * tiles[t]:
+                    out[i, j, 0] = out[i, j, 0] + tiles[t]
+
+
+@numba.njit(cache=True, nogil=True)
+def _span_frame(center, tangent, axis, r0, r1):  # pragma: no cover - compiled
+    """The chart's frame of the span from ring ``r0`` to ``r1``: ring ``r0``'s axis carried onto the span's
+    direction by the minimal rotation (two reflections), and the direction's cross product with it."""
+    dx, dy, dz = center[r1, 0] - center[r0, 0], center[r1, 1] - center[r0, 1], center[r1, 2] - center[r0, 2]
+    length = np.sqrt(dx * dx + dy * dy + dz * dz)
+    if length > 0:
+        dx, dy, dz = dx / length, dy / length, dz / length
+    else:
+        dx, dy, dz = tangent[r0, 0], tangent[r0, 1], tangent[r0, 2]
+    ux, uy, uz = axis[r0, 0], axis[r0, 1], axis[r0, 2]
+    nx, ny, nz = tangent[r0, 0] + dx, tangent[r0, 1] + dy, tangent[r0, 2] + dz
+    f = 2.0 * (ux * nx + uy * ny + uz * nz) / max(nx * nx + ny * ny + nz * nz, 1e-30)
+    ux, uy, uz = ux - f * nx, uy - f * ny, uz - f * nz
+    f = 2.0 * (ux * dx + uy * dy + uz * dz)
+    ux, uy, uz = ux - f * dx, uy - f * dy, uz - f * dz
+    f = ux * dx + uy * dy + uz * dz
+    ux, uy, uz = ux - f * dx, uy - f * dy, uz - f * dz
+    f = np.sqrt(ux * ux + uy * uy + uz * uz)
+    if f > 0:
+        ux, uy, uz = ux / f, uy / f, uz / f
+    return ux, uy, uz, dy * uz - dz * uy, dz * ux - dx * uz, dx * uy - dy * ux
 
 
 def wrap_u(uv: np.ndarray, tiles: np.ndarray) -> np.ndarray:

@@ -360,6 +360,12 @@ def test_uv_at_gives_each_vertex_its_own_uv(skeleton):
     tube = np.searchsorted(tubes.face_offsets, m.face_source, side="right") - 1
     uv = wrap_u(uv, tubes.tiles[tube])
     np.testing.assert_allclose(uv, m.uv, atol=2e-5)
+    # the compiled corner uv (the cleanup's) is the same, bit for bit, in two ranges as in one
+    both = np.full((len(m.faces), 3, 2), np.nan)
+    half = len(m.faces) // 2
+    tubes.corner_uv(m.face_source, m.vertices, m.faces, both, 0, half)
+    tubes.corner_uv(m.face_source, m.vertices, m.faces, both, half)
+    np.testing.assert_array_equal(both, uv)
 
 
 def test_seam_faces_the_turtles_down():
