@@ -797,10 +797,7 @@ def _flip_ok(he, h, tolerance):
         return False
     if (flags[a] | flags[b] | flags[c] | flags[d]) & LOCKED:
         return False
-    if _valence(he, a) <= 3 or _valence(he, b) <= 3:
-        return False
-    if _half_edge(he, c, d) >= 0:
-        return False
+    # the shape first, then the walks around the vertices (most edges fail on shape: a long needle's)
     if _segment_distance(p, a, b, c, d) > tolerance:
         return False
     n0x, n0y, n0z = _normal(p, a, b, c)
@@ -814,7 +811,11 @@ def _flip_ok(he, h, tolerance):
         return False
     old = max(_aspect(p, a, b, c), _aspect(p, b, a, d))
     new = max(_aspect(p, c, a, d), _aspect(p, d, b, c))
-    return new < 0.999 * old
+    if not new < 0.999 * old:
+        return False
+    if _valence(he, a) <= 3 or _valence(he, b) <= 3:
+        return False
+    return _half_edge(he, c, d) < 0
 
 
 @numba.njit(cache=True, nogil=True)
