@@ -250,38 +250,38 @@ def _first_equal_row(keys, h):  # pragma: no cover - compiled
     return owner
 
 
-def components(n: int, a: np.ndarray, b: np.ndarray, chunk: int = 1 << 20) -> np.ndarray:
+def components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Connected component of each of ``n`` nodes joined by edges ``a - b``: the smallest node index in it.
 
-    Label propagation with pointer jumping, in numpy: each pass hooks every
-    root under the smallest root it touches, then compresses the paths; a few
-    passes over the edges, whatever the graph's diameter.  The edges are read
-    ``chunk`` at a time (a mesh's 19 million edges would otherwise make
-    temporaries of a gigabyte); the labels do not depend on it.
+    Union-find in one compiled pass over the edges (each root hooked under
+    the smaller root, paths halved), then one pass that points every node at
+    its root; no temporaries beyond the labels.
 
     >>> components(6, np.array([0, 4, 2]), np.array([1, 5, 1])).tolist()
     [0, 0, 0, 3, 4, 4]
     """
-    parent = np.arange(n, dtype=np.int64)
     a, b = np.asarray(a), np.asarray(b)
-    while len(a):
-        hooked = False
-        for lo in range(0, len(a), chunk):
-            pa, pb = parent[a[lo : lo + chunk]], parent[b[lo : lo + chunk]]
-            differ = pa != pb
-            if differ.any():
-                hooked = True
-                pa, pb = pa[differ], pb[differ]
-                # hook each root under the smaller root it touches (a node hooked by an earlier chunk of this
-                # pass may be hooked again: the labels only decrease, to the smallest node of each component)
-                np.minimum.at(parent, np.maximum(pa, pb), np.minimum(pa, pb))
-        if not hooked:
-            break
-        while True:  # compress paths until every node points at a root
-            jumped = parent[parent]
-            if np.array_equal(jumped, parent):
-                break
-            parent = jumped
+    return _components(n, a, b) if len(a) else np.arange(n, dtype=np.int64)
+
+
+@numba.njit(cache=True, nogil=True)
+def _components(n, a, b):  # pragma: no cover - compiled
+    parent = np.arange(n, dtype=np.int64)
+    for e in range(len(a)):
+        x, y = a[e], b[e]
+        while parent[x] != x:  # the roots, halving the paths on the way
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        while parent[y] != y:
+            parent[y] = parent[parent[y]]
+            y = parent[y]
+        if x < y:
+            parent[y] = x
+        elif y < x:
+            parent[x] = y
+    # a node's parent is never larger than itself: in order, each node's parent already points at its root
+    for i in range(n):
+        parent[i] = parent[parent[i]]
     return parent
 
 

@@ -783,12 +783,28 @@ def test_repeated_junctions_found_the_same_a_block_at_a_time(monkeypatch):
         assert getattr(blocks, name).tobytes() == getattr(whole, name).tobytes()
 
 
-def test_components_do_not_depend_on_the_chunk():
+def test_components_are_labelled_by_their_smallest_node():
+    """Whatever the order of the edges: each node gets the smallest node it is connected to (a plain search)."""
     from lsys3d.arrays import components
 
     rng = np.random.default_rng(3)
     a, b = rng.integers(0, 5000, 4000), rng.integers(0, 5000, 4000)
     labels = components(5000, a, b)
     assert len(np.unique(labels)) > 1000
-    for chunk in (1, 7, 1000):
-        assert np.array_equal(components(5000, a, b, chunk=chunk), labels)
+    order = rng.permutation(len(a))
+    assert np.array_equal(components(5000, b[order], a[order].astype(np.int32)), labels)
+    near = [[] for _ in range(5000)]
+    for x, y in zip(a.tolist(), b.tolist(), strict=True):
+        near[x].append(y)
+        near[y].append(x)
+    expected = np.full(5000, -1)
+    for start in range(5000):  # in order: the first node met of each component is its smallest
+        if expected[start] < 0:
+            expected[start], stack = start, [start]
+            while stack:
+                for y in near[stack.pop()]:
+                    if expected[y] < 0:
+                        expected[y] = start
+                        stack.append(y)
+    assert np.array_equal(labels, expected)
+    assert components(3, np.zeros(0, np.int64), np.zeros(0, np.int64)).tolist() == [0, 1, 2]
