@@ -244,8 +244,9 @@ def build(
 
     def grow(a, n, fill, dtype=None):
         a = np.asarray(a) if dtype is None else np.asarray(a, dtype)
-        out = np.full((n, *a.shape[1:]), fill, a.dtype)
+        out = np.empty((n, *a.shape[1:]), a.dtype)
         out[: len(a)] = a
+        out[len(a) :] = fill
         return out
 
     opp = grow(opp, 3 * fcap, -1, index)  # the int64 one goes here: it is the largest array
@@ -267,12 +268,29 @@ def build(
         vertex_origin=grow(np.arange(nv, dtype=index), vcap, -1),
         counts=np.array([nv, nf, vcap, fcap], np.int64),
     )
-    # a vertex whose faces are not one fan (two cones touching at a point) is locked
-    fan = np.zeros(vcap, np.int64)
-    _fan_sizes(he, fan)
-    incidence = np.bincount(org, minlength=vcap)
-    he.flags[fan != incidence] |= LOCKED
+    _lock_pinches(he, org)
     return he
+
+
+@numba.njit(cache=True, nogil=True)
+def _lock_pinches(he, org):
+    """Lock each vertex whose faces are not one fan (two cones touching at a point): a walk around it meets
+    fewer faces than it has."""
+    incidence = np.zeros(he.counts[0], np.int64)
+    for h in range(len(org)):
+        incidence[org[h]] += 1
+    for v in range(he.counts[0]):
+        h0 = he.out[v]
+        n = 0
+        if h0 >= 0:
+            h = h0
+            while True:
+                n += 1
+                h = he.opp[_prv(h)]
+                if h == h0 or n > 100000:
+                    break
+        if n != incidence[v]:
+            he.flags[v] |= LOCKED
 
 
 def compact(he: HalfEdges):
@@ -348,23 +366,6 @@ def _dst(faces, h):
 def _apex(faces, h):
     """The corner of ``h``'s face across from it."""
     return faces[h // 3, (h % 3 + 2) % 3]
-
-
-@numba.njit(cache=True, nogil=True)
-def _fan_sizes(he, fan):
-    """Faces met walking once around each vertex (equals its face count when they form one fan)."""
-    for v in range(he.counts[0]):
-        h0 = he.out[v]
-        if h0 < 0:
-            continue
-        h = h0
-        n = 0
-        while True:
-            n += 1
-            h = he.opp[_prv(h)]
-            if h == h0 or n > 100000:
-                break
-        fan[v] = n
 
 
 @numba.njit(cache=True, nogil=True)
@@ -1970,15 +1971,20 @@ def corner_normals(points, faces, flat):
             vn[v, 0] += angle * fn[f, 0]
             vn[v, 1] += angle * fn[f, 1]
             vn[v, 2] += angle * fn[f, 2]
+    some = np.zeros(len(points), np.bool_)  # the vertex has a normal of its own (then unit)
+    for v in range(len(points)):
+        n = np.sqrt(vn[v, 0] ** 2 + vn[v, 1] ** 2 + vn[v, 2] ** 2)
+        if not n < 1e-12:
+            some[v] = True
+            vn[v, 0], vn[v, 1], vn[v, 2] = vn[v, 0] / n, vn[v, 1] / n, vn[v, 2] / n
     out = np.empty((nf, 3, 3), np.float32)
     for f in range(nf):
         for k in range(3):
             v = faces[f, k]
-            n = np.sqrt(vn[v, 0] ** 2 + vn[v, 1] ** 2 + vn[v, 2] ** 2)
-            if flat[f] or n < 1e-12:
+            if flat[f] or not some[v]:
                 out[f, k, 0], out[f, k, 1], out[f, k, 2] = fn[f, 0], fn[f, 1], fn[f, 2]
             else:
-                out[f, k, 0], out[f, k, 1], out[f, k, 2] = vn[v, 0] / n, vn[v, 1] / n, vn[v, 2] / n
+                out[f, k, 0], out[f, k, 1], out[f, k, 2] = vn[v, 0], vn[v, 1], vn[v, 2]
     return out
 
 
