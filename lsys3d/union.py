@@ -1095,22 +1095,67 @@ def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> b
     are checked: the rest of the mesh is known to be closed (a boolean's output,
     whole tube pieces) and only the seams where the parts were joined need it.
     """
-    # the edges' keys written a corner column at a time: no copy of the faces (a stitched plant's are 0.15 GB)
-    mine = [
-        np.ones(len(faces), bool) if near is None else near[faces[:, k]] | near[faces[:, (k + 1) % 3]] for k in range(3)
-    ]
-    ends = np.cumsum([0] + [int(m.sum()) for m in mine])
-    fwd, rev = np.empty(ends[-1], np.int64), np.empty(ends[-1], np.int64)
-    for k in range(3):
-        a, b = faces[mine[k], k], faces[mine[k], (k + 1) % 3]
-        np.add(a * nverts, b, out=fwd[ends[k] : ends[k + 1]])
-        np.add(b * nverts, a, out=rev[ends[k] : ends[k + 1]])
-    del a, b, mine
-    fwd.sort()
-    if len(fwd) > 1 and (fwd[1:] == fwd[:-1]).any():
-        return False
-    rev.sort()
-    return bool(np.array_equal(fwd, rev))
+    faces = np.ascontiguousarray(faces)
+    mask = np.ones(1, bool) if near is None else np.ascontiguousarray(near, bool)
+    index = np.int32 if nverts < 2**31 else np.int64  # the edges' far ends: half the memory of int64 keys
+    return bool(_closed_edges(faces, nverts, mask, near is not None, np.zeros(0, index)))
+
+
+@numba.njit(cache=True, nogil=True)
+def _closed_edges(faces, nverts, near, use_near, like):  # pragma: no cover - compiled
+    """:func:`_closed` by the checked edges grouped by their first end (a counting sort), without sorting keys.
+
+    The directed edges ``a -> b`` (those with an end in ``near`` if
+    ``use_near``) are listed per ``a``; there must be no edge twice, and for
+    every edge ``a -> b`` the edge ``b -> a`` must be listed.  With no edge
+    twice, every reverse being an edge is the same as the sorted edges equal to
+    the sorted reverses (one set maps one to one onto the other).  A vertex's
+    list is short; a long one (many triangles at one point) is sorted.
+    """
+    start = np.zeros(nverts + 1, np.int64)
+    for f in range(len(faces)):
+        for k in range(3):
+            a, b = faces[f, k], faces[f, (k + 1) % 3]
+            if not use_near or near[a] or near[b]:
+                start[a + 1] += 1
+    for v in range(nverts):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    far = np.empty(start[nverts], like.dtype)
+    for f in range(len(faces)):
+        for k in range(3):
+            a, b = faces[f, k], faces[f, (k + 1) % 3]
+            if not use_near or near[a] or near[b]:
+                far[fill[a]] = b
+                fill[a] += 1
+    for v in range(nverts):
+        lo, hi = start[v], start[v + 1]
+        if hi - lo > 16:
+            far[lo:hi] = np.sort(far[lo:hi])
+            for i in range(lo + 1, hi):
+                if far[i] == far[i - 1]:
+                    return False
+        else:
+            for i in range(lo + 1, hi):
+                for j in range(lo, i):
+                    if far[i] == far[j]:
+                        return False
+    for a in range(nverts):
+        for i in range(start[a], start[a + 1]):
+            b = far[i]
+            lo, hi = start[b], start[b + 1]
+            found = False
+            if hi - lo > 16:
+                j = lo + np.searchsorted(far[lo:hi], a)
+                found = j < hi and far[j] == a
+            else:
+                for j in range(lo, hi):
+                    if far[j] == a:
+                        found = True
+                        break
+            if not found:
+                return False
+    return True
 
 
 def _to_mesh(parts: list[Part], where: str, corners: bool = True) -> Mesh:
