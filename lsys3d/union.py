@@ -60,7 +60,7 @@ import numba
 import numpy as np
 
 from . import booleans, repeats, union_jobs
-from .arrays import components, dot3, find_rows, gather, isin, ranges, release_memory, row_hash, unique
+from .arrays import components, dot3, gather, isin, ranges, release_memory, row_hash, unique
 from .arrays import first_equal_row as _first_equal_row
 from .arrays import offsets as _offsets
 from .booleans import BooleanError, Part
@@ -1081,11 +1081,66 @@ def _unit_rows(v: np.ndarray) -> np.ndarray:
 
 
 def _match_rows(have: np.ndarray, want: np.ndarray):
-    """Index into ``have`` of every row of ``want`` (exact match), or None if any is missing or twice."""
-    found = find_rows(have, want)
-    if (found < 0).any() or len(unique(found)) != len(found):
-        return None
-    return found
+    """Index into ``have`` of every row of ``want`` (exact match), or None if any is missing or twice.
+
+    :func:`~lsys3d.arrays.find_rows` and the check that no row is found twice,
+    in one pass over a hash table of ``have`` (no sort of the hashes).
+    """
+    have, want = np.ascontiguousarray(have), np.ascontiguousarray(want)
+    found, ok = _matched_rows(have, row_hash(have), want, row_hash(want))
+    return found if ok else None
+
+
+@numba.njit(cache=True, nogil=True)
+def _matched_rows(have, hh, want, hw):  # pragma: no cover - compiled
+    """:func:`_match_rows` by an open-addressing table of ``have`` (equal rows: the first), slot from a hash's top bits.
+
+    Rows match when their hashes (their bits: ``-0.0`` is not ``0.0``) and their values are equal, as in
+    :func:`~lsys3d.arrays.find_rows`.  Returns the indices and whether every row was found, none twice.
+    """
+    n = len(have)
+    found = np.full(len(want), -1, np.int64)
+    if n == 0:
+        return found, len(want) == 0
+    bits = 1
+    while (1 << bits) < 2 * n:
+        bits += 1
+    size = 1 << bits
+    table = np.full(size, -1, np.int64)
+    shift = np.uint64(64 - bits)
+    for i in range(n):
+        s = np.int64(hh[i] >> shift)
+        while True:
+            j = table[s]
+            if j < 0:
+                table[s] = i
+                break
+            if hh[j] == hh[i] and _same_row(have, j, have, i):
+                break  # the first of equal rows answers for them
+            s = (s + 1) & (size - 1)
+    taken = np.zeros(n, np.bool_)
+    for i in range(len(want)):
+        s = np.int64(hw[i] >> shift)
+        while True:
+            j = table[s]
+            if j < 0:
+                return found, False
+            if hh[j] == hw[i] and _same_row(have, j, want, i):
+                if taken[j]:
+                    return found, False
+                taken[j] = True
+                found[i] = j
+                break
+            s = (s + 1) & (size - 1)
+    return found, True
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _same_row(a, i, b, j):  # pragma: no cover - compiled
+    same = True
+    for c in range(a.shape[1]):
+        same &= a[i, c] == b[j, c]
+    return same
 
 
 def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> bool:
