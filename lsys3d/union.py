@@ -613,13 +613,31 @@ def _repair_corners(mesh: Mesh) -> None:
     normals = mesh.normals
     if normals.strides[0] == 0:  # not made (:func:`_no_corners`)
         return
-    bad = ~np.isfinite(normals).all(axis=2) | (normals == 0).all(axis=2)
-    if bad.any():
+    bad = np.zeros(normals.shape[:2], bool)
+    if _mend_corners(normals, mesh.uv, bad):
         fn = np.nan_to_num(face_normals(mesh.vertices, mesh.faces).astype(np.float32))
         fn[np.abs(fn).sum(axis=1) == 0] = (0.0, 1.0, 0.0)
-        normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad]
-    normals += normals.dtype.type(0.0)  # -0.0 -> 0.0, in place
-    mesh.uv[~np.isfinite(mesh.uv)] = 0.0
+        normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad] + normals.dtype.type(0.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mend_corners(normals, uv, bad):  # pragma: no cover - compiled
+    """One pass of :func:`_repair_corners`: mark in ``bad`` the corners whose normal is not finite or zero, make
+    the other normals' -0.0 0.0 and non-finite uv 0, in place; whether any corner is bad."""
+    zero = normals.dtype.type(0.0)
+    anybad = False
+    for f in range(normals.shape[0]):
+        for c in range(normals.shape[1]):
+            x, y, z = normals[f, c, 0], normals[f, c, 1], normals[f, c, 2]
+            if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)) or (x == 0 and y == 0 and z == 0):
+                bad[f, c] = True
+                anybad = True
+            else:
+                normals[f, c, 0], normals[f, c, 1], normals[f, c, 2] = x + zero, y + zero, z + zero
+            for k in range(uv.shape[2]):
+                if not np.isfinite(uv[f, c, k]):
+                    uv[f, c, k] = 0.0
+    return anybad
 
 
 def _weld_float32(held: list[Mesh]) -> Mesh:
