@@ -18,8 +18,8 @@ everything):
    parent), adds nothing and stays out.
 2. *Which pieces can touch.*  Each tube is cut into pieces (a span between two
    rings, or about a diameter of tiny spans) covered by capsules; boxes in a
-   grid and a segment-segment distance find the pairs that may touch, a
-   bounded chunk at a time.  More than ``UnionOptions.max_pairs`` pairs (a
+   grid and a segment-segment distance find the pairs that may touch, one
+   candidate at a time.  More than ``UnionOptions.max_pairs`` pairs (a
    thousand branches from one point) is refused up front with
    :class:`~lsys3d.errors.LimitError`, before the memory is taken.
 3. *Refinement.*  A long straight span touched only near one place (a twig on
