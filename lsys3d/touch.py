@@ -65,14 +65,6 @@ DEFAULT_MAX_PAIRS = 400_000
 _SECONDS_PER_PAIR = 1e-4  # boolean work per touching pair in a crowd (500 parallel tubes: 124,750 pairs, 12 s CPU)
 
 
-def ring_points(tubes: Tubes) -> np.ndarray:
-    """Index of every ring point (all points but the two cap centres of each tube), ring after ring."""
-    mask = np.ones(len(tubes.points), bool)
-    mask[tubes.point_offsets[1:] - 1] = False
-    mask[tubes.point_offsets[1:] - 2] = False
-    return np.flatnonzero(mask)
-
-
 @dataclass(frozen=True)
 class Pieces:
     """Pieces of tubes, each a run of consecutive spans, tube after tube.
@@ -107,32 +99,119 @@ class Pieces:
         return len(self.tube)
 
 
-@numba.njit(cache=True, nogil=True)
-def _capsule_radius(pts, point_of, piece_of_point, p, q, n):  # pragma: no cover - compiled
-    """``(n,)``: the farthest of each piece's points ``pts[point_of]`` from its axis segment ``p q``.
+@numba.njit(cache=True, nogil=True, inline="always")
+def _lower(have, x):  # pragma: no cover - compiled
+    """A step of ``np.minimum.reduce``: NaN kept, ``x`` on a tie (so -0.0 and 0.0 come out as numpy's do)."""
+    return have if (have < x or np.isnan(have)) else x
 
-    One pass, no full-size temporaries; the arithmetic is numpy's, in its order (``np.einsum``'s
-    dot products sum x, z then y; ``np.linalg.norm`` x, y, z), so the radii are the same bits.
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _higher(have, x):  # pragma: no cover - compiled
+    """A step of ``np.maximum.reduce``: NaN kept, ``x`` on a tie."""
+    return have if (have > x or np.isnan(have)) else x
+
+
+@numba.njit(cache=True, nogil=True)
+def _pairwise_sum(points, start, n, j):  # pragma: no cover - compiled
+    """``points[start:start + n, j]`` summed as numpy's pairwise summation does (its ``add`` reductions):
+    one by one below 8 values, 8 running sums up to 128, halves (at a multiple of 8) above."""
+    if n < 8:
+        total = -0.0
+        for i in range(start, start + n):
+            total += points[i, j]
+        return total
+    if n > 128:
+        half = n // 2
+        half -= half % 8
+        return _pairwise_sum(points, start, half, j) + _pairwise_sum(points, start + half, n - half, j)
+    r = np.empty(8)
+    for k in range(8):
+        r[k] = points[start + k, j]
+    i = 8
+    while i < n - n % 8:
+        for k in range(8):
+            r[k] += points[start + i + k, j]
+        i += 8
+    total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        total += points[start + i, j]
+        i += 1
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def _rings(points, point_offsets, rings, sides):  # pragma: no cover - compiled
+    """Every ring, tube after tube: its first point, centre, radius (farthest point from the centre) and box.
+
+    Read from the points in place (a tube's ring points come ring after ring, its two cap centres last), with
+    numpy's arithmetic in its order (``np.add.reduceat`` adds to the first point the pairwise sum of the others,
+    :func:`_pairwise_sum`; the norm adds x, y, then z), so the numbers are the bits of the vectorised version.
     """
+    nr = 0
+    for t in range(len(rings)):
+        nr += rings[t]
+    first = np.empty(nr, np.int64)
+    centre = np.empty((nr, 3))
+    radius = np.empty(nr)
+    lo = np.empty((nr, 3))
+    hi = np.empty((nr, 3))
+    r = 0
+    for t in range(len(rings)):
+        s = sides[t]
+        for k in range(rings[t]):
+            f = point_offsets[t] + k * s
+            first[r] = f
+            for j in range(3):
+                low, high = points[f, j], points[f, j]
+                for i in range(1, s):
+                    low, high = _lower(low, points[f + i, j]), _higher(high, points[f + i, j])
+                centre[r, j] = (points[f, j] + _pairwise_sum(points, f + 1, s - 1, j)) / s
+                lo[r, j], hi[r, j] = low, high
+            far = 0.0
+            for i in range(s):
+                x = points[f + i, 0] - centre[r, 0]
+                y = points[f + i, 1] - centre[r, 1]
+                z = points[f + i, 2] - centre[r, 2]
+                d = np.sqrt(x * x + y * y + z * z)
+                far = d if i == 0 else _higher(far, d)
+            radius[r] = far
+            r += 1
+    return first, centre, radius, lo, hi
+
+
+@numba.njit(cache=True, nogil=True)
+def _piece_extent(points, ring_first, ring_sides, ring_lo, ring_hi, g0, g1, p, q):  # pragma: no cover - compiled
+    """Each piece's capsule radius (the farthest of the points of its rings ``g0..g1`` from the segment
+    ``p q``) and box, in one pass over the points in place; the arithmetic is numpy's, in its order
+    (``np.einsum``'s dot products sum x, z then y; ``np.linalg.norm`` x, y, z), so they are the same bits."""
+    n = len(g0)
     radius = np.zeros(n)
-    for i in range(len(point_of)):
-        k, j = piece_of_point[i], point_of[i]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    for k in range(n):
         p0, p1, p2 = p[k, 0], p[k, 1], p[k, 2]
         d0, d1, d2 = q[k, 0] - p0, q[k, 1] - p1, q[k, 2] - p2
-        r0, r1, r2 = pts[j, 0] - p0, pts[j, 1] - p1, pts[j, 2] - p2
         dd = dot3(d0, d1, d2, d0, d1, d2)
         if dd < 1e-300:  # np.maximum(dd, 1e-300), NaN kept
             dd = 1e-300
-        t = dot3(r0, r1, r2, d0, d1, d2) / dd
-        if t < 0.0:  # np.clip(t, 0, 1), NaN kept
-            t = 0.0
-        elif t > 1.0:
-            t = 1.0
-        e0, e1, e2 = r0 - t * d0, r1 - t * d1, r2 - t * d2
-        off = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-        if off > radius[k] or np.isnan(off):  # np.maximum.at, NaN kept
-            radius[k] = off
-    return radius
+        for j in range(3):
+            lo[k, j], hi[k, j] = ring_lo[g0[k], j], ring_hi[g0[k], j]
+        for g in range(g0[k], g1[k] + 1):
+            if g > g0[k]:
+                for j in range(3):
+                    lo[k, j], hi[k, j] = _lower(lo[k, j], ring_lo[g, j]), _higher(hi[k, j], ring_hi[g, j])
+            for i in range(ring_first[g], ring_first[g] + ring_sides[g]):
+                r0, r1, r2 = points[i, 0] - p0, points[i, 1] - p1, points[i, 2] - p2
+                t = dot3(r0, r1, r2, d0, d1, d2) / dd
+                if t < 0.0:  # np.clip(t, 0, 1), NaN kept
+                    t = 0.0
+                elif t > 1.0:
+                    t = 1.0
+                e0, e1, e2 = r0 - t * d0, r1 - t * d1, r2 - t * d2
+                off = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+                if off > radius[k] or np.isnan(off):  # np.maximum.at, NaN kept
+                    radius[k] = off
+    return radius, lo, hi
 
 
 def pieces(tubes: Tubes, chunk: float = 2.0) -> Pieces:
@@ -144,23 +223,16 @@ def pieces(tubes: Tubes, chunk: float = 2.0) -> Pieces:
     """
     rings, sides = tubes.rings, tubes.sides
     nr = int(rings.sum())
-    ring_sides = np.repeat(sides, rings)
-    pts = tubes.points[ring_points(tubes)]
-    first_pt = _offsets(ring_sides)[:-1]
-    centre = np.add.reduceat(pts, first_pt, axis=0) / ring_sides[:, None]
-    dist = np.linalg.norm(pts - np.repeat(centre, ring_sides, axis=0), axis=1)
-    ring_radius = np.maximum.reduceat(dist, first_pt)
-    ring_lo = np.minimum.reduceat(pts, first_pt, axis=0)
-    ring_hi = np.maximum.reduceat(pts, first_pt, axis=0)
+    ring_first, centre, ring_radius, ring_lo, ring_hi = _rings(tubes.points, tubes.point_offsets, rings, sides)
     ring_tube = np.repeat(np.arange(len(tubes)), rings)
     ring_local = _local(rings)
-    ring_first = _offsets(rings)[:-1]
+    ring_start = _offsets(rings)[:-1]
 
     # spans: ring k to k + 1 of the same tube
     a = np.flatnonzero(ring_local < rings[ring_tube] - 1)
     span_tube = ring_tube[a]
     span_len = np.linalg.norm(centre[a + 1] - centre[a], axis=1)
-    tube_radius = np.maximum.reduceat(ring_radius, ring_first) if nr else np.zeros(0)
+    tube_radius = np.maximum.reduceat(ring_radius, ring_start) if nr else np.zeros(0)
     target = np.maximum(chunk * tube_radius[span_tube], 1e-300)
     # distance along the tube at each span's start, in units of the target length
     spans_per_tube = rings - 1
@@ -183,17 +255,7 @@ def pieces(tubes: Tubes, chunk: float = 2.0) -> Pieces:
     g0 = a[head]  # global first ring of each piece
     g1 = a[tail] + 1  # global last ring
     p, q = centre[g0], centre[g1]
-    # every ring point of every piece (rings shared by two pieces count for both)
-    piece_rings = last - first + 1
-    ring_of = np.repeat(g0, piece_rings) + _local(piece_rings)
-    piece_of_ring = np.repeat(np.arange(len(head)), piece_rings)
-    rsides = ring_sides[ring_of]
-    point_of = np.repeat(first_pt[ring_of], rsides) + _local(rsides)
-    piece_of_point = np.repeat(piece_of_ring, rsides)
-    radius = _capsule_radius(pts, point_of, piece_of_point, p, q, len(head))
-    ring_start = _offsets(piece_rings)[:-1]
-    lo = np.minimum.reduceat(ring_lo[ring_of], ring_start, axis=0)
-    hi = np.maximum.reduceat(ring_hi[ring_of], ring_start, axis=0)
+    radius, lo, hi = _piece_extent(tubes.points, ring_first, np.repeat(sides, rings), ring_lo, ring_hi, g0, g1, p, q)
     return Pieces(tube, first, last, p, q, radius, lo, hi, span_piece)
 
 
