@@ -131,16 +131,16 @@ def _cluster_points(corners, tri_off, npts):  # pragma: no cover - compiled
     return point[:n].copy(), point_off, local_of_point
 
 
-def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: int) -> Clusters:
+def find(tubes, runs: np.ndarray, n_runs_of: np.ndarray, tri_id, tri_off, faces_of, nf: int) -> Clusters:
     """Describe the clusters and find the congruent ones.
 
-    ``cluster_runs[c]`` are the runs of cluster ``c`` (ascending); run ``r``'s
-    triangle ids are ``tri_id[tri_off[r]:tri_off[r + 1]]``; ``faces_of(ids)``
-    gives their wedge-indexed faces.
+    ``runs`` are the runs cluster after cluster, ``n_runs_of[c]`` of cluster
+    ``c`` (ascending within it); run ``r``'s triangle ids are
+    ``tri_id[tri_off[r]:tri_off[r + 1]]``; ``faces_of(ids)`` gives their
+    wedge-indexed faces.
     """
-    nc = len(cluster_runs)
-    runs = np.concatenate(cluster_runs)
-    n_runs_of = np.array([len(c) for c in cluster_runs], np.int64)
+    nc = len(n_runs_of)
+    n_runs_of = np.asarray(n_runs_of, np.int64)
     run_off = _offsets(n_runs_of)
     run_len = (tri_off[runs + 1] - tri_off[runs]).astype(np.int64)
     tri = tri_id[np.repeat(tri_off[runs], run_len) + _local_counts(run_len)]

@@ -853,12 +853,17 @@ def _local_union(
     # clusters of runs that touch; congruent clusters are unioned once
     run_pairs = _unique_pairs(run_of_piece[a], run_of_piece[b])
     label = components(len(run_start), run_pairs[:, 0], run_pairs[:, 1])
-    by_label = np.argsort(label, kind="stable")
-    cluster_runs = np.split(by_label, np.flatnonzero(np.diff(label[by_label])) + 1)
-    clusters = repeats.find(tubes, cluster_runs, tri_id, tri_off, faces_of, nf)
+    by_label = np.argsort(label, kind="stable")  # the runs cluster after cluster (no list of 44k arrays)
+    cuts = np.flatnonzero(np.diff(label[by_label])) + 1
+    runs_per_cluster = np.diff(np.concatenate([[0], cuts, [len(by_label)]]))
+    del cuts
+    clusters = repeats.find(tubes, by_label, runs_per_cluster, tri_id, tri_off, faces_of, nf)
     progress(0.15)
     is_rep = clusters.rep == np.arange(len(clusters))
-    todo = np.flatnonzero(np.repeat(is_rep, [len(c) for c in cluster_runs])[np.argsort(by_label)])  # their runs
+    rep_run = np.empty(len(by_label), bool)
+    rep_run[by_label] = np.repeat(is_rep, runs_per_cluster)
+    todo = np.flatnonzero(rep_run)  # the representatives' runs
+    del rep_run
     index = np.full(len(run_start), -1, np.int64)
     index[todo] = np.arange(len(todo))
     todo_pairs = index[run_pairs]
