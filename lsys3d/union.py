@@ -927,7 +927,10 @@ def _local_union(
         tubes.point_offsets[cut_tube][:, None] + (cut_ring * sides[cut_tube])[:, None] + np.arange(sides.max())[None]
     )
     cut_points = cut_points[np.arange(sides.max())[None] < sides[cut_tube][:, None]]
-    seam = unique(point_of[otri[temp]])
+    on_cap = np.zeros(npts, bool)  # the caps' points, ascending: a mask, not a sort
+    on_cap[point_of[otri[temp]]] = True
+    seam = np.flatnonzero(on_cap)
+    del on_cap
     if len(seam) != len(cut_points):
         log.debug("union: the temporary caps do not meet the boolean at their rings; unioning whole tubes")
         return None
