@@ -666,11 +666,7 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
     if first.all():  # no two vertices share a float32 position
         return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
     renumber = np.cumsum(first) - 1  # the points numbered in their first appearance
-    welded = renumber[owner][faces]
-    a, b, c = welded.T
-    keep = (a != b) & (b != c) & (c != a)
-    del a, b, c
-    welded = welded[keep]
+    welded, keep = _welded_faces(faces, renumber[owner])
     merged = np.zeros(int(first.sum()), bool)  # the points that several vertices became
     merged[renumber[owner[~first]]] = True
     if not _closed(welded, int(first.sum()), merged):
@@ -685,6 +681,28 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
         uv = _corner_rows(uv, keep)
         source = None if source is None else source[keep]
     return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
+
+
+@numba.njit(cache=True, nogil=True)
+def _welded_faces(faces, point):  # pragma: no cover - compiled
+    """The faces on the welded points ``point[faces]`` without those that collapse, and which faces are kept.
+
+    Two passes over the faces in place: no (f, 3) copy renumbered, then another of the kept rows.
+    """
+    keep = np.empty(len(faces), np.bool_)
+    count = 0
+    for f in range(len(faces)):
+        a, b, c = point[faces[f, 0]], point[faces[f, 1]], point[faces[f, 2]]
+        keep[f] = a != b and b != c and c != a
+        count += keep[f]
+    welded = np.empty((count, 3), np.int64)
+    k = 0
+    for f in range(len(faces)):
+        if keep[f]:
+            for j in range(3):
+                welded[k, j] = point[faces[f, j]]
+            k += 1
+    return welded, keep
 
 
 def _owners(keys: np.ndarray, dirty: np.ndarray) -> np.ndarray:
@@ -722,7 +740,7 @@ def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False
     ``float32_unique`` says that no two vertices share a float32 position yet
     (the weld just told them apart), which saves grouping them by it once.
     """
-    v = np.array(mesh.vertices, np.float64)  # a copy: the mesh keeps its vertices unless a separation is found
+    v = np.asarray(mesh.vertices, np.float64)  # read here; copied only when a separation is found
     v32 = v.astype(np.float32)
     everything = np.arange(len(v32))
     direction = np.zeros(len(v32))
@@ -736,15 +754,18 @@ def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False
     # the vertices moved since each key last grouped them: only those can share a key with another vertex
     # (the rest were told apart then), so later rounds group a few candidates instead of all vertices
     dirty = [np.zeros(0, np.int64) if float32_unique else everything, everything]
+    separated = False
     for _ in range(rounds):
         moved = False
         for k, key in enumerate((float32_bits, weld_grid_cell)):
+            if not len(dirty[k]):  # no vertex can share this key with another
+                continue
             owner = _owners(key(), dirty[k])
             later = np.flatnonzero(owner != everything)
             dirty[k] = np.zeros(0, np.int64)
             if not len(later):
                 continue
-            moved = True
+            moved = separated = True
             dirty = [unique(np.concatenate([d, later])) for d in dirty]
             axis = np.argmax(np.abs(v[later]), axis=1)
             # a vertex keeps the side it first moved to, so it cannot swing between two neighbours
@@ -765,8 +786,11 @@ def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False
             break
     else:
         return mesh
+    if not separated:  # every vertex has a float32 position and weld cell of its own already
+        return mesh
     moved = (v32 != v.astype(np.float32)).any(axis=1)
     log.debug("union: %d vertices moved to positions of their own", int(moved.sum()))
+    v = v.copy()
     v[moved] = v32[moved]
     return replace(mesh, vertices=v)
 
