@@ -817,7 +817,6 @@ def _local_union(
     how many of its faces (the first ones) came out of the boolean, or None
     when the result does not stitch exactly (the caller then unions whole tubes).
     """
-    nt = len(tubes)
     rings, sides = tubes.rings, tubes.sides
     # runs of busy pieces (pieces are numbered tube after tube, in ring order)
     prev_same = np.zeros(len(busy), bool)
@@ -835,14 +834,7 @@ def _local_union(
     fo = tubes.face_offsets
     nf = len(tubes.faces)
     nspan = rings - 1
-    face_tube = np.repeat(np.arange(nt), np.diff(fo))
-    lf = np.arange(nf) - fo[face_tube]
-    s2 = 2 * sides[face_tube]
-    body_faces = s2 * nspan[face_tube]
-    face_span_local = np.where(lf < body_faces, lf // s2, np.where(lf < body_faces + s2 // 2, 0, nspan[face_tube] - 1))
-    del lf, s2, body_faces
-    face_piece = pcs.span_piece[_offsets(nspan)[face_tube] + face_span_local]
-    del face_span_local
+    face_piece = _face_pieces(fo, sides, nspan, _offsets(nspan), pcs.span_piece)
     face_busy = busy[face_piece]
 
     # temporary caps where a run meets a free piece: a fan from ring vertex 0
@@ -963,24 +955,20 @@ def _local_union(
         log.debug("union: the rings of the temporary caps moved in the boolean; unioning whole tubes")
         return None
     # the stitched mesh, written in place part by part (no full-size temporaries): first the boolean's output
-    kept = otri[keep]
     ff = np.flatnonzero(~face_busy)  # the free pieces' faces
     source = np.concatenate([fid[keep], ff])  # the tube face of each triangle (the boolean kept the ids)
-    del otri, fid
-    del face_busy
-    nb = len(kept)
+    del fid, face_busy
+    nb = len(source) - len(ff)
     faces = np.empty((nb + len(ff), 3), np.int64)
-    np.take(point_of, kept, out=faces[:nb])
+    _kept_faces(point_of, otri, keep, faces)  # the boolean's triangles but the caps', on the points
     del point_of
-    if not corners:
-        kept = None
     if corners:
         normals = np.empty((len(faces), 3, 3), np.float32)
         uv = np.empty((len(faces), 3, 2), np.float32)
-        _corner_attributes(props, kept, normals, uv)
+        _corner_attributes(props, otri, keep, normals, uv)
     else:
         normals, uv = _no_corners(len(faces), 3, 3), _no_corners(len(faces), 3, 2)
-    del props, kept, face_tube, face_piece
+    del props, otri, keep, face_piece
     # then the free pieces: their points (ring points on a cut map onto the seam) and attributes
     wedges = tubes.faces[ff]
     del ff
@@ -1028,15 +1016,54 @@ def _faces_of(ids, nf, tube_faces, cap_faces):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _corner_attributes(props, tri, normals, uv):  # pragma: no cover - compiled
-    """Write the unit corner normals and the uv of the triangles ``tri`` from manifold's ``props`` into the first rows.
+def _face_pieces(face_offsets, sides, nspan, span_offsets, span_piece):  # pragma: no cover - compiled
+    """``(f,)``: the piece of every tube face: a wall face's span's, a base cap's first span's, a tip cap's last.
 
-    :func:`_unit_rows` of ``props[tri, 3:6]`` and ``props[tri, 6:]``, as float32, in one pass without the
-    (f, 3, 8) gather: the same bits (the norm sums x, y, z as ``np.linalg.norm`` does).
+    A tube's faces are its walls, two triangles per side and span, span after span, then its base cap's
+    ``sides`` triangles, then its tip cap's.
     """
-    for f in range(len(tri)):
+    out = np.empty(face_offsets[-1], np.int64)
+    for t in range(len(sides)):
+        s2 = 2 * sides[t]
+        body = s2 * nspan[t]
+        for f in range(face_offsets[t], face_offsets[t + 1]):
+            lf = f - face_offsets[t]
+            if lf < body:
+                span = lf // s2
+            elif lf < body + s2 // 2:
+                span = 0
+            else:
+                span = nspan[t] - 1
+            out[f] = span_piece[span_offsets[t] + span]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _kept_faces(point_of, tri, keep, faces):  # pragma: no cover - compiled
+    """Write ``point_of[tri[keep]]`` into the first rows of ``faces``, in one pass without the (f, 3) gather."""
+    f = 0
+    for t in range(len(tri)):
+        if keep[t]:
+            for c in range(3):
+                faces[f, c] = point_of[tri[t, c]]
+            f += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _corner_attributes(props, tri, keep, normals, uv):  # pragma: no cover - compiled
+    """Write the unit corner normals and the uv of the triangles ``tri[keep]`` from manifold's ``props`` into the
+    first rows.
+
+    :func:`_unit_rows` of ``props[tri[keep], 3:6]`` and ``props[tri[keep], 6:]``, as float32, in one pass without
+    the (f, 3) and (f, 3, 8) gathers: the same bits (the norm sums x, y, z as ``np.linalg.norm`` does).
+    """
+    f = -1
+    for t in range(len(tri)):
+        if not keep[t]:
+            continue
+        f += 1
         for c in range(3):
-            r = tri[f, c]
+            r = tri[t, c]
             x, y, z = props[r, 3], props[r, 4], props[r, 5]
             length = np.sqrt(x * x + y * y + z * z)
             if not length > 1e-12:
