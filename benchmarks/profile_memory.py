@@ -40,7 +40,7 @@ WRAPPED = [
     "lsys3d.union._local_union",
     "lsys3d.union_jobs.run",
     "lsys3d.repeats.find",
-    "lsys3d.repeats.copies",
+    "lsys3d.repeats.with_copies",
     "lsys3d.union._join",
     "lsys3d.union._to_mesh",
     "lsys3d.union._true_sources",

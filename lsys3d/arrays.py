@@ -33,12 +33,14 @@ import numba
 import numpy as np
 
 __all__ = [
+    "ROW_HASH_MIX",
     "components",
     "dot",
     "dot3",
     "find_rows",
     "first_equal_row",
     "gather",
+    "hash_word",
     "isin",
     "local_index",
     "offsets",
@@ -165,19 +167,29 @@ def row_hash(rows: np.ndarray) -> np.ndarray:
     (True, False)
     """
     rows = np.ascontiguousarray(rows)
-    return _row_hash(rows.view(np.uint64 if rows.dtype.itemsize == 8 else np.uint32), _MIX)
+    return _row_hash(rows.view(np.uint64 if rows.dtype.itemsize == 8 else np.uint32), ROW_HASH_MIX)
+
+
+ROW_HASH_MIX = _MIX
+"""The multipliers of :func:`row_hash`, for a compiled kernel that hashes rows it never stores (:func:`hash_word`)."""
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def hash_word(x, word, j, mix):  # pragma: no cover - compiled
+    """One step of :func:`row_hash`: the hash ``x`` of a row's first ``j`` words, with word ``j`` (its bits as
+    uint64) added.  A row's hash starts at ``np.uint64(0)``."""
+    x = (x ^ np.uint64(word)) * mix[j % len(mix)]
+    return x ^ (x >> np.uint64(29))
 
 
 @numba.njit(cache=True, nogil=True)
 def _row_hash(words, mix):  # pragma: no cover - compiled
     """:func:`row_hash` of the rows' words (uint32 or uint64), a row at a time: wrapping uint64 arithmetic."""
     h = np.empty(len(words), np.uint64)
-    shift = np.uint64(29)
     for i in range(len(words)):
         x = np.uint64(0)
         for j in range(words.shape[1]):
-            x = (x ^ np.uint64(words[i, j])) * mix[j % len(mix)]
-            x ^= x >> shift
+            x = hash_word(x, words[i, j], j, mix)
         h[i] = x
     return h
 

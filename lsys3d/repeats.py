@@ -26,7 +26,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .arrays import dot3, find_rows, row_hash
+from .arrays import ROW_HASH_MIX, dot3, find_rows, hash_word
 from .arrays import local_index as _local_counts
 from .arrays import offsets as _offsets
 from .booleans import Part
@@ -109,6 +109,47 @@ def _same_shading(wedge_normal, wedge_uv, wa, fa, wb, fb, run_of, first_tri, v_t
 
 
 @numba.njit(cache=True, nogil=True)
+def _member_keys(
+    m, t, v, corners, tri_off, local_of_point, points, point, point_off, origin, frame, mix
+):  # pragma: no cover - compiled
+    """For the clusters ``m`` of one signature (``t`` triangles, ``v`` points each): their points in their own
+    frames ``(g, v, 3)``, the largest coordinate of each, and the hash of each one's faces (on its own point
+    numbers) and points bucketed on a grid of ``_KEY`` times that size.
+
+    One pass without the (g, t, 3) and (g, v, 3) gathers; the numbers are those of the numpy version, in its
+    order (``np.einsum``'s sums x, z, then y; ``np.round`` is ``rint``; :func:`~lsys3d.arrays.row_hash` of the
+    faces' numbers then the buckets, a word at a time).
+    """
+    g = len(m)
+    loc = np.empty((g, v, 3))
+    size = np.empty(g)
+    key = np.empty(g, np.uint64)
+    for i in range(g):
+        c = m[i]
+        big = 0.0
+        for p in range(v):
+            q = point[point_off[c] + p]
+            x, y, z = points[q, 0] - origin[c, 0], points[q, 1] - origin[c, 1], points[q, 2] - origin[c, 2]
+            for k in range(3):
+                loc[i, p, k] = dot3(x, y, z, frame[c, k, 0], frame[c, k, 1], frame[c, k, 2])
+                big = max(big, abs(loc[i, p, k]))
+        size[i] = big + 1e-300
+        h = np.uint64(0)
+        j = 0
+        for f in range(tri_off[c], tri_off[c] + t):
+            for k in range(3):
+                h = hash_word(h, local_of_point[corners[f, k]], j, mix)
+                j += 1
+        cell = _KEY * size[i]
+        for p in range(v):
+            for k in range(3):
+                h = hash_word(h, np.int64(np.rint(loc[i, p, k] / cell)), j, mix)
+                j += 1
+        key[i] = h
+    return loc, size, key
+
+
+@numba.njit(cache=True, nogil=True)
 def _cluster_points(corners, tri_off, npts):  # pragma: no cover - compiled
     """The points of every cluster (CSR, ascending), and each point's index among its cluster's.
 
@@ -131,16 +172,16 @@ def _cluster_points(corners, tri_off, npts):  # pragma: no cover - compiled
     return point[:n].copy(), point_off, local_of_point
 
 
-def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: int) -> Clusters:
+def find(tubes, runs: np.ndarray, n_runs_of: np.ndarray, tri_id, tri_off, faces_of, nf: int) -> Clusters:
     """Describe the clusters and find the congruent ones.
 
-    ``cluster_runs[c]`` are the runs of cluster ``c`` (ascending); run ``r``'s
-    triangle ids are ``tri_id[tri_off[r]:tri_off[r + 1]]``; ``faces_of(ids)``
-    gives their wedge-indexed faces.
+    ``runs`` are the runs cluster after cluster, ``n_runs_of[c]`` of cluster
+    ``c`` (ascending within it); run ``r``'s triangle ids are
+    ``tri_id[tri_off[r]:tri_off[r + 1]]``; ``faces_of(ids)`` gives their
+    wedge-indexed faces.
     """
-    nc = len(cluster_runs)
-    runs = np.concatenate(cluster_runs)
-    n_runs_of = np.array([len(c) for c in cluster_runs], np.int64)
+    nc = len(n_runs_of)
+    n_runs_of = np.asarray(n_runs_of, np.int64)
     run_off = _offsets(n_runs_of)
     run_len = (tri_off[runs + 1] - tri_off[runs]).astype(np.int64)
     tri = tri_id[np.repeat(tri_off[runs], run_len) + _local_counts(run_len)]
@@ -183,14 +224,10 @@ def find(tubes, cluster_runs: list[np.ndarray], tri_id, tri_off, faces_of, nf: i
         m = np.asarray(members)
         g, t, v = len(m), int(per_cluster[m[0]]), int(n_points[m[0]])
         tris = tri_off_c[m][:, None] + np.arange(t)  # (g, t) rows of `tri`
-        local_faces = local_of_point[corners[tris]]  # (g, t, 3)
-        pts = tubes.points[point[point_off[m][:, None] + np.arange(v)]]  # (g, v, 3)
-        loc = np.einsum("gvj,gkj->gvk", pts - origin[m][:, None, :], frame[m])
-        size = np.abs(loc).max(axis=(1, 2)) + 1e-300
-        bucket = np.round(loc / (_KEY * size[:, None, None])).astype(np.int64).reshape(g, -1)
-        faces_key = local_faces.reshape(g, -1)
         # candidates: equal faces and bucketed points (a hash; the checks below confirm every match)
-        key = row_hash(np.concatenate([faces_key, bucket], axis=1))
+        loc, size, key = _member_keys(
+            m, t, v, corners, tri_off_c, local_of_point, tubes.points, point, point_off, origin, frame, ROW_HASH_MIX
+        )
         by_key = np.argsort(key, kind="stable")
         head = np.ones(g, bool)
         head[1:] = key[by_key][1:] != key[by_key][:-1]

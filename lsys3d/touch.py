@@ -13,10 +13,10 @@ so the whole piece lies inside).  Grouping tiny spans keeps the number of
 touching pairs near the number of real contacts instead of its square.
 
 *Touching pairs* (:func:`touching`).  Piece boxes are hashed into a uniform grid;
-the candidate pairs of each cell are generated a bounded chunk at a time, a pair
-is kept only in the cell holding the low corner of the two boxes' overlap (so it
-is found once without a global ``unique``), and confirmed by the capsules'
-segment-segment distance.  The count is checked against ``max_pairs`` as the
+the candidate pairs of each cell are tested one at a time in a compiled loop (no
+arrays of candidates), a pair is kept only in the cell holding the low corner of
+the two boxes' overlap (so it is found once without a global ``unique``), and
+confirmed by the capsules' segment-segment distance.  The count is checked against ``max_pairs`` as the
 pairs are found, so a pathological crowd (a thousand branches from one point) is
 refused before its pairs fill the memory.
 
@@ -62,16 +62,7 @@ log = logging.getLogger("lsys3d")
 DEFAULT_MAX_PAIRS = 400_000
 """Most pairs of tube pieces that may touch before the union refuses (about 0.1 ms of boolean work each)."""
 
-_CHUNK = 1 << 21  # candidate pairs examined at once in the broad phase (bounds its memory, ~100 MB)
 _SECONDS_PER_PAIR = 1e-4  # boolean work per touching pair in a crowd (500 parallel tubes: 124,750 pairs, 12 s CPU)
-
-
-def ring_points(tubes: Tubes) -> np.ndarray:
-    """Index of every ring point (all points but the two cap centres of each tube), ring after ring."""
-    mask = np.ones(len(tubes.points), bool)
-    mask[tubes.point_offsets[1:] - 1] = False
-    mask[tubes.point_offsets[1:] - 2] = False
-    return np.flatnonzero(mask)
 
 
 @dataclass(frozen=True)
@@ -108,32 +99,119 @@ class Pieces:
         return len(self.tube)
 
 
-@numba.njit(cache=True, nogil=True)
-def _capsule_radius(pts, point_of, piece_of_point, p, q, n):  # pragma: no cover - compiled
-    """``(n,)``: the farthest of each piece's points ``pts[point_of]`` from its axis segment ``p q``.
+@numba.njit(cache=True, nogil=True, inline="always")
+def _lower(have, x):  # pragma: no cover - compiled
+    """A step of ``np.minimum.reduce``: NaN kept, ``x`` on a tie (so -0.0 and 0.0 come out as numpy's do)."""
+    return have if (have < x or np.isnan(have)) else x
 
-    One pass, no full-size temporaries; the arithmetic is numpy's, in its order (``np.einsum``'s
-    dot products sum x, z then y; ``np.linalg.norm`` x, y, z), so the radii are the same bits.
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _higher(have, x):  # pragma: no cover - compiled
+    """A step of ``np.maximum.reduce``: NaN kept, ``x`` on a tie."""
+    return have if (have > x or np.isnan(have)) else x
+
+
+@numba.njit(cache=True, nogil=True)
+def _pairwise_sum(points, start, n, j):  # pragma: no cover - compiled
+    """``points[start:start + n, j]`` summed as numpy's pairwise summation does (its ``add`` reductions):
+    one by one below 8 values, 8 running sums up to 128, halves (at a multiple of 8) above."""
+    if n < 8:
+        total = -0.0
+        for i in range(start, start + n):
+            total += points[i, j]
+        return total
+    if n > 128:
+        half = n // 2
+        half -= half % 8
+        return _pairwise_sum(points, start, half, j) + _pairwise_sum(points, start + half, n - half, j)
+    r = np.empty(8)
+    for k in range(8):
+        r[k] = points[start + k, j]
+    i = 8
+    while i < n - n % 8:
+        for k in range(8):
+            r[k] += points[start + i + k, j]
+        i += 8
+    total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        total += points[start + i, j]
+        i += 1
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def _rings(points, point_offsets, rings, sides):  # pragma: no cover - compiled
+    """Every ring, tube after tube: its first point, centre, radius (farthest point from the centre) and box.
+
+    Read from the points in place (a tube's ring points come ring after ring, its two cap centres last), with
+    numpy's arithmetic in its order (``np.add.reduceat`` adds to the first point the pairwise sum of the others,
+    :func:`_pairwise_sum`; the norm adds x, y, then z), so the numbers are the bits of the vectorised version.
     """
+    nr = 0
+    for t in range(len(rings)):
+        nr += rings[t]
+    first = np.empty(nr, np.int64)
+    centre = np.empty((nr, 3))
+    radius = np.empty(nr)
+    lo = np.empty((nr, 3))
+    hi = np.empty((nr, 3))
+    r = 0
+    for t in range(len(rings)):
+        s = sides[t]
+        for k in range(rings[t]):
+            f = point_offsets[t] + k * s
+            first[r] = f
+            for j in range(3):
+                low, high = points[f, j], points[f, j]
+                for i in range(1, s):
+                    low, high = _lower(low, points[f + i, j]), _higher(high, points[f + i, j])
+                centre[r, j] = (points[f, j] + _pairwise_sum(points, f + 1, s - 1, j)) / s
+                lo[r, j], hi[r, j] = low, high
+            far = 0.0
+            for i in range(s):
+                x = points[f + i, 0] - centre[r, 0]
+                y = points[f + i, 1] - centre[r, 1]
+                z = points[f + i, 2] - centre[r, 2]
+                d = np.sqrt(x * x + y * y + z * z)
+                far = d if i == 0 else _higher(far, d)
+            radius[r] = far
+            r += 1
+    return first, centre, radius, lo, hi
+
+
+@numba.njit(cache=True, nogil=True)
+def _piece_extent(points, ring_first, ring_sides, ring_lo, ring_hi, g0, g1, p, q):  # pragma: no cover - compiled
+    """Each piece's capsule radius (the farthest of the points of its rings ``g0..g1`` from the segment
+    ``p q``) and box, in one pass over the points in place; the arithmetic is numpy's, in its order
+    (``np.einsum``'s dot products sum x, z then y; ``np.linalg.norm`` x, y, z), so they are the same bits."""
+    n = len(g0)
     radius = np.zeros(n)
-    for i in range(len(point_of)):
-        k, j = piece_of_point[i], point_of[i]
+    lo = np.empty((n, 3))
+    hi = np.empty((n, 3))
+    for k in range(n):
         p0, p1, p2 = p[k, 0], p[k, 1], p[k, 2]
         d0, d1, d2 = q[k, 0] - p0, q[k, 1] - p1, q[k, 2] - p2
-        r0, r1, r2 = pts[j, 0] - p0, pts[j, 1] - p1, pts[j, 2] - p2
         dd = dot3(d0, d1, d2, d0, d1, d2)
         if dd < 1e-300:  # np.maximum(dd, 1e-300), NaN kept
             dd = 1e-300
-        t = dot3(r0, r1, r2, d0, d1, d2) / dd
-        if t < 0.0:  # np.clip(t, 0, 1), NaN kept
-            t = 0.0
-        elif t > 1.0:
-            t = 1.0
-        e0, e1, e2 = r0 - t * d0, r1 - t * d1, r2 - t * d2
-        off = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-        if off > radius[k] or np.isnan(off):  # np.maximum.at, NaN kept
-            radius[k] = off
-    return radius
+        for j in range(3):
+            lo[k, j], hi[k, j] = ring_lo[g0[k], j], ring_hi[g0[k], j]
+        for g in range(g0[k], g1[k] + 1):
+            if g > g0[k]:
+                for j in range(3):
+                    lo[k, j], hi[k, j] = _lower(lo[k, j], ring_lo[g, j]), _higher(hi[k, j], ring_hi[g, j])
+            for i in range(ring_first[g], ring_first[g] + ring_sides[g]):
+                r0, r1, r2 = points[i, 0] - p0, points[i, 1] - p1, points[i, 2] - p2
+                t = dot3(r0, r1, r2, d0, d1, d2) / dd
+                if t < 0.0:  # np.clip(t, 0, 1), NaN kept
+                    t = 0.0
+                elif t > 1.0:
+                    t = 1.0
+                e0, e1, e2 = r0 - t * d0, r1 - t * d1, r2 - t * d2
+                off = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+                if off > radius[k] or np.isnan(off):  # np.maximum.at, NaN kept
+                    radius[k] = off
+    return radius, lo, hi
 
 
 def pieces(tubes: Tubes, chunk: float = 2.0) -> Pieces:
@@ -145,23 +223,16 @@ def pieces(tubes: Tubes, chunk: float = 2.0) -> Pieces:
     """
     rings, sides = tubes.rings, tubes.sides
     nr = int(rings.sum())
-    ring_sides = np.repeat(sides, rings)
-    pts = tubes.points[ring_points(tubes)]
-    first_pt = _offsets(ring_sides)[:-1]
-    centre = np.add.reduceat(pts, first_pt, axis=0) / ring_sides[:, None]
-    dist = np.linalg.norm(pts - np.repeat(centre, ring_sides, axis=0), axis=1)
-    ring_radius = np.maximum.reduceat(dist, first_pt)
-    ring_lo = np.minimum.reduceat(pts, first_pt, axis=0)
-    ring_hi = np.maximum.reduceat(pts, first_pt, axis=0)
+    ring_first, centre, ring_radius, ring_lo, ring_hi = _rings(tubes.points, tubes.point_offsets, rings, sides)
     ring_tube = np.repeat(np.arange(len(tubes)), rings)
     ring_local = _local(rings)
-    ring_first = _offsets(rings)[:-1]
+    ring_start = _offsets(rings)[:-1]
 
     # spans: ring k to k + 1 of the same tube
     a = np.flatnonzero(ring_local < rings[ring_tube] - 1)
     span_tube = ring_tube[a]
     span_len = np.linalg.norm(centre[a + 1] - centre[a], axis=1)
-    tube_radius = np.maximum.reduceat(ring_radius, ring_first) if nr else np.zeros(0)
+    tube_radius = np.maximum.reduceat(ring_radius, ring_start) if nr else np.zeros(0)
     target = np.maximum(chunk * tube_radius[span_tube], 1e-300)
     # distance along the tube at each span's start, in units of the target length
     spans_per_tube = rings - 1
@@ -184,37 +255,66 @@ def pieces(tubes: Tubes, chunk: float = 2.0) -> Pieces:
     g0 = a[head]  # global first ring of each piece
     g1 = a[tail] + 1  # global last ring
     p, q = centre[g0], centre[g1]
-    # every ring point of every piece (rings shared by two pieces count for both)
-    piece_rings = last - first + 1
-    ring_of = np.repeat(g0, piece_rings) + _local(piece_rings)
-    piece_of_ring = np.repeat(np.arange(len(head)), piece_rings)
-    rsides = ring_sides[ring_of]
-    point_of = np.repeat(first_pt[ring_of], rsides) + _local(rsides)
-    piece_of_point = np.repeat(piece_of_ring, rsides)
-    radius = _capsule_radius(pts, point_of, piece_of_point, p, q, len(head))
-    ring_start = _offsets(piece_rings)[:-1]
-    lo = np.minimum.reduceat(ring_lo[ring_of], ring_start, axis=0)
-    hi = np.maximum.reduceat(ring_hi[ring_of], ring_start, axis=0)
+    radius, lo, hi = _piece_extent(tubes.points, ring_first, np.repeat(sides, rings), ring_lo, ring_hi, g0, g1, p, q)
     return Pieces(tube, first, last, p, q, radius, lo, hi, span_piece)
 
 
 def segment_distance(p1, q1, p2, q2) -> np.ndarray:
     """Distance between segments ``p1 q1`` and ``p2 q2`` (rows)."""
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a = _dot(d1, d1)
-    e = _dot(d2, d2)
-    f = _dot(d2, r)
-    c = _dot(d1, r)
-    b = _dot(d1, d2)
+    p1, q1, p2, q2 = (np.ascontiguousarray(x, np.float64).reshape(-1, 3) for x in (p1, q1, p2, q2))
+    return _segment_distances(p1, q1, p2, q2)
+
+
+@numba.njit(cache=True, nogil=True)
+def _segment_distances(p1, q1, p2, q2):  # pragma: no cover - compiled
+    out = np.empty(len(p1))
+    for i in range(len(p1)):
+        out[i] = _segment_gap(p1[i], q1[i], p2[i], q2[i])
+    return out
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _clip01(x):  # pragma: no cover - compiled
+    """``np.clip(x, 0, 1)``, NaN kept."""
+    if x < 0.0:
+        return 0.0
+    if x > 1.0:
+        return 1.0
+    return x
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _at_least(x, floor):  # pragma: no cover - compiled
+    """``np.maximum(x, floor)``, NaN kept."""
+    return x if (x >= floor or np.isnan(x)) else floor
+
+
+@numba.njit(cache=True, nogil=True)
+def _segment_gap(p1, q1, p2, q2):  # pragma: no cover - compiled
+    """Distance between the segments ``p1 q1`` and ``p2 q2`` (3,): the closest points' parameters clamped to the
+    segments, as in Ericson's *Real-Time Collision Detection* 5.1.9, with numpy's rounding (dot products as
+    :func:`~lsys3d.arrays.dot3`, the norm summing x, y, then z), so the rows of a vectorised version agree."""
+    d10, d11, d12 = q1[0] - p1[0], q1[1] - p1[1], q1[2] - p1[2]
+    d20, d21, d22 = q2[0] - p2[0], q2[1] - p2[1], q2[2] - p2[2]
+    r0, r1, r2 = p1[0] - p2[0], p1[1] - p2[1], p1[2] - p2[2]
+    a = dot3(d10, d11, d12, d10, d11, d12)
+    e = dot3(d20, d21, d22, d20, d21, d22)
+    f = dot3(d20, d21, d22, r0, r1, r2)
+    c = dot3(d10, d11, d12, r0, r1, r2)
+    b = dot3(d10, d11, d12, d20, d21, d22)
     tiny = 1e-300
     denom = a * e - b * b
-    s = np.where(denom > tiny, np.clip((b * f - c * e) / np.maximum(denom, tiny), 0, 1), 0.0)
-    t = np.where(e > tiny, (b * s + f) / np.maximum(e, tiny), 0.0)
-    s = np.where(
-        t < 0, np.clip(-c / np.maximum(a, tiny), 0, 1), np.where(t > 1, np.clip((b - c) / np.maximum(a, tiny), 0, 1), s)
-    )
-    t = np.clip(t, 0, 1)
-    return np.linalg.norm(p1 + d1 * s[:, None] - p2 - d2 * t[:, None], axis=1)
+    s = _clip01((b * f - c * e) / _at_least(denom, tiny)) if denom > tiny else 0.0
+    t = (b * s + f) / _at_least(e, tiny) if e > tiny else 0.0
+    if t < 0:
+        s = _clip01(-c / _at_least(a, tiny))
+    elif t > 1:
+        s = _clip01((b - c) / _at_least(a, tiny))
+    t = _clip01(t)
+    x = p1[0] + d10 * s - p2[0] - d20 * t
+    y = p1[1] + d11 * s - p2[1] - d21 * t
+    z = p1[2] + d12 * s - p2[2] - d22 * t
+    return np.sqrt(x * x + y * y + z * z)
 
 
 def touching(pcs: Pieces, margin: float = 0.01, max_pairs: int = DEFAULT_MAX_PAIRS) -> tuple[np.ndarray, np.ndarray]:
@@ -262,49 +362,78 @@ def touching(pcs: Pieces, margin: float = 0.01, max_pairs: int = DEFAULT_MAX_PAI
     srt = np.argsort(key, kind="stable")
     key, box = key[srt], box[srt]
     del srt, ix, iy, iz
-    n = len(key)
-    brk = np.flatnonzero(np.diff(key)) + 1
-    cell_end = np.repeat(np.append(brk, n), np.diff(np.concatenate([[0], brk, [n]])))
-    later = cell_end - np.arange(n) - 1  # entry i pairs with the later entries of its cell
-    del cell_end
-    reach_pad = 1e-9 * scale
-    found_a, found_b, found = [], [], 0
-    cum = np.cumsum(later)
-    start = 0
-    while start < n:
-        stop = int(np.searchsorted(cum, (cum[start - 1] if start else 0) + _CHUNK, side="right"))
-        stop = max(stop, start + 1)
-        cnt = later[start:stop]
-        i = np.repeat(np.arange(start, stop), cnt)
-        j = i + 1 + _local(cnt)
-        a, b = box[i], box[j]
-        here = key[i]
-        del i, j
-        ok = owner[a] != owner[b]
-        a, b, here = a[ok], b[ok], here[ok]
-        ok = ((lo[a] <= hi[b]) & (lo[b] <= hi[a])).all(axis=1)
-        a, b, here = a[ok], b[ok], here[ok]
-        # the pair belongs to the cell of the low corner of the boxes' overlap: found there only
-        corner = np.floor((np.maximum(lo[a], lo[b]) - origin) / cell).astype(np.int64)
-        ok = ((corner[:, 2] * dims[1] + corner[:, 1]) * dims[0] + corner[:, 0]) == here
-        a, b = a[ok], b[ok]
-        reach = (pcs.radius[a] + pcs.radius[b]) * (1.0 + margin) + reach_pad
-        ok = segment_distance(pcs.p[a], pcs.q[a], pcs.p[b], pcs.q[b]) <= reach
-        a, b = a[ok], b[ok]
-        found += len(a)
-        if found > max_pairs:
-            raise LimitError(
-                f"union: more than {max_pairs:,} pairs of tube pieces may touch, a crowd of branches (measured: "
-                f"about 0.1 ms of boolean work a pair, so over {max_pairs * _SECONDS_PER_PAIR:,.0f} s); use fewer, "
-                "thinner or more spread-out branches, or raise the limit (--max-union-pairs N, max_union_pairs=N)"
-            )
-        found_a.append(np.minimum(a, b))
-        found_b.append(np.maximum(a, b))
-        start = stop
-    a = np.concatenate(found_a) if found_a else none
-    b = np.concatenate(found_b) if found_b else none
+    args = (key, box, owner, lo, hi, origin, cell, dims, pcs.radius, pcs.p, pcs.q, margin, 1e-9 * scale, max_pairs)
+    a, b, over = _cell_pairs(*args, 0, len(key))
+    if over:
+        raise LimitError(
+            f"union: more than {max_pairs:,} pairs of tube pieces may touch, a crowd of branches (measured: "
+            f"about 0.1 ms of boolean work a pair, so over {max_pairs * _SECONDS_PER_PAIR:,.0f} s); use fewer, "
+            "thinner or more spread-out branches, or raise the limit (--max-union-pairs N, max_union_pairs=N)"
+        )
     order = np.lexsort((b, a))
     return a[order], b[order]
+
+
+@numba.njit(cache=True, nogil=True)
+def _cell_pairs(
+    key, box, owner, lo, hi, origin, cell, dims, radius, p, q, margin, reach_pad, max_pairs, first, stop
+):  # pragma: no cover - compiled
+    """The narrow phase of :func:`touching` over the grid's cells, a pair at a time without temporaries.
+
+    ``key, box`` are the box-cell entries sorted by cell; the cells that begin
+    at entries ``first..stop-1`` are searched, whole.  A pair of boxes of
+    different tubes is tested in the cell of the low corner of the boxes'
+    overlap only (so once), and kept when the capsules are within reach.
+    Returns ``a, b`` (``a < b``, in the order found) and whether more than
+    ``max_pairs`` were found (the search stops there).
+    """
+    cap = 1024
+    out_a = np.empty(cap, np.int64)
+    out_b = np.empty(cap, np.int64)
+    found = 0
+    n = len(key)
+    start = first
+    while 0 < start < n and key[start] == key[start - 1]:  # a cell begun before ``first`` is not ours
+        start += 1
+    while start < stop:
+        end = start + 1
+        while end < n and key[end] == key[start]:
+            end += 1
+        here = key[start]
+        for i in range(start, end):
+            u = box[i]
+            for j in range(i + 1, end):
+                v = box[j]
+                if owner[u] == owner[v]:
+                    continue
+                if not (
+                    lo[u, 0] <= hi[v, 0]
+                    and lo[u, 1] <= hi[v, 1]
+                    and lo[u, 2] <= hi[v, 2]
+                    and lo[v, 0] <= hi[u, 0]
+                    and lo[v, 1] <= hi[u, 1]
+                    and lo[v, 2] <= hi[u, 2]
+                ):
+                    continue
+                c0 = np.int64(np.floor((max(lo[u, 0], lo[v, 0]) - origin[0]) / cell))
+                c1 = np.int64(np.floor((max(lo[u, 1], lo[v, 1]) - origin[1]) / cell))
+                c2 = np.int64(np.floor((max(lo[u, 2], lo[v, 2]) - origin[2]) / cell))
+                if (c2 * dims[1] + c1) * dims[0] + c0 != here:
+                    continue
+                reach = (radius[u] + radius[v]) * (1.0 + margin) + reach_pad
+                if not _segment_gap(p[u], q[u], p[v], q[v]) <= reach:
+                    continue
+                if found == max_pairs:
+                    return out_a[:found], out_b[:found], True
+                if found == cap:
+                    cap *= 2
+                    grown_a, grown_b = np.empty(cap, np.int64), np.empty(cap, np.int64)
+                    grown_a[:found], grown_b[:found] = out_a[:found], out_b[:found]
+                    out_a, out_b = grown_a, grown_b
+                out_a[found], out_b[found] = min(u, v), max(u, v)
+                found += 1
+        start = end
+    return out_a[:found], out_b[:found], False
 
 
 def duplicate_tubes(tubes: Tubes) -> np.ndarray:

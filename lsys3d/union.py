@@ -18,8 +18,8 @@ everything):
    parent), adds nothing and stays out.
 2. *Which pieces can touch.*  Each tube is cut into pieces (a span between two
    rings, or about a diameter of tiny spans) covered by capsules; boxes in a
-   grid and a segment-segment distance find the pairs that may touch, a
-   bounded chunk at a time.  More than ``UnionOptions.max_pairs`` pairs (a
+   grid and a segment-segment distance find the pairs that may touch, one
+   candidate at a time.  More than ``UnionOptions.max_pairs`` pairs (a
    thousand branches from one point) is refused up front with
    :class:`~lsys3d.errors.LimitError`, before the memory is taken.
 3. *Refinement.*  A long straight span touched only near one place (a twig on
@@ -60,7 +60,7 @@ import numba
 import numpy as np
 
 from . import booleans, repeats, union_jobs
-from .arrays import components, dot3, find_rows, gather, isin, ranges, release_memory, row_hash, unique
+from .arrays import components, dot3, gather, isin, ranges, release_memory, row_hash, unique
 from .arrays import first_equal_row as _first_equal_row
 from .arrays import offsets as _offsets
 from .booleans import BooleanError, Part
@@ -613,13 +613,31 @@ def _repair_corners(mesh: Mesh) -> None:
     normals = mesh.normals
     if normals.strides[0] == 0:  # not made (:func:`_no_corners`)
         return
-    bad = ~np.isfinite(normals).all(axis=2) | (normals == 0).all(axis=2)
-    if bad.any():
+    bad = np.zeros(normals.shape[:2], bool)
+    if _mend_corners(normals, mesh.uv, bad):
         fn = np.nan_to_num(face_normals(mesh.vertices, mesh.faces).astype(np.float32))
         fn[np.abs(fn).sum(axis=1) == 0] = (0.0, 1.0, 0.0)
-        normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad]
-    normals += normals.dtype.type(0.0)  # -0.0 -> 0.0, in place
-    mesh.uv[~np.isfinite(mesh.uv)] = 0.0
+        normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad] + normals.dtype.type(0.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mend_corners(normals, uv, bad):  # pragma: no cover - compiled
+    """One pass of :func:`_repair_corners`: mark in ``bad`` the corners whose normal is not finite or zero, make
+    the other normals' -0.0 0.0 and non-finite uv 0, in place; whether any corner is bad."""
+    zero = normals.dtype.type(0.0)
+    anybad = False
+    for f in range(normals.shape[0]):
+        for c in range(normals.shape[1]):
+            x, y, z = normals[f, c, 0], normals[f, c, 1], normals[f, c, 2]
+            if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)) or (x == 0 and y == 0 and z == 0):
+                bad[f, c] = True
+                anybad = True
+            else:
+                normals[f, c, 0], normals[f, c, 1], normals[f, c, 2] = x + zero, y + zero, z + zero
+            for k in range(uv.shape[2]):
+                if not np.isfinite(uv[f, c, k]):
+                    uv[f, c, k] = 0.0
+    return anybad
 
 
 def _weld_float32(held: list[Mesh]) -> Mesh:
@@ -648,11 +666,7 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
     if first.all():  # no two vertices share a float32 position
         return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
     renumber = np.cumsum(first) - 1  # the points numbered in their first appearance
-    welded = renumber[owner][faces]
-    a, b, c = welded.T
-    keep = (a != b) & (b != c) & (c != a)
-    del a, b, c
-    welded = welded[keep]
+    welded, keep = _welded_faces(faces, renumber[owner])
     merged = np.zeros(int(first.sum()), bool)  # the points that several vertices became
     merged[renumber[owner[~first]]] = True
     if not _closed(welded, int(first.sum()), merged):
@@ -667,6 +681,28 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
         uv = _corner_rows(uv, keep)
         source = None if source is None else source[keep]
     return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
+
+
+@numba.njit(cache=True, nogil=True)
+def _welded_faces(faces, point):  # pragma: no cover - compiled
+    """The faces on the welded points ``point[faces]`` without those that collapse, and which faces are kept.
+
+    Two passes over the faces in place: no (f, 3) copy renumbered, then another of the kept rows.
+    """
+    keep = np.empty(len(faces), np.bool_)
+    count = 0
+    for f in range(len(faces)):
+        a, b, c = point[faces[f, 0]], point[faces[f, 1]], point[faces[f, 2]]
+        keep[f] = a != b and b != c and c != a
+        count += keep[f]
+    welded = np.empty((count, 3), np.int64)
+    k = 0
+    for f in range(len(faces)):
+        if keep[f]:
+            for j in range(3):
+                welded[k, j] = point[faces[f, j]]
+            k += 1
+    return welded, keep
 
 
 def _owners(keys: np.ndarray, dirty: np.ndarray) -> np.ndarray:
@@ -704,7 +740,7 @@ def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False
     ``float32_unique`` says that no two vertices share a float32 position yet
     (the weld just told them apart), which saves grouping them by it once.
     """
-    v = np.array(mesh.vertices, np.float64)  # a copy: the mesh keeps its vertices unless a separation is found
+    v = np.asarray(mesh.vertices, np.float64)  # read here; copied only when a separation is found
     v32 = v.astype(np.float32)
     everything = np.arange(len(v32))
     direction = np.zeros(len(v32))
@@ -718,15 +754,18 @@ def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False
     # the vertices moved since each key last grouped them: only those can share a key with another vertex
     # (the rest were told apart then), so later rounds group a few candidates instead of all vertices
     dirty = [np.zeros(0, np.int64) if float32_unique else everything, everything]
+    separated = False
     for _ in range(rounds):
         moved = False
         for k, key in enumerate((float32_bits, weld_grid_cell)):
+            if not len(dirty[k]):  # no vertex can share this key with another
+                continue
             owner = _owners(key(), dirty[k])
             later = np.flatnonzero(owner != everything)
             dirty[k] = np.zeros(0, np.int64)
             if not len(later):
                 continue
-            moved = True
+            moved = separated = True
             dirty = [unique(np.concatenate([d, later])) for d in dirty]
             axis = np.argmax(np.abs(v[later]), axis=1)
             # a vertex keeps the side it first moved to, so it cannot swing between two neighbours
@@ -747,8 +786,11 @@ def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False
             break
     else:
         return mesh
+    if not separated:  # every vertex has a float32 position and weld cell of its own already
+        return mesh
     moved = (v32 != v.astype(np.float32)).any(axis=1)
     log.debug("union: %d vertices moved to positions of their own", int(moved.sum()))
+    v = v.copy()
     v[moved] = v32[moved]
     return replace(mesh, vertices=v)
 
@@ -775,7 +817,6 @@ def _local_union(
     how many of its faces (the first ones) came out of the boolean, or None
     when the result does not stitch exactly (the caller then unions whole tubes).
     """
-    nt = len(tubes)
     rings, sides = tubes.rings, tubes.sides
     # runs of busy pieces (pieces are numbered tube after tube, in ring order)
     prev_same = np.zeros(len(busy), bool)
@@ -793,14 +834,7 @@ def _local_union(
     fo = tubes.face_offsets
     nf = len(tubes.faces)
     nspan = rings - 1
-    face_tube = np.repeat(np.arange(nt), np.diff(fo))
-    lf = np.arange(nf) - fo[face_tube]
-    s2 = 2 * sides[face_tube]
-    body_faces = s2 * nspan[face_tube]
-    face_span_local = np.where(lf < body_faces, lf // s2, np.where(lf < body_faces + s2 // 2, 0, nspan[face_tube] - 1))
-    del lf, s2, body_faces
-    face_piece = pcs.span_piece[_offsets(nspan)[face_tube] + face_span_local]
-    del face_span_local
+    face_piece = _face_pieces(fo, sides, nspan, _offsets(nspan), pcs.span_piece)
     face_busy = busy[face_piece]
 
     # temporary caps where a run meets a free piece: a fan from ring vertex 0
@@ -835,12 +869,17 @@ def _local_union(
     # clusters of runs that touch; congruent clusters are unioned once
     run_pairs = _unique_pairs(run_of_piece[a], run_of_piece[b])
     label = components(len(run_start), run_pairs[:, 0], run_pairs[:, 1])
-    by_label = np.argsort(label, kind="stable")
-    cluster_runs = np.split(by_label, np.flatnonzero(np.diff(label[by_label])) + 1)
-    clusters = repeats.find(tubes, cluster_runs, tri_id, tri_off, faces_of, nf)
+    by_label = np.argsort(label, kind="stable")  # the runs cluster after cluster (no list of 44k arrays)
+    cuts = np.flatnonzero(np.diff(label[by_label])) + 1
+    runs_per_cluster = np.diff(np.concatenate([[0], cuts, [len(by_label)]]))
+    del cuts
+    clusters = repeats.find(tubes, by_label, runs_per_cluster, tri_id, tri_off, faces_of, nf)
     progress(0.15)
     is_rep = clusters.rep == np.arange(len(clusters))
-    todo = np.flatnonzero(np.repeat(is_rep, [len(c) for c in cluster_runs])[np.argsort(by_label)])  # their runs
+    rep_run = np.empty(len(by_label), bool)
+    rep_run[by_label] = np.repeat(is_rep, runs_per_cluster)
+    todo = np.flatnonzero(rep_run)  # the representatives' runs
+    del rep_run
     index = np.full(len(run_start), -1, np.int64)
     index[todo] = np.arange(len(todo))
     todo_pairs = index[run_pairs]
@@ -904,7 +943,10 @@ def _local_union(
         tubes.point_offsets[cut_tube][:, None] + (cut_ring * sides[cut_tube])[:, None] + np.arange(sides.max())[None]
     )
     cut_points = cut_points[np.arange(sides.max())[None] < sides[cut_tube][:, None]]
-    seam = unique(point_of[otri[temp]])
+    on_cap = np.zeros(npts, bool)  # the caps' points, ascending: a mask, not a sort
+    on_cap[point_of[otri[temp]]] = True
+    seam = np.flatnonzero(on_cap)
+    del on_cap
     if len(seam) != len(cut_points):
         log.debug("union: the temporary caps do not meet the boolean at their rings; unioning whole tubes")
         return None
@@ -913,24 +955,20 @@ def _local_union(
         log.debug("union: the rings of the temporary caps moved in the boolean; unioning whole tubes")
         return None
     # the stitched mesh, written in place part by part (no full-size temporaries): first the boolean's output
-    kept = otri[keep]
     ff = np.flatnonzero(~face_busy)  # the free pieces' faces
     source = np.concatenate([fid[keep], ff])  # the tube face of each triangle (the boolean kept the ids)
-    del otri, fid
-    del face_busy
-    nb = len(kept)
+    del fid, face_busy
+    nb = len(source) - len(ff)
     faces = np.empty((nb + len(ff), 3), np.int64)
-    np.take(point_of, kept, out=faces[:nb])
+    _kept_faces(point_of, otri, keep, faces)  # the boolean's triangles but the caps', on the points
     del point_of
-    if not corners:
-        kept = None
     if corners:
         normals = np.empty((len(faces), 3, 3), np.float32)
         uv = np.empty((len(faces), 3, 2), np.float32)
-        _corner_attributes(props, kept, normals, uv)
+        _corner_attributes(props, otri, keep, normals, uv)
     else:
         normals, uv = _no_corners(len(faces), 3, 3), _no_corners(len(faces), 3, 2)
-    del props, kept, face_tube, face_piece
+    del props, otri, keep, face_piece
     # then the free pieces: their points (ring points on a cut map onto the seam) and attributes
     wedges = tubes.faces[ff]
     del ff
@@ -978,15 +1016,54 @@ def _faces_of(ids, nf, tube_faces, cap_faces):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
-def _corner_attributes(props, tri, normals, uv):  # pragma: no cover - compiled
-    """Write the unit corner normals and the uv of the triangles ``tri`` from manifold's ``props`` into the first rows.
+def _face_pieces(face_offsets, sides, nspan, span_offsets, span_piece):  # pragma: no cover - compiled
+    """``(f,)``: the piece of every tube face: a wall face's span's, a base cap's first span's, a tip cap's last.
 
-    :func:`_unit_rows` of ``props[tri, 3:6]`` and ``props[tri, 6:]``, as float32, in one pass without the
-    (f, 3, 8) gather: the same bits (the norm sums x, y, z as ``np.linalg.norm`` does).
+    A tube's faces are its walls, two triangles per side and span, span after span, then its base cap's
+    ``sides`` triangles, then its tip cap's.
     """
-    for f in range(len(tri)):
+    out = np.empty(face_offsets[-1], np.int64)
+    for t in range(len(sides)):
+        s2 = 2 * sides[t]
+        body = s2 * nspan[t]
+        for f in range(face_offsets[t], face_offsets[t + 1]):
+            lf = f - face_offsets[t]
+            if lf < body:
+                span = lf // s2
+            elif lf < body + s2 // 2:
+                span = 0
+            else:
+                span = nspan[t] - 1
+            out[f] = span_piece[span_offsets[t] + span]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _kept_faces(point_of, tri, keep, faces):  # pragma: no cover - compiled
+    """Write ``point_of[tri[keep]]`` into the first rows of ``faces``, in one pass without the (f, 3) gather."""
+    f = 0
+    for t in range(len(tri)):
+        if keep[t]:
+            for c in range(3):
+                faces[f, c] = point_of[tri[t, c]]
+            f += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _corner_attributes(props, tri, keep, normals, uv):  # pragma: no cover - compiled
+    """Write the unit corner normals and the uv of the triangles ``tri[keep]`` from manifold's ``props`` into the
+    first rows.
+
+    :func:`_unit_rows` of ``props[tri[keep], 3:6]`` and ``props[tri[keep], 6:]``, as float32, in one pass without
+    the (f, 3) and (f, 3, 8) gathers: the same bits (the norm sums x, y, z as ``np.linalg.norm`` does).
+    """
+    f = -1
+    for t in range(len(tri)):
+        if not keep[t]:
+            continue
+        f += 1
         for c in range(3):
-            r = tri[f, c]
+            r = tri[t, c]
             x, y, z = props[r, 3], props[r, 4], props[r, 5]
             length = np.sqrt(x * x + y * y + z * z)
             if not length > 1e-12:
@@ -1081,11 +1158,66 @@ def _unit_rows(v: np.ndarray) -> np.ndarray:
 
 
 def _match_rows(have: np.ndarray, want: np.ndarray):
-    """Index into ``have`` of every row of ``want`` (exact match), or None if any is missing or twice."""
-    found = find_rows(have, want)
-    if (found < 0).any() or len(unique(found)) != len(found):
-        return None
-    return found
+    """Index into ``have`` of every row of ``want`` (exact match), or None if any is missing or twice.
+
+    :func:`~lsys3d.arrays.find_rows` and the check that no row is found twice,
+    in one pass over a hash table of ``have`` (no sort of the hashes).
+    """
+    have, want = np.ascontiguousarray(have), np.ascontiguousarray(want)
+    found, ok = _matched_rows(have, row_hash(have), want, row_hash(want))
+    return found if ok else None
+
+
+@numba.njit(cache=True, nogil=True)
+def _matched_rows(have, hh, want, hw):  # pragma: no cover - compiled
+    """:func:`_match_rows` by an open-addressing table of ``have`` (equal rows: the first), slot from a hash's top bits.
+
+    Rows match when their hashes (their bits: ``-0.0`` is not ``0.0``) and their values are equal, as in
+    :func:`~lsys3d.arrays.find_rows`.  Returns the indices and whether every row was found, none twice.
+    """
+    n = len(have)
+    found = np.full(len(want), -1, np.int64)
+    if n == 0:
+        return found, len(want) == 0
+    bits = 1
+    while (1 << bits) < 2 * n:
+        bits += 1
+    size = 1 << bits
+    table = np.full(size, -1, np.int64)
+    shift = np.uint64(64 - bits)
+    for i in range(n):
+        s = np.int64(hh[i] >> shift)
+        while True:
+            j = table[s]
+            if j < 0:
+                table[s] = i
+                break
+            if hh[j] == hh[i] and _same_row(have, j, have, i):
+                break  # the first of equal rows answers for them
+            s = (s + 1) & (size - 1)
+    taken = np.zeros(n, np.bool_)
+    for i in range(len(want)):
+        s = np.int64(hw[i] >> shift)
+        while True:
+            j = table[s]
+            if j < 0:
+                return found, False
+            if hh[j] == hw[i] and _same_row(have, j, want, i):
+                if taken[j]:
+                    return found, False
+                taken[j] = True
+                found[i] = j
+                break
+            s = (s + 1) & (size - 1)
+    return found, True
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _same_row(a, i, b, j):  # pragma: no cover - compiled
+    same = True
+    for c in range(a.shape[1]):
+        same &= a[i, c] == b[j, c]
+    return same
 
 
 def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> bool:
@@ -1095,22 +1227,67 @@ def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> b
     are checked: the rest of the mesh is known to be closed (a boolean's output,
     whole tube pieces) and only the seams where the parts were joined need it.
     """
-    # the edges' keys written a corner column at a time: no copy of the faces (a stitched plant's are 0.15 GB)
-    mine = [
-        np.ones(len(faces), bool) if near is None else near[faces[:, k]] | near[faces[:, (k + 1) % 3]] for k in range(3)
-    ]
-    ends = np.cumsum([0] + [int(m.sum()) for m in mine])
-    fwd, rev = np.empty(ends[-1], np.int64), np.empty(ends[-1], np.int64)
-    for k in range(3):
-        a, b = faces[mine[k], k], faces[mine[k], (k + 1) % 3]
-        np.add(a * nverts, b, out=fwd[ends[k] : ends[k + 1]])
-        np.add(b * nverts, a, out=rev[ends[k] : ends[k + 1]])
-    del a, b, mine
-    fwd.sort()
-    if len(fwd) > 1 and (fwd[1:] == fwd[:-1]).any():
-        return False
-    rev.sort()
-    return bool(np.array_equal(fwd, rev))
+    faces = np.ascontiguousarray(faces)
+    mask = np.ones(1, bool) if near is None else np.ascontiguousarray(near, bool)
+    index = np.int32 if nverts < 2**31 else np.int64  # the edges' far ends: half the memory of int64 keys
+    return bool(_closed_edges(faces, nverts, mask, near is not None, np.zeros(0, index)))
+
+
+@numba.njit(cache=True, nogil=True)
+def _closed_edges(faces, nverts, near, use_near, like):  # pragma: no cover - compiled
+    """:func:`_closed` by the checked edges grouped by their first end (a counting sort), without sorting keys.
+
+    The directed edges ``a -> b`` (those with an end in ``near`` if
+    ``use_near``) are listed per ``a``; there must be no edge twice, and for
+    every edge ``a -> b`` the edge ``b -> a`` must be listed.  With no edge
+    twice, every reverse being an edge is the same as the sorted edges equal to
+    the sorted reverses (one set maps one to one onto the other).  A vertex's
+    list is short; a long one (many triangles at one point) is sorted.
+    """
+    start = np.zeros(nverts + 1, np.int64)
+    for f in range(len(faces)):
+        for k in range(3):
+            a, b = faces[f, k], faces[f, (k + 1) % 3]
+            if not use_near or near[a] or near[b]:
+                start[a + 1] += 1
+    for v in range(nverts):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    far = np.empty(start[nverts], like.dtype)
+    for f in range(len(faces)):
+        for k in range(3):
+            a, b = faces[f, k], faces[f, (k + 1) % 3]
+            if not use_near or near[a] or near[b]:
+                far[fill[a]] = b
+                fill[a] += 1
+    for v in range(nverts):
+        lo, hi = start[v], start[v + 1]
+        if hi - lo > 16:
+            far[lo:hi] = np.sort(far[lo:hi])
+            for i in range(lo + 1, hi):
+                if far[i] == far[i - 1]:
+                    return False
+        else:
+            for i in range(lo + 1, hi):
+                for j in range(lo, i):
+                    if far[i] == far[j]:
+                        return False
+    for a in range(nverts):
+        for i in range(start[a], start[a + 1]):
+            b = far[i]
+            lo, hi = start[b], start[b + 1]
+            found = False
+            if hi - lo > 16:
+                j = lo + np.searchsorted(far[lo:hi], a)
+                found = j < hi and far[j] == a
+            else:
+                for j in range(lo, hi):
+                    if far[j] == a:
+                        found = True
+                        break
+            if not found:
+                return False
+    return True
 
 
 def _to_mesh(parts: list[Part], where: str, corners: bool = True) -> Mesh:

@@ -808,3 +808,88 @@ def test_components_are_labelled_by_their_smallest_node():
                         stack.append(y)
     assert np.array_equal(labels, expected)
     assert components(3, np.zeros(0, np.int64), np.zeros(0, np.int64)).tolist() == [0, 1, 2]
+
+
+# ---------------------------------------------------------------- compiled helpers against plain numpy references
+
+
+def _closed_by_sorting(faces, nverts, near=None):
+    """Every directed edge once and its reverse once, by sorting the edges' keys (the plain numpy check)."""
+    a, b = faces.ravel(), np.roll(faces, -1, axis=1).ravel()
+    if near is not None:
+        mine = near[a] | near[b]
+        a, b = a[mine], b[mine]
+    fwd, rev = np.sort(a * nverts + b), np.sort(b * nverts + a)
+    return bool(not (fwd[1:] == fwd[:-1]).any() and np.array_equal(fwd, rev))
+
+
+def test_closed_check_agrees_with_sorting_the_edges():
+    from lsys3d.union import _closed
+
+    rng = np.random.default_rng(5)
+    meshes = [lsys3d.union(sweep(random_tree(s, 12))) for s in range(3)]
+    fan = np.array([[0, k, k + 1] for k in range(1, 40)] + [[0, 40, 1]])  # a vertex with 40 edges (sorted lists)
+    fan = np.concatenate([fan, np.array([[41, k + 1, k] for k in range(1, 40)] + [[41, 1, 40]])])
+    cases = [(fan, 42)] + [(m.faces, len(m.vertices)) for m in meshes]
+    seen = set()
+    for faces, nv in cases:
+        flipped = faces.copy()
+        flipped[0] = flipped[0, [1, 0, 2]]
+        for f in (faces, faces[1:], faces[:, [0, 2, 1]], np.concatenate([faces, faces]), flipped):
+            for near in (None, rng.random(nv) < 0.2, np.zeros(nv, bool)):
+                want = _closed_by_sorting(f, nv, near)
+                assert _closed(f, nv, near) == want
+                seen.add(want)
+    assert seen == {True, False}
+
+
+def test_match_rows_agrees_with_find_rows():
+    from lsys3d.arrays import find_rows
+    from lsys3d.union import _match_rows
+
+    rng = np.random.default_rng(6)
+    found_some = False
+    for trial in range(200):
+        have = rng.integers(0, 3, (int(rng.integers(0, 30)), 3)).astype(float)
+        if trial % 2:
+            have = np.unique(have, axis=0)
+        if trial % 5 == 0 and len(have):
+            have[0, 0] = -0.0  # not the row of 0.0: bits differ
+        take = rng.permutation(len(have))[: int(rng.integers(0, len(have) + 1))]
+        want = have[take] if trial % 3 else rng.integers(0, 3, (len(take), 3)).astype(float)
+        ref = find_rows(have, want)
+        ok = (ref >= 0).all() and len(np.unique(ref)) == len(ref)
+        got = _match_rows(have, want)
+        assert (got is not None) == ok
+        if ok:
+            assert np.array_equal(got, ref)
+            found_some |= len(ref) > 3
+    assert found_some
+
+
+def test_corner_repair_and_float32_weld_kernels():
+    from lsys3d.mesh import Mesh, face_normals
+    from lsys3d.union import _repair_corners, _welded_faces
+
+    rng = np.random.default_rng(8)
+    vertices = rng.normal(size=(30, 3))
+    faces = rng.integers(0, 30, (40, 3))
+    normals = rng.choice([0.0, -0.0, 1.0, -2.0, np.nan, np.inf], size=(40, 3, 3)).astype(np.float32)
+    normals[0] = 0.0  # a zero normal is bad too
+    uv = rng.choice([-0.0, 0.5, np.nan, -np.inf], size=(40, 3, 2)).astype(np.float32)
+    bad = ~np.isfinite(normals).all(axis=2) | (normals == 0).all(axis=2)
+    want = normals + np.float32(0.0)
+    fn = np.nan_to_num(face_normals(vertices, faces).astype(np.float32))
+    fn[np.abs(fn).sum(axis=1) == 0] = (0.0, 1.0, 0.0)
+    want[bad] = np.broadcast_to(fn[:, None, :], want.shape)[bad] + np.float32(0.0)
+    want_uv = np.where(np.isfinite(uv), uv, np.float32(0.0))
+    mesh = Mesh(vertices, faces, normals, uv)
+    _repair_corners(mesh)
+    assert mesh.normals.tobytes() == want.tobytes() and mesh.uv.tobytes() == want_uv.tobytes()
+    assert not np.signbit(mesh.normals[mesh.normals == 0]).any()
+
+    point = rng.integers(0, 12, 30)  # the welded point of each vertex: many faces collapse
+    welded, keep = _welded_faces(faces, point)
+    p = point[faces]
+    want_keep = (p[:, 0] != p[:, 1]) & (p[:, 1] != p[:, 2]) & (p[:, 2] != p[:, 0])
+    assert np.array_equal(keep, want_keep) and np.array_equal(welded, p[want_keep]) and 0 < keep.sum() < 40
