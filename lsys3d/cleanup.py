@@ -50,9 +50,8 @@ from typing import NamedTuple
 import numpy as np
 
 from . import remesh
-from .arrays import components
 from .errors import GeometryError
-from .mesh import Mesh
+from .mesh import Mesh, crumbs
 from .options import Options, option
 from .sweep import Tubes
 from .union import _separate_float32  # the union's last step, which the cleanup's moves must keep true
@@ -123,8 +122,6 @@ class Cleaned:
 
 _ROOM_SHARE, _ROOM_MIN = 0.125, 1024
 """Room for the splits to start with: this share of the faces, plus this many (the presets make under 4 %)."""
-_CHUNK = 1 << 16
-"""Faces per chunk of the passes over every face in numpy (their temporaries stay small)."""
 
 
 def _tube_of_face(tubes: Tubes, source: np.ndarray) -> np.ndarray:
@@ -144,29 +141,13 @@ def _drop_crumbs(bark: Mesh) -> _Surface:
 
     Where coplanar tubes cross (the flat presets), a boolean can leave a
     tetrahedron of four triangles beside the plant, enclosing no volume or a
-    negative one.  A piece goes when it is small (under 1e-3 of the bark's
-    area) and flat (volume under 1e-3 area^1.5; a thin branch's is about 0.2
-    sqrt(r / L), far above).  A real separate part (after an ``f`` move) stays.
+    negative one: :func:`lsys3d.mesh.crumbs`, under 1e-3 of the bark's area.
     """
-    whole = _Surface(bark.vertices, bark.faces, bark.face_source)
-    label = components(len(bark.vertices), bark.faces.ravel(), np.roll(bark.faces, -1, axis=1).ravel())
-    piece = label[bark.faces[:, 0]]
-    if not len(piece) or (piece == piece[0]).all():  # one piece (most barks): no sort
-        return whole
-    names, face_piece = np.unique(piece, return_inverse=True)
-    volume, area = np.zeros(len(names)), np.zeros(len(names))
-    for start in range(0, len(bark.faces), _CHUNK):  # a chunk at a time: no (f, 3, 3) temporaries
-        part = slice(start, start + _CHUNK)
-        tri = bark.vertices[bark.faces[part]]
-        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
-        volume += np.bincount(face_piece[part], weights=six / 6.0, minlength=len(names))
-        area += np.bincount(face_piece[part], weights=0.5 * np.linalg.norm(cross, axis=1), minlength=len(names))
-    crumb = (area < 1e-3 * area.sum()) & (volume < 1e-3 * area**1.5)
+    crumb = crumbs(bark.vertices, bark.faces, 1e-3, inside_out=True)
     if not crumb.any():
-        return whole
-    keep = ~crumb[face_piece]
-    log.debug("cleanup: dropped %d crumbs of %d triangles", crumb.sum(), (~keep).sum())
+        return _Surface(bark.vertices, bark.faces, bark.face_source)
+    keep = ~crumb
+    log.debug("cleanup: dropped crumbs of %d triangles", crumb.sum())
     return _Surface(bark.vertices, bark.faces[keep], bark.face_source[keep])
 
 

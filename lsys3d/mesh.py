@@ -41,6 +41,8 @@ from types import MappingProxyType
 
 import numpy as np
 
+from .arrays import components
+
 __all__ = ["Mesh"]
 
 
@@ -282,3 +284,36 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(n, axis=1, keepdims=True)
     return n / np.where(length > 0, length, 1.0)
+
+
+_CRUMB_CHUNK = 1 << 16
+"""Faces per chunk of :func:`crumbs`' sums (no (f, 3, 3) temporaries)."""
+
+
+def crumbs(vertices: np.ndarray, faces: np.ndarray, smallest: float, inside_out: bool = False) -> np.ndarray:
+    """``(f,) bool``: the faces of the closed pieces of a mesh that enclose (almost) nothing: a boolean's crumbs.
+
+    Where several tubes meet at almost one point, or coplanar tubes cross,
+    a boolean can leave beside the plant a few separate pieces of 4-6
+    triangles that enclose no volume.  A piece is a crumb when it is both
+    small (area under ``smallest`` times the whole mesh's) and flat (volume
+    under 1e-3 area^1.5, where a thin tube's ratio is near 0.2 sqrt(r / L)):
+    real parts of a plant (a separate branch after an ``f`` move) stay.  With
+    ``inside_out``, a piece of negative volume counts as flat too.
+    """
+    faces = np.asarray(faces)
+    label = components(len(vertices), faces.ravel(), np.roll(faces, -1, axis=1).ravel())
+    piece = label[faces[:, 0]]
+    if not len(piece) or (piece == piece[0]).all():  # one piece (most meshes): no sort
+        return np.zeros(len(faces), bool)
+    names, face_piece = np.unique(piece, return_inverse=True)
+    volume, area = np.zeros(len(names)), np.zeros(len(names))
+    for start in range(0, len(faces), _CRUMB_CHUNK):
+        part = slice(start, start + _CRUMB_CHUNK)
+        tri = np.asarray(vertices, np.float64)[faces[part]]
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        six = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
+        volume += np.bincount(face_piece[part], weights=six / 6.0, minlength=len(names))
+        area += np.bincount(face_piece[part], weights=0.5 * np.linalg.norm(cross, axis=1), minlength=len(names))
+    flat = (volume if inside_out else np.abs(volume)) < 1e-3 * area**1.5
+    return ((area < smallest * area.sum()) & flat)[face_piece]

@@ -65,7 +65,7 @@ from .arrays import first_equal_row as _first_equal_row
 from .arrays import offsets as _offsets
 from .booleans import BooleanError, Part
 from .errors import GeometryError
-from .mesh import Mesh, face_normals
+from .mesh import Mesh, crumbs, face_normals
 from .options import Options, option
 from .sweep import Tubes
 from .touch import DEFAULT_MAX_PAIRS, buried_tubes, duplicate_tubes, free_stretches, pieces, touching
@@ -553,26 +553,12 @@ def _namer(jobs: union_jobs.Plan, what: str) -> Callable[[int], str]:
 
 
 def _crumbs(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """``(f,) bool``: the faces of the closed, flat crumbs a boolean can leave where many tubes meet.
-
-    Where several tubes cross at almost one point, manifold3d may return, beside
-    the tree, a few separate pieces of 4-6 triangles that enclose no volume
-    (seen on the ``tree`` preset: 17 of them, areas below 1e-6 m^2).  A piece is
-    a crumb when it is both tiny (area below 1e-6 of the whole) and flat (volume
-    below 1e-3 * area^1.5, where a thin tube's ratio is near 0.2 * sqrt(r/L)).
-    Real parts of a plant (a separate branch after an ``f`` move) are kept.
-    """
-    label = components(len(vertices), faces.ravel(), np.roll(faces, -1, axis=1).ravel())[faces[:, 0]]
-    piece = np.unique(label, return_inverse=True)[1].ravel()
-    if piece.max(initial=0) == 0:
-        return np.zeros(len(faces), bool)
-    tri = vertices[faces]
-    area = np.bincount(piece, 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1))
-    volume = np.abs(np.bincount(piece, np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])) / 6.0))
-    crumb = (area < 1e-6 * area.sum()) & (volume < 1e-3 * area**1.5)
+    """``(f,) bool``: the boolean's crumbs (:func:`lsys3d.mesh.crumbs`), under 1e-6 of the whole area
+    (seen on the ``tree`` preset: 17 of them, areas below 1e-6 m^2)."""
+    crumb = crumbs(vertices, faces, 1e-6)
     if crumb.any():
-        log.debug("union: dropped %d flat crumbs of %d triangles", int(crumb.sum()), int(crumb[piece].sum()))
-    return crumb[piece]
+        log.debug("union: dropped flat crumbs of %d triangles", int(crumb.sum()))
+    return crumb
 
 
 def _drop_crumbs(mesh: Mesh) -> Mesh:
