@@ -893,3 +893,24 @@ def test_corner_repair_and_float32_weld_kernels():
     p = point[faces]
     want_keep = (p[:, 0] != p[:, 1]) & (p[:, 1] != p[:, 2]) & (p[:, 2] != p[:, 0])
     assert np.array_equal(keep, want_keep) and np.array_equal(welded, p[want_keep]) and 0 < keep.sum() < 40
+
+
+def test_crumbs_are_small_flat_closed_pieces():
+    """A flat tetrahedron beside a box is a crumb, a small real box is not; inside out counts only when asked."""
+    from lsys3d.mesh import Mesh, crumbs
+
+    box = Mesh.box()
+    far = box.vertices + 10.0
+    flat = np.array([[0.0, 0, 0], [1e-3, 0, 0], [0, 1e-3, 0], [1e-3, 1e-3, 1e-12]]) + 5.0  # encloses ~nothing
+    tetra = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    small = 0.01 * box.vertices - 5.0  # a real part, just small
+    turned = box.faces[:, ::-1]  # an inside-out box: negative volume
+    vertices = np.concatenate([box.vertices, flat, small, far])
+    faces = np.concatenate([box.faces, tetra + 8, box.faces + 12, turned + 20])
+    nb = len(box.faces)
+    crumb = crumbs(vertices, faces, 1e-2)
+    assert crumb[nb : nb + 4].all() and not crumb[:nb].any() and not crumb[nb + 4 :].any()
+    # inside out: the turned box is flat by its signed volume, but too large a share of the area to go
+    assert not crumbs(vertices, faces, 1e-2, inside_out=True)[-nb:].any()
+    assert crumbs(vertices, faces, 0.5, inside_out=True)[-nb:].all()
+    assert not crumbs(box.vertices, box.faces, 1.0).any()  # one piece: nothing to drop
