@@ -1390,8 +1390,11 @@ def rescue(he, worst, height, flip):
                     g = he.opp[g]
                 if he.flags[_org(faces, g)] & (LOCKED | FEATURE):
                     continue
+                # whether the edge may collapse at all does not depend on where its ends meet: asked once
+                if not _collapse_topology_ok(he, g, buf_a, buf_b):
+                    continue
                 w = _dst(faces, g)
-                if _collapse_ok(he, g, p[w, 0], p[w, 1], p[w, 2], allowed, buf_a, buf_b) and (
+                if _collapse_geometry_ok(he, g, p[w, 0], p[w, 1], p[w, 2], allowed) and (
                     (_collapse_volume(he, g, p[w, 0], p[w, 1], p[w, 2])) <= budget
                 ):
                     _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
@@ -1405,7 +1408,7 @@ def rescue(he, worst, height, flip):
                         x = p[u, 0] + t * (p[w, 0] - p[u, 0])
                         y = p[u, 1] + t * (p[w, 1] - p[u, 1])
                         z = p[u, 2] + t * (p[w, 2] - p[u, 2])
-                        if _collapse_ok(he, g, x, y, z, allowed, buf_a, buf_b) and (
+                        if _collapse_geometry_ok(he, g, x, y, z, allowed) and (
                             (_collapse_volume(he, g, x, y, z)) <= budget
                         ):
                             _collapse(he, g, x, y, z)
