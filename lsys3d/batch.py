@@ -197,6 +197,9 @@ def run_job(job: Job, outdir: str | os.PathLike) -> dict:
     except MemoryError:
         line.update(status="failed", error="out of memory; use fewer iterations, or lower the limits")
     except Exception as exc:  # a bug, not the job's: record it and go on with the others
+        stop = _stop_inside(exc)
+        if stop is not None:  # the worker's stop signal, raised inside a compiled call that wrapped it
+            raise stop from None
         log.exception("job %s", job.id)
         line.update(status="failed", error=_one_line(f"internal error: {type(exc).__name__}: {exc}"))
     line["run"] = {
@@ -206,6 +209,22 @@ def run_job(job: Job, outdir: str | os.PathLike) -> dict:
         "worker": _worker_name(),
     }
     return line
+
+
+def _stop_inside(exc: BaseException) -> SystemExit | None:
+    """The SystemExit (a worker's SIGTERM) that caused ``exc``, if one did.
+
+    The signal's handler raises SystemExit wherever the worker is; inside a
+    numba call (unpickling a kernel's constants) it comes out wrapped in a
+    SystemError.  That is the batch being stopped, not the job failing.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, SystemExit):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def lost_line(job: Job, why: str) -> dict:

@@ -278,6 +278,32 @@ def test_sigterm_stops_the_batch_and_the_same_command_resumes(tmp_path):
     assert set(result.skipped) == done and len(result.done) == 4 - len(done) and result.failed == []
 
 
+def test_a_stop_signal_wrapped_by_a_compiled_call_stops_the_worker(tmp_path, monkeypatch):
+    """SIGTERM's SystemExit raised inside a numba call comes out as a SystemError: the batch is stopping,
+    the job has not failed (no traceback in the log, no failed line)."""
+    from lsys3d import pipeline
+    from lsys3d.batch import run_job
+
+    def interrupted(*args, **kw):
+        try:
+            raise SystemExit(143)
+        except SystemExit as exc:
+            raise SystemError("returned a result with an exception set") from exc
+
+    monkeypatch.setattr(pipeline, "generate", interrupted)
+    job = plan(write_project(tmp_path), tmp_path / "out").jobs[0]
+    with pytest.raises(SystemExit) as stop:
+        run_job(job, tmp_path / "out")
+    assert stop.value.code == 143
+
+    def broken(*args, **kw):
+        raise SystemError("a bug of ours")
+
+    monkeypatch.setattr(pipeline, "generate", broken)
+    line = run_job(job, tmp_path / "out")
+    assert line["status"] == "failed" and "internal error: SystemError" in line["error"]
+
+
 # ---------------------------------------------------------------- shards
 
 
