@@ -47,6 +47,8 @@ __all__ = [
     "ranges",
     "release_memory",
     "row_hash",
+    "row_table",
+    "same_row",
     "small_pages",
     "unique",
     "unit",
@@ -222,17 +224,16 @@ def first_equal_row(keys: np.ndarray) -> np.ndarray:
     [0, 1, 0, 1]
     """
     keys = np.ascontiguousarray(keys)
-    return _first_equal_row(keys, row_hash(keys))
+    return row_table(keys, row_hash(keys))[1]
 
 
 @numba.njit(cache=True, nogil=True)
-def _first_equal_row(keys, h):  # pragma: no cover - compiled
-    """:func:`first_equal_row` by an open-addressing table of the rows seen, slot from the hash's top bits.
-
-    One pass in row order: a row finds the first equal row before it (hashes
-    equal, then the rows compared), or is the first of its kind.  The answer
-    is defined by the rows alone, so it is the one a sort gives.
-    """
+def row_table(keys, h):  # pragma: no cover - compiled
+    """An open-addressing hash table of the rows of ``keys`` (their :func:`row_hash` ``h``), slot from a hash's
+    top bits, in one pass in row order: ``table`` (per slot, a row or -1; of equal rows, the first), ``owner``
+    (each row's first equal row: :func:`first_equal_row`) and ``shift`` (row ``i``'s probe starts at slot
+    ``h[i] >> shift`` and steps by one).  Rows sharing a hash are compared (:func:`same_row`), so the answer is
+    defined by the rows alone: the one a sort gives."""
     n = len(keys)
     bits = 1
     while (1 << bits) < 2 * n:
@@ -249,17 +250,20 @@ def _first_equal_row(keys, h):  # pragma: no cover - compiled
                 table[s] = i
                 owner[i] = i
                 break
-            if h[j] == h[i]:
-                same = True
-                for c in range(keys.shape[1]):
-                    if keys[j, c] != keys[i, c]:
-                        same = False
-                        break
-                if same:
-                    owner[i] = j
-                    break
+            if h[j] == h[i] and same_row(keys, j, keys, i):
+                owner[i] = j
+                break
             s = (s + 1) & (size - 1)
-    return owner
+    return table, owner, shift
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def same_row(a, i, b, j):  # pragma: no cover - compiled
+    """Whether row ``i`` of ``a`` equals row ``j`` of ``b``, value by value."""
+    same = True
+    for c in range(a.shape[1]):
+        same &= a[i, c] == b[j, c]
+    return same
 
 
 def components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:

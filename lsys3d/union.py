@@ -60,7 +60,7 @@ import numba
 import numpy as np
 
 from . import booleans, repeats, union_jobs
-from .arrays import components, dot3, gather, isin, ranges, release_memory, row_hash, unique
+from .arrays import components, dot3, gather, isin, ranges, release_memory, row_hash, row_table, same_row, unique
 from .arrays import first_equal_row as _first_equal_row
 from .arrays import offsets as _offsets
 from .booleans import BooleanError, Part
@@ -682,12 +682,7 @@ def _welded_faces(faces, point):  # pragma: no cover - compiled
         keep[f] = a != b and b != c and c != a
         count += keep[f]
     welded = np.empty((count, 3), np.int64)
-    k = 0
-    for f in range(len(faces)):
-        if keep[f]:
-            for j in range(3):
-                welded[k, j] = point[faces[f, j]]
-            k += 1
+    _kept_faces(point, faces, keep, welded)
     return welded, keep
 
 
@@ -1156,7 +1151,7 @@ def _match_rows(have: np.ndarray, want: np.ndarray):
 
 @numba.njit(cache=True, nogil=True)
 def _matched_rows(have, hh, want, hw):  # pragma: no cover - compiled
-    """:func:`_match_rows` by an open-addressing table of ``have`` (equal rows: the first), slot from a hash's top bits.
+    """:func:`_match_rows` by the hash table of ``have`` (:func:`~lsys3d.arrays.row_table`; equal rows: the first).
 
     Rows match when their hashes (their bits: ``-0.0`` is not ``0.0``) and their values are equal, as in
     :func:`~lsys3d.arrays.find_rows`.  Returns the indices and whether every row was found, none twice.
@@ -1165,22 +1160,8 @@ def _matched_rows(have, hh, want, hw):  # pragma: no cover - compiled
     found = np.full(len(want), -1, np.int64)
     if n == 0:
         return found, len(want) == 0
-    bits = 1
-    while (1 << bits) < 2 * n:
-        bits += 1
-    size = 1 << bits
-    table = np.full(size, -1, np.int64)
-    shift = np.uint64(64 - bits)
-    for i in range(n):
-        s = np.int64(hh[i] >> shift)
-        while True:
-            j = table[s]
-            if j < 0:
-                table[s] = i
-                break
-            if hh[j] == hh[i] and _same_row(have, j, have, i):
-                break  # the first of equal rows answers for them
-            s = (s + 1) & (size - 1)
+    table, _, shift = row_table(have, hh)
+    size = len(table)
     taken = np.zeros(n, np.bool_)
     for i in range(len(want)):
         s = np.int64(hw[i] >> shift)
@@ -1188,7 +1169,7 @@ def _matched_rows(have, hh, want, hw):  # pragma: no cover - compiled
             j = table[s]
             if j < 0:
                 return found, False
-            if hh[j] == hw[i] and _same_row(have, j, want, i):
+            if hh[j] == hw[i] and same_row(have, j, want, i):
                 if taken[j]:
                     return found, False
                 taken[j] = True
@@ -1196,14 +1177,6 @@ def _matched_rows(have, hh, want, hw):  # pragma: no cover - compiled
                 break
             s = (s + 1) & (size - 1)
     return found, True
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _same_row(a, i, b, j):  # pragma: no cover - compiled
-    same = True
-    for c in range(a.shape[1]):
-        same &= a[i, c] == b[j, c]
-    return same
 
 
 def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> bool:
