@@ -182,7 +182,8 @@ def _half_edges(bark: _Surface, tubes: Tubes, room: int, pool=None):
     except ValueError as exc:
         return str(exc)
     del scale, flags, reference
-    _mark(he, bark, part, flat, cap)
+    # the seams and rims flagged; the caps the boolean cut are no rims (``flat`` changes)
+    remesh.mark(he, len(bark.faces), part, cap, flat, np.zeros(int(cap.max(initial=-1)) + 1, bool))
     return he
 
 
@@ -262,12 +263,6 @@ def _clean_halves(
     del band, lock
     rest, rest_full = _clean_halves(he, rules, order, spawned, near, axis, depth - 1, threads)
     return done + rest, full or rest_full
-
-
-def _mark(he, bark: _Surface, part, flat, cap) -> None:
-    """Flag the vertices of seams and rims in ``he``; unflatten the caps the boolean cut (``flat`` is changed)."""
-    cut = np.zeros(int(cap.max(initial=-1)) + 1, bool)
-    remesh.mark(he, len(bark.faces), part, cap, flat, cut)
 
 
 def _clean(he, opt: CleanupOptions, budget: int, order=None, threads: int = 2):
