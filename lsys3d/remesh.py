@@ -853,6 +853,17 @@ def _flip(he, h):
 
 
 # ---------------------------------------------------------------------------------------- split
+@numba.njit(cache=True, nogil=True, inline="always")
+def _inherit(he, f, g):
+    """Face ``f`` takes what face ``g`` knows of the tube face it lies on: part, flatness, source, reference normal
+    (the normal element by element: a row copy would allocate, and the helpers run without numba's runtime)."""
+    he.face_part[f] = he.face_part[g]
+    he.face_flat[f] = he.face_flat[g]
+    he.face_source[f] = he.face_source[g]
+    for j in range(3):
+        he.reference[f, j] = he.reference[g, j]
+
+
 @_leaf
 def _split(he, h, t):
     """Split the edge of half-edge ``h`` at ``a + t (b - a)``: one new vertex, two new faces; the vertex or -1.
@@ -886,11 +897,7 @@ def _split(he, h, t):
     faces[g1, 0], faces[g1, 1], faces[g1, 2] = b, m, d
     for new, old in ((g0, f0), (g1, f1)):
         he.face_alive[new] = True
-        he.face_part[new] = he.face_part[old]
-        he.face_flat[new] = he.face_flat[old]
-        he.face_source[new] = he.face_source[old]
-        for j in range(3):  # element by element: a row copy would allocate (no runtime here)
-            he.reference[new, j] = he.reference[old, j]
+        _inherit(he, new, old)
     # f0: a->m, m->c, c->a; g0: m->b, b->c, c->m; f1: m->a, a->d, d->m; g1: b->m, m->d, d->b
     F0, G0, F1, G1 = 3 * f0, 3 * g0, 3 * f1, 3 * g1
     opp[F0], opp[F1] = F1, F0
@@ -1021,11 +1028,7 @@ def _snap(he, f, k, rules, buf_a, buf_b):
     across = t // 3
     _flip(he, g)
     for ff in (f, across):  # both faces are now halves of the face across
-        he.face_part[ff] = he.face_part[across]
-        he.face_flat[ff] = he.face_flat[across]
-        he.face_source[ff] = he.face_source[across]
-        for j in range(3):
-            he.reference[ff, j] = he.reference[across, j]
+        _inherit(he, ff, across)
     p[x, 0], p[x, 1], p[x, 2] = fx, fy, fz
     if on_seam:
         flags[x] |= SEAM
