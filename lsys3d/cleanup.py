@@ -124,10 +124,6 @@ _ROOM_SHARE, _ROOM_MIN = 0.125, 1024
 """Room for the splits to start with: this share of the faces, plus this many (the presets make under 4 %)."""
 
 
-def _tube_of_face(tubes: Tubes, source: np.ndarray) -> np.ndarray:
-    return np.searchsorted(tubes.face_offsets, source, side="right") - 1
-
-
 class _Surface(NamedTuple):
     """What the cleaning reads of the union's bark: its normals and uv are made anew at the end."""
 
@@ -157,13 +153,8 @@ def _classify(bark: _Surface, tubes: Tubes):
     A face's cap is ``2 tube + (0 at the base, 1 at the tip)``, -1 on the wall.
     """
     src = bark.face_source
-    part = _tube_of_face(tubes, src)
-    sides = tubes.sides[part]
-    local = src - tubes.face_offsets[part]
-    body = 2 * sides * (tubes.rings[part] - 1)
-    flat = local >= body
-    cap = np.where(flat, 2 * part + (local >= body + sides), -1)
-    del sides, local, body
+    part, cap = tubes.face_kinds(src)
+    flat = cap >= 0
     # the shortest edge of the tube faces around each vertex, whether it is a tube vertex, each face's tube normal
     scale, original, reference = remesh.tube_faces(
         bark.vertices, bark.faces, tubes.points, tubes.wedge_point, tubes.faces, src, 1e-4, 1e-5

@@ -139,18 +139,19 @@ class Rules(NamedTuple):
     """Stop after this many operations (a guard; never reached on sane input)."""
 
 
-def opposites(faces: np.ndarray, nv: int, pool=None) -> np.ndarray:
+def opposites(faces: np.ndarray, nv: int, pool=None, size: int = 0, dtype=np.int64) -> np.ndarray:
     """The opposite of each half-edge (-1 where none); ``[-2, ...]`` when a directed edge is used twice.
 
     Half-edges are listed by their origin (a counting sort), and each finds
     its reverse among those leaving its end: linear in the half-edges times
     the valence.  With a ``pool`` (an executor), one of its threads matches
     the half-edges of the second half of the vertices (the same result).
+    The array is ``size`` long (at least one per half-edge: -1 after them) of ``dtype``.
     """
     index = index_dtype(max(3 * len(faces), nv))  # int32 while it fits: half the memory
     half, head = np.empty(3 * len(faces), index), np.empty(3 * len(faces), index)
     start = _leaving(faces, nv, half, head)
-    opp = np.full(3 * len(faces), -1, np.int64)
+    opp = np.full(max(size, 3 * len(faces)), -1, dtype)
     middle = int(np.searchsorted(start, len(head) // 2))  # about as many half-edges on either side
     if not all(_in_two(pool, _match, (start, half, head, opp), 0, middle, nv)):
         opp[0] = -2
@@ -241,10 +242,10 @@ def build(
     largest = max(3 * fcap, vcap, int(np.max(face_source, initial=0)), int(np.max(face_part, initial=0)))
     index = index_dtype(largest, INDEX_LIMIT if index_limit is None else index_limit)
     org = faces.reshape(-1)
-    opp = opposites(faces, nv, pool)
-    if len(opp) and opp[0] == -2:
+    opp = opposites(faces, nv, pool, 3 * fcap, index)  # the largest array, made at its size and type
+    if nf and opp[0] == -2:
         raise ValueError("remesh.build: a directed edge is used twice (the mesh is not a consistent 2-manifold)")
-    if len(opp) and opp.min() < 0:
+    if nf and opp[: 3 * nf].min() < 0:
         raise ValueError("remesh.build: the mesh is not closed (a half-edge has no opposite)")
 
     def grow(a, n, fill, dtype=None):
@@ -254,37 +255,42 @@ def build(
         out[len(a) :] = fill
         return out
 
-    opp = grow(opp, 3 * fcap, -1, index)  # the int64 one goes here: it is the largest array
-    out = np.full(vcap, -1, index)
-    out[org[::-1]] = np.arange(3 * nf, dtype=index)[::-1]
-    he = HalfEdges(
-        points=grow(points, vcap, 0.0),
-        faces=grow(faces, fcap, 0, index),
-        opp=opp,
-        out=out,
-        face_alive=grow(np.ones(nf, bool), fcap, False),
-        vertex_alive=grow(np.ones(nv, bool), vcap, False),
-        flags=grow(flags, vcap, 0, index),
-        scale=grow(scale, vcap, 0.0, np.float64),
-        face_part=grow(face_part, fcap, -1, index),
-        face_flat=grow(face_flat, fcap, False, bool),
-        reference=grow(reference, fcap, 0.0, np.float64),
-        face_source=grow(face_source, fcap, -1, index),
-        vertex_origin=grow(np.arange(nv, dtype=index), vcap, -1),
-        counts=np.array([nv, nf, vcap, fcap], np.int64),
+    def leaving():  # one half-edge leaving each vertex: its first
+        out = np.full(vcap, -1, index)
+        out[org[::-1]] = np.arange(3 * nf, dtype=index)[::-1]
+        return out
+
+    # the arrays with their room, made in two shares (the pool's thread takes one; mostly page faults and copies)
+    made = (
+        ("reference", lambda: grow(reference, fcap, 0.0, np.float64)),
+        ("points", lambda: grow(points, vcap, 0.0)),
+        ("faces", lambda: grow(faces, fcap, 0, index)),
+        ("out", leaving),
+        ("face_source", lambda: grow(face_source, fcap, -1, index)),
+        ("face_part", lambda: grow(face_part, fcap, -1, index)),
+        ("scale", lambda: grow(scale, vcap, 0.0, np.float64)),
+        ("flags", lambda: grow(flags, vcap, 0, index)),
+        ("vertex_origin", lambda: grow(np.arange(nv, dtype=index), vcap, -1)),
+        ("face_flat", lambda: grow(face_flat, fcap, False, bool)),
+        ("face_alive", lambda: grow(np.ones(nf, bool), fcap, False)),
+        ("vertex_alive", lambda: grow(np.ones(nv, bool), vcap, False)),
     )
-    _lock_pinches(he, org)
+
+    def share(items):
+        return {name: make() for name, make in items}
+
+    arrays = share(made[1::2]) if pool is None else pool.submit(share, made[1::2])
+    arrays = {**share(made[::2]), **(arrays if pool is None else arrays.result())}
+    he = HalfEdges(**arrays, opp=opp, counts=np.array([nv, nf, vcap, fcap], np.int64))
+    _in_two(pool, _lock_pinches, (he, np.bincount(org, minlength=nv)), 0, nv // 2, nv)
     return he
 
 
 @numba.njit(cache=True, nogil=True)
-def _lock_pinches(he, org):
-    """Lock each vertex whose faces are not one fan (two cones touching at a point): a walk around it meets
-    fewer faces than it has."""
-    incidence = np.zeros(he.counts[0], np.int64)
-    for h in range(len(org)):
-        incidence[org[h]] += 1
-    for v in range(he.counts[0]):
+def _lock_pinches(he, incidence, lo, hi):
+    """Lock each vertex ``lo .. hi - 1`` whose faces are not one fan (two cones touching at a point): a walk
+    around it meets fewer faces than it has (``incidence``)."""
+    for v in range(lo, hi):
         h0 = he.out[v]
         n = 0
         if h0 >= 0:

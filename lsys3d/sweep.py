@@ -258,6 +258,13 @@ class Tubes:
         """CSR offsets of each tube's rings, ``(t + 1,) int64``."""
         return offsets(self.rings)
 
+    def face_kinds(self, face: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Of the faces ``face`` (indices into ``faces``): each one's tube, and its cap (``2 tube`` at the base,
+        ``2 tube + 1`` at the tip, -1 on the wall), ``(f,) int64`` each."""
+        tube, cap = np.empty(len(face), np.int64), np.empty(len(face), np.int64)
+        _face_kinds(np.ascontiguousarray(face), self.face_offsets, self.sides, self.rings, tube, cap)
+        return tube, cap
+
     def bounds(self) -> np.ndarray:
         """Axis-aligned box of each tube, ``(t, 2, 3)``."""
         if not len(self):
@@ -475,6 +482,20 @@ class Tubes:
             self.ring_radius,
             np.asarray(self.tiles, np.float64),
         )
+
+
+@numba.njit(cache=True, nogil=True)
+def _face_kinds(face, offsets, sides, rings, tube, cap):  # pragma: no cover - compiled
+    """:meth:`Tubes.face_kinds` into ``tube`` and ``cap``: a tube's ``2 s (rings - 1)`` wall faces, then ``s`` at
+    its base and ``s`` at its tip (the faces of a tube come together: its range is looked up once)."""
+    t = -1
+    for i in range(len(face)):
+        if t < 0 or not (offsets[t] <= face[i] < offsets[t + 1]):
+            t = np.searchsorted(offsets, face[i], side="right") - 1
+        tube[i] = t
+        local = face[i] - offsets[t]
+        body = 2 * sides[t] * (rings[t] - 1)
+        cap[i] = -1 if local < body else 2 * t + (local >= body + sides[t])
 
 
 @numba.njit(cache=True, nogil=True)
