@@ -1210,7 +1210,7 @@ def halves(he: HalfEdges, width: int, region=None, skip: int = -1):
     """
     nv = int(he.counts[0])
     alive = he.vertex_alive[:nv] if region is None else he.vertex_alive[:nv] & region[:nv]
-    points = he.points[:nv][alive]
+    points = he.points[:nv] if alive.all() else he.points[:nv][alive]  # no copy of a whole mesh
     extent = np.ptp(points, axis=0) if len(points) else np.zeros(3)
     if 0 <= skip < 3:
         extent[skip] = -1.0
@@ -1249,23 +1249,35 @@ def _sides(he, axis, cut, width, side, band, near):
         reach[a] |= 1 << s
         reach[b] |= 1 << s
         reach[c] |= 1 << s
+    # the distance in edges from a vertex with faces on both sides, up to width + 1: breadth first from those
     far = width + 2
     dist = np.full(nv, far, np.int64)
+    queue = np.empty(nv, np.int64)
+    top = 0
     for v in range(nv):
         if reach[v] == 3:
             dist[v] = 0
-    for level in range(1, width + 2):
-        for f in range(nf):
-            if not he.face_alive[f]:
-                continue
-            a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-            if min(dist[a], min(dist[b], dist[c])) == level - 1:
+            queue[top] = v
+            top += 1
+    head = 0
+    while head < top:
+        v = queue[head]
+        head += 1
+        h0 = he.out[v]
+        g = h0
+        while True:
+            f = g // 3
+            if dist[v] <= width:  # the faces around a vertex of the band: their corners one edge farther
                 for k in range(3):
-                    if dist[faces[f, k]] > level:
-                        dist[faces[f, k]] = level
-    for f in range(nf):
-        if he.face_alive[f] and min(dist[faces[f, 0]], min(dist[faces[f, 1]], dist[faces[f, 2]])) <= width + 1:
-            side[f] = 3
+                    w = faces[f, k]
+                    if dist[w] > dist[v] + 1:
+                        dist[w] = dist[v] + 1
+                        queue[top] = w
+                        top += 1
+            side[f] = 3  # a face with a corner within width + 1
+            g = he.opp[_prv(g)]
+            if g == h0:
+                break
     for v in range(nv):
         band[v] = dist[v] <= width
         near[v] = dist[v] <= width + 1
