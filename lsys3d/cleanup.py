@@ -269,7 +269,8 @@ def _clean(he, opt: CleanupOptions, budget: int, order=None, threads: int = 2):
         remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
         # the faired collars may have made a few needles
         done += remesh.clean(he, rules, closeness > 0, _NO_SIDE, 0, np.zeros(len(he.points), np.int64))
-    rescued = remesh.rescue(he, opt.rescue, opt.sliver, 10 * opt.flip_tolerance)
+    with _executor(threads, 1) as pool:  # the calling thread and this one look for what the rescue has to do
+        rescued = remesh.rescue(he, opt.rescue, opt.sliver, 10 * opt.flip_tolerance, pool)
     return done, faired, rescued, full or _full(he)
 
 

@@ -1333,8 +1333,7 @@ def _flip_volume(he, h):
     return 3.0 * abs(ex * cx + ey * cy + ez * cz) / max(area, 1e-300)
 
 
-@numba.njit(cache=True, nogil=True)
-def rescue(he, worst, height, flip):
+def rescue(he, worst, height, flip, pool=None):
     """The last resort for faces still worse than aspect ``worst`` or lower than ``height``; returns the count fixed.
 
     First, on every face, an edge so short that readers would weld its ends
@@ -1353,7 +1352,39 @@ def rescue(he, worst, height, flip):
     the local scale on average (the volume it changes over the area of the
     faces): on the flat presets, where long needles lie along the tubes,
     unguarded ones took abop-1.24e's bark down 2.7%.
+
+    The first round looks only at the faces that need it (found beforehand,
+    in two halves with a ``pool``): a face that needs nothing and that no
+    operation before it changed would be left as it is (the same result).
     """
+    now = np.zeros(len(he.faces), np.bool_)
+    nf = int(he.counts[1])
+    _in_two(pool, _needs_rescue, (he, worst, height, now), 0, nf // 2, nf)
+    return _rescue(he, worst, height, flip, now)
+
+
+@numba.njit(cache=True, nogil=True)
+def _needs_rescue(he, worst, height, now, lo, hi):
+    """Into ``now[lo:hi]``: whether :func:`rescue` has anything to do on each face (as it looks at it)."""
+    faces, p = he.faces, he.points
+    for f in range(lo, hi):
+        if not he.face_alive[f]:
+            continue
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        for k in range(3):
+            u, w = faces[f, k], faces[f, (k + 1) % 3]
+            weld = 1e-8 + 1e-6 * max(abs(p[w, 0]), max(abs(p[w, 1]), abs(p[w, 2])))
+            if _length(p, u, w) < weld and not ((he.flags[u] | he.flags[w]) & LOCKED):
+                now[f] = True
+        nx, ny, nz = _normal(p, a, b, c)
+        longest = max(_length(p, a, b), max(_length(p, b, c), _length(p, c, a)))
+        if not _aspect(p, a, b, c) <= worst or np.sqrt(nx * nx + ny * ny + nz * nz) < height * longest:
+            now[f] = True
+
+
+@numba.njit(cache=True, nogil=True)
+def _rescue(he, worst, height, flip, now):
+    """:func:`rescue`, the faces to look at first in ``now``."""
     faces, p = he.faces, he.points
     buf_a = np.empty(_MAX_RING, np.int64)
     buf_b = np.empty(_MAX_RING, np.int64)
@@ -1364,7 +1395,7 @@ def rescue(he, worst, height, flip):
     # _NEAR edges of a vertex the operation moved, merged or changed the valence of): what a face needs and
     # whether an operation on it is allowed depend on nothing farther, and a look that changes nothing has no
     # effect, so the result is that of looking at every face every round, at the cost of the changes.
-    now = np.ones(len(faces), np.bool_)  # look at it this round
+    # ``now``: look at it this round
     again = np.zeros(len(faces), np.bool_)  # and the next
     seen = np.zeros(len(p) + 1, np.int64)  # per vertex, the last walk that reached it; the walks' count last
     queue = np.empty(_NEAR_QUEUE, np.int64)
