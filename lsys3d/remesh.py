@@ -1707,12 +1707,22 @@ def fair(he, closeness, iterations, step, reach, inward, pool=None):
     Jacobi step's two passes are shared by the calling thread and one of the
     pool's (:func:`_in_two`; the same bits).  Returns the vertices moved.
     """
-    members, slot, around, first, nbr, start, normal = _fair_setup(he, closeness)
+    members, slot, around = _fair_setup(he, closeness)
     na, m = len(around), len(members)
+    pool = pool if m >= _FAIR_SHARE_MIN else None
+    first = np.zeros(na + 1, np.int64)  # the neighbours of the collar and its neighbours, as CSR lists
+    _in_two(pool, _valences, (he, around, first[1:]), 0, na // 2, na)
+    first = np.cumsum(first)
+    nbr = np.empty(first[na], np.int64)
+    _in_two(pool, _neighbours, (he, around, first, nbr), 0, na // 2, na)
+    p = he.points
+    start = p[members]  # where the collar was
+    # each vertex moves along its normal before the fairing (the moves are a fraction of a side; recomputing
+    # it every step cost 60% of the fairing)
+    normal = np.empty((m, 3))
+    _in_two(pool, _vertex_normals, (he, members, normal), 0, m // 2, m)
     lap = np.zeros((na, 3))
     target = np.zeros((m, 3))
-    p = he.points
-    pool = pool if m >= _FAIR_SHARE_MIN else None
     moving = (he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target)
     for _ in range(iterations):
         _in_two(pool, _laplacians, (p, around, first, nbr, lap), 0, na // 2, na)
@@ -1723,16 +1733,15 @@ def fair(he, closeness, iterations, step, reach, inward, pool=None):
 
 @numba.njit(cache=True, nogil=True)
 def _fair_setup(he, closeness):
-    """:func:`fair`'s collar vertices, their slots among them and their neighbours (``around``), the
-    neighbours of those as CSR lists, and the collar's positions and normals before the fairing."""
-    faces, p = he.faces, he.points
+    """:func:`fair`'s collar vertices, their slots among them and their neighbours, and those (``around``)."""
+    faces = he.faces
     nv = he.counts[0]
     member = np.zeros(nv, np.bool_)
     for v in range(nv):
         if closeness[v] > 0.0 and he.vertex_alive[v] and he.out[v] >= 0 and not (he.flags[v] & (LOCKED | FEATURE)):
             member[v] = True
     members = np.flatnonzero(member)
-    # the collar and its neighbours (where the Laplacian is needed), with their neighbours as CSR lists
+    # the collar and its neighbours (where the Laplacian is needed)
     slot = np.full(nv, -1, np.int64)
     around = np.empty(nv, np.int64)
     na = 0
@@ -1752,29 +1761,31 @@ def _fair_setup(he, closeness):
             g = he.opp[_prv(g)]
             if g == h0:
                 break
-    around = around[:na]
-    first = np.zeros(na + 1, np.int64)
-    for i in range(na):
-        first[i + 1] = first[i] + _valence(he, around[i])
-    nbr = np.empty(first[na], np.int64)
-    for i in range(na):
-        h0 = he.out[around[i]]
-        g = h0
-        k = first[i]
-        while k < first[i + 1]:
-            nbr[k] = _dst(faces, g)
-            k += 1
+    return members, slot, around[:na]
+
+
+@numba.njit(cache=True, nogil=True)
+def _valences(he, around, count, lo, hi):
+    """``count[lo:hi]``: how many neighbours ``around[lo:hi]`` have."""
+    for i in range(lo, hi):
+        count[i] = _valence(he, around[i])
+
+
+@numba.njit(cache=True, nogil=True)
+def _neighbours(he, around, first, nbr, lo, hi):
+    """The neighbours of ``around[lo:hi]`` into ``nbr[first[i]:first[i + 1]]``."""
+    for i in range(lo, hi):
+        g = he.out[around[i]]
+        for k in range(first[i], first[i + 1]):
+            nbr[k] = _dst(he.faces, g)
             g = he.opp[_prv(g)]
-    start = np.empty((len(members), 3))
-    for i in range(len(members)):
-        v = members[i]
-        start[i, 0], start[i, 1], start[i, 2] = p[v, 0], p[v, 1], p[v, 2]
-    # each vertex moves along its normal before the fairing (the moves are a fraction of a side; recomputing
-    # it every step cost 60% of the fairing)
-    normal = np.empty((len(members), 3))
-    for i in range(len(members)):
+
+
+@numba.njit(cache=True, nogil=True)
+def _vertex_normals(he, members, normal, lo, hi):
+    """``normal[lo:hi]``: the normals of ``members[lo:hi]`` (:func:`_vertex_normal`)."""
+    for i in range(lo, hi):
         normal[i, 0], normal[i, 1], normal[i, 2] = _vertex_normal(he, members[i])
-    return members, slot, around, first, nbr, start, normal
 
 
 @numba.njit(cache=True, nogil=True)
