@@ -361,7 +361,8 @@ def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None, thr
         "faired": int(faired),
     }
     log.debug("cleanup: %s", operations)
-    points, faces, _, fflat, fsrc, origin, _ = remesh.compact(he)
+    with _executor(threads, 1) as pool:
+        points, faces, _, fflat, fsrc, origin, _ = remesh.compact(he, pool)
     return (points, faces, fflat, fsrc, origin), operations
 
 

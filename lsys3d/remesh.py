@@ -304,25 +304,45 @@ def _lock_pinches(he, incidence, lo, hi):
             he.flags[v] |= LOCKED
 
 
-def compact(he: HalfEdges):
-    """The live mesh: ``points, faces, face_part, face_flat, face_source, vertex_origin, flags``, renumbered."""
+def compact(he: HalfEdges, pool=None):
+    """The live mesh: ``points, faces, face_part, face_flat, face_source, vertex_origin, flags``, renumbered.
+
+    With a ``pool`` (an executor), one of its threads copies the second half of the faces (the same arrays).
+    """
     nv, nf = int(he.counts[0]), int(he.counts[1])
     fa = np.flatnonzero(he.face_alive[:nf])
-    faces = he.faces[fa]
     used = np.zeros(nv, bool)
-    used[faces.reshape(-1)] = True
+    _corners_used(he.faces, fa, used)
     keep = np.flatnonzero(used)
     renumber = np.full(nv, -1, np.int64)
     renumber[keep] = np.arange(len(keep))
-    return (  # int64 whatever the half-edges' index type
-        he.points[keep],
-        renumber[faces],
-        he.face_part[fa].astype(np.int64),
-        he.face_flat[fa],
-        he.face_source[fa].astype(np.int64),
-        he.vertex_origin[keep].astype(np.int64),
-        he.flags[keep].astype(np.int64),
-    )
+    n = len(fa)
+    faces, part, source = np.empty((n, 3), np.int64), np.empty(n, np.int64), np.empty(n, np.int64)
+    flat = np.empty(n, bool)
+    _in_two(pool, _compact_faces, (he, fa, renumber, faces, part, flat, source), 0, n // 2, n)
+    origin, flags = he.vertex_origin[keep].astype(np.int64), he.flags[keep].astype(np.int64)
+    return he.points[keep], faces, part, flat, source, origin, flags  # int64 whatever the half-edges' index type
+
+
+@numba.njit(cache=True, nogil=True)
+def _corners_used(faces, fa, used):
+    """``used[v]``: ``v`` is a corner of one of the faces ``fa``."""
+    for f in fa:
+        used[faces[f, 0]] = True
+        used[faces[f, 1]] = True
+        used[faces[f, 2]] = True
+
+
+@numba.njit(cache=True, nogil=True)
+def _compact_faces(he, fa, renumber, faces, part, flat, source, lo, hi):
+    """:func:`compact`'s faces ``fa[lo:hi]``: corners renumbered, part, flatness and source."""
+    for i in range(lo, hi):
+        f = fa[i]
+        for k in range(3):
+            faces[i, k] = renumber[he.faces[f, k]]
+        part[i] = he.face_part[f]
+        flat[i] = he.face_flat[f]
+        source[i] = he.face_source[f]
 
 
 @numba.njit(cache=True, nogil=True)
