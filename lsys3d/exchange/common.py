@@ -11,6 +11,7 @@ import logging
 import re
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from ..arrays import first_equal_row, isin, unique
@@ -123,7 +124,7 @@ class MeshArrays:
 
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
-_SLICE = 1 << 20  # corners compared at once when splitting (bounds the temporaries)
+_SLICE = 1 << 20  # normals checked at once (bounds the temporaries)
 
 
 def to_float32(values, what: str, where: str) -> np.ndarray:
@@ -297,20 +298,10 @@ def _split(points, corner_v, normals, uv, colors=None):
     m = corner_v.size
     rep = np.empty(n, _index_type(m))
     rep[corner_v] = np.arange(m, dtype=rep.dtype)  # any corner of each point will do
-    # compare bit patterns, a few columns and a slice of corners at a time (normals were normalised, -0.0 folded)
-    raw = normals.view(np.uint8).reshape(-1)
-    xy = np.ndarray((m,), np.dtype(np.uint64), raw, 0, (12,))
-    z = normals.view(np.uint32)[:, 2]
-    uv64 = None if uv is None else uv.view(np.uint64).reshape(-1)
+    # compare bit patterns (normals were normalised, -0.0 folded), one compiled pass
     same = np.empty(m, bool)
-    for lo in range(0, m, _SLICE):
-        hi = min(lo + _SLICE, m)
-        r = rep[corner_v[lo:hi]]
-        same[lo:hi] = xy[lo:hi] == xy[r]
-        same[lo:hi] &= z[lo:hi] == z[r]
-        if uv64 is not None:
-            same[lo:hi] &= uv64[lo:hi] == uv64[r]
-    del r
+    no_uv = np.zeros((0, 2), np.uint32)
+    _same_as_rep(corner_v, rep, normals.view(np.uint32), no_uv if uv is None else uv.view(np.uint32), same)
     split_index = corner_v.astype(np.uint32)
     extra = np.flatnonzero(~same)
     corners = rep
@@ -321,8 +312,9 @@ def _split(points, corner_v, normals, uv, colors=None):
             cols.append(uv[extra].view(np.uint32))
         owner = first_equal_row(np.concatenate(cols, axis=1))
         # the new vertices numbered in order of first use, so the output does not depend on the sort
-        first = np.flatnonzero(owner == np.arange(len(owner)))
-        split_index[extra] = (n + np.searchsorted(first, owner)).astype(np.uint32)
+        is_first = owner == np.arange(len(owner))
+        first = np.flatnonzero(is_first)
+        split_index[extra] = (n - 1 + np.cumsum(is_first)[owner]).astype(np.uint32)  # n + its rank among the firsts
         new_corners = extra[first]
         corners = np.concatenate([rep, new_corners])
         vertex_of_split = np.concatenate([np.arange(n), corner_v[new_corners]])
@@ -333,6 +325,20 @@ def _split(points, corner_v, normals, uv, colors=None):
     if colors is not None:  # a colour belongs to the point: split vertices copy their point's
         split_colors = colors if vertex_of_split is None else colors[vertex_of_split]
     return split_index, split_points, split_normals, split_uv, split_colors, vertex_of_split
+
+
+@numba.njit(cache=True, nogil=True)
+def _same_as_rep(corner_v, rep, normal_bits, uv_bits, same):  # pragma: no cover - compiled
+    """``same[i]``: corner ``i`` has the bits of normal and uv of its point's representative corner ``rep``
+    (``uv_bits`` empty: no uv)."""
+    has_uv = len(uv_bits) > 0
+    for i in range(len(corner_v)):
+        r = rep[corner_v[i]]
+        s = normal_bits[i, 0] == normal_bits[r, 0] and normal_bits[i, 1] == normal_bits[r, 1]
+        s = s and normal_bits[i, 2] == normal_bits[r, 2]
+        if has_uv:
+            s = s and uv_bits[i, 0] == uv_bits[r, 0] and uv_bits[i, 1] == uv_bits[r, 1]
+        same[i] = s
 
 
 def split_tangents(arrays: MeshArrays) -> np.ndarray:
