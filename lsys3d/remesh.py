@@ -1391,15 +1391,25 @@ def _needs_rescue(he, worst, height, now, lo, hi):
         if not he.face_alive[f]:
             continue
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        for k in range(3):
-            u, w = faces[f, k], faces[f, (k + 1) % 3]
-            weld = 1e-8 + 1e-6 * max(abs(p[w, 0]), max(abs(p[w, 1]), abs(p[w, 2])))
-            if _length(p, u, w) < weld and not ((he.flags[u] | he.flags[w]) & LOCKED):
-                now[f] = True
-        nx, ny, nz = _normal(p, a, b, c)
-        longest = max(_length(p, a, b), max(_length(p, b, c), _length(p, c, a)))
-        if not _aspect(p, a, b, c) <= worst or np.sqrt(nx * nx + ny * ny + nz * nz) < height * longest:
-            now[f] = True
+        weld = _weldable(he, a, b) or _weldable(he, b, c) or _weldable(he, c, a)
+        now[f] = weld or not _aspect(p, a, b, c) <= worst or _low(p, a, b, c, height)
+
+
+@_leaf
+def _weldable(he, u, w):
+    """Whether edge ``u w`` is so short that readers would weld its ends (float32, trimesh's 1e-8 grid), and
+    neither end is locked."""
+    p = he.points
+    weld = 1e-8 + 1e-6 * max(abs(p[w, 0]), max(abs(p[w, 1]), abs(p[w, 2])))
+    return _length(p, u, w) < weld and not ((he.flags[u] | he.flags[w]) & LOCKED)
+
+
+@_leaf
+def _low(p, a, b, c, height):
+    """Whether triangle ``a b c`` is lower than ``height`` (twice its area over its longest edge)."""
+    nx, ny, nz = _normal(p, a, b, c)
+    longest = max(_length(p, a, b), max(_length(p, b, c), _length(p, c, a)))
+    return np.sqrt(nx * nx + ny * ny + nz * nz) < height * longest
 
 
 @numba.njit(cache=True, nogil=True)
@@ -1430,9 +1440,7 @@ def _rescue(he, worst, height, flip, now):
             for k in range(3):
                 g = 3 * f + k
                 u, w = faces[f, k], faces[f, (k + 1) % 3]
-                weld = 1e-8 + 1e-6 * max(abs(p[w, 0]), max(abs(p[w, 1]), abs(p[w, 2])))
-                close = _length(p, u, w) < weld and not ((he.flags[u] | he.flags[w]) & LOCKED)
-                if close and _collapse_ok(he, g, p[w, 0], p[w, 1], p[w, 2], 1e300, buf_a, buf_b, False):
+                if _weldable(he, u, w) and _collapse_ok(he, g, p[w, 0], p[w, 1], p[w, 2], 1e300, buf_a, buf_b, False):
                     _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
                     _touch_near(he, w, now, again, seen, queue)
                     changed += 1
@@ -1441,9 +1449,7 @@ def _rescue(he, worst, height, flip, now):
                 continue
             a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
             bad = _aspect(p, a, b, c)
-            nx, ny, nz = _normal(p, a, b, c)
-            longest = max(_length(p, a, b), max(_length(p, b, c), _length(p, c, a)))
-            low = np.sqrt(nx * nx + ny * ny + nz * nz) < height * longest  # twice the area over the longest edge
+            low = _low(p, a, b, c, height)
             if bad <= worst and not low:
                 continue
             # a sliver goes whatever it leaves around (as long as nothing turns over)
@@ -1893,8 +1899,9 @@ def _fair_finish(he, closeness, members, start):
                     reverted += 1
                     g = h0
                     while True:  # its neighbours among the members (ascending) are to be looked at again
-                        j = np.searchsorted(members, _dst(faces, g))
-                        if j < m and members[j] == _dst(faces, g):
+                        w = _dst(faces, g)
+                        j = np.searchsorted(members, w)
+                        if j < m and members[j] == w:
                             dirty[j] = True
                         g = he.opp[_prv(g)]
                         if g == h0:
