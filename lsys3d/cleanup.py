@@ -261,15 +261,15 @@ def _clean(he, opt: CleanupOptions, budget: int, order=None, threads: int = 2):
     rules = remesh.Rules(opt.short, opt.limit, opt.bad, opt.flip_tolerance, opt.long, opt.step, opt.fallback, budget)
     done, full = _clean_halves(he, rules, order, threads=threads)
     faired = 0
-    if opt.smooth:
-        closeness = np.zeros(len(he.points))
-        remesh.collar(he, opt.collar, closeness)
-        with _executor(threads, 1) as pool:  # the calling thread and this one share the fairing's steps
+    # the calling thread and this one share the fairing's steps, and look for what the rescue has to do
+    with _executor(threads, 1) as pool:
+        if opt.smooth:
+            closeness = np.zeros(len(he.points))
+            remesh.collar(he, opt.collar, closeness)
             faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False, pool)
-        remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
-        # the faired collars may have made a few needles
-        done += remesh.clean(he, rules, closeness > 0, _NO_SIDE, 0, np.zeros(len(he.points), np.int64))
-    with _executor(threads, 1) as pool:  # the calling thread and this one look for what the rescue has to do
+            remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
+            # the faired collars may have made a few needles
+            done += remesh.clean(he, rules, closeness > 0, _NO_SIDE, 0, np.zeros(len(he.points), np.int64))
         rescued = remesh.rescue(he, opt.rescue, opt.sliver, 10 * opt.flip_tolerance, pool)
     return done, faired, rescued, full or _full(he)
 

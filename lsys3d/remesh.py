@@ -260,28 +260,24 @@ def build(
         out[org[::-1]] = np.arange(3 * nf, dtype=index)[::-1]
         return out
 
-    # the arrays with their room, made in two shares (the pool's thread takes one; mostly page faults and copies)
+    # the arrays with their room, made in two shares (:func:`_in_two`: the pool's thread takes the second; mostly
+    # page faults and copies)
     made = (
         ("reference", lambda: grow(reference, fcap, 0.0, np.float64)),
-        ("points", lambda: grow(points, vcap, 0.0)),
         ("faces", lambda: grow(faces, fcap, 0, index)),
-        ("out", leaving),
         ("face_source", lambda: grow(face_source, fcap, -1, index)),
-        ("face_part", lambda: grow(face_part, fcap, -1, index)),
         ("scale", lambda: grow(scale, vcap, 0.0, np.float64)),
-        ("flags", lambda: grow(flags, vcap, 0, index)),
         ("vertex_origin", lambda: grow(np.arange(nv, dtype=index), vcap, -1)),
-        ("face_flat", lambda: grow(face_flat, fcap, False, bool)),
         ("face_alive", lambda: grow(np.ones(nf, bool), fcap, False)),
+        ("points", lambda: grow(points, vcap, 0.0)),
+        ("out", leaving),
+        ("face_part", lambda: grow(face_part, fcap, -1, index)),
+        ("flags", lambda: grow(flags, vcap, 0, index)),
+        ("face_flat", lambda: grow(face_flat, fcap, False, bool)),
         ("vertex_alive", lambda: grow(np.ones(nv, bool), vcap, False)),
     )
-
-    def share(items):
-        return {name: make() for name, make in items}
-
-    arrays = share(made[1::2]) if pool is None else pool.submit(share, made[1::2])
-    arrays = {**share(made[::2]), **(arrays if pool is None else arrays.result())}
-    he = HalfEdges(**arrays, opp=opp, counts=np.array([nv, nf, vcap, fcap], np.int64))
+    shares = _in_two(pool, lambda lo, hi: {name: make() for name, make in made[lo:hi]}, (), 0, 6, len(made))
+    he = HalfEdges(**shares[0], **shares[1], opp=opp, counts=np.array([nv, nf, vcap, fcap], np.int64))
     _in_two(pool, _lock_pinches, (he, np.bincount(org, minlength=nv)), 0, nv // 2, nv)
     return he
 
