@@ -484,18 +484,26 @@ class Tubes:
         )
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _face_place(face, offsets, sides, rings, t):  # pragma: no cover - compiled
+    """Where tube face ``face`` lies: its tube (``t``, the tube of the face before, is tried first: the faces of
+    a tube come together), its index among the tube's faces, and its end: -1 on the wall, 0 in the base's cap, 1
+    in the tip's (a tube has ``2 s (rings - 1)`` wall faces, then ``s`` at its base and ``s`` at its tip)."""
+    if t < 0 or not (offsets[t] <= face < offsets[t + 1]):
+        t = np.searchsorted(offsets, face, side="right") - 1
+    local = face - offsets[t]
+    body = 2 * sides[t] * (rings[t] - 1)
+    return t, local, -1 if local < body else (1 if local >= body + sides[t] else 0)
+
+
 @numba.njit(cache=True, nogil=True)
 def _face_kinds(face, offsets, sides, rings, tube, cap):  # pragma: no cover - compiled
-    """:meth:`Tubes.face_kinds` into ``tube`` and ``cap``: a tube's ``2 s (rings - 1)`` wall faces, then ``s`` at
-    its base and ``s`` at its tip (the faces of a tube come together: its range is looked up once)."""
+    """:meth:`Tubes.face_kinds` into ``tube`` and ``cap`` (:func:`_face_place`)."""
     t = -1
     for i in range(len(face)):
-        if t < 0 or not (offsets[t] <= face[i] < offsets[t + 1]):
-            t = np.searchsorted(offsets, face[i], side="right") - 1
+        t, _, end = _face_place(face[i], offsets, sides, rings, t)
         tube[i] = t
-        local = face[i] - offsets[t]
-        body = 2 * sides[t] * (rings[t] - 1)
-        cap[i] = -1 if local < body else 2 * t + (local >= body + sides[t])
+        cap[i] = -1 if end < 0 else 2 * t + end
 
 
 @numba.njit(cache=True, nogil=True)
@@ -526,14 +534,11 @@ def _uv_at(  # pragma: no cover - compiled
     last = -1  # the wall span whose frame is in (ux, uy, uz), (bx, by, bz): the faces of a span come together
     ux = uy = uz = bx = by = bz = 0.0
     for i in range(lo, hi):
-        if t < 0 or not (offsets[t] <= face[i] < offsets[t + 1]):
-            t = np.searchsorted(offsets, face[i], side="right") - 1
+        t, local, end = _face_place(face[i], offsets, sides, rings, t)
         s = sides[t]
-        local = face[i] - offsets[t]
-        body = 2 * s * (rings[t] - 1)
         first = ring_offsets[t]
-        if local >= body:  # a cap: planar, at the density of the wall at its ring
-            ring = first + rings[t] - 1 if local >= body + s else first
+        if end >= 0:  # a cap: planar, at the density of the wall at its ring
+            ring = first + rings[t] - 1 if end == 1 else first
             ax, ay, az = axis[ring, 0], axis[ring, 1], axis[ring, 2]
             tx, ty, tz = tangent[ring, 0], tangent[ring, 1], tangent[ring, 2]
             cx, cy, cz = ty * az - tz * ay, tz * ax - tx * az, tx * ay - ty * ax
