@@ -54,9 +54,9 @@ from .errors import GeometryError
 from .mesh import Mesh, crumbs
 from .options import Options, option
 from .sweep import Tubes
-from .union import _separate_float32  # the union's last step, which the cleanup's moves must keep true
+from .union import Junctions, _separate_float32  # _separate_float32: the union's last step, kept true here
 
-__all__ = ["Cleaned", "CleanupOptions", "clean_mesh", "cleanup", "smooth_normals", "tube_uv"]
+__all__ = ["Cleaned", "CleanupOptions", "clean_junctions", "clean_mesh", "cleanup", "smooth_normals", "tube_uv"]
 
 log = logging.getLogger("lsys3d")
 
@@ -147,25 +147,55 @@ def _drop_crumbs(bark: Mesh) -> _Surface:
     return _Surface(bark.vertices, bark.faces[keep], bark.face_source[keep])
 
 
-def _classify(bark: _Surface, tubes: Tubes):
+def _classify(bark: _Surface, tubes: Tubes, caps: Junctions | None = None):
     """Per face: tube, flat (cap), which cap, reference normal; per vertex: scale and flags (:mod:`lsys3d.remesh`).
 
     A face's cap is ``2 tube + (0 at the base, 1 at the tip)``, -1 on the wall.
+    With ``caps`` (:class:`lsys3d.union.Junctions`), the sources are faces
+    of the union's own tubes (``caps.origin`` says which face of ``tubes``
+    each lies in), and from ``len(caps.origin)`` on faces of temporary caps:
+    flat, cap ``2 len(tubes) + its number``, the tube of ``caps.cap_face``,
+    their points :data:`~lsys3d.remesh.PINNED`.  Everything else is read from
+    the faces of ``tubes`` the faces lie in, as for the bark of the whole
+    union: the union's own rings are no shape to keep.
     """
-    src = bark.face_source
-    part, cap = tubes.face_kinds(src)
+    if caps is None:
+        src = bark.face_source
+        part, cap = tubes.face_kinds(src)
+        points, wedge_point, table = tubes.points, tubes.wedge_point, tubes.faces
+    else:
+        n = len(caps.origin)
+        temp = bark.face_source >= n
+        k = bark.face_source[temp] - n
+        lies = caps.origin[np.where(temp, 0, bark.face_source)]
+        lies[temp] = caps.cap_face[k]
+        part, cap = tubes.face_kinds(lies)
+        cap[temp] = 2 * len(tubes) + caps.cap_number[k]
+        # the corners of the tube faces the junctions lie in, then the caps' own (not a copy of all the tubes)
+        used, inverse = np.unique(lies[~temp], return_inverse=True)
+        corners = np.concatenate([tubes.points[tubes.wedge_point[tubes.faces[used]]], bark.vertices[bark.faces[temp]]])
+        src = np.empty(len(temp), np.int64)
+        src[~temp] = inverse
+        src[temp] = len(used) + np.arange(int(temp.sum()))
+        points = corners.reshape(-1, 3)
+        wedge_point = np.arange(len(points))
+        table = wedge_point.reshape(-1, 3)
     flat = cap >= 0
     # the shortest edge of the tube faces around each vertex, whether it is a tube vertex, each face's tube normal
     scale, original, reference = remesh.tube_faces(
-        bark.vertices, bark.faces, tubes.points, tubes.wedge_point, tubes.faces, src, 1e-4, 1e-5
+        bark.vertices, bark.faces, points, wedge_point, table, src, 1e-4, 1e-5
     )
     flags = np.where(original, remesh.ORIGINAL, 0).astype(np.int64)
+    if caps is not None:
+        flags[np.unique(bark.faces[temp])] |= remesh.PINNED
     return part, flat, cap, scale, flags, reference
 
 
-def _half_edges(bark: _Surface, tubes: Tubes, room: int, pool=None):
-    """The half-edges of ``bark`` with ``room`` for splits, classified and marked; the reason if it is not closed."""
-    part, flat, cap, scale, flags, reference = _classify(bark, tubes)
+def _half_edges(bark: _Surface, tubes: Tubes, room: int, pool=None, caps: Junctions | None = None):
+    """The half-edges of ``bark`` with ``room`` for splits, classified and marked; the reason if it is not closed.
+
+    ``caps``: the temporary caps of :class:`lsys3d.union.Junctions` (see :func:`_classify`)."""
+    part, flat, cap, scale, flags, reference = _classify(bark, tubes, caps)
     try:
         he = remesh.build(
             bark.vertices, bark.faces, flags, scale, part, flat, reference, bark.face_source, room, pool=pool
@@ -274,7 +304,9 @@ def _clean(he, opt: CleanupOptions, budget: int, order=None, threads: int = 2):
     return done, faired, rescued, full or _full(he)
 
 
-def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None, threads: int = 2) -> Cleaned:
+def clean_mesh(
+    bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None, threads: int = 2, junctions: bool = False
+) -> Cleaned:
     """Clean a unioned bark (see the module's documentation); the mesh and the map of its vertices.
 
     Parameters
@@ -287,6 +319,9 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None, 
     threads : int
         2 (the default): the passes that can are shared with other threads;
         1: all in the calling thread (a tree per core).  The same bytes either way.
+    junctions : bool
+        The union cleaned the junctions already (:func:`clean_junctions`, through
+        :func:`lsys3d.union.union_cleaning_junctions`): only the normals and uv are made.
 
     Returns
     -------
@@ -298,10 +333,14 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None, 
     identity = Cleaned(bark, np.arange(len(bark.vertices)), {})
     if not opt.enabled or bark.face_source is None or not len(bark.faces) or not len(tubes):
         return identity
-    cleaned = _clean_arrays(bark, tubes, opt, threads=threads)
-    if cleaned is None:
-        return identity
-    (points, faces, fflat, fsrc, origin), operations = cleaned  # the half-edges are gone: they took a third
+    if junctions:
+        points, faces, fsrc = bark.vertices, bark.faces, bark.face_source
+        fflat, origin, operations = _flat_faces(faces, fsrc, tubes), np.arange(len(points)), {}
+    else:
+        cleaned = _clean_arrays(bark, tubes, opt, threads=threads)
+        if cleaned is None:
+            return identity
+        (points, faces, fflat, fsrc, origin), operations = cleaned  # the half-edges are gone: they took a third
     with _executor(threads, 2) as pool:  # the normals beside the uv, the uv in two halves (compiled: no GIL)
         normals = pool.submit(smooth_normals, points, faces, fflat)
         uv = tube_uv(tubes, points, faces, fsrc, pool)
@@ -311,9 +350,32 @@ def clean_mesh(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None, 
     return Cleaned(mesh, origin, operations)
 
 
-def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None, threads: int = 2):
+def clean_junctions(tubes: Tubes, junctions: Junctions, options: CleanupOptions | None = None, threads: int = 2):
+    """The union's junctions cleaned (:func:`lsys3d.union.union_cleaning_junctions`): vertices, faces, sources.
+
+    ``tubes`` are the tubes given to the union.  The same cleaning as
+    :func:`clean_mesh`'s, on the pieces of the bark that came out of the
+    boolean, closed by temporary caps: their rings are
+    :data:`~lsys3d.remesh.PINNED`, so the caps come back exactly as they were,
+    and the union stitches the untouched tube pieces back onto them.  None
+    when cleaning is off or the pieces are not closed 2-manifolds.
+    """
+    opt = CleanupOptions() if options is None else options
+    if not opt.enabled or not len(junctions.faces):
+        return None
+    surface = _Surface(junctions.vertices, junctions.faces, junctions.source)
+    cleaned = _clean_arrays(surface, tubes, opt, threads=threads, caps=junctions)
+    if cleaned is None:
+        return None
+    (points, faces, _, source, _), operations = cleaned
+    log.debug("cleanup of the junctions: %s", operations)
+    return points, faces, source
+
+
+def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None, threads: int = 2, caps=None):
     """The cleaned bark's points, faces, flat faces, face sources and vertex origins, and the operations done;
-    None when the bark is not a closed 2-manifold (a warning says so).  ``order``: see :func:`_clean_halves`."""
+    None when the bark is not a closed 2-manifold (a warning says so).  ``order``: see :func:`_clean_halves`;
+    ``caps``: :func:`_classify`'s."""
     if threads > 1:
         whole = _Surface(bark.vertices, bark.faces, bark.face_source)
         with ThreadPoolExecutor(2) as pool:
@@ -321,7 +383,7 @@ def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None, thr
             crumbs = pool.submit(_drop_crumbs, bark)
             room = int(len(whole.faces) * _ROOM_SHARE) + _ROOM_MIN
             try:
-                made = _half_edges(whole, tubes, room, pool)
+                made = _half_edges(whole, tubes, room, pool, caps)
             finally:
                 bark = crumbs.result()
         if len(bark.faces) != len(whole.faces):
@@ -339,7 +401,7 @@ def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None, thr
     while True:
         # made again for each try (a try changes the flags and flat faces): what the half-edges hold a copy of
         # is not kept while they are cleaned
-        he = made if made is not None else _half_edges(bark, tubes, room)
+        he = made if made is not None else _half_edges(bark, tubes, room, caps=caps)
         made = None
         if isinstance(he, str):
             log.warning("cleanup: skipped, %s", he)
@@ -366,6 +428,39 @@ def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None, thr
     return (points, faces, fflat, fsrc, origin), operations
 
 
+def _flat_faces(faces: np.ndarray, source: np.ndarray, tubes: Tubes) -> np.ndarray:
+    """``(f,) bool``: the faces of a tube's flat cap that no seam crosses (:func:`lsys3d.remesh.mark`'s ``flat``).
+
+    A cap that meets a face of another tube along an edge is part of a
+    junction (a thick child's base poking out of its parent), no rim to keep.
+    Only the faces around the caps' points are looked at.
+    """
+    part, cap = tubes.face_kinds(source)
+    flat = cap >= 0
+    if not flat.any():
+        return flat
+    near = np.zeros(int(faces.max()) + 1, bool)
+    near[faces[flat]] = True
+    around = np.flatnonzero(near[faces].any(axis=1))
+    # the directed edges of those faces: a cap face's edge u -> w meets the face whose edge is w -> u
+    f = faces[around]
+    tail, head = f.ravel(), f[:, [1, 2, 0]].ravel()
+    owner = np.repeat(around, 3)
+    n = int(near.size)
+    key = tail * n + head
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    mine = flat[owner]
+    want = head[mine] * n + tail[mine]
+    at = np.clip(np.searchsorted(key, want), 0, len(key) - 1)
+    found = key[at] == want
+    across = owner[order[at]]
+    crossed = found & (part[across] != part[owner[mine]])
+    cut = np.zeros(int(cap.max()) + 1, bool)
+    cut[cap[owner[mine]][crossed]] = True
+    return flat & ~cut[np.maximum(cap, 0)]
+
+
 def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndarray, pool=None) -> np.ndarray:
     """Corner uv ``(f, 3, 2)``: each face's corners in the chart of the tube face it lies on (:meth:`Tubes.uv_at`).
 
@@ -379,8 +474,10 @@ def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndar
     return uv
 
 
-def cleanup(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None, threads: int = 2) -> Mesh:
-    """The cleanup stage: :func:`clean_mesh`'s mesh (``threads``: see there).
+def cleanup(
+    bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None, threads: int = 2, junctions: bool = False
+) -> Mesh:
+    """The cleanup stage: :func:`clean_mesh`'s mesh (``threads``, ``junctions``: see there).
 
     Raises
     ------
@@ -392,7 +489,7 @@ def cleanup(bark: Mesh, tubes: Tubes, options: CleanupOptions | None = None, thr
     opt = CleanupOptions() if options is None else options
     if opt.enabled and len(bark.faces) and bark.face_source is None:
         raise GeometryError("cleanup: the bark has no face sources (Mesh.face_source); it is not the union's output")
-    return clean_mesh(bark, tubes, opt, threads).mesh
+    return clean_mesh(bark, tubes, opt, threads, junctions).mesh
 
 
 def smooth_normals(vertices: np.ndarray, faces: np.ndarray, flat: np.ndarray) -> np.ndarray:

@@ -9,6 +9,7 @@ them and records the provenance that lets an exported asset be regenerated::
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 import time
@@ -21,7 +22,7 @@ from . import bark as bark_stage
 from . import dialects, union_jobs
 from .arrays import release_memory
 from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
-from .cleanup import CleanupOptions, cleanup
+from .cleanup import CleanupOptions, clean_junctions, cleanup
 from .derive import DEFAULT_MAX_MODULES, derive, interpretation
 from .diagnostics import Checks, check
 from .errors import GeometryError, OptionsError
@@ -43,7 +44,7 @@ from .surfaces import surface_table, with_cards
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret, symbol_table
-from .union import UnionOptions, concatenate, union
+from .union import UnionOptions, concatenate, union, union_cleaning_junctions
 from .wind import WindOptions, sway
 
 __all__ = [
@@ -417,7 +418,10 @@ def _bark(
     once it is culled (the 262,143-segment plant's soup is over a gigabyte);
     the cleanup needs the tubes after the union (``Mesh.face_source`` names
     their faces), so with it they are kept until the cleanup is done; the
-    union then makes no corner normals and uv (the cleanup makes its own).
+    union then makes no corner normals and uv (the cleanup makes its own), and
+    cleans the junctions itself before it copies them onto repeated ones
+    (:func:`lsys3d.union.union_cleaning_junctions`): the cleanup stage then
+    makes the normals and uv alone.
     """
     if options.union.enabled and not options.cleanup.enabled and len(held[0]):
         bark = stage("union", _union_of_held, held, options.union, progress)
@@ -426,12 +430,15 @@ def _bark(
     if len(tubes) == 0:  # leaves alone (ABOP's polygon figures): an empty bark
         bark = stage("union", Mesh.empty)
     elif options.union.enabled:
-        # tubes kept: the cleanup needs them; no corner normals and uv: the cleanup makes its own
-        raw = stage("union", _union_of_held, [tubes], options.union, progress, False)
         # the cleanup shares its passes with a second thread unless the union may use one process only (a
         # batch's tree per core) or this process may run on one core; the same bytes either way
         threads = 1 if options.union.workers == 1 or union_jobs.default_workers() < 2 else 2
-        bark = stage("cleanup", cleanup, raw, tubes, options.cleanup, threads)
+
+        clean = functools.partial(clean_junctions, tubes, options=options.cleanup, threads=threads)
+        # tubes kept: the cleanup needs them; no corner normals and uv: the cleanup makes its own
+        raw, done = stage("union", union_cleaning_junctions, [tubes], options.union, clean, progress)
+        del clean
+        bark = stage("cleanup", cleanup, raw, tubes, options.cleanup, threads, done)
         if bark is raw:  # the cleanup left the union as it was (not a closed 2-manifold): it needs the corners
             raw = bark = None
             bark = stage("union", _union_of_held, [tubes], options.union, progress)

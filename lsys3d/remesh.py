@@ -23,8 +23,10 @@ descends from).  Those two maps carry per-vertex and per-face attributes
 
 Vertices carry flags: :data:`SEAM` (on a junction seam), :data:`FEATURE` (on
 a sharp rim that must stay: the edge of a tube's flat cap), :data:`ORIGINAL`
-(a vertex of the swept tubes, not made by the boolean) and :data:`LOCKED`
-(never touched: a vertex whose faces do not form one fan).
+(a vertex of the swept tubes, not made by the boolean), :data:`LOCKED`
+(never touched: a vertex whose faces do not form one fan) and :data:`PINNED`
+(a rim vertex that stays where it is and whose rim stays as it is: the ring
+under a temporary cap of the union, which the union stitches back on).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ __all__ = [
     "FEATURE",
     "LOCKED",
     "ORIGINAL",
+    "PINNED",
     "SEAM",
     "HalfEdges",
     "Rules",
@@ -57,6 +60,11 @@ ORIGINAL = 4
 """Vertex flag: a vertex of the swept tubes (not made by the boolean)."""
 LOCKED = 8
 """Vertex flag: never moved or removed (its faces do not form a single fan)."""
+PINNED = 16
+"""Vertex flag, with :data:`FEATURE`: never moved or removed, and no edge between two of them split or flipped
+(the ring of a temporary cap, :func:`lsys3d.union.union`'s cleaning of junctions: the ring must come back
+exactly where it was, the cap's faces exactly as they were).  Its other edges may be split, flipped or
+collapsed into it."""
 
 _MAX_RING = 256  # a vertex with more neighbours than this is left alone
 _FLAT = 1e30  # the aspect of a triangle without area
@@ -563,7 +571,7 @@ def _collapse_topology_ok(he, h, buf_a, buf_b):
     b = _dst(faces, h)
     c = _apex(faces, h)
     d = _apex(faces, he.opp[h])
-    if a == b or c == d or (he.flags[a] | he.flags[b]) & LOCKED:
+    if a == b or c == d or (he.flags[a] | he.flags[b]) & LOCKED or he.flags[a] & PINNED:
         return False
     if _valence(he, c) <= 3 or _valence(he, d) <= 3:
         return False
@@ -891,11 +899,14 @@ def _split(he, h, t):
     """Split the edge of half-edge ``h`` at ``a + t (b - a)``: one new vertex, two new faces; the vertex or -1.
 
     The new vertex's origin is the nearer end; the new faces copy their old
-    face's part, flatness, reference normal and source.  -1 when there is no room.
+    face's part, flatness, reference normal and source.  -1 when there is no room,
+    or the edge joins two :data:`PINNED` vertices.
     """
     faces, opp, out, p = he.faces, he.opp, he.out, he.points
     nv, nf = he.counts[0], he.counts[1]
     if nv >= he.counts[2] or nf + 2 > he.counts[3]:
+        return -1
+    if he.flags[_org(faces, h)] & he.flags[_dst(faces, h)] & PINNED:
         return -1
     o = opp[h]
     f0, f1 = h // 3, o // 3
@@ -991,6 +1002,8 @@ def _snap(he, f, k, rules, buf_a, buf_b):
     u, w, x = faces[f, k], faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]
     d = _apex(faces, t)
     if x == d or (flags[u] | flags[w] | flags[x] | flags[d]) & LOCKED or flags[x] & FEATURE:
+        return -1
+    if flags[u] & flags[w] & PINNED:  # the edge of a pinned ring: the face across is a cap that must stay
         return -1
     ex, ey, ez = p[w, 0] - p[u, 0], p[w, 1] - p[u, 1], p[w, 2] - p[u, 2]
     e2 = ex * ex + ey * ey + ez * ez

@@ -54,6 +54,7 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import manifold3d
 import numba
@@ -70,7 +71,7 @@ from .options import Options, option
 from .sweep import Tubes
 from .touch import DEFAULT_MAX_PAIRS, buried_tubes, duplicate_tubes, free_stretches, pieces, touching
 
-__all__ = ["UnionOptions", "concatenate", "may_touch", "union"]
+__all__ = ["Junctions", "UnionOptions", "concatenate", "may_touch", "union", "union_cleaning_junctions"]
 
 log = logging.getLogger("lsys3d")
 
@@ -122,6 +123,49 @@ class UnionOptions(Options):
         data = super().plain()
         del data["workers"]
         return data
+
+
+class Junctions(NamedTuple):
+    """What the boolean made of the junctions that :func:`union_cleaning_junctions` has cleaned before the copies.
+
+    Every cluster of runs the boolean unioned (one of each set of repeated
+    ones: :mod:`lsys3d.repeats`), as one mesh of closed pieces, each closed by
+    temporary caps where its runs meet untouched tube pieces.  The cleaner
+    must give the caps back exactly as they are (faces and points): the
+    untouched pieces are welded onto their rings afterwards; and each face's
+    ``source`` as it is, or its parent's for a face it makes: the copies
+    find their own faces by it.
+
+    The union works on tubes of its own (tubes equal to another or buried
+    in one left out, rings inserted around touched stretches, which are no
+    shape to keep): ``source`` numbers their faces, ``origin`` says which
+    face of the tubes given to the union each lies in.
+
+    Attributes
+    ----------
+    vertices : (v, 3) float64
+    faces : (f, 3) int64
+    source : (f,) int64
+        The face of the union's own tubes each face is a piece of, or
+        ``len(origin) + k`` for the face ``k`` of the temporary caps.
+    origin : (n,) int64
+        For each face of the union's own tubes, the face of the given tubes it lies in.
+    cap_face : (k,) int64
+        For each face of the temporary caps, a face (of the given tubes) of the tube it closes.
+    cap_number : (k,) int64
+        Which temporary cap each cap face is a face of.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    source: np.ndarray
+    origin: np.ndarray
+    cap_face: np.ndarray
+    cap_number: np.ndarray
+
+
+JunctionCleaner = Callable[[Junctions], "tuple[np.ndarray, np.ndarray, np.ndarray] | None"]
+"""Cleans :class:`Junctions`: returns their vertices, faces and sources cleaned, or None to leave them."""
 
 
 def concatenate(tubes: Tubes) -> Mesh:
@@ -235,13 +279,43 @@ def union(
     held = [tubes]  # _union holds the tubes alone: the soup goes as soon as it is culled (if the caller let go)
     del tubes
     try:
-        return _union(held, UnionOptions() if options is None else options, progress, corners)
+        return _union(held, UnionOptions() if options is None else options, progress, corners)[0]
     finally:
         release_memory()  # the union's temporaries, freed as _union returned
 
 
-def _union(held: list, opt: UnionOptions, progress: Callable[[float], None] | None, corners: bool = True) -> Mesh:
-    """:func:`union` of ``held.pop()``."""
+def union_cleaning_junctions(
+    held: list,
+    options: UnionOptions | None,
+    clean: JunctionCleaner,
+    progress: Callable[[float], None] | None = None,
+) -> tuple[Mesh, bool]:
+    """:func:`union` of ``held.pop()`` without corners, whose junctions ``clean`` cleans before they are copied.
+
+    A junction that repeats (:mod:`lsys3d.repeats`) is then cleaned once and
+    its clean result moved onto every copy, and the untouched tube pieces,
+    which need no cleaning, are not in what ``clean`` is given.  Returns the
+    mesh and whether its junctions were cleaned: not when the union took
+    another path than the local one (whole tubes: crowded plants, or a seam
+    that did not stitch), or ``clean`` returned None, or its result did not
+    give the temporary caps back exactly; the mesh is then :func:`union`'s.
+
+    ``held`` is a list holding the tubes alone (it is emptied: the union holds them).
+    """
+    try:
+        return _union(held, UnionOptions() if options is None else options, progress, False, clean)
+    finally:
+        release_memory()
+
+
+def _union(
+    held: list,
+    opt: UnionOptions,
+    progress: Callable[[float], None] | None,
+    corners: bool = True,
+    clean: JunctionCleaner | None = None,
+) -> tuple[Mesh, bool]:
+    """:func:`union` of ``held.pop()``; whether ``clean`` cleaned its junctions (:func:`union_cleaning_junctions`)."""
     tubes = held.pop()
     where = f"union of {len(tubes)} tubes"
     if not len(tubes):
@@ -268,7 +342,7 @@ def _union(held: list, opt: UnionOptions, progress: Callable[[float], None] | No
         mesh = _to_mesh([booleans.part_of(result)], where, corners)
         mesh = _weld_float32([_true_sources(_drop_crumbs(mesh), tubes)])
         progress(1.0)
-        return _sourced(mesh, np.arange(nf), where)
+        return _sourced(mesh, np.arange(nf), where), False
     t0 = time.perf_counter()
     tubes, pcs, a, b, origin = _prepare(tubes, opt, progress)
     release_memory()
@@ -278,16 +352,17 @@ def _union(held: list, opt: UnionOptions, progress: Callable[[float], None] | No
     busy[a] = True
     busy[b] = True
     if opt.local and len(a) and busy.mean() <= opt.local_max:
-        held = [_local_union(tubes, pcs, busy, a, b, where, workers, progress, corners)]
+        held = [_local_union(tubes, pcs, busy, a, b, where, workers, progress, corners, clean, origin)]
         if held[0] is not None:
             progress(0.90)
-            mesh, from_boolean = held.pop()
-            held.append(_true_sources(mesh, tubes, from_boolean))
+            mesh, from_boolean, cleaned = held.pop()
+            # the cleaned junctions' sources were made true before they were cleaned (and their copies' follow)
+            held.append(mesh if cleaned else _true_sources(mesh, tubes, from_boolean))
             del mesh
             del tubes, pcs, a, b, busy  # the weld's memory: the stitched mesh is all that is needed now
             mesh = _weld_float32(held)
             progress(1.0)
-            return _sourced(mesh, origin, where)
+            return _sourced(mesh, origin, where), cleaned
     ta, tb = pcs.tube[a], pcs.tube[b]
     pairs = _unique_pairs(ta, tb)
     colour = _colour(len(tubes), pairs)
@@ -312,7 +387,7 @@ def _union(held: list, opt: UnionOptions, progress: Callable[[float], None] | No
     held.append(_true_sources(_drop_crumbs(held.pop()), tubes))
     mesh = _weld_float32(held)
     progress(1.0)
-    return _sourced(mesh, origin, where)
+    return _sourced(mesh, origin, where), False
 
 
 def _misplaced(vertices: np.ndarray, faces: np.ndarray, source: np.ndarray, tubes: Tubes) -> np.ndarray:
@@ -786,6 +861,8 @@ def _local_union(
     workers: int,
     progress: _Progress,
     corners: bool = True,
+    clean: JunctionCleaner | None = None,
+    origin: np.ndarray | None = None,
 ):
     """Union only the runs of pieces that may touch another tube; stitch the free pieces back on.
 
@@ -794,9 +871,12 @@ def _local_union(
     closed by a temporary cap on that ring.  No other tube comes near such a
     ring (the free piece's capsule touches nothing), so manifold leaves the cap
     as it was; it is removed from the result, and the free pieces of the tube
-    (kept out of the boolean) are welded onto the ring.  Returns the mesh and
-    how many of its faces (the first ones) came out of the boolean, or None
-    when the result does not stitch exactly (the caller then unions whole tubes).
+    (kept out of the boolean) are welded onto the ring.  ``clean`` (see
+    :func:`union_cleaning_junctions`) cleans the boolean's result before it
+    is copied onto repeated junctions (``origin``: :attr:`Junctions.origin`).
+    Returns the mesh, how many of its faces (the first ones) came out of the
+    boolean and whether ``clean`` cleaned them, or None when the result does
+    not stitch exactly (the caller then unions whole tubes).
     """
     rings, sides = tubes.rings, tubes.sides
     # runs of busy pieces (pieces are numbered tube after tube, in ring order)
@@ -824,7 +904,7 @@ def _local_union(
     cut_ring = np.concatenate([k0[open_base], k1[open_tip]])
     cut_run = np.concatenate([np.flatnonzero(open_base), np.flatnonzero(open_tip)])
     cut_tip = np.concatenate([np.zeros(open_base.sum(), bool), np.ones(open_tip.sum(), bool)])
-    cap_faces, cap_run = [], []
+    cap_faces, cap_run, cap_cut = [], [], []
     for s in unique(sides[cut_tube]).tolist() if len(cut_tube) else []:
         c = np.flatnonzero(sides[cut_tube] == s)
         j = np.arange(1, s - 1)
@@ -833,8 +913,10 @@ def _local_union(
         fan = np.where(cut_tip[c][:, None, None], fan_tip[None], fan_tip[None][:, :, [0, 2, 1]])
         cap_faces.append((base[:, None, None] + fan).reshape(-1, 3))
         cap_run.append(np.repeat(cut_run[c], s - 2))
+        cap_cut.append(np.repeat(c, s - 2))
     cap_faces = np.concatenate(cap_faces) if cap_faces else np.zeros((0, 3), np.int64)
     cap_run = np.concatenate(cap_run) if cap_run else np.zeros(0, np.int64)
+    cap_cut = np.concatenate(cap_cut) if cap_cut else np.zeros(0, np.int64)  # the cut each cap face closes
 
     # the runs' triangles (ids >= nf mark temporary caps), grouped by run
     bf = np.flatnonzero(face_busy)
@@ -904,6 +986,13 @@ def _local_union(
     if crumb.any():
         done = Part(done.props, done.tri[~crumb], done.merge_from, done.merge_to, done.face_id[~crumb])
     del point_of, positions
+    cleaned = False
+    if clean is not None:
+        caps = Junctions(None, None, None, origin, origin[fo[cut_tube[cap_cut]]], cap_cut)
+        better = _cleaned_junctions(done, tubes, caps, clean)
+        if better is not None:
+            done, cleaned = better, True
+        del caps, better
     roots = [repeats.with_copies(clusters, tubes, done, nf, len(cap_faces))]
     del done, clusters
     progress(0.80)
@@ -979,10 +1068,50 @@ def _local_union(
         for lo in range(0, len(faces), 1 << 20):  # in place, a slice at a time
             faces[lo : lo + (1 << 20)] = renumber[faces[lo : lo + (1 << 20)]]
         vertices, near = vertices[used], near[used]
+    log.debug("union: %d faces from the boolean (and its copies), %d from untouched pieces", nb, len(faces) - nb)
     if not _closed(faces, len(vertices), near):
         log.debug("union: the stitched mesh is not closed at a seam; unioning whole tubes")
         return None
-    return Mesh(vertices, faces, normals, uv, face_source=source), nb
+    return Mesh(vertices, faces, normals, uv, face_source=source), nb, cleaned
+
+
+def _cleaned_junctions(done: Part, tubes: Tubes, caps: Junctions, clean: JunctionCleaner) -> Part | None:
+    """The boolean's result ``done`` cleaned by ``clean``, or None when it was not or the caps did not come back.
+
+    The sources are made true first (:func:`_true_sources`), as the cleaner
+    reads them.  The result has no merge vectors and no shading properties
+    (zeros): the cleanup makes the normals and uv of the whole bark.
+    """
+    nf = len(tubes.faces)
+    point_of, npts = _weld(len(done.props), done.merge_from, done.merge_to)
+    vertices = np.empty((npts, 3))
+    vertices[point_of] = done.props[:, :3]
+    faces = point_of[done.tri]
+    source = done.face_id.copy()
+    del point_of
+    on_tube = source < nf  # the others are the temporary caps'
+    k = int(on_tube.sum())
+    wall = Mesh(vertices, faces[on_tube], _no_corners(k, 3, 3), _no_corners(k, 3, 2), face_source=source[on_tube])
+    source[on_tube] = _true_sources(wall, tubes).face_source
+    del wall
+    out = clean(caps._replace(vertices=vertices, faces=faces, source=source))
+    if out is None:
+        return None
+    v, f, s = out
+    # the temporary caps exactly as they were: the same faces on the same points
+    before, after = np.flatnonzero(~on_tube), np.flatnonzero(s >= nf)
+    before, after = before[np.argsort(source[before], kind="stable")], after[np.argsort(s[after], kind="stable")]
+    if not (
+        len(before) == len(after)
+        and np.array_equal(source[before], s[after])
+        and np.array_equal(vertices[faces[before]], v[f[after]])
+    ):
+        log.debug("union: the cleaning of the junctions changed a temporary cap; they stay as the boolean made them")
+        return None
+    props = np.zeros((len(v), _NUM_PROP))
+    props[:, :3] = v
+    none = np.zeros(0, np.int64)
+    return Part(props, np.asarray(f, np.int64), none, none, np.asarray(s, np.int64))
 
 
 @numba.njit(cache=True, nogil=True)

@@ -12,14 +12,14 @@ from test_union import chainy_tree, random_tree, y_junction
 
 import lsys3d
 from lsys3d import remesh
-from lsys3d.cleanup import CleanupOptions, clean_mesh, cleanup
+from lsys3d.cleanup import CleanupOptions, clean_junctions, clean_mesh, cleanup
 from lsys3d.errors import GeometryError
 from lsys3d.mesh import Mesh
 from lsys3d.pipeline import draw
 from lsys3d.quality import quality
 from lsys3d.stats import components
 from lsys3d.sweep import SweepOptions, sweep
-from lsys3d.union import UnionOptions, union
+from lsys3d.union import UnionOptions, union, union_cleaning_junctions
 
 DRAWING_PRESETS = [name for name in lsys3d.list_presets() if name not in ("algae", "dog", "dog-growing")]
 
@@ -138,18 +138,23 @@ def test_one_thread_cleans_the_same_bytes_and_a_one_process_union_asks_for_it(tr
     for name in ("vertices", "faces", "normals", "uv", "face_source"):
         assert getattr(one.mesh, name).tobytes() == getattr(two.mesh, name).tobytes()
     assert np.array_equal(one.vertex_origin, two.vertex_origin) and one.operations == two.operations
-    asked = []
-    real = pipeline.cleanup
+    asked, asked_junctions = [], []
+    real, real_junctions = pipeline.cleanup, pipeline.clean_junctions
 
-    def spy(bark, tubes, options, threads):
+    def spy(bark, tubes, options, threads, *rest):
         asked.append(threads)
-        return real(bark, tubes, options, threads)
+        return real(bark, tubes, options, threads, *rest)
+
+    def spy_junctions(tubes, junctions, options, threads):
+        asked_junctions.append(threads)
+        return real_junctions(tubes, junctions, options, threads)
 
     monkeypatch.setattr(pipeline, "cleanup", spy)
+    monkeypatch.setattr(pipeline, "clean_junctions", spy_junctions)
     monkeypatch.setattr(pipeline.union_jobs, "default_workers", lambda: 2)
     lsys3d.generate("koch", iterations=2, workers=1)
     lsys3d.generate("koch", iterations=2)
-    assert asked == [1, 2]
+    assert asked == [1, 2] and asked_junctions == [1, 2]  # koch's junctions are cleaned in the union
 
 
 def test_the_halves_are_kept_apart_by_a_band_of_locked_vertices(tree3d_parts):
@@ -210,7 +215,7 @@ def test_a_bark_the_cleanup_leaves_as_it_was_gets_the_unions_corners(monkeypatch
     from lsys3d import pipeline
 
     raw = lsys3d.generate("abop-1.24a", iterations=2, cleanup=False).bark
-    monkeypatch.setattr(pipeline, "cleanup", lambda bark, tubes, options, threads: bark)
+    monkeypatch.setattr(pipeline, "cleanup", lambda bark, tubes, options, threads, *rest: bark)
     kept = lsys3d.generate("abop-1.24a", iterations=2).bark
     assert np.abs(kept.normals).sum() > 0 and kept.normals.strides[0] != 0
     for name in ("vertices", "faces", "normals", "uv", "face_source"):
@@ -343,6 +348,103 @@ def test_any_cleaned_random_union_stays_closed(seed, n, spread, width, sides):
     bark = cleanup(raw, tubes)
     assert bark.is_watertight and bark.is_winding_consistent
     assert labels_count(bark) <= labels_count(raw)
+
+
+# ---------------------------------------------------------------- junctions cleaned in the union, then copied
+
+
+def grown_tubes(name: str, iterations: int | None = None):
+    g = lsys3d.load_preset(name)
+    _, skeleton = draw(g, g.iterations if iterations is None else iterations, g.seed)
+    return sweep(skeleton)
+
+
+def same_mesh(a: Mesh, b: Mesh) -> bool:
+    return all(getattr(a, k).tobytes() == getattr(b, k).tobytes() for k in ("vertices", "faces", "face_source"))
+
+
+@pytest.mark.parametrize("name", ["koch", "snowflake", "abop-1.24e"])
+def test_repeated_junctions_are_cleaned_once_and_copied(name):
+    """The union cleans what its boolean made, one junction of each repeated set, before the copies: the bark is
+    as clean as the whole bark cleaned after the union, its volume the same, for a part of the work."""
+    tubes = grown_tubes(name)
+    given = []
+
+    def clean(junctions):
+        given.append(len(junctions.faces))
+        return clean_junctions(tubes, junctions)
+
+    raw = union(tubes, corners=False)
+    whole = clean_mesh(raw, tubes).mesh  # the cleanup of the whole bark, after the union
+    bark, done = union_cleaning_junctions([tubes], None, clean)
+    assert done and len(given) == 1 and given[0] < len(raw.faces) / 4  # a few junctions stand for all
+    bark = cleanup(bark, tubes, junctions=True)
+    closed_solid(bark)
+    q, qw = quality(bark), quality(whole)
+    assert q.over_1000 == 0 and q.slivers == 0
+    assert q.over_100 <= 1.1 * qw.over_100 + 10, (q, qw)
+    assert len(bark.faces) == pytest.approx(len(whole.faces), rel=0.02)
+    assert bark.volume == pytest.approx(raw.volume, rel=2e-3) and bark.volume == pytest.approx(whole.volume, rel=2e-3)
+    assert quality(bark).uv_stretch <= 1.5
+
+
+def test_the_pipeline_cleans_the_junctions_in_the_union_and_the_same_bytes_on_one_thread():
+    one, two = lsys3d.generate("koch", workers=1), lsys3d.generate("koch")
+    for name in ("vertices", "faces", "normals", "uv", "face_source"):
+        assert getattr(one.bark, name).tobytes() == getattr(two.bark, name).tobytes()
+    tubes = grown_tubes("koch")
+    bark, done = union_cleaning_junctions([tubes], None, lambda junctions: clean_junctions(tubes, junctions))
+    assert done and same_mesh(cleanup(bark, tubes, junctions=True), one.bark)
+
+
+@pytest.mark.parametrize("how", ["declines", "moves a ring point", "drops a cap face"])
+def test_a_cleaning_that_does_not_give_the_caps_back_is_not_used(how):
+    """The untouched pieces are welded onto the rings of the temporary caps: a cleaner must give them back as
+    they were, or its result is not used (the union's bark is, and the cleanup then cleans all of it)."""
+    tubes = grown_tubes("koch")
+    nf = len(tubes.faces)
+
+    def clean(junctions):
+        out = clean_junctions(tubes, junctions)
+        if how == "declines":
+            return None
+        v, f, s = out
+        cap = np.flatnonzero(s >= len(junctions.origin))
+        if how == "moves a ring point":
+            v = v.copy()
+            v[f[cap[0], 0]] += 1e-9
+            return v, f, s
+        keep = np.ones(len(f), bool)
+        keep[cap[0]] = False
+        return v, f[keep], s[keep]
+
+    bark, done = union_cleaning_junctions([tubes], None, clean)
+    assert not done and same_mesh(bark, union(tubes, corners=False))
+    assert len(tubes.faces) == nf
+
+
+def test_crowded_plants_are_cleaned_whole_after_the_union():
+    """Where most pieces touch (tree3d), whole tubes go through the boolean: no junctions to clean apart."""
+    tubes = grown_tubes("tree3d")
+    calls = []
+    bark, done = union_cleaning_junctions([tubes], None, lambda *a: calls.append(1))
+    assert not done and not calls and same_mesh(bark, union(tubes, corners=False))
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 80), sides=st.integers(3, 9))
+def test_any_union_with_cleaned_junctions_stays_a_closed_solid(seed, n, sides):
+    tubes = sweep(chainy_tree(seed, n), SweepOptions(sides=sides))
+    try:
+        raw = union(tubes, corners=False)
+        bark, done = union_cleaning_junctions([tubes], None, lambda junctions: clean_junctions(tubes, junctions))
+    except GeometryError:
+        return
+    bark = cleanup(bark, tubes, junctions=done)
+    assert bark.is_watertight and bark.is_winding_consistent
+    assert labels_count(bark) <= labels_count(raw)
+    assert bark.volume == pytest.approx(raw.volume, rel=0.05)
+    assert quality(bark).over_1000 <= quality(raw).over_1000
 
 
 # ---------------------------------------------------------------- the half-edge kernel
