@@ -345,8 +345,10 @@ def clean_mesh(
         normals = pool.submit(smooth_normals, points, faces, fflat)
         uv = tube_uv(tubes, points, faces, fsrc, pool)
         normals = normals.result()
-    # end as the union ends: no two vertices that a float32 file or a reader's weld would merge
-    mesh = _separate_float32(Mesh(points, faces, normals, uv, face_source=fsrc))
+    mesh = Mesh(points, faces, normals, uv, face_source=fsrc)
+    if not junctions:  # (with them, the vertices are the union's, which it has separated already)
+        # end as the union ends: no two vertices that a float32 file or a reader's weld would merge
+        mesh = _separate_float32(mesh)
     return Cleaned(mesh, origin, operations)
 
 
