@@ -453,7 +453,10 @@ def remove_temporaries(jobs: Iterable[Job], outdir: Path) -> int:
 
     The writers write ``.<stem>.<8 hex digits>.tmp<suffix>`` beside each file
     and rename it over the file when complete (:mod:`lsys3d.exchange.atomic`);
-    a process killed before that leaves the temporary file behind.
+    a process killed before that leaves the temporary file behind.  USD
+    writes through a temporary file of its own, made from that name with the
+    suffix replaced by six random letters and digits: a worker killed while
+    USD writes leaves that one.
     """
     wanted: dict[Path, set[str]] = {}
     for job in jobs:
@@ -464,14 +467,16 @@ def remove_temporaries(jobs: Iterable[Job], outdir: Path) -> int:
                 wanted[path.parent].add(path.with_suffix(".bin").name)
     removed = 0
     pattern = re.compile(r"\.(.+)\.[0-9a-f]{8}\.tmp(\.[^.]+)")
+    usd_own = re.compile(r"\.[A-Za-z0-9]{6}")
     for folder, names in wanted.items():
+        stems = {Path(name).stem for name in names}
         try:
             entries = list(os.scandir(folder))
         except OSError:
             continue
         for entry in entries:
             m = pattern.fullmatch(entry.name)
-            if m and f"{m.group(1)}{m.group(2)}" in names:
+            if m and (f"{m.group(1)}{m.group(2)}" in names or (usd_own.fullmatch(m.group(2)) and m.group(1) in stems)):
                 with contextlib.suppress(OSError):
                     os.unlink(entry.path)
                     removed += 1

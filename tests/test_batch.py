@@ -208,7 +208,9 @@ def test_failing_jobs_do_not_stop_the_others(tmp_path):
 def test_a_killed_worker_is_replaced_and_its_job_retried(tmp_path):
     jobs = write_project(
         tmp_path,
-        '[[jobs]]\ngrammar = "tree3d"\nseeds = "0-1"\nformats = ["glb", "usdc"]\noptions = { sides = 4 }\n'
+        # iterations 7: the job takes over a second, so that the kill half a second after its start lands in it
+        '[[jobs]]\ngrammar = "tree3d"\nseeds = "0-1"\nformats = ["glb", "usdc"]\n'
+        "options = { sides = 4, iterations = 7 }\n"
         '[[jobs]]\ngrammar = "abop-1.24a"\nseeds = "0-2"\nformats = ["glb"]\noptions = { iterations = 1 }\n',
     )
     starts: dict[str, int] = {}
@@ -251,6 +253,23 @@ def test_a_memory_budget_runs_jobs_one_at_a_time(tmp_path):
     result = batch(jobs, tmp_path / "out", workers=2, memory=1, progress=progress)
     assert result.done == [f"abop-1.24a_s{s}" for s in range(4)]
     assert most == 1
+
+
+def test_the_temporary_files_of_killed_writers_are_removed_usds_own_too(tmp_path):
+    """A worker killed while writing leaves the writer's temporary file, or, while USD writes, USD's own: made
+    from ours with the suffix replaced by six random characters (seen: ``.tree3d_s0.695320be.tmp.NH17bU``)."""
+    from lsys3d.batch import remove_temporaries
+
+    jobs = plan(write_project(tmp_path, '[[jobs]]\ngrammar = "koch"\nseeds = 0\nformats = ["glb", "usdc"]\n'), tmp_path)
+    target = tmp_path / jobs.jobs[0].paths[0]
+    folder, stem = target.parent, target.stem
+    folder.mkdir(parents=True)
+    left = [f".{stem}.695320be.tmp.glb", f".{stem}.695320be.tmp.usdc", f".{stem}.695320be.tmp.NH17bU"]
+    kept = [".other.695320be.tmp.NH17bU", f".{stem}.695320be.tmp.NH17b", "notes.txt"]
+    for name in left + kept:
+        (folder / name).write_text("x")
+    assert remove_temporaries(jobs.jobs, tmp_path) == 3
+    assert sorted(p.name for p in folder.iterdir()) == sorted(kept)
 
 
 def test_sigterm_stops_the_batch_and_the_same_command_resumes(tmp_path):
@@ -426,7 +445,8 @@ def test_dask_retries_a_job_whose_worker_was_killed(cluster, tmp_path):
 
     jobs = write_project(
         tmp_path,
-        '[[jobs]]\ngrammar = "tree3d"\nseeds = 0\nformats = ["usdc"]\noptions = { sides = 4 }\n'
+        # iterations 7: the job takes over a second, so that the kill half a second into it lands in it
+        '[[jobs]]\ngrammar = "tree3d"\nseeds = 0\nformats = ["usdc"]\noptions = { sides = 4, iterations = 7 }\n'
         '[[jobs]]\ngrammar = "abop-1.24a"\nseeds = "0-1"\nformats = ["glb"]\noptions = { iterations = 1 }\n',
     )
     killed: list[str] = []
