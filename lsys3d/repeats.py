@@ -329,7 +329,7 @@ def with_copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> Part:
         vertex_run[tri[::-1].ravel()] = np.repeat(run_of_tri[::-1], 3)
         # into every copy's frame
         loc = (props[:, :3] - cl.origin[r]) @ cl.frame[r].T
-        nrm = props[:, 3:6] @ cl.frame[r].T
+        nrm = props[:, 3:6] @ cl.frame[r].T if props.shape[1] > 3 else loc[:, :0]  # (shading: see _place)
         shift = cl.shift[cl.run_off[mine][:, None] + np.arange(len(run_bounds))]  # (g, runs)
         v0, t0, m0 = off[i + 1]
         _place(
@@ -360,22 +360,26 @@ def _place(new, rep, copy, cluster_point, points):  # pragma: no cover - compile
     normals are ``np.einsum("vk,gkj->gvj", ...)``'s bits (it adds x, y, then z
     onto 0.0), positions plus the origin; a vertex that is one of the
     cluster's input points takes the copy's point exactly; ``v`` is shifted
-    by its run's offset.
+    by its run's offset.  Properties of positions alone (a union without
+    corners) get positions alone.
     """
     loc, nrm, props, j, vertex_run = rep
     frame, origin, point_off, shift = copy
     nv = len(loc)
+    shading = new.shape[1] > 3
     for g in range(len(frame)):
         for v in range(nv):
             row = g * nv + v
             for c in range(3):
                 x = ((0.0 + loc[v, 0] * frame[g, 0, c]) + loc[v, 1] * frame[g, 1, c]) + loc[v, 2] * frame[g, 2, c]
                 new[row, c] = x + origin[g, c]
-                n = ((0.0 + nrm[v, 0] * frame[g, 0, c]) + nrm[v, 1] * frame[g, 1, c]) + nrm[v, 2] * frame[g, 2, c]
-                new[row, 3 + c] = n
+                if shading:
+                    n = ((0.0 + nrm[v, 0] * frame[g, 0, c]) + nrm[v, 1] * frame[g, 1, c]) + nrm[v, 2] * frame[g, 2, c]
+                    new[row, 3 + c] = n
             if j[v] >= 0:
                 p = cluster_point[point_off[g] + j[v]]
                 for c in range(3):
                     new[row, c] = points[p, c]
-            new[row, 6] = props[v, 6]
-            new[row, 7] = props[v, 7] + shift[g, vertex_run[v]]
+            if shading:
+                new[row, 6] = props[v, 6]
+                new[row, 7] = props[v, 7] + shift[g, vertex_run[v]]
