@@ -434,32 +434,14 @@ def _flat_faces(faces: np.ndarray, source: np.ndarray, tubes: Tubes) -> np.ndarr
     """``(f,) bool``: the faces of a tube's flat cap that no seam crosses (:func:`lsys3d.remesh.mark`'s ``flat``).
 
     A cap that meets a face of another tube along an edge is part of a
-    junction (a thick child's base poking out of its parent), no rim to keep.
-    Only the faces around the caps' points are looked at.
+    junction (a thick child's base poking out of its parent), no rim to keep
+    (:func:`lsys3d.remesh.cut_caps`).
     """
     part, cap = tubes.face_kinds(source)
     flat = cap >= 0
     if not flat.any():
         return flat
-    near = np.zeros(int(faces.max()) + 1, bool)
-    near[faces[flat]] = True
-    around = np.flatnonzero(near[faces].any(axis=1))
-    # the directed edges of those faces: a cap face's edge u -> w meets the face whose edge is w -> u
-    f = faces[around]
-    tail, head = f.ravel(), f[:, [1, 2, 0]].ravel()
-    owner = np.repeat(around, 3)
-    n = int(near.size)
-    key = tail * n + head
-    order = np.argsort(key, kind="stable")
-    key = key[order]
-    mine = flat[owner]
-    want = head[mine] * n + tail[mine]
-    at = np.clip(np.searchsorted(key, want), 0, len(key) - 1)
-    found = key[at] == want
-    across = owner[order[at]]
-    crossed = found & (part[across] != part[owner[mine]])
-    cut = np.zeros(int(cap.max()) + 1, bool)
-    cut[cap[owner[mine]][crossed]] = True
+    cut = remesh.cut_caps(np.ascontiguousarray(faces), part, cap, int(cap.max()) + 1)
     return flat & ~cut[np.maximum(cap, 0)]
 
 

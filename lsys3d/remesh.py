@@ -47,6 +47,7 @@ __all__ = [
     "build",
     "clean",
     "compact",
+    "cut_caps",
     "index_dtype",
     "mark",
     "rescue",
@@ -347,6 +348,52 @@ def _compact_faces(he, fa, renumber, faces, part, flat, source, lo, hi):
         part[i] = he.face_part[f]
         flat[i] = he.face_flat[f]
         source[i] = he.face_source[f]
+
+
+@numba.njit(cache=True, nogil=True)
+def cut_caps(faces, part, cap, ncaps):  # pragma: no cover - compiled
+    """``(ncaps,) bool``: the caps (``cap``: a face's cap, -1 on a wall) that a face of another part meets along
+    an edge: :func:`mark`'s ``cut`` for a closed mesh without half-edges.  Each edge of a cap face is matched
+    with the face running it the other way among the faces around its first vertex (only the cap faces'
+    vertices get their faces listed)."""
+    nv = 0
+    for f in range(len(faces)):
+        for k in range(3):
+            nv = max(nv, faces[f, k] + 1)
+    near = np.zeros(nv, np.bool_)
+    for f in range(len(faces)):
+        if cap[f] >= 0:
+            for k in range(3):
+                near[faces[f, k]] = True
+    start = np.zeros(nv + 1, np.int64)
+    for f in range(len(faces)):
+        for k in range(3):
+            if near[faces[f, k]]:
+                start[faces[f, k] + 1] += 1
+    for v in range(nv):
+        start[v + 1] += start[v]
+    fill = start[:-1].copy()
+    around = np.empty(start[nv], np.int64)
+    for f in range(len(faces)):
+        for k in range(3):
+            v = faces[f, k]
+            if near[v]:
+                around[fill[v]] = f
+                fill[v] += 1
+    cut = np.zeros(ncaps, np.bool_)
+    for f in range(len(faces)):
+        if cap[f] < 0 or cut[cap[f]]:
+            continue
+        for k in range(3):
+            u, w = faces[f, k], faces[f, (k + 1) % 3]
+            for i in range(start[u], start[u + 1]):
+                g = around[i]
+                if part[g] == part[f]:
+                    continue
+                for j in range(3):
+                    if faces[g, j] == w and faces[g, (j + 1) % 3] == u:
+                        cut[cap[f]] = True
+    return cut
 
 
 @numba.njit(cache=True, nogil=True)
