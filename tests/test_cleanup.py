@@ -473,6 +473,21 @@ def test_a_cut_cap_is_no_rim():
     assert q.over_1000 == 0 and q.slivers == 0
 
 
+def test_cut_caps_finds_the_caps_the_half_edges_mark_cut(tree3d_parts):
+    """``remesh.cut_caps`` (the flat faces of a bark cleaned in the union) agrees with :func:`remesh.mark`'s ``cut``
+    on tree3d's raw union, whose thick children's bases poke out of the trunk (caps cut by a seam)."""
+    tubes, raw = tree3d_parts
+    part, cap = tubes.face_kinds(raw.face_source)
+    he = remesh.build(
+        raw.vertices, raw.faces, np.zeros(len(raw.vertices), np.int64), np.ones(len(raw.vertices)), part, cap >= 0,
+        np.zeros((len(raw.faces), 3)), raw.face_source, 0,
+    )  # fmt: skip
+    cut = np.zeros(int(cap.max()) + 1, bool)
+    remesh.mark(he, len(raw.faces), part, cap, (cap >= 0).copy(), cut)
+    found = remesh.cut_caps(raw.faces, part, cap, len(cut))
+    assert cut.any() and np.array_equal(found, cut)
+
+
 # ---------------------------------------------------------------- the ledge of a thick fork (fork_blend)
 
 
