@@ -981,20 +981,23 @@ def _local_union(
     )
     done = _concat(roots)
     del roots
-    point_of, _ = _weld(len(done.props), done.merge_from, done.merge_to)
-    positions = np.empty((int(point_of.max(initial=-1)) + 1, 3))
+    point_of, npts = _weld(len(done.props), done.merge_from, done.merge_to)
+    positions = np.empty((npts, 3))
     positions[point_of] = done.props[:, :3]
-    crumb = _crumbs(positions, point_of[done.tri])  # before the copies: a representative's crumbs are its copies'
+    welded = point_of[done.tri]  # the triangles on the points
+    del point_of
+    crumb = _crumbs(positions, welded)  # before the copies: a representative's crumbs are its copies'
     if crumb.any():
         done = Part(done.props, done.tri[~crumb], done.merge_from, done.merge_to, done.face_id[~crumb])
-    del point_of, positions
+        welded = welded[~crumb]
     cleaned = False
     if clean is not None:
-        caps = Junctions(None, None, None, origin, origin[fo[cut_tube[cap_cut]]], cap_cut)
-        better = _cleaned_junctions(done, tubes, caps, clean)
+        junctions = Junctions(positions, welded, done.face_id, origin, origin[fo[cut_tube[cap_cut]]], cap_cut)
+        better = _cleaned_junctions(junctions, tubes, clean)
         if better is not None:
             done, cleaned = better, True
-        del caps, better
+        del junctions, better
+    del positions, welded
     roots = [repeats.with_copies(clusters, tubes, done, nf, len(cap_faces))]
     del done, clusters
     progress(0.80)
@@ -1077,26 +1080,23 @@ def _local_union(
     return Mesh(vertices, faces, normals, uv, face_source=source), nb, cleaned
 
 
-def _cleaned_junctions(done: Part, tubes: Tubes, caps: Junctions, clean: JunctionCleaner) -> Part | None:
-    """The boolean's result ``done`` cleaned by ``clean``, or None when it was not or the caps did not come back.
+def _cleaned_junctions(junctions: Junctions, tubes: Tubes, clean: JunctionCleaner) -> Part | None:
+    """The boolean's result (welded: ``junctions``, its sources as manifold3d gave them) cleaned by ``clean``, as a
+    :class:`Part`, or None when it was not or the caps did not come back.
 
     The sources are made true first (:func:`_true_sources`), as the cleaner
-    reads them.  The result has no merge vectors and no shading properties
-    (zeros): the cleanup makes the normals and uv of the whole bark.
+    reads them.  The result is the points alone, without merge vectors: the
+    cleanup makes the normals and uv of the whole bark.
     """
     nf = len(tubes.faces)
-    point_of, npts = _weld(len(done.props), done.merge_from, done.merge_to)
-    vertices = np.empty((npts, 3))
-    vertices[point_of] = done.props[:, :3]
-    faces = point_of[done.tri]
-    source = done.face_id.copy()
-    del point_of
+    vertices, faces = junctions.vertices, junctions.faces
+    source = junctions.source.copy()
     on_tube = source < nf  # the others are the temporary caps'
     k = int(on_tube.sum())
     wall = Mesh(vertices, faces[on_tube], _no_corners(k, 3, 3), _no_corners(k, 3, 2), face_source=source[on_tube])
     source[on_tube] = _true_sources(wall, tubes).face_source
     del wall
-    out = clean(caps._replace(vertices=vertices, faces=faces, source=source))
+    out = clean(junctions._replace(source=source))
     if out is None:
         return None
     v, f, s = out
@@ -1110,7 +1110,7 @@ def _cleaned_junctions(done: Part, tubes: Tubes, caps: Junctions, clean: Junctio
     ):
         log.debug("union: the cleaning of the junctions changed a temporary cap; they stay as the boolean made them")
         return None
-    props = np.zeros((len(v), done.props.shape[1]))
+    props = np.zeros((len(v), 3))  # the points alone: the cleaner's caller makes normals and uv
     props[:, :3] = v
     none = np.zeros(0, np.int64)
     return Part(props, np.asarray(f, np.int64), none, none, np.asarray(s, np.int64))
@@ -1196,21 +1196,10 @@ def _part(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, shading: bool = Tru
     normals and uv, the cleanup).
     """
     if not shading:
-        tri = tubes.wedge_point[tri]
-        used = np.zeros(len(tubes.points), bool)
-        used[tri] = True
-        points = np.flatnonzero(used)
-        del used
-        remap = np.empty(len(tubes.points), np.int64)
-        remap[points] = np.arange(len(points))
+        points, tri = _used(len(tubes.points), tubes.wedge_point[tri])
         none = np.zeros(0, np.int64)
-        return Part(tubes.points[points], remap[tri], none, none, np.asarray(tri_id, np.int64))
-    used = np.zeros(len(tubes.wedge_point), bool)
-    used[tri] = True
-    wedges = np.flatnonzero(used)
-    del used
-    remap = np.empty(len(tubes.wedge_point), np.int64)
-    remap[wedges] = np.arange(len(wedges))
+        return Part(tubes.points[points], tri, none, none, np.asarray(tri_id, np.int64))
+    wedges, tri = _used(len(tubes.wedge_point), tri)
     w = len(wedges)
     wp = tubes.wedge_point[wedges]
     props = np.empty((w, _NUM_PROP), np.float64)  # float64: float32 would weld nearby vertices into slivers
@@ -1221,7 +1210,18 @@ def _part(tubes: Tubes, tri: np.ndarray, tri_id: np.ndarray, shading: bool = Tru
     rep[wp] = np.arange(w)
     merge_to = rep[wp]
     merge_from = np.flatnonzero(merge_to != np.arange(w))
-    return Part(props, remap[tri], merge_from, merge_to[merge_from], np.asarray(tri_id, np.int64))
+    return Part(props, tri, merge_from, merge_to[merge_from], np.asarray(tri_id, np.int64))
+
+
+def _used(n: int, tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The items (of ``n``) that the triangles ``tri`` use, ascending, and ``tri`` renumbered onto them."""
+    used = np.zeros(n, bool)
+    used[tri] = True
+    kept = np.flatnonzero(used)
+    del used
+    remap = np.empty(n, np.int64)
+    remap[kept] = np.arange(len(kept))
+    return kept, remap[tri]
 
 
 def _concat(parts: list[Part]) -> Part:
