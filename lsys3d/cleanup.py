@@ -446,13 +446,14 @@ def _flat_faces(faces: np.ndarray, source: np.ndarray, tubes: Tubes) -> np.ndarr
 
 
 def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndarray, pool=None) -> np.ndarray:
-    """Corner uv ``(f, 3, 2)``: each face's corners in the chart of the tube face it lies on (:meth:`Tubes.uv_at`).
+    """Corner uv ``(f, 3, 2) float32``: each face's corners in the chart of the tube face it lies on
+    (:meth:`Tubes.uv_at`, made in float64 and rounded once, as :class:`~lsys3d.mesh.Mesh` keeps them).
 
     Vertices the cleanup moved or made get the texture coordinates the tube
     itself would give them, so the texture is not dragged along.  With a
     ``pool`` (an executor), one of its threads fills the second half (the same values).
     """
-    uv = np.empty((len(faces), 3, 2))
+    uv = np.empty((len(faces), 3, 2), np.float32)
     source, points, faces = (np.ascontiguousarray(a) for a in (source, np.asarray(points, np.float64), faces))
     remesh._in_two(pool, tubes.corner_uv, (source, points, faces, uv), 0, len(faces) // 2, len(faces))
     return uv

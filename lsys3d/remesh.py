@@ -2124,17 +2124,12 @@ def corner_normals(points, faces, flat):
     face's; a face without area takes +Y.
     """
     nf = len(faces)
-    fn = np.zeros((nf, 3))
     vn = np.zeros((len(points), 3))
     for f in range(nf):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        nx, ny, nz = _normal(points, a, b, c)
-        n = np.sqrt(nx * nx + ny * ny + nz * nz)
-        if n > 0.0:
-            fn[f, 0], fn[f, 1], fn[f, 2] = nx / n, ny / n, nz / n
-        else:
-            fn[f, 1] = 1.0
-        if flat[f] or n <= 0.0:
+        if flat[f]:
+            continue
+        fx, fy, fz, area = _unit_normal(points, faces[f, 0], faces[f, 1], faces[f, 2])
+        if not area:
             continue
         for k in range(3):
             v, w, u = faces[f, k], faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]
@@ -2142,9 +2137,9 @@ def corner_normals(points, faces, flat):
             gx, gy, gz = points[u, 0] - points[v, 0], points[u, 1] - points[v, 1], points[u, 2] - points[v, 2]
             cx, cy, cz = _cross(ex, ey, ez, gx, gy, gz)
             angle = np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), ex * gx + ey * gy + ez * gz)
-            vn[v, 0] += angle * fn[f, 0]
-            vn[v, 1] += angle * fn[f, 1]
-            vn[v, 2] += angle * fn[f, 2]
+            vn[v, 0] += angle * fx
+            vn[v, 1] += angle * fy
+            vn[v, 2] += angle * fz
     some = np.zeros(len(points), np.bool_)  # the vertex has a normal of its own (then unit)
     for v in range(len(points)):
         n = np.sqrt(vn[v, 0] ** 2 + vn[v, 1] ** 2 + vn[v, 2] ** 2)
@@ -2153,13 +2148,24 @@ def corner_normals(points, faces, flat):
             vn[v, 0], vn[v, 1], vn[v, 2] = vn[v, 0] / n, vn[v, 1] / n, vn[v, 2] / n
     out = np.empty((nf, 3, 3), np.float32)
     for f in range(nf):
+        fx, fy, fz, _ = _unit_normal(points, faces[f, 0], faces[f, 1], faces[f, 2])  # made again: no (f, 3) array
         for k in range(3):
             v = faces[f, k]
             if flat[f] or not some[v]:
-                out[f, k, 0], out[f, k, 1], out[f, k, 2] = fn[f, 0], fn[f, 1], fn[f, 2]
+                out[f, k, 0], out[f, k, 1], out[f, k, 2] = fx, fy, fz
             else:
                 out[f, k, 0], out[f, k, 1], out[f, k, 2] = vn[v, 0], vn[v, 1], vn[v, 2]
     return out
+
+
+@_leaf
+def _unit_normal(p, a, b, c):
+    """Triangle ``a b c``'s unit normal and whether it has area (+Y when it has none)."""
+    nx, ny, nz = _normal(p, a, b, c)
+    n = np.sqrt(nx * nx + ny * ny + nz * nz)
+    if n > 0.0:
+        return nx / n, ny / n, nz / n, True
+    return 0.0, 1.0, 0.0, False
 
 
 @numba.njit(cache=True, nogil=True)

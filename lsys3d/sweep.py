@@ -527,9 +527,11 @@ def _uv_at(  # pragma: no cover - compiled
     tiles,
 ):
     """:meth:`Tubes.uv_at` of ``points[corners[lo:hi]]`` into ``out[lo:hi]``, wrapped per row if ``wrap``
-    (:func:`wrap_u`): one pass per face, no temporaries."""
+    (:func:`wrap_u`): one pass per face, no temporaries.  A row is made in float64 and then stored, so a
+    float32 ``out`` holds the float64 values rounded once."""
     m = corners.shape[1]
     two_pi = 2.0 * np.pi
+    row = np.empty((m, 2))
     t = -1
     last = -1  # the wall span whose frame is in (ux, uy, uz), (bx, by, bz): the faces of a span come together
     ux = uy = uz = bx = by = bz = 0.0
@@ -548,8 +550,8 @@ def _uv_at(  # pragma: no cover - compiled
                 x = points[q, 0] - center[ring, 0]
                 y = points[q, 1] - center[ring, 1]
                 z = points[q, 2] - center[ring, 2]
-                out[i, j, 0] = 0.5 * tiles[t] + density * (x * ax + y * ay + z * az)
-                out[i, j, 1] = ring_v[ring] + density * (x * cx + y * cy + z * cz)
+                row[j, 0] = 0.5 * tiles[t] + density * (x * ax + y * ay + z * az)
+                row[j, 1] = ring_v[ring] + density * (x * cx + y * cy + z * cz)
         else:
             r0 = first + min(local // max(2 * s, 1), max(rings[t] - 2, 0))
             r1 = min(r0 + 1, first + rings[t] - 1)
@@ -561,10 +563,13 @@ def _uv_at(  # pragma: no cover - compiled
                 x = points[q, 0] - center[r0, 0]
                 y = points[q, 1] - center[r0, 1]
                 z = points[q, 2] - center[r0, 2]
-                angle = np.arctan2(x * bx + y * by + z * bz, x * ux + y * uy + z * uz) % two_pi
+                angle = np.arctan2(x * bx + y * by + z * bz, x * ux + y * uy + z * uz)
+                if angle < 0.0:  # % two_pi, without numba's general float modulo (+ 0.0: -0.0 becomes 0.0)
+                    angle += two_pi
+                angle += 0.0
                 if angle > two_pi * (1.0 - 1e-12):
                     angle = 0.0  # the seam itself is u = 0 (wrap_u decides per face)
-                out[i, j, 0] = tiles[t] * angle / two_pi
+                row[j, 0] = tiles[t] * angle / two_pi
                 # along: the share of the way from one ring's plane to the next's (a joint ring's plane is tilted)
                 h0 = x * tangent[r0, 0] + y * tangent[r0, 1] + z * tangent[r0, 2]
                 h1 = (
@@ -574,14 +579,16 @@ def _uv_at(  # pragma: no cover - compiled
                 )
                 total = h0 + h1
                 share = h0 / total if abs(total) > 1e-300 else 0.0
-                out[i, j, 1] = ring_v[r0] + share * (ring_v[r1] - ring_v[r0])
+                row[j, 1] = ring_v[r0] + share * (ring_v[r1] - ring_v[r0])
         if wrap:  # as wrap_u: corners more than half a turn below the row's highest u go round once
-            top = out[i, 0, 0]
+            top = row[0, 0]
             for j in range(1, m):
-                top = max(top, out[i, j, 0])
+                top = max(top, row[j, 0])
             for j in range(m):
-                if top - out[i, j, 0] > 0.5 * tiles[t]:
-                    out[i, j, 0] = out[i, j, 0] + tiles[t]
+                if top - row[j, 0] > 0.5 * tiles[t]:
+                    row[j, 0] = row[j, 0] + tiles[t]
+        for j in range(m):
+            out[i, j, 0], out[i, j, 1] = row[j, 0], row[j, 1]
 
 
 @numba.njit(cache=True, nogil=True)
