@@ -187,20 +187,25 @@ def _first_use_order(corner_v: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarr
     Returns ``(old_of_new, new_of_old)`` (unused vertices get ``-1`` in
     ``new_of_old``), or None when the numbering is already in that order.
     """
-    # the first corner of each vertex: scatter the corners in reverse order so the earliest write lands last
-    m = corner_v.size
-    first = np.full(n, m, np.int64)
-    order = np.arange(m - 1, -1, -1, dtype=np.int64)
-    first[corner_v[::-1]] = order
-    used = first < m
-    if used.all() and (np.diff(first) > 0).all():
-        return None
-    old_of_new = np.flatnonzero(used)
-    if not (np.diff(first[old_of_new]) > 0).all():
-        old_of_new = old_of_new[np.argsort(first[old_of_new], kind="stable")]
     new_of_old = np.full(n, -1, _index_type(n))  # int32 where it fits: the corners renumbered are f * 3 of them
-    new_of_old[old_of_new] = np.arange(old_of_new.size)
-    return old_of_new, new_of_old
+    old_of_new = np.empty(n, np.int64)
+    used = _first_uses(corner_v, new_of_old, old_of_new)
+    if used == n and (old_of_new == np.arange(n)).all():
+        return None
+    return old_of_new[:used], new_of_old
+
+
+@numba.njit(cache=True, nogil=True)
+def _first_uses(corner_v, new_of_old, old_of_new):  # pragma: no cover - compiled
+    """Number the vertices in the order ``corner_v`` first uses them (into both maps); how many are used."""
+    k = 0
+    for i in range(len(corner_v)):
+        v = corner_v[i]
+        if new_of_old[v] < 0:
+            new_of_old[v] = k
+            old_of_new[k] = v
+            k += 1
+    return k
 
 
 def _index_type(n: int) -> type:
