@@ -178,7 +178,7 @@ def find(tubes, runs: np.ndarray, n_runs_of: np.ndarray, tri_id, tri_off, faces_
     ``runs`` are the runs cluster after cluster, ``n_runs_of[c]`` of cluster
     ``c`` (ascending within it); run ``r``'s triangle ids are
     ``tri_id[tri_off[r]:tri_off[r + 1]]``; ``faces_of(ids)`` gives their
-    wedge-indexed faces.
+    wedge-indexed faces, ``faces_of(ids, points=True)`` their point-indexed ones.
     """
     nc = len(n_runs_of)
     n_runs_of = np.asarray(n_runs_of, np.int64)
@@ -187,7 +187,7 @@ def find(tubes, runs: np.ndarray, n_runs_of: np.ndarray, tri_id, tri_off, faces_
     tri = tri_id[np.repeat(tri_off[runs], run_len) + _local_counts(run_len)]
     per_cluster = np.add.reduceat(run_len, run_off[:-1]) if nc else np.zeros(0, np.int64)
     tri_off_c = _offsets(per_cluster)
-    corners = tubes.wedge_point[faces_of(tri)]  # (n, 3) points
+    corners = faces_of(tri, points=True)  # (n, 3) points
     # the points of each cluster, ascending
     point, point_off, local_of_point = _cluster_points(corners, tri_off_c, len(tubes.points))
     n_points = np.diff(point_off)
@@ -207,7 +207,8 @@ def find(tubes, runs: np.ndarray, n_runs_of: np.ndarray, tri_id, tri_off, faces_
     rep = np.arange(nc)
     shift = np.zeros(len(runs))
     # and never more than a hundredth of what float32 (the files' precision) can tell apart at these coordinates
-    stored = 0.01 * float(np.spacing(np.float32(np.abs(tubes.points).max())))
+    reach = max(float(tubes.points.max()), -float(tubes.points.min()))  # the largest |coordinate|, no abs() copy
+    stored = 0.01 * float(np.spacing(np.float32(reach)))
     # candidates: same numbers of triangles, points and runs, and run sizes
     sig = np.stack([per_cluster, n_points, n_runs_of, s], axis=1)
     groups: dict[tuple, list[int]] = {}

@@ -928,8 +928,9 @@ def _local_union(
     tri_off = np.searchsorted(tri_run[by_run], np.arange(len(run_start) + 1))
     del tri_run, by_run, bf
 
-    def faces_of(ids: np.ndarray) -> np.ndarray:
-        return _faces_of(np.asarray(ids, np.int64), nf, tubes.faces, cap_faces)
+    def faces_of(ids: np.ndarray, points: bool = False) -> np.ndarray:
+        through = tubes.wedge_point if points else _NO_MAP
+        return _faces_of(np.asarray(ids, np.int64), nf, tubes.faces, cap_faces, through)
 
     # clusters of runs that touch; congruent clusters are unioned once
     run_pairs = _unique_pairs(run_of_piece[a], run_of_piece[b])
@@ -1117,14 +1118,20 @@ def _cleaned_junctions(junctions: Junctions, tubes: Tubes, clean: JunctionCleane
 
 
 @numba.njit(cache=True, nogil=True)
-def _faces_of(ids, nf, tube_faces, cap_faces):  # pragma: no cover - compiled
-    """``(k, 3)`` wedge-indexed faces of the triangle ids ``ids``: tube face ``i < nf``, temporary cap ``i - nf``."""
+def _faces_of(ids, nf, tube_faces, cap_faces, through):  # pragma: no cover - compiled
+    """``(k, 3)`` wedge-indexed faces of the triangle ids ``ids``: tube face ``i < nf``, temporary cap ``i - nf``;
+    mapped ``through`` an array (the wedges' points) unless it is empty."""
     out = np.empty((len(ids), 3), np.int64)
+    mapped = len(through) > 0
     for i in range(len(ids)):
         k = ids[i]
         for c in range(3):
-            out[i, c] = tube_faces[k, c] if k < nf else cap_faces[k - nf, c]
+            w = tube_faces[k, c] if k < nf else cap_faces[k - nf, c]
+            out[i, c] = through[w] if mapped else w
     return out
+
+
+_NO_MAP = np.zeros(0, np.int64)
 
 
 @numba.njit(cache=True, nogil=True)
