@@ -335,16 +335,18 @@ def clean_mesh(
         return identity
     if junctions:
         points, faces, fsrc = bark.vertices, bark.faces, bark.face_source
-        fflat, origin, operations = _flat_faces(faces, fsrc, tubes), np.arange(len(points)), {}
+        fflat, origin, operations = None, np.arange(len(points)), {}  # the flat faces: beside the uv, below
     else:
         cleaned = _clean_arrays(bark, tubes, opt, threads=threads)
         if cleaned is None:
             return identity
         (points, faces, fflat, fsrc, origin), operations = cleaned  # the half-edges are gone: they took a third
-    with _executor(threads, 2) as pool:  # the normals beside the uv, the uv in two halves (compiled: no GIL)
-        normals = pool.submit(smooth_normals, points, faces, fflat)
-        uv = tube_uv(tubes, points, faces, fsrc, pool)
-        normals = normals.result()
+    with _executor(threads, 2) as pool:  # the uv (in two halves) beside the flat faces, then the normals in two
+        uv = pool.submit(tube_uv, tubes, points, faces, fsrc, pool)
+        if fflat is None:
+            fflat = _flat_faces(faces, fsrc, tubes)
+        normals = smooth_normals(points, faces, fflat, pool)
+        uv = uv.result()
     mesh = Mesh(points, faces, normals, uv, face_source=fsrc)
     if not junctions:  # (with them, the vertices are the union's, which it has separated already)
         # end as the union ends: no two vertices that a float32 file or a reader's weld would merge
@@ -477,10 +479,12 @@ def cleanup(
     return clean_mesh(bark, tubes, opt, threads, junctions).mesh
 
 
-def smooth_normals(vertices: np.ndarray, faces: np.ndarray, flat: np.ndarray) -> np.ndarray:
+def smooth_normals(vertices: np.ndarray, faces: np.ndarray, flat: np.ndarray, pool=None) -> np.ndarray:
     """Corner normals ``(f, 3, 3) float32``: angle-weighted vertex normals of curved faces; flat faces keep their own.
 
     Continuous across every edge between curved faces (the junction seams
-    among them), sharp at the rims of flat caps.
+    among them), sharp at the rims of flat caps.  With a ``pool`` (an
+    executor), one of its threads makes half of them (the same bits).
     """
-    return remesh.corner_normals(np.asarray(vertices, np.float64), np.asarray(faces, np.int64), np.asarray(flat, bool))
+    points, faces, flat = np.asarray(vertices, np.float64), np.asarray(faces, np.int64), np.asarray(flat, bool)
+    return remesh.corner_normals(points, faces, flat, pool)
