@@ -132,7 +132,7 @@ class _Surface(NamedTuple):
     face_source: np.ndarray
 
 
-def _drop_crumbs(bark: Mesh) -> _Surface:
+def _drop_crumbs(bark: Mesh | _Surface) -> _Surface:
     """Remove closed pieces that enclose (almost) nothing: flat or inside-out crumbs of the boolean.
 
     Where coplanar tubes cross (the flat presets), a boolean can leave a
@@ -376,7 +376,7 @@ def clean_junctions(tubes: Tubes, junctions: Junctions, options: CleanupOptions 
     return points, faces, source
 
 
-def _clean_arrays(bark: Mesh, tubes: Tubes, opt: CleanupOptions, order=None, threads: int = 2, caps=None):
+def _clean_arrays(bark: Mesh | _Surface, tubes: Tubes, opt: CleanupOptions, order=None, threads: int = 2, caps=None):
     """The cleaned bark's points, faces, flat faces, face sources and vertex origins, and the operations done;
     None when the bark is not a closed 2-manifold (a warning says so).  ``order``: see :func:`_clean_halves`;
     ``caps``: :func:`_classify`'s."""
