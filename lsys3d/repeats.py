@@ -172,13 +172,18 @@ def _cluster_points(corners, tri_off, npts):  # pragma: no cover - compiled
     return point[:n].copy(), point_off, local_of_point
 
 
-def find(tubes, runs: np.ndarray, n_runs_of: np.ndarray, tri_id, tri_off, faces_of, nf: int) -> Clusters:
+def find(
+    tubes, runs: np.ndarray, n_runs_of: np.ndarray, tri_id, tri_off, faces_of, nf: int, shading: bool = True
+) -> Clusters:
     """Describe the clusters and find the congruent ones.
 
     ``runs`` are the runs cluster after cluster, ``n_runs_of[c]`` of cluster
     ``c`` (ascending within it); run ``r``'s triangle ids are
     ``tri_id[tri_off[r]:tri_off[r + 1]]``; ``faces_of(ids)`` gives their
     wedge-indexed faces, ``faces_of(ids, points=True)`` their point-indexed ones.
+    Without ``shading`` (a union that makes no corner normals and uv) the
+    clusters need only be congruent: their normals and uv are not compared,
+    and the v offsets are zero.
     """
     nc = len(n_runs_of)
     n_runs_of = np.asarray(n_runs_of, np.int64)
@@ -243,9 +248,9 @@ def find(tubes, runs: np.ndarray, n_runs_of: np.ndarray, tri_id, tri_off, faces_
         lens = np.asarray(run_sig[members[0]], np.int64)
         run_of = np.repeat(np.arange(len(lens)), lens)
         first_tri = _offsets(lens)[:-1]
-        offset = np.empty((len(cand), len(lens)))
+        offset = np.zeros((len(cand), len(lens)))
         step = max(1, _CHECKED // t)  # the shading of a block of candidates and their representatives at a time
-        for lo in range(0, len(cand), step):
+        for lo in range(0, len(cand) if shading else 0, step):
             block = slice(lo, lo + step)
             wa, wb = (faces_of(tri[tris[rows]].ravel()).reshape(len(rows), t, 3) for rows in (cand[block], rr[block]))
             fa, fb = frame[m[cand[block]]], frame[m[rr[block]]]

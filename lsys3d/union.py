@@ -939,7 +939,7 @@ def _local_union(
     cuts = np.flatnonzero(np.diff(label[by_label])) + 1
     runs_per_cluster = np.diff(np.concatenate([[0], cuts, [len(by_label)]]))
     del cuts
-    clusters = repeats.find(tubes, by_label, runs_per_cluster, tri_id, tri_off, faces_of, nf)
+    clusters = repeats.find(tubes, by_label, runs_per_cluster, tri_id, tri_off, faces_of, nf, corners)
     progress(0.15)
     is_rep = clusters.rep == np.arange(len(clusters))
     rep_run = np.empty(len(by_label), bool)
