@@ -296,36 +296,25 @@ def _split(points, corner_v, normals, uv, colors=None):
     """Un-weld: one vertex per unique (point, normal, uv), numbered like the points, seams appended.
 
     Most corners carry the same attributes as some representative corner of
-    their point; only the others (seams, creases) are sorted to find their
+    their point; only the others (seams, creases) are hashed to find their
     distinct combinations, so the cost stays linear for a typical mesh.
     """
     n = len(points)
-    m = corner_v.size
-    rep = np.empty(n, _index_type(m))
-    rep[corner_v] = np.arange(m, dtype=rep.dtype)  # any corner of each point will do
-    # compare bit patterns (normals were normalised, -0.0 folded), one compiled pass
-    same = np.empty(m, bool)
     no_uv = np.zeros((0, 2), np.uint32)
-    _same_as_rep(corner_v, rep, normals.view(np.uint32), no_uv if uv is None else uv.view(np.uint32), same)
+    # compare bit patterns (normals were normalised, -0.0 folded), in compiled passes
+    rep, extra, keys = _others(corner_v, n, normals.view(np.uint32), no_uv if uv is None else uv.view(np.uint32))
     split_index = corner_v.astype(np.uint32)
-    extra = np.flatnonzero(~same)
     corners = rep
     vertex_of_split = None
     if extra.size:
-        cols = [corner_v[extra, None].astype(np.uint32), normals[extra].view(np.uint32)]
-        if uv is not None:
-            cols.append(uv[extra].view(np.uint32))
-        owner = first_equal_row(np.concatenate(cols, axis=1))
-        # the new vertices numbered in order of first use, so the output does not depend on the sort
-        is_first = owner == np.arange(len(owner))
-        first = np.flatnonzero(is_first)
-        split_index[extra] = (n - 1 + np.cumsum(is_first)[owner]).astype(np.uint32)  # n + its rank among the firsts
-        new_corners = extra[first]
+        # the new vertices numbered in order of first use, so the output does not depend on the hash
+        new_corners = _number_others(first_equal_row(keys), extra, n, split_index)
+        del keys
         corners = np.concatenate([rep, new_corners])
         vertex_of_split = np.concatenate([np.arange(n), corner_v[new_corners]])
     split_points = points if vertex_of_split is None else points[vertex_of_split]
-    split_normals = normals[corners]
-    split_uv = None if uv is None else uv[corners]
+    split_normals = np.take(normals, corners, axis=0)
+    split_uv = None if uv is None else np.take(uv, corners, axis=0)
     split_colors = None
     if colors is not None:  # a colour belongs to the point: split vertices copy their point's
         split_colors = colors if vertex_of_split is None else colors[vertex_of_split]
@@ -333,17 +322,58 @@ def _split(points, corner_v, normals, uv, colors=None):
 
 
 @numba.njit(cache=True, nogil=True)
-def _same_as_rep(corner_v, rep, normal_bits, uv_bits, same):  # pragma: no cover - compiled
-    """``same[i]``: corner ``i`` has the bits of normal and uv of its point's representative corner ``rep``
-    (``uv_bits`` empty: no uv)."""
+def _others(corner_v, n, normal_bits, uv_bits):  # pragma: no cover - compiled
+    """:func:`_split`'s representative (last) corner of each point, the corners whose normal or uv bits differ
+    from their point's representative's, and those corners' rows of point, normal and uv bits (``uv_bits``
+    empty: no uv)."""
+    m = len(corner_v)
     has_uv = len(uv_bits) > 0
-    for i in range(len(corner_v)):
+    rep = np.empty(n, np.int64)
+    for i in range(m):
+        rep[corner_v[i]] = i
+    same = np.empty(m, np.bool_)
+    count = 0
+    for i in range(m):
         r = rep[corner_v[i]]
         s = normal_bits[i, 0] == normal_bits[r, 0] and normal_bits[i, 1] == normal_bits[r, 1]
         s = s and normal_bits[i, 2] == normal_bits[r, 2]
         if has_uv:
             s = s and uv_bits[i, 0] == uv_bits[r, 0] and uv_bits[i, 1] == uv_bits[r, 1]
         same[i] = s
+        count += not s
+    extra = np.empty(count, np.int64)
+    keys = np.empty((count, 6 if has_uv else 4), np.uint32)
+    k = 0
+    for i in range(m):
+        if same[i]:
+            continue
+        extra[k] = i
+        keys[k, 0] = corner_v[i]
+        for c in range(3):
+            keys[k, 1 + c] = normal_bits[i, c]
+        if has_uv:
+            keys[k, 4], keys[k, 5] = uv_bits[i, 0], uv_bits[i, 1]
+        k += 1
+    return rep, extra, keys
+
+
+@numba.njit(cache=True, nogil=True)
+def _number_others(owner, extra, n, split_index):  # pragma: no cover - compiled
+    """Number the distinct combinations of the corners ``extra`` (``owner``: each one's first equal row) from
+    ``n`` in the order of their first corners, into ``split_index``; those first corners."""
+    rank = np.empty(len(owner), np.int64)
+    k = 0
+    for i in range(len(owner)):
+        if owner[i] == i:
+            rank[i] = k
+            k += 1
+    first = np.empty(k, np.int64)
+    for i in range(len(owner)):
+        r = rank[owner[i]]
+        split_index[extra[i]] = n + r
+        if owner[i] == i:
+            first[r] = extra[i]
+    return first
 
 
 def split_tangents(arrays: MeshArrays) -> np.ndarray:
