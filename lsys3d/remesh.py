@@ -2168,15 +2168,16 @@ def _vertex_normal_sums(points, faces, flat, vn, some, lo, hi):  # pragma: no co
 @numba.njit(cache=True, nogil=True)
 def _corner_rows(points, faces, flat, vn, some, out, lo, hi):  # pragma: no cover - compiled
     """:func:`corner_normals`' rows ``lo:hi`` of ``out``: a flat face's corners (or a corner whose vertex has no
-    normal) take the face's own normal (made again: no (f, 3) array of them), the others their vertex's."""
+    normal) take the face's own normal (made again: no (f, 3) array of them), the others their vertex's.
+    ``+ 0.0`` makes a -0.0 0.0 (as the files store it: the writers need not copy the normals to fold it)."""
     for f in range(lo, hi):
         fx, fy, fz, _ = _unit_normal(points, faces[f, 0], faces[f, 1], faces[f, 2])
         for k in range(3):
             v = faces[f, k]
             if flat[f] or not some[v]:
-                out[f, k, 0], out[f, k, 1], out[f, k, 2] = fx, fy, fz
+                out[f, k, 0], out[f, k, 1], out[f, k, 2] = fx + 0.0, fy + 0.0, fz + 0.0
             else:
-                out[f, k, 0], out[f, k, 1], out[f, k, 2] = vn[v, 0], vn[v, 1], vn[v, 2]
+                out[f, k, 0], out[f, k, 1], out[f, k, 2] = vn[v, 0] + 0.0, vn[v, 1] + 0.0, vn[v, 2] + 0.0
 
 
 @_leaf

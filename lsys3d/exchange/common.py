@@ -130,8 +130,8 @@ _SLICE = 1 << 20  # normals checked at once (bounds the temporaries)
 def to_float32(values, what: str, where: str) -> np.ndarray:
     """``values`` as float32, the precision of the files, refusing what float32 cannot hold (an overflow to inf)."""
     values = np.asarray(values, dtype=np.float64)
-    with np.errstate(invalid="ignore"):
-        ok = bool((np.abs(values) <= FLOAT32_MAX).all())
+    # the largest and least values, no abs() copy (a NaN makes both NaN: not ok)
+    ok = values.size == 0 or bool(values.max() <= FLOAT32_MAX and values.min() >= -FLOAT32_MAX)
     if not ok:
         raise ExportError(
             f"{where}: {what} holds a value that is not a number or beyond the 32-bit float range (3.4e38)"

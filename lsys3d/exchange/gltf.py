@@ -38,6 +38,7 @@ from dataclasses import replace
 from pathlib import Path
 from urllib.parse import quote
 
+import numba
 import numpy as np
 
 from ..attributes import branch_table, gltf_attributes
@@ -123,15 +124,53 @@ class _Buffer:
         if normalized:
             acc["normalized"] = True
         if bounds:
-            two_d = data.reshape(len(data), width)
-            acc["min"] = two_d.min(axis=0).tolist()
-            acc["max"] = two_d.max(axis=0).tolist()
+            low, high = _bounds(data.reshape(len(data), width))
+            acc["min"], acc["max"] = low.tolist(), high.tolist()
         self.accessors.append(acc)
         return len(self.accessors) - 1
 
     def padded_chunks(self) -> list[memoryview]:
         pad = -self.size % 4
         return self.chunks + ([memoryview(b"\0" * pad)] if pad else [])
+
+
+def _bounds(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each column's least and greatest value, as ``rows.min(axis=0)`` and ``rows.max(axis=0)`` give them.
+
+    One compiled pass (numpy's reduction over an axis of three columns is
+    slow: 0.2 s for a 4.6 million-vertex bark); a column whose bound is a
+    zero (0.0 and -0.0 compare equal: which one numpy returns is its own) or
+    that holds a NaN is reduced by numpy itself.
+    """
+    low, high, again = _column_bounds(rows)
+    for c in np.flatnonzero(again).tolist():
+        low[c], high[c] = rows[:, c].min(), rows[:, c].max()
+    return low, high
+
+
+@numba.njit(cache=True, nogil=True)
+def _column_bounds(rows):  # pragma: no cover - compiled
+    """:func:`_bounds` in one pass: the bounds and, per column, whether numpy has to say."""
+    n, w = rows.shape
+    low = np.empty(w, rows.dtype)
+    high = np.empty(w, rows.dtype)
+    again = np.zeros(w, np.bool_)
+    for c in range(w):
+        low[c] = rows[0, c] if n else 0
+        high[c] = low[c]
+    for i in range(n):
+        for c in range(w):
+            x = rows[i, c]
+            if x < low[c]:
+                low[c] = x
+            elif x > high[c]:
+                high[c] = x
+            elif x != x:
+                again[c] = True
+    for c in range(w):
+        if low[c] == 0 or high[c] == 0:
+            again[c] = True
+    return low, high, again
 
 
 def _indices(index: np.ndarray, n_vertices: int) -> np.ndarray:
