@@ -444,7 +444,9 @@ def _flat_faces(faces: np.ndarray, source: np.ndarray, tubes: Tubes) -> np.ndarr
     if not flat.any():
         return flat
     cut = remesh.cut_caps(np.ascontiguousarray(faces), part, cap, int(cap.max()) + 1)
-    return flat & ~cut[np.maximum(cap, 0)]
+    on_cap = np.flatnonzero(flat)  # a few of the faces: no full-size temporaries
+    flat[on_cap] = ~cut[cap[on_cap]]
+    return flat
 
 
 def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndarray, pool=None) -> np.ndarray:
