@@ -351,8 +351,17 @@ def with_copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> Part:
         nm = merge.shape[1]
         np.add(merge[0][None, :], step, out=joined.merge_from[m0 : off[i + 2, 2]].reshape(g, nm))
         np.add(merge[1][None, :], step, out=joined.merge_to[m0 : off[i + 2, 2]].reshape(g, nm))
-        joined.face_id[t0 : off[i + 2, 1]] = cl.tri[cl.tri_off[mine][:, None] + pos[None, :]].ravel()  # their own ids
+        _copy_ids(joined.face_id[t0 : off[i + 2, 1]], cl.tri, cl.tri_off[mine], pos)  # their own ids
     return joined
+
+
+@numba.njit(cache=True, nogil=True)
+def _copy_ids(out, tri, first, pos):  # pragma: no cover - compiled
+    """``out[g * len(pos) + k] = tri[first[g] + pos[k]]``: each copy's own face ids, copy after copy."""
+    t = len(pos)
+    for g in range(len(first)):
+        for k in range(t):
+            out[g * t + k] = tri[first[g] + pos[k]]
 
 
 @numba.njit(cache=True, nogil=True)

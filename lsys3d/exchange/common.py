@@ -263,7 +263,8 @@ def gather_mesh(mesh: Mesh, frame: np.ndarray, where: str) -> MeshArrays:
     shared = np.may_share_memory(normals, mesh.normals)
     if shared and (_needs_unit(normals) or _has_negative_zero(normals)):
         normals, shared = normals.copy(), False  # a private copy, fixed in place below; the mesh's stay as they are
-    normals = _unit_normals(normals, corner_v.reshape(-1, 3), points)  # unchanged when shared: all unit already
+    if not shared:  # (shared: all unit already, and no -0.0)
+        normals = _unit_normals(normals, corner_v.reshape(-1, 3), points)
     normals = np.ascontiguousarray(normals, dtype=np.float32)  # _split views the rows as bytes
     if not shared:
         normals += np.float32(0.0)  # -0.0 -> 0.0, so corners that compare equal are equal bit for bit
