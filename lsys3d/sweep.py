@@ -312,7 +312,9 @@ class Tubes:
             self.ring_v[rng],
         )
 
-    def insert_rings(self, tube: np.ndarray, ring: np.ndarray, t: np.ndarray, *, origin: bool = False):
+    def insert_rings(
+        self, tube: np.ndarray, ring: np.ndarray, t: np.ndarray, *, origin: bool = False, shading: bool = True
+    ):
         """These tubes with new rings between existing ones, each vertex interpolated along its wall edge.
 
         A new ring goes into tube ``tube[i]`` between its rings ``ring[i]`` and
@@ -327,7 +329,9 @@ class Tubes:
         With ``origin=True``, returns ``(tubes, face_origin)``: for each face of
         the new tubes, the face of these tubes it lies in (a wall face of a
         split span: the face of the same quad and half in the span it splits;
-        a cap face: the same cap face).
+        a cap face: the same cap face).  Without ``shading`` (for a caller that
+        reads the points alone) the new tubes' wedge normals and uv are zeros
+        that take no memory (read-only views of one row).
         """
         tube, ring, t = (np.asarray(x) for x in (tube, ring, t))
         if not len(tube):
@@ -347,8 +351,8 @@ class Tubes:
         points = np.empty((p_off[-1], 3))
         nw = w_off[-1]
         wedge_point = np.empty(nw, np.int64)
-        wedge_normal = np.empty((nw, 3), np.float32)
-        wedge_uv = np.empty((nw, 2), np.float32)
+        wedge_normal = np.empty((nw if shading else 0, 3), np.float32)
+        wedge_uv = np.empty((nw if shading else 0, 2), np.float32)
         _ring_rows(
             (points, wedge_point, wedge_normal, wedge_uv),
             (self.points, self.wedge_normal, self.wedge_uv),
@@ -367,8 +371,12 @@ class Tubes:
         jc = local_index(cap_len)
         src = self.wedge_offsets[cap_tube] + rings[cap_tube] * (sides[cap_tube] + 1) + jc
         dest = w_off[cap_tube] + new_rings[cap_tube] * (sides[cap_tube] + 1) + jc
-        wedge_normal[dest] = self.wedge_normal[src]
-        wedge_uv[dest] = self.wedge_uv[src]
+        if shading:
+            wedge_normal[dest] = self.wedge_normal[src]
+            wedge_uv[dest] = self.wedge_uv[src]
+        else:
+            wedge_normal = np.broadcast_to(np.zeros(3, np.float32), (nw, 3))
+            wedge_uv = np.broadcast_to(np.zeros(2, np.float32), (nw, 2))
         s_c = sides[cap_tube]
         tip = jc > s_c
         jj = np.where(tip, jc - s_c - 1, jc)  # 0: centre, 1..s: rim
@@ -1298,6 +1306,7 @@ def _ring_rows(out, old, rt, rk, rf, local, sides, offs):  # pragma: no cover - 
     points, wedge_point, wedge_normal, wedge_uv = out
     old_points, old_normal, old_uv = old
     point_offsets, wedge_offsets, p_off, w_off = offs
+    shading = len(wedge_normal) > 0  # (empty: the points and wedge points alone)
     for r in range(len(rt)):
         tube, s, f = rt[r], sides[rt[r]], rf[r]
         moved = f > 0
@@ -1314,6 +1323,8 @@ def _ring_rows(out, old, rt, rk, rf, local, sides, offs):  # pragma: no cover - 
         wdest = w_off[tube] + local[r] * w
         for j in range(w):
             wedge_point[wdest + j] = dest + j % s
+            if not shading:
+                continue
             if not moved:
                 for c in range(3):
                     wedge_normal[wdest + j, c] = old_normal[src + j, c]

@@ -346,7 +346,7 @@ def _union(
         progress(1.0)
         return _sourced(mesh, np.arange(nf), where), False
     t0 = time.perf_counter()
-    tubes, pcs, a, b, origin = _prepare(tubes, opt, progress)
+    tubes, pcs, a, b, origin = _prepare(tubes, opt, progress, corners)
     release_memory()
     log.debug("union: %d pieces, %d touching pairs (%.2f s)", len(pcs), len(a), time.perf_counter() - t0)
     progress(0.10)
@@ -534,12 +534,13 @@ def _leave_out(tubes: Tubes, origin: np.ndarray, drop: np.ndarray, why: str):
     return tubes.select(~drop), origin[gather(tubes.face_offsets, np.flatnonzero(~drop))[0]]
 
 
-def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None]):
+def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None], corners: bool = True):
     """Cull what adds nothing, find what may touch, refine long straight spans.
 
     Returns the tubes, their pieces, the pairs of pieces that may touch, and
     for each face of the returned tubes the face of the given tubes it is (or
-    lies in, for a span split by new rings).
+    lies in, for a span split by new rings).  Without ``corners`` (the points
+    alone go through the boolean) the refined tubes carry no wedge normals and uv.
     """
     origin = np.arange(len(tubes.faces))
 
@@ -558,7 +559,7 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None])
         tube, ring, t = free_stretches(tubes, pcs, a, b, opt.margin)
         if len(tube):
             log.debug("union: %d rings inserted around touched stretches", len(tube))
-            tubes, inserted = tubes.insert_rings(tube, ring, t, origin=True)
+            tubes, inserted = tubes.insert_rings(tube, ring, t, origin=True, shading=corners)
             origin = origin[inserted]
             progress(0.07)
             pcs = pieces(tubes)
