@@ -724,7 +724,8 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
     _repair_corners(mesh)
     vertices, faces, normals, uv, source = mesh.vertices, mesh.faces, mesh.normals, mesh.uv, mesh.face_source
     del mesh
-    v32 = vertices.astype(np.float32) + np.float32(0.0)  # + 0.0: -0.0 and 0.0 are one position
+    v32 = vertices.astype(np.float32)
+    v32 += np.float32(0.0)  # -0.0 and 0.0 are one position
     owner = _first_equal_row(v32.view(np.int32))
     first = owner == np.arange(len(v32))
     if first.all():  # no two vertices share a float32 position
@@ -807,8 +808,10 @@ def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False
     def float32_bits():  # + 0.0 makes -0.0 and 0.0 one position
         return (v32 + np.float32(0.0)).view(np.int32)
 
-    def weld_grid_cell():  # trimesh's merge_vertices rounds to 8 decimals
-        return np.round(v32.astype(np.float64) * 1e8).astype(np.int64)
+    def weld_grid_cell():  # trimesh's merge_vertices rounds to 8 decimals (in place: one float64 temporary)
+        cell = v32.astype(np.float64)
+        cell *= 1e8
+        return np.round(cell, out=cell).astype(np.int64)
 
     # the vertices moved since each key last grouped them: only those can share a key with another vertex
     # (the rest were told apart then), so later rounds group a few candidates instead of all vertices
@@ -1047,23 +1050,21 @@ def _local_union(
         normals, uv = _no_corners(len(faces), 3, 3), _no_corners(len(faces), 3, 2)
     del props, otri, keep, face_piece
     # then the free pieces: their points (ring points on a cut map onto the seam) and attributes
-    wedges = tubes.faces[ff]
-    del ff
     if corners:
+        wedges = tubes.faces[ff]
         np.take(tubes.wedge_normal, wedges, axis=0, out=normals[nb:])
         np.take(tubes.wedge_uv, wedges, axis=0, out=uv[nb:])
-    free_pts = np.take(tubes.wedge_point, wedges)
-    del wedges
+        del wedges
     used = np.zeros(len(tubes.points), bool)
-    used[free_pts] = True
+    _free_points(ff, tubes.faces, tubes.wedge_point, used)
     used[cut_points] = False
     fresh = np.flatnonzero(used)
     del used
     new_index = np.full(len(tubes.points), -1, np.int64)
     new_index[fresh] = npts + np.arange(len(fresh))
     new_index[cut_points] = seam[found]
-    np.take(new_index, free_pts, out=faces[nb:])
-    del free_pts, new_index
+    _free_faces(ff, tubes.faces, tubes.wedge_point, new_index, faces[nb:])
+    del ff, new_index
     vertices = np.concatenate([seam_pos, tubes.points[fresh]])
     del seam_pos, fresh
     near = np.zeros(len(vertices), bool)  # the seams: the rings where untouched pieces meet the boolean's output
@@ -1156,6 +1157,22 @@ def _face_pieces(face_offsets, sides, nspan, span_offsets, span_piece):  # pragm
                 span = nspan[t] - 1
             out[f] = span_piece[span_offsets[t] + span]
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _free_points(ff, tube_faces, wedge_point, used):  # pragma: no cover - compiled
+    """Mark in ``used`` the points of the tube faces ``ff`` (no (k, 3) gathers of their wedges and points)."""
+    for f in ff:
+        for c in range(3):
+            used[wedge_point[tube_faces[f, c]]] = True
+
+
+@numba.njit(cache=True, nogil=True)
+def _free_faces(ff, tube_faces, wedge_point, new_index, out):  # pragma: no cover - compiled
+    """Write the tube faces ``ff`` on the stitched mesh's points (``new_index`` of each tube point) into ``out``."""
+    for i in range(len(ff)):
+        for c in range(3):
+            out[i, c] = new_index[wedge_point[tube_faces[ff[i], c]]]
 
 
 @numba.njit(cache=True, nogil=True)
