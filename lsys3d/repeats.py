@@ -26,7 +26,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .arrays import ROW_HASH_MIX, dot3, find_rows, hash_word
+from .arrays import ROW_HASH_MIX, dot3, find_rows, first_equal_row, hash_word
 from .arrays import local_index as _local_counts
 from .arrays import offsets as _offsets
 from .booleans import Part
@@ -215,19 +215,20 @@ def find(
     reach = max(float(tubes.points.max()), -float(tubes.points.min()))  # the largest |coordinate|, no abs() copy
     stored = 0.01 * float(np.spacing(np.float32(reach)))
     # candidates: same numbers of triangles, points and runs, and run sizes
-    sig = np.stack([per_cluster, n_points, n_runs_of, s], axis=1)
-    groups: dict[tuple, list[int]] = {}
-    run_sig = [tuple(run_len[run_off[c] : run_off[c + 1]].tolist()) for c in range(nc)]
-    for c in range(nc):
-        groups.setdefault((*sig[c].tolist(), run_sig[c]), []).append(c)
+    # (a row per cluster: the numbers, then the run sizes, -1 past its last run)
+    sig = np.full((nc, 4 + int(n_runs_of.max(initial=0))), -1, np.int64)
+    sig[:, :4] = np.stack([per_cluster, n_points, n_runs_of, s], axis=1)
+    sig[np.repeat(np.arange(nc), n_runs_of), 4 + _local_counts(n_runs_of)] = run_len
+    same_sig = first_equal_row(sig)
+    by_sig = np.argsort(same_sig, kind="stable")  # each group's clusters together, ascending
+    group_start = np.flatnonzero(np.diff(same_sig[by_sig], prepend=-1))
+    group_size = np.diff(np.append(group_start, nc))
     wedge_uv = tubes.wedge_uv
     # v runs on along the whole plant (tiles, float32): where it is large, two float32 steps are the finest
     # difference the texture coordinates themselves can hold
-    v_tolerance = max(_SHADING, 2.0 * float(np.spacing(np.abs(wedge_uv[:, 1]).max(initial=0.0))))
-    for members in groups.values():
-        if len(members) < 2:
-            continue
-        m = np.asarray(members)
+    v_tolerance = max(_SHADING, 2.0 * float(np.spacing(np.abs(wedge_uv[:, 1]).max(initial=0.0)))) if shading else 0
+    for first, size in zip(group_start[group_size > 1].tolist(), group_size[group_size > 1].tolist(), strict=True):
+        m = by_sig[first : first + size]
         g, t, v = len(m), int(per_cluster[m[0]]), int(n_points[m[0]])
         tris = tri_off_c[m][:, None] + np.arange(t)  # (g, t) rows of `tri`
         # candidates: equal faces and bucketed points (a hash; the checks below confirm every match)
@@ -245,7 +246,7 @@ def find(
         rr = r[cand]
         ok = np.abs(loc[cand] - loc[rr]).max(axis=(1, 2)) <= np.minimum(_POINTS * size[rr], stored) + 1e-300
         # one v offset per run: the runs split the triangle list the same way in every member
-        lens = np.asarray(run_sig[members[0]], np.int64)
+        lens = run_len[run_off[m[0]] : run_off[m[0] + 1]]
         run_of = np.repeat(np.arange(len(lens)), lens)
         first_tri = _offsets(lens)[:-1]
         offset = np.zeros((len(cand), len(lens)))
