@@ -61,7 +61,7 @@ import numba
 import numpy as np
 
 from . import booleans, repeats, union_jobs
-from .arrays import components, dot3, gather, isin, ranges, release_memory, row_hash, row_table, same_row, unique
+from .arrays import components, dot3, gather, isin, ranges, release_memory, row_hash, unique
 from .arrays import first_equal_row as _first_equal_row
 from .arrays import offsets as _offsets
 from .booleans import BooleanError, Part
@@ -1030,10 +1030,18 @@ def _local_union(
     if len(seam) != len(cut_points):
         log.debug("union: the temporary caps do not meet the boolean at their rings; unioning whole tubes")
         return None
-    found = _match_rows(seam_pos[seam], tubes.points[cut_points])
-    if found is None:
+    # each cap triangle came back whole: its corners are its ring's points, matched by position (the only
+    # question is which corner manifold put first), each ring point onto one seam point, no seam point twice
+    seam_of = np.full(len(tubes.points), -1, np.int64)
+    matched = _cap_points(otri, fid, nf, point_of, seam_pos, cap_faces, tubes.wedge_point, tubes.points, seam_of)
+    seam_of_cut = seam_of[cut_points]
+    del seam_of
+    claimed = np.zeros(npts, bool)
+    claimed[seam_of_cut[seam_of_cut >= 0]] = True
+    if not matched or (seam_of_cut < 0).any() or claimed.sum() != len(cut_points):
         log.debug("union: the rings of the temporary caps moved in the boolean; unioning whole tubes")
         return None
+    del claimed
     # the stitched mesh, written in place part by part (no full-size temporaries): first the boolean's output
     ff = np.flatnonzero(~face_busy)  # the free pieces' faces
     source = np.concatenate([fid[keep], ff])  # the tube face of each triangle (the boolean kept the ids)
@@ -1062,7 +1070,7 @@ def _local_union(
     del used
     new_index = np.full(len(tubes.points), -1, np.int64)
     new_index[fresh] = npts + np.arange(len(fresh))
-    new_index[cut_points] = seam[found]
+    new_index[cut_points] = seam_of_cut
     _free_faces(ff, tubes.faces, tubes.wedge_point, new_index, faces[nb:])
     del ff, new_index
     vertices = np.concatenate([seam_pos, tubes.points[fresh]])
@@ -1157,6 +1165,40 @@ def _face_pieces(face_offsets, sides, nspan, span_offsets, span_piece):  # pragm
                 span = nspan[t] - 1
             out[f] = span_piece[span_offsets[t] + span]
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _cap_points(tri, fid, nf, point_of, pos, cap_faces, wedge_point, points, seam_of):  # pragma: no cover
+    """Into ``seam_of`` (per tube point): the point (of ``point_of[tri]``, at ``pos``) each corner of the temporary
+    cap triangles ``fid >= nf`` came back as, the triangle's corners matched by their exact positions in one of
+    its three rotations; False when a cap triangle matches in none or a ring point came back as two points."""
+    out = np.empty(3, np.int64)
+    ring = np.empty(3, np.int64)
+    for t in range(len(fid)):
+        q = fid[t] - nf
+        if q < 0:
+            continue
+        for k in range(3):
+            out[k] = point_of[tri[t, k]]
+            ring[k] = wedge_point[cap_faces[q, k]]
+        turn = -1
+        for r in range(3):
+            same = True
+            for k in range(3):
+                o, p = out[(k + r) % 3], ring[k]
+                same = same and pos[o, 0] == points[p, 0] and pos[o, 1] == points[p, 1] and pos[o, 2] == points[p, 2]
+            if same:
+                turn = r
+                break
+        if turn < 0:
+            return False
+        for k in range(3):
+            o, p = out[(k + turn) % 3], ring[k]
+            if seam_of[p] < 0:
+                seam_of[p] = o
+            elif seam_of[p] != o:
+                return False
+    return True
 
 
 @numba.njit(cache=True, nogil=True)
@@ -1308,47 +1350,6 @@ def _weld(nprops: int, merge_from: np.ndarray, merge_to: np.ndarray):
 def _unit_rows(v: np.ndarray) -> np.ndarray:
     length = np.linalg.norm(v, axis=-1, keepdims=True)
     return v / np.where(length > 1e-12, length, 1.0)
-
-
-def _match_rows(have: np.ndarray, want: np.ndarray):
-    """Index into ``have`` of every row of ``want`` (exact match), or None if any is missing or twice.
-
-    :func:`~lsys3d.arrays.find_rows` and the check that no row is found twice,
-    in one pass over a hash table of ``have`` (no sort of the hashes).
-    """
-    have, want = np.ascontiguousarray(have), np.ascontiguousarray(want)
-    found, ok = _matched_rows(have, row_hash(have), want, row_hash(want))
-    return found if ok else None
-
-
-@numba.njit(cache=True, nogil=True)
-def _matched_rows(have, hh, want, hw):  # pragma: no cover - compiled
-    """:func:`_match_rows` by the hash table of ``have`` (:func:`~lsys3d.arrays.row_table`; equal rows: the first).
-
-    Rows match when their hashes (their bits: ``-0.0`` is not ``0.0``) and their values are equal, as in
-    :func:`~lsys3d.arrays.find_rows`.  Returns the indices and whether every row was found, none twice.
-    """
-    n = len(have)
-    found = np.full(len(want), -1, np.int64)
-    if n == 0:
-        return found, len(want) == 0
-    table, _, shift = row_table(have, hh)
-    size = len(table)
-    taken = np.zeros(n, np.bool_)
-    for i in range(len(want)):
-        s = np.int64(hw[i] >> shift)
-        while True:
-            j = table[s]
-            if j < 0:
-                return found, False
-            if hh[j] == hw[i] and same_row(have, j, want, i):
-                if taken[j]:
-                    return found, False
-                taken[j] = True
-                found[i] = j
-                break
-            s = (s + 1) & (size - 1)
-    return found, True
 
 
 def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> bool:

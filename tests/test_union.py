@@ -852,28 +852,37 @@ def test_closed_check_agrees_with_sorting_the_edges():
     assert seen == {True, False}
 
 
-def test_match_rows_agrees_with_find_rows():
-    from lsys3d.arrays import find_rows
-    from lsys3d.union import _match_rows
+def test_cap_points_match_each_ring_point_once_whatever_the_rotation():
+    """The temporary caps' triangles come back from the boolean with their corners in any of three rotations, on
+    points of their own numbering: each ring point is found on exactly one of them, by position."""
+    from lsys3d.union import _cap_points
 
     rng = np.random.default_rng(6)
-    found_some = False
-    for trial in range(200):
-        have = rng.integers(0, 3, (int(rng.integers(0, 30)), 3)).astype(float)
-        if trial % 2:
-            have = np.unique(have, axis=0)
-        if trial % 5 == 0 and len(have):
-            have[0, 0] = -0.0  # not the row of 0.0: bits differ
-        take = rng.permutation(len(have))[: int(rng.integers(0, len(have) + 1))]
-        want = have[take] if trial % 3 else rng.integers(0, 3, (len(take), 3)).astype(float)
-        ref = find_rows(have, want)
-        ok = (ref >= 0).all() and len(np.unique(ref)) == len(ref)
-        got = _match_rows(have, want)
-        assert (got is not None) == ok
-        if ok:
-            assert np.array_equal(got, ref)
-            found_some |= len(ref) > 3
-    assert found_some
+    points = rng.normal(size=(6, 3))  # a ring of 6 tube points, one wedge each
+    wedge_point = np.arange(6)
+    cap_faces = np.array([[0, j, j + 1] for j in range(1, 5)])  # a fan from ring point 0
+    nf = 10
+    order = rng.permutation(6)  # the boolean's numbering of the points
+    pos = np.empty((6, 3))
+    pos[order] = points
+    point_of = np.arange(6)
+    tri = np.array([np.roll(order[f], r) for r, f in zip([0, 1, 2, 1], cap_faces, strict=True)])
+    fid = nf + np.arange(4)
+
+    def run(pos, tri):
+        seam_of = np.full(6, -1, np.int64)
+        return _cap_points(tri, fid, nf, point_of, pos, cap_faces, wedge_point, points, seam_of), seam_of
+
+    ok, seam_of = run(pos, tri)
+    assert ok and np.array_equal(seam_of, order)
+    moved = pos.copy()
+    moved[order[3], 1] += 1e-12  # a ring point the boolean moved: no rotation matches
+    assert not run(moved, tri)[0]
+    twice = pos.copy()
+    twice[5] = twice[order[0]]  # a point at ring point 0's position too: a ring point matched twice, or none
+    tri2 = tri.copy()
+    tri2[0] = np.roll([5, order[1], order[2]], 0)
+    assert not run(twice, tri2)[0]
 
 
 def test_corner_repair_and_float32_weld_kernels():
