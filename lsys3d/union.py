@@ -787,35 +787,13 @@ def _owners(keys: np.ndarray, dirty: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
-def _weld_cell_owners(v32):  # pragma: no cover - compiled
-    """:func:`~lsys3d.arrays.first_equal_row` of the vertices' cells of trimesh's 1e-8 weld grid
-    (``np.round(v32.astype(np.float64) * 1e8).astype(np.int64)``), the cells made as they are needed."""
-    n = len(v32)
-    bits = 1
-    while (1 << bits) < 2 * n:
-        bits += 1
-    size = 1 << bits
-    table = np.full(size, -1, np.int32)
-    shift = np.uint64(64 - bits)
-    owner = np.empty(n, np.int64)
-    for i in range(n):
-        a, b, c = _weld_cell(v32, i)
-        h = (np.uint64(a) * np.uint64(0x9E3779B97F4A7C15)) ^ np.uint64(b)
-        h = (h * np.uint64(0xBF58476D1CE4E5B9)) ^ np.uint64(c)
-        h *= np.uint64(0x94D049BB133111EB)
-        s = np.int64(h >> shift)
-        while True:
-            j = table[s]
-            if j < 0:
-                table[s] = i
-                owner[i] = i
-                break
-            ja, jb, jc = _weld_cell(v32, j)
-            if ja == a and jb == b and jc == c:
-                owner[i] = j
-                break
-            s = (s + 1) & (size - 1)
-    return owner
+def _weld_cells(v32):  # pragma: no cover - compiled
+    """The vertices' cells of trimesh's 1e-8 weld grid, ``np.round(v32.astype(np.float64) * 1e8).astype(np.int64)``
+    in one pass (no (v, 3) float64 temporaries): numpy's rounding, half to even."""
+    out = np.empty((len(v32), 3), np.int64)
+    for i in range(len(v32)):
+        out[i, 0], out[i, 1], out[i, 2] = _weld_cell(v32, i)
+    return out
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -850,10 +828,8 @@ def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False
     def float32_bits():  # + 0.0 makes -0.0 and 0.0 one position
         return (v32 + np.float32(0.0)).view(np.int32)
 
-    def weld_grid_cell():  # trimesh's merge_vertices rounds to 8 decimals (in place: one float64 temporary)
-        cell = v32.astype(np.float64)
-        cell *= 1e8
-        return np.round(cell, out=cell).astype(np.int64)
+    def weld_grid_cell():  # trimesh's merge_vertices rounds to 8 decimals
+        return _weld_cells(v32)
 
     # the vertices moved since each key last grouped them: only those can share a key with another vertex
     # (the rest were told apart then), so later rounds group a few candidates instead of all vertices
@@ -864,10 +840,7 @@ def _separate_float32(mesh: Mesh, rounds: int = 32, float32_unique: bool = False
         for k, key in enumerate((float32_bits, weld_grid_cell)):
             if not len(dirty[k]):  # no vertex can share this key with another
                 continue
-            if key is weld_grid_cell and len(dirty[k]) == len(v32):  # every vertex: one pass, no (v, 3) keys
-                owner = _weld_cell_owners(v32)
-            else:
-                owner = _owners(key(), dirty[k])
+            owner = _owners(key(), dirty[k])
             later = np.flatnonzero(owner != everything)
             dirty[k] = np.zeros(0, np.int64)
             if not len(later):
