@@ -25,3 +25,15 @@ def best_of(
         result = fn()
         best = min(best, clock() - t0)
     return best, result
+
+
+def best_of_each(fns: list[Callable[[], Any]], repeat: int = 3) -> list[tuple[float, Any]]:
+    """:func:`best_of` of each of ``fns``, run in turn (one of each, ``repeat`` times over): a machine that drifts
+    (its memory, its other jobs) drifts under all of them alike, so their ratios are fairer than timed apart."""
+    best, results = [float("inf")] * len(fns), [None] * len(fns)
+    for _ in range(repeat):
+        for i, fn in enumerate(fns):
+            t0 = time.perf_counter()
+            results[i] = fn()
+            best[i] = min(best[i], time.perf_counter() - t0)
+    return list(zip(best, results, strict=True))
