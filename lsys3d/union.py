@@ -1041,15 +1041,9 @@ def _local_union(
         tubes.point_offsets[cut_tube][:, None] + (cut_ring * sides[cut_tube])[:, None] + np.arange(sides.max())[None]
     )
     cut_points = cut_points[np.arange(sides.max())[None] < sides[cut_tube][:, None]]
-    on_cap = np.zeros(npts, bool)  # the caps' points, ascending: a mask, not a sort
-    on_cap[point_of[otri[temp]]] = True
-    seam = np.flatnonzero(on_cap)
-    del on_cap
-    if len(seam) != len(cut_points):
-        log.debug("union: the temporary caps do not meet the boolean at their rings; unioning whole tubes")
-        return None
     # each cap triangle came back whole: its corners are its ring's points, matched by position (the only
-    # question is which corner manifold put first), each ring point onto one seam point, no seam point twice
+    # question is which corner manifold put first), each ring point onto one seam point, no seam point twice.
+    # Every cap corner is then one of these seam points: they are the caps' points, the seam
     seam_of = np.full(len(tubes.points), -1, np.int64)
     matched = _cap_points(otri, fid, nf, point_of, seam_pos, cap_faces, tubes.wedge_point, tubes.points, seam_of)
     seam_of_cut = seam_of[cut_points]
@@ -1057,7 +1051,7 @@ def _local_union(
     claimed = np.zeros(npts, bool)
     claimed[seam_of_cut[seam_of_cut >= 0]] = True
     if not matched or (seam_of_cut < 0).any() or claimed.sum() != len(cut_points):
-        log.debug("union: the rings of the temporary caps moved in the boolean; unioning whole tubes")
+        log.debug("union: the temporary caps did not come back on their rings; unioning whole tubes")
         return None
     del claimed
     # the stitched mesh, written in place part by part (no full-size temporaries): first the boolean's output
@@ -1094,7 +1088,7 @@ def _local_union(
     vertices = np.concatenate([seam_pos, tubes.points[fresh]])
     del seam_pos, fresh
     near = np.zeros(len(vertices), bool)  # the seams: the rings where untouched pieces meet the boolean's output
-    near[seam] = True
+    near[seam_of_cut] = True
     used = np.zeros(len(vertices), bool)
     used[faces] = True
     if not used.all():  # the vertices of dropped crumbs, and property vertices manifold left unused
