@@ -2128,7 +2128,10 @@ def corner_normals(points, faces, flat, pool=None):
     nv, nf = len(points), len(faces)
     vn = np.zeros((nv, 3))
     some = np.zeros(nv, np.bool_)  # the vertex has a normal of its own (then unit)
-    _in_two(pool, _vertex_normal_sums, (points, faces, flat, vn, some), 0, nv // 2, nv)
+    if pool is None:  # each half of the vertices reads every face: without a pool, one pass for all of them
+        _vertex_normal_sums(points, faces, flat, vn, some, 0, nv)
+    else:
+        _in_two(pool, _vertex_normal_sums, (points, faces, flat, vn, some), 0, nv // 2, nv)
     out = np.empty((nf, 3, 3), np.float32)
     _in_two(pool, _corner_rows, (points, faces, flat, vn, some, out), 0, nf // 2, nf)
     return out
