@@ -19,21 +19,18 @@ def best_of(
     ``clock=time.process_time`` counts this process's CPU seconds: steadier than the wall clock on a busy
     machine, for work that runs in this process alone.
     """
-    best, result = float("inf"), None
-    for _ in range(repeat):
-        t0 = clock()
-        result = fn()
-        best = min(best, clock() - t0)
-    return best, result
+    return best_of_each([fn], repeat, clock)[0]
 
 
-def best_of_each(fns: list[Callable[[], Any]], repeat: int = 3) -> list[tuple[float, Any]]:
+def best_of_each(
+    fns: list[Callable[[], Any]], repeat: int = 3, clock: Callable[[], float] = time.perf_counter
+) -> list[tuple[float, Any]]:
     """:func:`best_of` of each of ``fns``, run in turn (one of each, ``repeat`` times over): a machine that drifts
     (its memory, its other jobs) drifts under all of them alike, so their ratios are fairer than timed apart."""
     best, results = [float("inf")] * len(fns), [None] * len(fns)
     for _ in range(repeat):
         for i, fn in enumerate(fns):
-            t0 = time.perf_counter()
+            t0 = clock()
             results[i] = fn()
-            best[i] = min(best[i], time.perf_counter() - t0)
+            best[i] = min(best[i], clock() - t0)
     return list(zip(best, results, strict=True))
