@@ -43,7 +43,7 @@ Examples
 from __future__ import annotations
 
 import logging
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -241,21 +241,25 @@ class _Inline:
         return None
 
 
-def _executor(threads: int, count: int):
-    """``count`` threads to share the cleanup's passes with, or none (``threads`` 1): the same bytes either way."""
-    return ThreadPoolExecutor(count) if threads > 1 else _Inline()
+def _executor(threads: int):
+    """The threads the cleanup's passes are shared with, one pool for a whole cleaning (threads start once), or
+    none (``threads`` 1): the same bytes either way.  Two: a pass given to one may share its own work with the
+    other (:func:`tube_uv`)."""
+    return ThreadPoolExecutor(2) if threads > 1 else _Inline()
 
 
 def _clean_halves(
-    he, rules, order=None, spawned=None, region=_NO_REGION, skip: int = -1, depth: int = 2, threads: int = 2
+    he, rules, order=None, spawned=None, region=_NO_REGION, skip: int = -1, depth: int = 2, pool=None
 ) -> tuple[np.ndarray, bool]:
     """The first cleaning, both halves at once (:func:`lsys3d.remesh.halves`), then the band between them,
     itself in two halves across it, then what is near that second cut.
 
     Each half splits into its own share of the room.  The result does not
     depend on the threads: ``order`` (a test's) runs the halves one after
-    the other in that order instead (as does ``threads`` 1).  ``spawned``
-    counts each vertex's fan splits through all of it; ``region``, ``skip``
+    the other in that order instead.  With a ``pool`` (an executor), the
+    second half runs in one of its threads and the first in the calling
+    thread (no thread to wake for it).  ``spawned`` counts each vertex's
+    fan splits through all of it; ``region``, ``skip``
     and ``depth`` are the second cut's.  The operations done, and whether a
     half ran out of room.
     """
@@ -276,31 +280,40 @@ def _clean_halves(
     def run(own):
         return remesh.clean(he._replace(counts=counts[own]), rules, region, side, own, spawned)
 
-    with _executor(threads if order is None else 1, 2) as pool:
-        done = sum(pool.map(run, order or (0, 1)))
+    if order is None:  # the second half in the pool's thread, the first here
+        second = (pool or _Inline()).submit(run, 1)
+        try:
+            first = run(0)
+        except BaseException:
+            wait([second])  # it writes into ``he`` too: done before anything else is
+            raise
+        done = first + second.result()
+    else:
+        done = sum(run(own) for own in order)
     he.flags[lock] &= ~remesh.LOCKED
     full = any(_full(he._replace(counts=c)) for c in counts)
     he.counts[:2] = counts[1][:2]  # the second half's room is after the first's: the rest splits after it
     del band, lock
-    rest, rest_full = _clean_halves(he, rules, order, spawned, near, axis, depth - 1, threads)
+    rest, rest_full = _clean_halves(he, rules, order, spawned, near, axis, depth - 1, pool)
     return done + rest, full or rest_full
 
 
-def _clean(he, opt: CleanupOptions, budget: int, order=None, threads: int = 2):
-    """Clean, fair and rescue ``he`` in place; the operations done, faired, rescued, and whether it ran out of room."""
+def _clean(he, opt: CleanupOptions, budget: int, order=None, pool=None):
+    """Clean, fair and rescue ``he`` in place; the operations done, faired, rescued, and whether it ran out of room.
+
+    ``pool`` (an executor): the calling thread and one of its threads share the halves, the fairing's steps,
+    and the looking for what the rescue has to do."""
     rules = remesh.Rules(opt.short, opt.limit, opt.bad, opt.flip_tolerance, opt.long, opt.step, opt.fallback, budget)
-    done, full = _clean_halves(he, rules, order, threads=threads)
+    done, full = _clean_halves(he, rules, order, pool=pool)
     faired = 0
-    # the calling thread and this one share the fairing's steps, and look for what the rescue has to do
-    with _executor(threads, 1) as pool:
-        if opt.smooth:
-            closeness = np.zeros(len(he.points))
-            remesh.collar(he, opt.collar, closeness)
-            faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False, pool)
-            remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
-            # the faired collars may have made a few needles
-            done += remesh.clean(he, rules, closeness > 0, _NO_SIDE, 0, np.zeros(len(he.points), np.int64))
-        rescued = remesh.rescue(he, opt.rescue, opt.sliver, 10 * opt.flip_tolerance, pool)
+    if opt.smooth:
+        closeness = np.zeros(len(he.points))
+        remesh.collar(he, opt.collar, closeness)
+        faired = remesh.fair(he, closeness, opt.fairing, 0.8, opt.reach, False, pool)
+        remesh.settle(he, closeness)  # the faired surface is now (half) the side to keep
+        # the faired collars may have made a few needles
+        done += remesh.clean(he, rules, closeness > 0, _NO_SIDE, 0, np.zeros(len(he.points), np.int64))
+    rescued = remesh.rescue(he, opt.rescue, opt.sliver, 10 * opt.flip_tolerance, pool)
     return done, faired, rescued, full or _full(he)
 
 
@@ -333,15 +346,16 @@ def clean_mesh(
     identity = Cleaned(bark, np.arange(len(bark.vertices)), {})
     if not opt.enabled or bark.face_source is None or not len(bark.faces) or not len(tubes):
         return identity
-    if junctions:
-        points, faces, fsrc = bark.vertices, bark.faces, bark.face_source
-        fflat, origin, operations = None, np.arange(len(points)), {}  # the flat faces: beside the uv, below
-    else:
-        cleaned = _clean_arrays(bark, tubes, opt, threads=threads)
-        if cleaned is None:
-            return identity
-        (points, faces, fflat, fsrc, origin), operations = cleaned  # the half-edges are gone: they took a third
-    with _executor(threads, 2) as pool:  # the uv (in two halves) beside the flat faces, then the normals in two
+    with _executor(threads) as pool:
+        if junctions:
+            points, faces, fsrc = bark.vertices, bark.faces, bark.face_source
+            fflat, origin, operations = None, np.arange(len(points)), {}  # the flat faces: beside the uv, below
+        else:
+            cleaned = _clean_arrays(bark, tubes, opt, pool=pool)
+            if cleaned is None:
+                return identity
+            (points, faces, fflat, fsrc, origin), operations = cleaned  # the half-edges are gone: a third
+        # the uv (in two halves) beside the flat faces, then the normals in two
         uv = pool.submit(tube_uv, tubes, points, faces, fsrc, pool)
         if fflat is None:
             fflat = _flat_faces(faces, fsrc, tubes)
@@ -368,7 +382,8 @@ def clean_junctions(tubes: Tubes, junctions: Junctions, options: CleanupOptions 
     if not opt.enabled or not len(junctions.faces):
         return None
     surface = _Surface(junctions.vertices, junctions.faces, junctions.source)
-    cleaned = _clean_arrays(surface, tubes, opt, threads=threads, caps=junctions)
+    with _executor(threads) as pool:
+        cleaned = _clean_arrays(surface, tubes, opt, pool=pool, caps=junctions)
     if cleaned is None:
         return None
     (points, faces, _, source, _), operations = cleaned
@@ -376,20 +391,20 @@ def clean_junctions(tubes: Tubes, junctions: Junctions, options: CleanupOptions 
     return points, faces, source
 
 
-def _clean_arrays(bark: Mesh | _Surface, tubes: Tubes, opt: CleanupOptions, order=None, threads: int = 2, caps=None):
+def _clean_arrays(bark: Mesh | _Surface, tubes: Tubes, opt: CleanupOptions, order=None, pool=None, caps=None):
     """The cleaned bark's points, faces, flat faces, face sources and vertex origins, and the operations done;
     None when the bark is not a closed 2-manifold (a warning says so).  ``order``: see :func:`_clean_halves`;
-    ``caps``: :func:`_classify`'s."""
-    if threads > 1:
+    ``pool``: :func:`_executor`'s (None: all in the calling thread); ``caps``: :func:`_classify`'s."""
+    pool = _Inline() if pool is None else pool
+    if isinstance(pool, ThreadPoolExecutor):
         whole = _Surface(bark.vertices, bark.faces, bark.face_source)
-        with ThreadPoolExecutor(2) as pool:
-            # the crumbs are looked for beside the half-edges' making, which is made again if some are dropped
-            crumbs = pool.submit(_drop_crumbs, bark)
-            room = int(len(whole.faces) * _ROOM_SHARE) + _ROOM_MIN
-            try:
-                made = _half_edges(whole, tubes, room, pool, caps)
-            finally:
-                bark = crumbs.result()
+        # the crumbs are looked for beside the half-edges' making, which is made again if some are dropped
+        crumbs = pool.submit(_drop_crumbs, bark)
+        room = int(len(whole.faces) * _ROOM_SHARE) + _ROOM_MIN
+        try:
+            made = _half_edges(whole, tubes, room, pool, caps)
+        finally:
+            bark = crumbs.result()
         if len(bark.faces) != len(whole.faces):
             made = None
         del whole
@@ -410,7 +425,7 @@ def _clean_arrays(bark: Mesh | _Surface, tubes: Tubes, opt: CleanupOptions, orde
         if isinstance(he, str):
             log.warning("cleanup: skipped, %s", he)
             return None
-        *result, full = _clean(he, opt, budget, order, threads)
+        *result, full = _clean(he, opt, budget, order, pool)
         if not full:
             break
         log.debug("cleanup: %d splits filled the room; again with %d", room, 4 * room)
@@ -427,8 +442,7 @@ def _clean_arrays(bark: Mesh | _Surface, tubes: Tubes, opt: CleanupOptions, orde
         "faired": int(faired),
     }
     log.debug("cleanup: %s", operations)
-    with _executor(threads, 1) as pool:
-        points, faces, _, fflat, fsrc, origin, _ = remesh.compact(he, pool)
+    points, faces, _, fflat, fsrc, origin, _ = remesh.compact(he, pool)
     return (points, faces, fflat, fsrc, origin), operations
 
 

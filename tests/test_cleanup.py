@@ -120,7 +120,9 @@ def test_the_halves_clean_the_same_at_once_or_one_after_the_other(tree3d_parts):
 
     tubes, raw = tree3d_parts
     assert len(raw.faces) >= module._HALVES_MIN
-    runs = [module._clean_arrays(raw, tubes, CleanupOptions(), order) for order in (None, (0, 1), (1, 0))]
+    with module._executor(2) as pool:  # both halves at once
+        runs = [module._clean_arrays(raw, tubes, CleanupOptions(), None, pool)]
+    runs += [module._clean_arrays(raw, tubes, CleanupOptions(), order) for order in ((0, 1), (1, 0))]
     (arrays, operations) = runs[0]
     assert operations["collapses"] > 1000
     for other, ops in runs[1:]:
