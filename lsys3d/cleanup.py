@@ -147,7 +147,7 @@ def _drop_crumbs(bark: Mesh | _Surface) -> _Surface:
     return _Surface(bark.vertices, bark.faces[keep], bark.face_source[keep])
 
 
-def _classify(bark: _Surface, tubes: Tubes, caps: Junctions | None = None):
+def _classify(bark: _Surface, tubes: Tubes, caps: Junctions | None = None, pool=None):
     """Per face: tube, flat (cap), which cap, reference normal; per vertex: scale and flags (:mod:`lsys3d.remesh`).
 
     A face's cap is ``2 tube + (0 at the base, 1 at the tip)``, -1 on the wall.
@@ -183,7 +183,7 @@ def _classify(bark: _Surface, tubes: Tubes, caps: Junctions | None = None):
     flat = cap >= 0
     # the shortest edge of the tube faces around each vertex, whether it is a tube vertex, each face's tube normal
     scale, original, reference = remesh.tube_faces(
-        bark.vertices, bark.faces, points, wedge_point, table, src, 1e-4, 1e-5
+        bark.vertices, bark.faces, points, wedge_point, table, src, 1e-4, 1e-5, pool
     )
     flags = np.where(original, remesh.ORIGINAL, 0).astype(np.int64)
     if caps is not None:
@@ -195,7 +195,7 @@ def _half_edges(bark: _Surface, tubes: Tubes, room: int, pool=None, caps: Juncti
     """The half-edges of ``bark`` with ``room`` for splits, classified and marked; the reason if it is not closed.
 
     ``caps``: the temporary caps of :class:`lsys3d.union.Junctions` (see :func:`_classify`)."""
-    part, flat, cap, scale, flags, reference = _classify(bark, tubes, caps)
+    part, flat, cap, scale, flags, reference = _classify(bark, tubes, caps, pool)
     try:
         he = remesh.build(
             bark.vertices, bark.faces, flags, scale, part, flat, reference, bark.face_source, room, pool=pool

@@ -2193,8 +2193,7 @@ def _unit_normal(p, a, b, c):
     return 0.0, 1.0, 0.0, False
 
 
-@numba.njit(cache=True, nogil=True)
-def tube_faces(points, faces, tube_points, wedge_point, tube_faces, source, relative, absolute):
+def tube_faces(points, faces, tube_points, wedge_point, tube_faces, source, relative, absolute, pool=None):
     """What each face of the union learns from the tube face it is a piece of (``source``), in one pass.
 
     The tube faces are ``wedge_point[tube_faces]`` (:class:`lsys3d.sweep.Tubes`).
@@ -2205,14 +2204,32 @@ def tube_faces(points, faces, tube_points, wedge_point, tube_faces, source, rela
     shortest edge or ``absolute`` times the coordinate's magnitude (the union
     moves vertices that share a float32 position apart by a few float32
     steps); ``reference (f, 3)``: the tube face's unit normal (zero when it
-    has no area).
+    has no area).  With a ``pool`` (an executor), one of its threads reads
+    the second half of the faces, into vertex arrays of its own that are
+    then merged (a minimum, an or: the same values).
     """
-    nf = len(faces)
-    scale = np.full(len(points), np.inf)
-    original = np.zeros(len(points), np.bool_)
-    reference = np.zeros((nf, 3))
+    nf, nv = len(faces), len(points)
+    scale, original, reference = np.full(nv, np.inf), np.zeros(nv, np.bool_), np.zeros((nf, 3))
+    args = (points, faces, tube_points, wedge_point, tube_faces, source, relative, absolute)
+    if pool is None:
+        _tube_faces(*args, scale, original, reference, 0, nf)
+        return scale, original, reference
+    scale2, original2 = np.full(nv, np.inf), np.zeros(nv, np.bool_)
+    second = pool.submit(_tube_faces, *args, scale2, original2, reference, nf // 2, nf)
+    _tube_faces(*args, scale, original, reference, 0, nf // 2)
+    second.result()
+    np.minimum(scale, scale2, out=scale)
+    original |= original2
+    return scale, original, reference
+
+
+@numba.njit(cache=True, nogil=True)
+def _tube_faces(
+    points, faces, tube_points, wedge_point, tube_faces, source, relative, absolute, scale, original, reference, lo, hi
+):  # pragma: no cover - compiled
+    """:func:`tube_faces` of the faces ``lo .. hi - 1``, into ``scale``, ``original`` and ``reference``."""
     corner = np.empty((3, 3))
-    for f in range(nf):
+    for f in range(lo, hi):
         tf = source[f]
         for j in range(3):
             q = wedge_point[tube_faces[tf, j]]
@@ -2245,4 +2262,3 @@ def tube_faces(points, faces, tube_points, wedge_point, tube_faces, source, rela
                 if np.sqrt(d) <= near:
                     original[v] = True
                     break
-    return scale, original, reference
