@@ -1667,26 +1667,41 @@ def collar(he, width, closeness):
     nv = he.counts[0]
     reach = np.zeros(nv)  # metres still to go from the best seam vertex
     span = np.zeros(nv)  # that seam vertex's collar width in metres
+    # the vertices whose reach grew, to go on from (each in the queue at most once): a worklist from the seams
+    # instead of sweeps over every face until none changes (the same answer, a fraction of the work)
+    queue = np.empty(max(nv, 1), np.int64)
+    queued = np.zeros(nv, np.bool_)
+    head, size = 0, 0
     for v in range(nv):
         if he.vertex_alive[v] and he.out[v] >= 0 and he.flags[v] & SEAM:
             span[v] = width * he.scale[v]
             reach[v] = span[v]
-    changed = True
-    while changed:
-        changed = False
-        for f in range(he.counts[1]):
-            if not he.face_alive[f]:
-                continue
-            for k in range(3):
-                u, w = faces[f, k], faces[f, (k + 1) % 3]
-                if reach[u] <= 0.0:
-                    continue
-                left = reach[u] - _length(p, u, w)
-                # the seam whose collar is left the larger share of wins
-                if left > 0.0 and (span[w] == 0.0 or left * span[w] > reach[w] * span[u] * (1.0 + 1e-12)):
-                    reach[w] = left
-                    span[w] = span[u]
-                    changed = True
+            queue[size] = v
+            queued[v] = True
+            size += 1
+    while size > 0:
+        u = queue[head]
+        head = (head + 1) % nv
+        size -= 1
+        queued[u] = False
+        if reach[u] <= 0.0:
+            continue
+        h0 = he.out[u]
+        g = h0
+        while True:
+            w = _dst(faces, g)
+            left = reach[u] - _length(p, u, w)
+            # the seam whose collar is left the larger share of wins
+            if left > 0.0 and (span[w] == 0.0 or left * span[w] > reach[w] * span[u] * (1.0 + 1e-12)):
+                reach[w] = left
+                span[w] = span[u]
+                if not queued[w]:
+                    queued[w] = True
+                    queue[(head + size) % nv] = w
+                    size += 1
+            g = he.opp[_prv(g)]
+            if g == h0:
+                break
     n = 0
     for v in range(nv):
         closeness[v] = reach[v] / span[v] if span[v] > 0.0 else 0.0
