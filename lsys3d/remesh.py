@@ -426,28 +426,33 @@ def mark(he, nf, part, cap, flat, cut):
 # ---------------------------------------------------------------------------------------- navigation
 @numba.njit(cache=True, nogil=True, inline="always")
 def _nxt(h):
-    return h - h % 3 + (h % 3 + 1) % 3
+    return h - 2 if h % 3 == 2 else h + 1
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _prv(h):
-    return h - h % 3 + (h % 3 + 2) % 3
+    return h + 2 if h % 3 == 0 else h - 1
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _org(faces, h):
-    return faces[h // 3, h % 3]
+    q = h // 3
+    return faces[q, h - 3 * q]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _dst(faces, h):
-    return faces[h // 3, (h % 3 + 1) % 3]
+    q = h // 3
+    r = h - 3 * q
+    return faces[q, 0 if r == 2 else r + 1]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _apex(faces, h):
     """The corner of ``h``'s face across from it."""
-    return faces[h // 3, (h % 3 + 2) % 3]
+    q = h // 3
+    r = h - 3 * q
+    return faces[q, r - 1 if r > 0 else 2]
 
 
 @_leaf
@@ -467,14 +472,16 @@ def _ring(he, v, buf):
 
 
 @_leaf
-def _valence(he, v):
+def _valence(he, v, most=_MAX_RING):
+    """The neighbours of ``v``, counted up to ``most + 1`` (a walk of at most that many steps): ``most`` 3 is
+    enough to tell a valence of 3 or under from the rest, in four steps rather than a whole ring."""
     h0 = he.out[v]
     h = h0
     n = 0
     while True:
         n += 1
         h = he.opp[_prv(h)]
-        if h == h0 or n > _MAX_RING:
+        if h == h0 or n > most:
             return n
 
 
@@ -620,7 +627,7 @@ def _collapse_topology_ok(he, h, buf_a, buf_b):
     d = _apex(faces, he.opp[h])
     if a == b or c == d or (he.flags[a] | he.flags[b]) & LOCKED or he.flags[a] & PINNED:
         return False
-    if _valence(he, c) <= 3 or _valence(he, d) <= 3:
+    if _valence(he, c, 3) <= 3 or _valence(he, d, 3) <= 3:
         return False
     na = _ring(he, a, buf_a)
     nb = _ring(he, b, buf_b)
@@ -820,7 +827,7 @@ def _try_collapse(he, h, limit, short, buf_a, buf_b):
     tiny = _length(he.points, a, b) < 1e-3 * min(he.scale[a], he.scale[b])
     # a vertex of three neighbours across the edge would be left with two: merge it away first
     for apex in (_apex(faces, h), _apex(faces, he.opp[h])):
-        if _valence(he, apex) == 3 and not (he.flags[apex] & LOCKED):
+        if _valence(he, apex, 3) == 3 and not (he.flags[apex] & LOCKED):
             best, best_length = -1, 1e300
             g0 = he.out[apex]
             g = g0
@@ -896,7 +903,7 @@ def _flip_ok(he, h, tolerance):
     new = max(_aspect(p, c, a, d), _aspect(p, d, b, c))
     if not new < 0.999 * old:
         return False
-    if _valence(he, a) <= 3 or _valence(he, b) <= 3:
+    if _valence(he, a, 3) <= 3 or _valence(he, b, 3) <= 3:
         return False
     return _half_edge(he, c, d) < 0
 
@@ -1080,7 +1087,7 @@ def _snap(he, f, k, rules, buf_a, buf_b):
             h = he.opp[_prv(h)]
             if h == h0:
                 break
-    if _valence(he, u) <= 3 or _valence(he, w) <= 3 or _half_edge(he, x, d) >= 0:
+    if _valence(he, u, 3) <= 3 or _valence(he, w, 3) <= 3 or _half_edge(he, x, d) >= 0:
         return -1
     # the faces around x (but the cap), with x at its foot: on their surface, no worse than the limit or than now
     worst_old = _aspect(p, u, w, x)
@@ -1564,7 +1571,7 @@ def _rescue(he, worst, height, flip, now):
             if not done:
                 for k in range(6):  # its corners, then the corners across its edges
                     v = faces[f, k] if k < 3 else _apex(faces, he.opp[3 * f + k - 3])
-                    if _valence(he, v) != 3 or he.flags[v] & (LOCKED | FEATURE):
+                    if _valence(he, v, 3) != 3 or he.flags[v] & (LOCKED | FEATURE):
                         continue
                     g0 = he.out[v]
                     g = g0
