@@ -50,9 +50,9 @@ del warm; gc.collect()
 before = status("VmRSS:")
 open("/proc/self/clear_refs", "w").write("5")
 tree = lsys3d.generate(name, n, union=union)
-report(tree.modules, tree.skeleton, tree)
+counts = report(tree.modules, tree.skeleton, tree)
 export(tree, folder / "job.glb"); export(tree, folder / "job.usdc")
-print(json.dumps({"bytes": status("VmHWM:") - before, "triangles": int(tree.provenance["counts"]["tube_faces"])}))
+print(json.dumps({"bytes": status("VmHWM:") - before, "triangles": int(counts["sweep"]["faces"])}))
 """
 
 
@@ -64,7 +64,7 @@ def main():
     print(f"{'job':<22} {'tube tris':>10} {'predicted':>10} {'measured':>10}  ratio")
     with tempfile.TemporaryDirectory() as folder:
         for name, n, union in CASES:
-            size = predict_size(lsys3d.load_preset(name), n, 0, GenerateOptions(union=union))
+            size = predict_size(lsys3d.load_preset(name), n, 0, GenerateOptions.from_flat(union=union))
             proc = subprocess.run(
                 [sys.executable, "-c", CHILD, name, str(n), "1" if union else "0", folder],
                 capture_output=True,

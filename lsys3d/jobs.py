@@ -595,11 +595,16 @@ BYTES_PER_MODULE = 64
 BYTES_PER_TUBE_TRIANGLE = 2_500
 """Peak bytes per tube triangle of a job with the union (sweep, union, leaves, stats, every writer).
 
-Measured by ``benchmarks/bench_memory.py``: 1.8-2.3 kB for trees, up to 4.5 kB
-for flat presets whose crossing tubes quadruple the union's triangles."""
+Measured by ``benchmarks/bench_memory.py`` (a job's whole peak over its tube
+triangles, the jobs of over 80,000 of them): 1.5-2.2 kB, trees and flat presets
+alike (it was 1.8-2.3 kB for trees and up to 4.5 kB for the flat presets whose
+crossing tubes quadruple the union's triangles, before the union and the cleanup
+stopped making full-size temporaries).  Kept above the largest: the model must
+never predict less than a job takes."""
 
 BYTES_PER_SOUP_TRIANGLE = 700
-"""The same without the union (``no-union``): about 0.6 kB measured."""
+"""The same without the union (``no-union``): 0.6 kB measured (0.64 for tree3d at 7 generations, 0.61 for bush
+at 8)."""
 
 JOB_OVERHEAD = 32 << 20
 """Bytes a job takes besides its arrays (writers' buffers, USD's stage, Python objects)."""
