@@ -1451,11 +1451,13 @@ def rescue(he, worst, height, flip, pool=None):
     The first round looks only at the faces that need it (found beforehand,
     in two halves with a ``pool``): a face that needs nothing and that no
     operation before it changed would be left as it is (the same result).
+    Where none needs it (monopodial, the Koch curves, snowflake, dragon...),
+    the rescue is not called, nor compiled (9 s of a fresh install's first run).
     """
     now = np.zeros(len(he.faces), np.bool_)
     nf = int(he.counts[1])
     _in_two(pool, _needs_rescue, (he, worst, height, now), 0, nf // 2, nf)
-    return _rescue(he, worst, height, flip, now)
+    return _rescue(he, worst, height, flip, now) if now.any() else 0
 
 
 @numba.njit(cache=True, nogil=True)
