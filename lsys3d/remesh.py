@@ -79,8 +79,9 @@ _leaf = numba.njit(cache=True, nogil=True, _nrt=False)
 # the 14 arrays of a HalfEdges by value, about a hundred words pushed on the stack (numba's calling convention),
 # which was half of _try_collapse's own time (perf); inlined, the first cleaning's halves run 18% faster.  Only
 # these: inlining the callers as well (_try_collapse, _flip_ok...) made the cleaning loop slower (its registers
-# spill) and its first compilation about three times as long.  As it is, the first run of a fresh install (numba
-# compiling every kernel: tree3d) takes 48 s instead of 41 s, once.
+# spill) and its first compilation about three times as long.  As it is, with the rare paths calling the checks
+# rather than inlining them (below), the first run of a fresh install (numba compiling every kernel: tree3d)
+# takes 46 s instead of 43 s, once.
 _inline = numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
 
 
@@ -694,9 +695,10 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
     return worst_new <= limit or worst_new < worst_old
 
 
+# The same two checks called, not inlined, for the rare paths (:func:`_collapse_ok`, :func:`_rescue`): a copy
+# compiled into each of their call sites would cost seconds of the first compilation and buy nothing.
+_topology_ok_called = _leaf(_collapse_topology_ok.py_func)
 _geometry_ok_called = _leaf(_collapse_geometry_ok.py_func)
-""":func:`_collapse_geometry_ok` called, not inlined: for :func:`_rescue`, rare enough that a copy compiled into each
-of its call sites (seconds of the first compilation) would buy nothing."""
 
 
 @_leaf
@@ -706,9 +708,9 @@ def _collapse_ok(he, h, x, y, z, limit, buf_a, buf_b, geometry=True):
     :func:`_collapse_topology_ok`, and unless ``geometry`` is off (for ends so
     close that nothing can move) :func:`_collapse_geometry_ok`.
     """
-    if not _collapse_topology_ok(he, h, buf_a, buf_b):
+    if not _topology_ok_called(he, h, buf_a, buf_b):
         return False
-    return not geometry or _collapse_geometry_ok(he, h, x, y, z, limit)
+    return not geometry or _geometry_ok_called(he, h, x, y, z, limit)
 
 
 @_leaf
