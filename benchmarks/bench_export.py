@@ -1,15 +1,17 @@
 """Export speed for a 1M-triangle mesh, against trimesh's own exporter in the same run.
 
-    python benchmarks/bench_export.py
+    python benchmarks/bench_export.py [--quick]
 
 Prints seconds per format for lsys3d's writers (.glb with normals and UVs, .usdc,
 .usdz) and for trimesh's ``.glb`` export of the same mesh (positions and indices only,
 so the baseline does less work than we do), and the ratio.  Vertices in traversal
-order and scrambled (as a union returns them).
+order and scrambled (as a union returns them).  ``--quick``: a 10,000-triangle
+mesh (the test suite's smoke run).
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 import tempfile
 from pathlib import Path
@@ -24,11 +26,15 @@ from timing import best_of
 from lsys3d.exchange import export
 
 
-def main():
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="a 10,000-triangle mesh instead of 1M")
+    args = ap.parse_args(argv)
+    rings, sides = (100, 50) if args.quick else (1000, 500)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for scramble in (False, True):
-            bark = fx.make_tube(1000, 500, scramble=scramble)
+            bark = fx.make_tube(rings, sides, scramble=scramble)
             tree = fx.tree_from_bark(bark)
             label = "scrambled" if scramble else "traversal order"
             print(f"{len(bark.faces):,} triangles, vertices in {label}")

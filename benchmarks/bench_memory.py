@@ -1,16 +1,19 @@
 """The memory model of ``lsys3d batch`` against measured peaks: predicted and measured bytes per job.
 
-    python benchmarks/bench_memory.py
+    python benchmarks/bench_memory.py [--cases tree3d:7 bush:8:no-union ...]
 
 Each job runs in a fresh process that has already grown and written a small tree (so
 imports and USD's plugins are not counted), as a batch worker would.  The job's peak
 is the kernel's high-water mark of resident memory (``VmHWM``, reset before the job)
 less the memory before it.  Prints the prediction of :func:`lsys3d.jobs.predict_size`,
 the measurement, and their ratio (the model should not predict less than it takes).
+``--cases``: other jobs than the default ones, as ``PRESET:GENERATIONS`` (``:no-union``
+for the tube soup).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -56,14 +59,25 @@ print(json.dumps({"bytes": status("VmHWM:") - before, "triangles": int(counts["s
 """
 
 
-def main():
+def case(text: str) -> tuple[str, int, bool]:
+    """``PRESET:GENERATIONS[:no-union]`` -> a case of :data:`CASES`."""
+    name, n, *rest = text.split(":")
+    if rest not in ([], ["no-union"]):
+        raise argparse.ArgumentTypeError(f"{text}: expected PRESET:GENERATIONS[:no-union]")
+    return name, int(n), not rest
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", nargs="+", type=case, default=CASES, help="PRESET:GENERATIONS[:no-union] ...")
+    args = ap.parse_args(argv)
     import lsys3d
     from lsys3d.jobs import predict_size
     from lsys3d.pipeline import GenerateOptions
 
     print(f"{'job':<22} {'tube tris':>10} {'predicted':>10} {'measured':>10}  ratio")
     with tempfile.TemporaryDirectory() as folder:
-        for name, n, union in CASES:
+        for name, n, union in args.cases:
             size = predict_size(lsys3d.load_preset(name), n, 0, GenerateOptions.from_flat(union=union))
             proc = subprocess.run(
                 [sys.executable, "-c", CHILD, name, str(n), "1" if union else "0", folder],
