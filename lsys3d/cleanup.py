@@ -43,7 +43,7 @@ Examples
 from __future__ import annotations
 
 import logging
-from concurrent.futures import Future, ThreadPoolExecutor, wait
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -277,19 +277,11 @@ def _clean_halves(
         np.array([nv + half, nf + 2 * half, vcap, fcap], np.int64),
     )
 
-    def run(own):
+    def run(own, _=None):  # (_in_two's range: this half and the next)
         return remesh.clean(he._replace(counts=counts[own]), rules, region, side, own, spawned)
 
-    if order is None:  # the second half in the pool's thread, the first here
-        second = (pool or _Inline()).submit(run, 1)
-        try:
-            first = run(0)
-        except BaseException:
-            wait([second])  # it writes into ``he`` too: done before anything else is
-            raise
-        done = first + second.result()
-    else:
-        done = sum(run(own) for own in order)
+    # the second half in one of the pool's threads and the first here; a test's ``order``: one after the other
+    done = sum(remesh._in_two(pool, run, (), 0, 1, None) if order is None else [run(own) for own in order])
     he.flags[lock] &= ~remesh.LOCKED
     full = any(_full(he._replace(counts=c)) for c in counts)
     he.counts[:2] = counts[1][:2]  # the second half's room is after the first's: the rest splits after it

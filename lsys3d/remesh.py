@@ -31,6 +31,7 @@ under a temporary cap of the union, which the union stitches back on).
 
 from __future__ import annotations
 
+from concurrent.futures import wait
 from typing import NamedTuple
 
 import numba
@@ -177,11 +178,16 @@ def opposites(faces: np.ndarray, nv: int, pool=None, size: int = 0, dtype=np.int
 
 def _in_two(pool, kernel, args: tuple, lo: int, middle: int, hi: int) -> tuple:
     """``kernel(*args, lo, middle)`` here and ``kernel(*args, middle, hi)`` in a thread of ``pool`` (an executor;
-    None: here too, after it); both results.  For kernels whose two ranges read and write apart."""
+    None: here too, after it); both results.  For kernels whose two ranges read and write apart.  If the first
+    raises, the second is waited for before the error goes on (it writes into the same arrays)."""
     if pool is None:
         return kernel(*args, lo, middle), kernel(*args, middle, hi)
     second = pool.submit(kernel, *args, middle, hi)
-    first = kernel(*args, lo, middle)
+    try:
+        first = kernel(*args, lo, middle)
+    except BaseException:
+        wait([second])
+        raise
     return first, second.result()
 
 
