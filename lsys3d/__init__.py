@@ -8,9 +8,6 @@ The pipeline, one stage per module (``docs/architecture.md``)::
 
 from __future__ import annotations
 
-from .bark import BarkColorOptions
-from .batch import batch
-from .derive import DEFAULT_MAX_MODULES, derive, generations, predict_length
 from .errors import (
     BatchError,
     DerivationError,
@@ -25,22 +22,25 @@ from .errors import (
     PreviewError,
 )
 from .exchange import ExportOptions, export
-from .forest import ForestOptions, forest
-from .grammar import Grammar
-from .leaves import Leaves
-from .materials import Material
-from .mesh import Mesh
-from .modules import ModuleString
+from .library.batch import batch
+from .library.forest import ForestOptions, forest
+from .look.bark import BarkColorOptions
+from .look.leaves import Leaves
+from .look.materials import Material
+from .lsystem.derive import DEFAULT_MAX_MODULES, derive, generations, predict_length
+from .lsystem.grammar import Grammar
+from .lsystem.modules import ModuleString
+from .lsystem.presets import DEFAULT_PRESET, list_presets, load, load_preset
+from .mesh.mesh import Mesh
+from .mesh.sweep import SweepOptions, sweep
+from .mesh.union.union import UnionOptions, union
 from .pipeline import GenerateOptions, Limits, generate
-from .presets import DEFAULT_PRESET, list_presets, load, load_preset
-from .preview import PreviewOptions, preview
 from .provenance import Provenance
-from .skeleton import Skeleton
+from .render.preview import PreviewOptions, preview
 from .stats import mesh_stats, skeleton_stats
-from .sweep import SweepOptions, sweep
 from .tree import Tree
 from .turtle import TurtleOptions, interpret
-from .union import UnionOptions, union
+from .turtle.skeleton import Skeleton
 from .version import __version__
 
 __all__ = [

@@ -15,14 +15,14 @@ import time
 import warnings
 
 from .arrays import small_pages
-from .derive import derive
 from .errors import LSystemError, OptionsError, clip, printable
 from .exchange.common import ExportOptions
-from .forest import ForestOptions
+from .library.forest import ForestOptions
+from .lsystem.derive import derive
+from .lsystem.presets import DEFAULT_PRESET, describe, list_presets, load
 from .options import add_arguments, from_arguments
 from .pipeline import GenerateOptions
-from .presets import DEFAULT_PRESET, describe, list_presets, load
-from .preview import PreviewOptions
+from .render.preview import PreviewOptions
 from .turtle import GRAMMAR_KEYS, TurtleOverrides
 from .version import __version__
 
@@ -124,7 +124,7 @@ def _turtle_setting(text: str) -> tuple[str, object]:
 
 
 def _shard(text: str) -> tuple[int, int]:
-    from .jobs import parse_shard
+    from .library.jobs import parse_shard
 
     try:
         return parse_shard(text)
@@ -133,7 +133,7 @@ def _shard(text: str) -> tuple[int, int]:
 
 
 def _size(text: str) -> int:
-    from .batch import parse_bytes
+    from .library.batch import parse_bytes
 
     try:
         return parse_bytes(text)
@@ -373,7 +373,7 @@ def _generate_siblings(args, options, export_options) -> int:
 
 def cmd_preview(args) -> int:
     from .pipeline import generate, run_stage
-    from .preview import check_preview, preview
+    from .render.preview import check_preview, preview
 
     options = from_arguments(PreviewOptions, args)
     check_preview(args.output, options)  # no Blender, no minutes of work
@@ -415,7 +415,7 @@ def cmd_stats(args) -> int:
 
         result = report(*draw(grammar, n, seed, options))
     if args.golden:
-        from .golden import recipe_for, write_golden
+        from .golden.golden import recipe_for, write_golden
 
         recipe = recipe_for(grammar, n, seed, options, mesh=args.mesh, golden_path=args.golden)
         write_golden(args.golden, recipe, result)
@@ -437,7 +437,7 @@ def print_table(stats: dict) -> None:
 
 
 def cmd_check(args) -> int:
-    from .golden import RTOL, check, format_differences
+    from .golden.golden import RTOL, check, format_differences
 
     failed = 0
     for path in args.golden:
@@ -515,7 +515,7 @@ def _duration(seconds: float) -> str:
 
 
 def cmd_batch(args) -> int:
-    from .batch import batch, plan
+    from .library.batch import batch, plan
 
     the = plan(args.jobs, args.output, args.shard)
     if args.dry_run:
@@ -571,7 +571,7 @@ def _print_plan(the) -> int:
 
 
 def cmd_forest(args) -> int:
-    from .forest import forest
+    from .library.forest import forest
 
     options = from_arguments(ForestOptions, args).replace(species=tuple(args.species))
     t0 = time.perf_counter()

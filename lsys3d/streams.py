@@ -6,7 +6,7 @@ the others unchanged, and the result depends on nothing but the seed (no
 global state, no process, no hash seed).  A new use of randomness takes the
 next free id here.
 
-Stochastic rules (:mod:`lsys3d.derive`) draw from one stream per generation,
+Stochastic rules (:mod:`lsys3d.lsystem.derive`) draw from one stream per generation,
 symbol and pool of rules: :func:`rule_generator`.  A grammar's random functions
 (``ran``, ``uniform``, ``normal``...) take counter-based numbers instead
 (:func:`hashed_uniform`): the number a module draws at a place of the grammar
@@ -42,7 +42,7 @@ class Stream(IntEnum):
     BARK_COLOR = 7
     """Bark colour: the noise pattern of the vertex colours (``bark_color_variation``)."""
     WIND_PHASE = 8
-    """Hierarchy: the wind phase of each branch (:mod:`lsys3d.hierarchy`)."""
+    """Hierarchy: the wind phase of each branch (:mod:`lsys3d.turtle.hierarchy`)."""
     GRAMMAR_RANDOM = 9
     """Derivation: the grammar's random functions (``ran``, ``uniform``, ``normal``...), :func:`hashed_uniform`."""
     RANDOM_TURN = 10

@@ -82,7 +82,7 @@ def write_forest_usd(
     """Write the forest as a PointInstancer over prototypes that reference the assets' files.
 
     ``prototypes`` are ``(name, usd file, bbox_min, bbox_max)`` (bounds in
-    metres, Y up); ``scatter`` a :class:`lsys3d.forest.Scatter` indexing
+    metres, Y up); ``scatter`` a :class:`lsys3d.library.forest.Scatter` indexing
     them; ``frame_options`` the assets' units and up axis, which the forest
     takes too.
     """
@@ -296,7 +296,7 @@ def write_forest_glb(path: Path, prototypes: Sequence[tuple[str, Path]], scatter
     """Write the forest as one ``.glb``: each asset's meshes once (from its ``.glb``), instanced.
 
     ``prototypes`` are ``(name, .glb file)``; ``scatter`` a
-    :class:`lsys3d.forest.Scatter` indexing them.
+    :class:`lsys3d.library.forest.Scatter` indexing them.
     """
     from .. import __version__
 

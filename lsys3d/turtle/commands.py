@@ -185,7 +185,7 @@ COMMANDS: tuple[Command, ...] = (
         Op.ORGAN,
         "d",
         1,
-        "Place a sphere of diameter `d` (default: the width) at the turtle: an organ (`lsys3d.organs`).",
+        "Place a sphere of diameter `d` (default: the width) at the turtle: an organ (`lsys3d.look.organs`).",
         organ=Organ.SPHERE,
     ),
     Command(
@@ -194,7 +194,7 @@ COMMANDS: tuple[Command, ...] = (
         Op.ORGAN,
         "d",
         1,
-        "Place a disc of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.organs`).",
+        "Place a disc of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.look.organs`).",
         organ=Organ.DISC,
     ),
     Command(
@@ -203,7 +203,7 @@ COMMANDS: tuple[Command, ...] = (
         Op.ORGAN,
         "d",
         1,
-        "Place a circle of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.organs`).",
+        "Place a circle of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.look.organs`).",
         organ=Organ.CIRCLE,
     ),
 )
@@ -252,7 +252,7 @@ def symbol_table(
     vocabulary with another symbol wins over a ``draw``, ``move`` or ``leaf``
     symbol (Lparser's ``~`` turns at random, whatever ``leaf`` says).
 
-    >>> from lsys3d.modules import ASCII_ALPHABET
+    >>> from lsys3d.lsystem.modules import ASCII_ALPHABET
     >>> p = symbol_table(ASCII_ALPHABET, draw="FG")
     >>> Op(p.op[ord("G")]).name, Axis(p.axis[ord("&")]).name, float(p.sign[ord("&")])
     ('FORWARD', 'L', -1.0)
