@@ -42,7 +42,6 @@ from .look.surfaces import surface_table, with_cards
 from .look.wind import WindOptions, sway
 from .lsystem import dialects
 from .lsystem.derive import DEFAULT_MAX_MODULES, derive, interpretation
-from .lsystem.diagnostics import Checks, check
 from .lsystem.grammar import Grammar
 from .lsystem.modules import ModuleString
 from .lsystem.presets import load
@@ -55,6 +54,7 @@ from .options import Options, option
 from .provenance import Provenance
 from .tree import StageCounts, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret, symbol_table
+from .turtle.diagnostics import Checks, check
 from .turtle.hierarchy import hierarchy
 from .turtle.skeleton import Skeleton
 
@@ -136,7 +136,7 @@ class GenerateOptions(Options):
     wind : WindOptions
         A sample wind animation keyed on the rig's joints (off by default; needs the rig).
     checks : Checks
-        Whether the grammar's warnings (:mod:`lsys3d.lsystem.diagnostics`) are errors (``strict``).
+        Whether the grammar's warnings (:mod:`lsys3d.turtle.diagnostics`) are errors (``strict``).
     lod : LodOptions
         Levels of detail to build as well, or a triangle budget to fit.
 
@@ -252,7 +252,7 @@ def draw(
     grammar's ``[turtle]`` table; :func:`generate` goes on from here to the meshes.
     The turtle reads the derived string rewritten by the grammar's homomorphism
     rules (:func:`lsys3d.lsystem.derive.interpretation`), with its dialect's commands;
-    what it cannot draw as meant is reported (:mod:`lsys3d.lsystem.diagnostics`).
+    what it cannot draw as meant is reported (:mod:`lsys3d.turtle.diagnostics`).
 
     Examples
     --------

@@ -20,7 +20,6 @@ from lsys3d.look.lod import LodOptions
 from lsys3d.look.organs import OrganOptions
 from lsys3d.look.rig import RigOptions
 from lsys3d.look.wind import WindOptions
-from lsys3d.lsystem.diagnostics import Checks
 from lsys3d.mesh.cleanup import CleanupOptions
 from lsys3d.mesh.sweep import SweepOptions
 from lsys3d.mesh.union.union import UnionOptions
@@ -28,6 +27,7 @@ from lsys3d.options import Options, add_arguments, check_value, flat_fields, fro
 from lsys3d.pipeline import GenerateOptions, Limits
 from lsys3d.render.preview import PreviewOptions
 from lsys3d.turtle import TurtleOptions, TurtleOverrides
+from lsys3d.turtle.diagnostics import Checks
 
 CLASSES = [
     Limits,

@@ -40,6 +40,7 @@ from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, Vt
 
 from ..arrays import unique
 from ..errors import ExportError, ForestError
+from ..version import __version__
 from .atomic import atomic_path, write_bytes
 from .common import ExportOptions, decompose_transforms, file_frame, frame_transforms
 from .gltf import INSTANCING, _json_bytes
@@ -86,8 +87,6 @@ def write_forest_usd(
     them; ``frame_options`` the assets' units and up axis, which the forest
     takes too.
     """
-    from .. import __version__
-
     path = Path(path)
     used = unique(scatter.variant)  # prototypes without instances are left out
     remap = np.full(len(prototypes), -1, np.int64)
@@ -298,8 +297,6 @@ def write_forest_glb(path: Path, prototypes: Sequence[tuple[str, Path]], scatter
     ``prototypes`` are ``(name, .glb file)``; ``scatter`` a
     :class:`lsys3d.library.forest.Scatter` indexing them.
     """
-    from .. import __version__
-
     path = Path(path)
     merged = _Merged()
     translation, quaternion, scale = decompose_transforms(scatter.transforms(), str(path))

@@ -37,24 +37,23 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import datetime
-import hashlib
 import json
 import logging
 import os
 import re
 import signal
-import socket
 import threading
-import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import BatchError, LSystemError
+from ..exchange.atomic import check_target
+from ..exchange.library import USD_FORMATS, LibraryVariant, write_library
+from ..golden.golden import recipe_for
 from .jobs import Job, JobSize, predict_size, read_jobs, shard
+from .runners import available_memory, run_dask, run_local
+from .worker import run_job, sha256_of
 
 __all__ = [
     "MANIFEST",
@@ -77,167 +76,16 @@ MANIFEST = "manifest.jsonl"
 MANIFEST_FORMAT = 1
 LIBRARY = "library.usda"
 
-WORKER_BYTES = 300 << 20
-"""Memory of an idle worker process (Python, numpy, numba, USD loaded): about 260 MB measured."""
-
 
 def manifest_name(shard_of: tuple[int, int] | None = None) -> str:
     """``manifest.jsonl``, or ``manifest-I-of-N.jsonl`` for shard ``I/N``."""
     return MANIFEST if shard_of is None else f"manifest-{shard_of[0]}-of-{shard_of[1]}.jsonl"
 
 
-# ---------------------------------------------------------------- one job, in a worker
-
-
-class _PeakMemory:
-    """Peak resident memory of this process while one job runs.
-
-    On Linux the kernel's high-water mark (``VmHWM``) is reset when the job
-    starts (``/proc/self/clear_refs``), so it is the job's own peak (the
-    worker's idle memory included).  Elsewhere it is the process's peak so far.
-    """
-
-    def __init__(self):
-        with contextlib.suppress(OSError), open("/proc/self/clear_refs", "w") as f:
-            f.write("5")
-
-    @staticmethod
-    def peak() -> int:
-        try:
-            with open("/proc/self/status") as f:
-                for line in f:
-                    if line.startswith("VmHWM:"):
-                        return int(line.split()[1]) * 1024
-        except OSError:
-            pass
-        try:
-            import resource
-            import sys
-
-            peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-            return peak if sys.platform == "darwin" else peak * 1024
-        except (ImportError, OSError):  # pragma: no cover - Windows
-            return 0
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        while chunk := f.read(1 << 20):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
-def _file_entry(outdir: Path, rel: str) -> dict:
-    path = outdir / rel
-    return {"bytes": path.stat().st_size, "path": rel, "sha256": _sha256(path)}
-
-
-def crown_radius(tree) -> float:
-    """Largest horizontal distance (metres) of any bark or leaf vertex from the trunk's vertical axis."""
-    points = [tree.bark.vertices]
-    leaves = tree.leaves.merged if tree.leaves.merged is not None else tree.leaves.polygons
-    if leaves is not None:
-        points.append(leaves.vertices)
-    points = np.concatenate(points)
-    if not len(points):
-        return 0.0
-    return float(f"{float(np.hypot(points[:, 0], points[:, 2]).max()):.9g}")
-
-
-def _now() -> str:
-    return datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
-
-
-def _worker_name() -> str:
-    return f"{socket.gethostname()}:{os.getpid()}"
-
-
-def _one_line(message: str) -> str:
-    return " ".join(part.strip() for part in str(message).splitlines() if part.strip())
-
-
-def run_job(job: Job, outdir: str | os.PathLike) -> dict:
-    """Grow one job, write its files into ``outdir`` and return its manifest line.
-
-    This is what a worker runs, in a process of the local runner or on a Dask
-    worker.  It never raises for the job's own failure (a grammar that does
-    not parse, a limit, an unwritable file): the line says ``"failed"`` with
-    the one-line message.  The line holds what the job made (``files``,
-    ``counts``, ``crown_radius``) and how it ran (``run``); the batch adds
-    the job's ``recipe`` and ``export``.
-    """
-    meter = _PeakMemory()
-    t0 = time.perf_counter()
-    line: dict = {"id": job.id}
-    try:
-        if job.grammar_error:
-            raise BatchError(job.grammar_error, job.grammar_source)
-        from ..exchange import export
-        from ..pipeline import generate
-        from ..stats import report
-
-        outdir = Path(outdir)
-        options = job.options
-        if not options.union.workers:  # the batch runs a tree per core: each union in its own process
-            options = options.with_flat(workers=1)
-        tree = generate(job.grammar(), job.iterations, job.seed, options=options)
-        counts = report(tree.modules, tree.skeleton, tree)
-        files = []
-        for rel in job.paths:
-            export(tree, outdir / rel, job.export_options)
-            files.append(_file_entry(outdir, rel))
-            if rel.endswith(".gltf"):
-                files.append(_file_entry(outdir, rel[: -len(".gltf")] + ".bin"))
-        line.update(status="done", files=files, counts=counts, crown_radius=crown_radius(tree))
-    except BatchError as exc:
-        line.update(status="failed", error=_one_line(exc.reason))
-    except LSystemError as exc:
-        line.update(status="failed", error=_one_line(str(exc)))
-    except MemoryError:
-        line.update(status="failed", error="out of memory; use fewer iterations, or lower the limits")
-    except Exception as exc:  # a bug, not the job's: record it and go on with the others
-        stop = _stop_inside(exc)
-        if stop is not None:  # the worker's stop signal, raised inside a compiled call that wrapped it
-            raise stop from None
-        log.exception("job %s", job.id)
-        line.update(status="failed", error=_one_line(f"internal error: {type(exc).__name__}: {exc}"))
-    line["run"] = {
-        "finished": _now(),
-        "peak_memory": meter.peak(),
-        "seconds": round(time.perf_counter() - t0, 3),
-        "worker": _worker_name(),
-    }
-    return line
-
-
-def _stop_inside(exc: BaseException) -> SystemExit | None:
-    """The SystemExit (a worker's SIGTERM) that caused ``exc``, if one did.
-
-    The signal's handler raises SystemExit wherever the worker is; inside a
-    numba call (unpickling a kernel's constants) it comes out wrapped in a
-    SystemError.  That is the batch being stopped, not the job failing.
-    """
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, SystemExit):
-            return exc
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return None
-
-
-def lost_line(job: Job, why: str) -> dict:
-    """The manifest line of a job whose worker never answered (killed, out of memory...)."""
-    return {"error": _one_line(why), "id": job.id, "run": {"finished": _now(), "worker": None}, "status": "failed"}
-
-
 # ---------------------------------------------------------------- manifests
 
 
 def _recipe(job: Job, grammar, outdir: Path) -> dict:
-    from ..golden.golden import recipe_for
-
     return recipe_for(grammar, job.iterations, job.seed, job.options, golden_path=outdir / MANIFEST).as_json()
 
 
@@ -304,7 +152,7 @@ def _is_done(line: dict | None, recipe: dict | None, export: dict, outdir: Path)
     for entry in files:
         try:
             path = outdir / entry["path"]
-            if path.stat().st_size != entry["bytes"] or _sha256(path) != entry["sha256"]:
+            if path.stat().st_size != entry["bytes"] or sha256_of(path) != entry["sha256"]:
                 return False
         except (OSError, KeyError, TypeError):
             return False
@@ -333,49 +181,6 @@ class _ManifestWriter:
 
     def close(self) -> None:
         os.close(self.fd)
-
-
-# ---------------------------------------------------------------- memory
-
-
-def _read_int(path: str) -> int | None:
-    try:
-        with open(path) as f:
-            text = f.read().strip()
-    except OSError:
-        return None
-    return int(text) if text.isdigit() else None
-
-
-def available_memory() -> int:
-    """Bytes of memory available to new work now.
-
-    Linux: ``MemAvailable``, or less when this process's control group (v2 or
-    v1, as in a container or a farm's job slot) allows less; elsewhere all
-    physical memory.
-    """
-    found = None
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    found = int(line.split()[1]) * 1024
-                    break
-    except OSError:
-        pass
-    if found is None:
-        try:
-            found = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-        except (ValueError, OSError, AttributeError):  # pragma: no cover - no sysconf
-            found = 1 << 34
-    for limit, usage in (
-        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
-        ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
-    ):
-        most, used = _read_int(limit), _read_int(usage)
-        if most is not None and used is not None and most < 1 << 60:
-            found = min(found, max(most - used, 0))
-    return found
 
 
 def parse_bytes(text: str) -> int:
@@ -663,8 +468,6 @@ def batch(
 
 def _prepare(outdir: Path, jobs: Sequence[Job]) -> None:
     """Make the output folder and the jobs' folders; fail now if they cannot be written."""
-    from ..exchange.atomic import check_target
-
     try:
         outdir.mkdir(parents=True, exist_ok=True)
         for name in sorted({job.name for job in jobs}):
@@ -702,8 +505,6 @@ def _record(job, line, size, recipes, writer, result, counts, report) -> None:
 
 def _runner(jobs, outdir, scheduler, workers, memory, size_of, report):
     """The results ``(job, line)`` of the local runner or of Dask, as they come."""
-    from .runners import run_dask, run_local
-
     if not jobs:
         return
     if scheduler:
@@ -721,8 +522,6 @@ def _runner(jobs, outdir, scheduler, workers, memory, size_of, report):
 
 def _write_library(outdir: Path, jobs: Sequence[Job], result: BatchResult) -> None:
     """``library.usda`` over every job of the list (all shards) that is done and wrote a USD file."""
-    from ..exchange.library import USD_FORMATS, LibraryVariant, write_library
-
     usd_jobs = [job for job in jobs if any(f in USD_FORMATS for f in job.formats)]
     if not usd_jobs:
         log.info("no job writes USD: no %s", LIBRARY)

@@ -27,6 +27,9 @@ import numba
 import numpy as np
 
 from ..errors import ForestError, OptionsError
+from ..exchange.atomic import check_target
+from ..exchange.forest import write_forest_glb, write_forest_usd
+from ..exchange.library import read_library
 from ..options import Options, option
 
 __all__ = ["MAX_INSTANCES", "ForestOptions", "Scatter", "forest", "scatter"]
@@ -271,9 +274,6 @@ def forest(library: str | os.PathLike, output: str | os.PathLike, options: Fores
     ExportError
         The file cannot be written.
     """
-    from ..exchange.atomic import check_target
-    from ..exchange.library import read_library
-
     options = options or ForestOptions()
     output = Path(output)
     suffix = output.suffix.lower()
@@ -297,8 +297,6 @@ def forest(library: str | os.PathLike, output: str | os.PathLike, options: Fores
     }
     folder = lib.path.resolve().parent
     if suffix == ".glb":
-        from ..exchange.forest import write_forest_glb
-
         missing = next((v for v in variants if not v.glb), None)
         if missing is not None:
             raise ForestError(
@@ -306,8 +304,6 @@ def forest(library: str | os.PathLike, output: str | os.PathLike, options: Fores
             )
         path = write_forest_glb(output, [(v.name, folder / v.glb) for v in variants], placed, provenance, options)
     else:
-        from ..exchange.forest import write_forest_usd
-
         prototypes = [(v.name, folder / v.usd, v.bbox_min, v.bbox_max) for v in variants]
         missing = next((p for p in prototypes if not p[1].is_file()), None)
         if missing is not None:

@@ -36,11 +36,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import BatchError, LSystemError, OptionsError, clip
-from ..exchange import ExportOptions
+from ..errors import BatchError, ExportError, LSystemError, OptionsError, clip
+from ..exchange import SUPPORTED_SUFFIXES, ExportOptions
+from ..exchange.gltf import check_options
+from ..exchange.library import USD_FORMATS
+from ..lsystem.derive import derive, predict_counts
 from ..lsystem.dialects import SUFFIXES
 from ..lsystem.grammar import MAX_GRAMMAR_BYTES, Grammar
+from ..lsystem.presets import list_presets, load_preset, preset_text
+from ..options import flat_fields
 from ..pipeline import GenerateOptions
+from ..turtle import TurtleOptions
 
 __all__ = [
     "MAX_JOBS",
@@ -208,8 +214,6 @@ def _seeds(value, loc: _Locator, entry: int | None) -> list[tuple[int, int]]:
 
 
 def _formats(value, loc: _Locator, entry: int | None) -> tuple[str, ...]:
-    from ..exchange import SUPPORTED_SUFFIXES
-
     items = value if isinstance(value, list) else [value]
     known = [s[1:] for s in SUPPORTED_SUFFIXES]
     out: list[str] = []
@@ -261,8 +265,6 @@ def options_from_names(names: dict) -> tuple[int | None, GenerateOptions, Export
     >>> n, options.sweep.sides, options.union.enabled, export.up_axis
     (3, 6, False, 'Z')
     """
-    from ..options import flat_fields
-
     generate_names = set(flat_fields(GenerateOptions)) | {"turtle"}
     export_names = set(flat_fields(ExportOptions)) - NOT_JOB_OPTIONS - {"instance_leaves"}
     known = sorted(
@@ -306,9 +308,6 @@ def options_from_names(names: dict) -> tuple[int | None, GenerateOptions, Export
 
 def _options(entry: dict, defaults: dict, formats: tuple[str, ...], loc: _Locator, k: int, formats_at: int | None):
     """``(iterations, GenerateOptions, ExportOptions)`` of the defaults' and an entry's options (errors: the key)."""
-    from ..errors import ExportError
-    from ..exchange.gltf import check_options
-
     try:
         iterations, options, export_options = options_from_names({**defaults, **entry})
     except OptionNameError as exc:
@@ -336,8 +335,6 @@ class _Grammar:
 
 
 def _read_grammar(spec: str, folder: Path, loc: _Locator, entry: int) -> _Grammar:
-    from ..lsystem.presets import list_presets, load_preset, preset_text
-
     path = folder / spec
     is_path = spec.endswith((".toml", *SUFFIXES)) or "/" in spec or os.sep in spec or path.exists()
     if not is_path:
@@ -531,8 +528,6 @@ def read_jobs(path: str | os.PathLike) -> list[Job]:
 
 def _check_library_frame(plans, loc: _Locator) -> None:
     """The USD files of one library must share units and up axis (a USD stage has one of each)."""
-    from ..exchange.library import USD_FORMATS
-
     first = None
     for k, _spec, _g, _name, _ranges, formats, _n, _options, export_options in plans:
         if not set(formats) & set(USD_FORMATS):
@@ -649,9 +644,6 @@ def predict_size(grammar: Grammar, iterations: int, seed: int, options: Generate
     with the job's seed (the cheap stage).  A job that will stop at one of
     ``options``' limits is predicted as what it builds before it stops.
     """
-    from ..lsystem.derive import derive, predict_counts
-    from ..turtle import TurtleOptions
-
     counts = None
     try:
         counts = predict_counts(grammar, iterations)

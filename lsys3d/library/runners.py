@@ -33,8 +33,10 @@ from multiprocessing.connection import wait
 from pathlib import Path
 
 from ..errors import BatchError
+from ..exchange import gltf, usd  # noqa: F401 - loaded with the worker, not in its first job's time
 from ..mesh.union.jobs import default_workers as cpu_count  # the cores this process may run on
 from .jobs import Job, JobSize
+from .worker import lost_line, run_job
 
 __all__ = ["MAX_ATTEMPTS", "STOP_SECONDS", "cpu_count", "run_dask", "run_local"]
 
@@ -53,6 +55,50 @@ CONNECT_TIMEOUT = "30s"
 # ---------------------------------------------------------------- local processes
 
 
+WORKER_BYTES = 300 << 20
+"""Memory of an idle worker process (Python, numpy, numba, USD loaded): about 260 MB measured."""
+
+
+def _read_int(path: str) -> int | None:
+    try:
+        with open(path) as f:
+            text = f.read().strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() else None
+
+
+def available_memory() -> int:
+    """Bytes of memory available to new work now.
+
+    Linux: ``MemAvailable``, or less when this process's control group (v2 or
+    v1, as in a container or a farm's job slot) allows less; elsewhere all
+    physical memory.
+    """
+    found = None
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    found = int(line.split()[1]) * 1024
+                    break
+    except OSError:
+        pass
+    if found is None:
+        try:
+            found = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        except (ValueError, OSError, AttributeError):  # pragma: no cover - no sysconf
+            found = 1 << 34
+    for limit, usage in (
+        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+        ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
+    ):
+        most, used = _read_int(limit), _read_int(usage)
+        if most is not None and used is not None and most < 1 << 60:
+            found = min(found, max(most - used, 0))
+    return found
+
+
 def _stop(signum, frame):
     raise SystemExit(128 + signum)
 
@@ -61,10 +107,6 @@ def _worker_main(conn) -> None:
     """A local worker: run the jobs it is sent, one at a time, and send back their lines."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the batch, which stops the workers
     signal.signal(signal.SIGTERM, _stop)  # SystemExit unwinds the writers, which remove their temporary files
-    from .. import pipeline  # noqa: F401 - loaded once, not in the first job's time
-    from ..exchange import gltf, usd  # noqa: F401
-    from .batch import run_job
-
     conn.send(("ready", os.getpid()))
     while True:
         try:
@@ -143,8 +185,6 @@ def run_local(
         (``worker`` is ``"host:pid"``).
     """
     import socket
-
-    from .batch import WORKER_BYTES, available_memory, lost_line
 
     jobs = list(jobs)
     count = max(1, min(workers or cpu_count(), len(jobs)))
@@ -276,8 +316,6 @@ def run_dask(
         raise BatchError(
             "running on a Dask cluster needs Dask: pip install 'lsys3d[dask]'", "lsys3d batch --scheduler"
         ) from None
-    from .batch import lost_line, run_job
-
     try:
         client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:

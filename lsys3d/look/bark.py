@@ -1,6 +1,6 @@
 """Procedural bark: the noise pattern of its shape, and the bark colour stage.
 
-Both use :func:`bark_noise`, the fBm of :mod:`lsys3d.noise` with its contrast
+Both use :func:`~lsys3d.noise.bark_noise`, the fBm of :mod:`lsys3d.noise` with its contrast
 raised (fBm rarely strays far from zero).  The bark's shape gets it in the
 sweep (``SweepOptions.bark_displacement``, before the union); its colour gets
 it in its own stage after the union (:func:`color`), as linear RGB per vertex:
@@ -16,36 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mesh.mesh import Mesh
-from ..noise import fbm3
+from ..noise import CONTRAST, bark_noise
 from ..options import Options, option
 from ..streams import Stream
 
 __all__ = ["CONTRAST", "BarkColorOptions", "bark_colors", "bark_noise", "color"]
 
 _OCTAVES = 4
-
-CONTRAST = 2.0
-"""How much :func:`bark_noise` spreads the fBm: ``tanh(CONTRAST n) / tanh(CONTRAST)``."""
-
-
-def bark_noise(points, seed, octaves: int = 4, frequency: float = 1.0) -> np.ndarray:
-    """The bark pattern at each point: :func:`~lsys3d.noise.fbm3` with its contrast raised, in [-1, 1].
-
-    fBm's values bunch near zero (standard deviation about 0.15 for 4
-    octaves); ``tanh(2 n) / tanh(2)`` about doubles their spread (0.3) while
-    staying smooth and within [-1, 1], so a setting of ``bark_displacement``
-    or ``bark_color_variation`` shows at about a third of its value on most
-    of the bark and at its full value on the peaks.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> v = bark_noise(np.random.default_rng(0).uniform(0, 20, (5000, 3)), seed=1)
-    >>> bool(np.abs(v).max() <= 1.0), bool(0.2 < v.std() < 0.45)
-    (True, True)
-    """
-    n = fbm3(points, seed, octaves=octaves, frequency=frequency)
-    return np.tanh(CONTRAST * n) * (1.0 / np.tanh(CONTRAST))
 
 
 def bark_colors(points, base_color, variation: float, frequency: float = 2.0, seed: int = 0) -> np.ndarray:

@@ -37,6 +37,7 @@ from ..mesh.sweep import DEFAULT_MAX_TRIANGLES
 from ..options import Options, option
 from ..turtle.hierarchy import Hierarchy
 from ..turtle.skeleton import Skeleton
+from .attributes import KEYS, branch_values
 
 __all__ = ["LeafOptions", "Leaves", "default_leaf", "instance_leaves", "leaf_transforms", "leaves", "polygon_leaves"]
 
@@ -330,8 +331,6 @@ def leaves(
 
 def _grown_from(h: Hierarchy, segment, count: int, where: np.ndarray, keys=None) -> dict:
     """The attributes of ``count`` leaves growing from ``segment`` (at its end); no branch: pivot at ``where``."""
-    from .attributes import KEYS, branch_values
-
     keys = KEYS if keys is None else keys
 
     if segment is None or len(segment) != count:

@@ -64,6 +64,7 @@ from ..options import Options, option
 from ..turtle.hierarchy import Hierarchy
 from ..turtle.skeleton import Skeleton
 from .leaves import LeafOptions, Leaves
+from .leaves import leaves as build_leaves
 
 __all__ = [
     "CARDS",
@@ -381,8 +382,6 @@ def lod_leaves(
     skeleton's ``hierarchy``, the leaves carry the ``attributes`` of the
     branches they grow from, as at level 0.
     """
-    from .leaves import leaves as build_leaves
-
     spec = LEVELS[level]
     kw = {"hierarchy": hierarchy, "attributes": tuple(attributes)} if hierarchy is not None and attributes else {}
     if not spec.cards:

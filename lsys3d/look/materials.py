@@ -36,6 +36,8 @@ import numpy as np
 from ..errors import AssetError, GrammarError, OptionsError, clip
 from ..external import grammar_folder, resolve
 from ..images import Image, read_image
+from ..lsystem.grammar import table_key_line
+from .attributes import nearest_branch
 
 __all__ = [
     "BARK",
@@ -198,8 +200,6 @@ def material_table(grammar) -> MaterialTable:
     >>> table.for_bark(2).name, table.for_bark(2).base_color, table.for_bark(0).name
     ('red', (1.0, 0.0, 0.0, 1.0), 'bark')
     """
-    from ..lsystem.grammar import table_key_line
-
     raw = dict(getattr(grammar, "materials", {}) or {})
     bark, leaf, by_index = BARK, LEAF, {}
     folder = grammar_folder(grammar) if raw else None
@@ -230,8 +230,6 @@ def with_face_materials(bark, skeleton, hierarchy, bulge: float = 0.0):
     (:func:`lsys3d.look.attributes.nearest_branch`: where branches meet, the child's), so the
     faces of a branch take its ``'`` index, and a seam takes the child's.
     """
-    from .attributes import nearest_branch
-
     if not len(bark.faces) or not len(skeleton):
         return bark
     centroids = bark.vertices[bark.faces].mean(axis=1)

@@ -44,10 +44,12 @@ from ..errors import GeometryError, LimitError
 from ..mesh.mesh import Mesh, face_normals
 from ..mesh.sweep import DEFAULT_MAX_TRIANGLES
 from ..options import Options, option
-from ..turtle.commands import Organ
+from ..turtle.commands import BUILT_IN_ORGANS
 from ..turtle.hierarchy import Hierarchy
+from ..turtle.skeleton import organ_names
 from .leaves import _grown_from, default_leaf, instance_leaves
 from .materials import Material
+from .rig import skin_weights
 
 __all__ = [
     "BUILT_IN",
@@ -161,7 +163,7 @@ def box() -> Mesh:
     return replace(cube, uv=uv)
 
 
-BUILT_IN = ("sphere", "disc", "circle", "box")
+BUILT_IN = tuple(BUILT_IN_ORGANS.values())
 """The organs with built-in prototypes (a ``[surfaces]`` entry of the same name replaces one)."""
 
 
@@ -328,7 +330,7 @@ def organs(
             )
         closed = mesh.is_watertight and mesh.is_winding_consistent
         prototypes.append(Prototype(name, mesh, closed, material_of_card))
-    if fallbacks:  # lsys3d.lsystem.diagnostics warns of them once, with the grammar's name (--strict: an error)
+    if fallbacks:  # lsys3d.turtle.diagnostics warns of them once, with the grammar's name (--strict: an error)
         log.info("organs: no [surfaces] model for %s: drawn as the leaf", ", ".join(repr(f) for f in sorted(fallbacks)))
 
     transforms = np.zeros((len(idx), 4, 4))
@@ -363,8 +365,6 @@ def bind_organs(organs_: Organs, rig, h: Hierarchy) -> Organs:
 
     The merged meshes must carry ``branch_id`` and ``branch_t`` (build the organs with the hierarchy).
     """
-    from .rig import skin_weights
-
     merged = []
     for mesh in organs_.merged:
         if mesh is None or not len(mesh.vertices) or "branch_id" not in mesh.attributes:
@@ -373,22 +373,6 @@ def bind_organs(organs_: Organs, rig, h: Hierarchy) -> Organs:
         joints, weights = skin_weights(rig, h, mesh.attributes["branch_id"], mesh.attributes["branch_t"], rigid=True)
         merged.append(mesh.with_attributes({"skin_joints": joints.astype(np.float32), "skin_weights": weights}))
     return replace(organs_, merged=tuple(merged))
-
-
-_KIND_NAMES = {Organ.SPHERE: "sphere", Organ.DISC: "disc", Organ.CIRCLE: "circle", Organ.BOX: "box"}
-
-
-def organ_names(skeleton) -> np.ndarray:
-    """The prototype name of each organ the turtle recorded: ``sphere``, ``disc``, ``circle``, ``box``, or a
-    surface's name (``~flower`` -> ``flower``; Houdini's instance symbols ``J``, ``K``, ``M`` by their own name).
-    """
-    names = []
-    for kind, module in zip(skeleton.organ_kind.tolist(), skeleton.organ_name.tolist(), strict=True):
-        name = _KIND_NAMES.get(kind)
-        if name is None:  # a named surface or an instance: the [surfaces] entry of that name
-            name = module[1:] if module.startswith("~") and len(module) > 1 else module
-        names.append(name)
-    return np.asarray(names, dtype=str)
 
 
 def skeleton_organs(

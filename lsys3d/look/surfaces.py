@@ -57,6 +57,7 @@ import numpy as np
 from ..errors import AssetError, GrammarError, OptionsError, clip
 from ..external import grammar_folder, read_file, resolve
 from ..images import Image, read_image
+from ..lsystem.grammar import table_key_line
 from ..mesh.mesh import Mesh
 from .materials import Material, MaterialTable
 
@@ -319,8 +320,6 @@ def surface_table(grammar) -> SurfaceTable:
     GrammarError
         A bad entry or file, with the grammar's file and the entry's line.
     """
-    from ..lsystem.grammar import table_key_line
-
     raw = dict(getattr(grammar, "surfaces", {}) or {})
     if not raw:
         return SurfaceTable()

@@ -48,7 +48,7 @@ import numpy as np
 
 from ..arrays import dot, gather, local_index, offsets, unique, unit
 from ..errors import GeometryError, LimitError
-from ..look.bark import bark_noise
+from ..noise import bark_noise
 from ..options import Options, option
 from ..streams import Stream
 from ..turtle.skeleton import MAX_COORDINATE, Skeleton
@@ -70,7 +70,7 @@ class SweepOptions(Options):
     ``merge_width``) gets no ring.  ``bark_displacement`` moves every ring
     vertex along its radial direction by ``bark_displacement * r * n(p)``, a
     fraction of the local tube radius ``r``; ``n``
-    (:func:`lsys3d.look.bark.bark_noise`, fBm with its contrast raised) lies in
+    (:func:`lsys3d.noise.bark_noise`, fBm with its contrast raised) lies in
     [-1, 1] and is evaluated at the undisplaced world position, so tubes that
     meet at a junction carry the same bark pattern.  Runs of segments shorter
     than the tube is wide merge into one ring span while the merged axis stays

@@ -19,7 +19,17 @@ from enum import IntEnum
 
 import numpy as np
 
-__all__ = ["COMMANDS", "Axis", "Command", "Op", "Organ", "SymbolTable", "commands_markdown", "symbol_table"]
+__all__ = [
+    "BUILT_IN_ORGANS",
+    "COMMANDS",
+    "Axis",
+    "Command",
+    "Op",
+    "Organ",
+    "SymbolTable",
+    "commands_markdown",
+    "symbol_table",
+]
 
 
 class Op(IntEnum):
@@ -64,6 +74,10 @@ class Organ(IntEnum):
     SURFACE = 4  # a named surface: cpfg's and L-Py's ~l
     INSTANCE = 5  # Houdini's J, K, M: a copy of an input geometry
     BOX = 6  # L-Py's @B
+
+
+BUILT_IN_ORGANS = {Organ.SPHERE: "sphere", Organ.DISC: "disc", Organ.CIRCLE: "circle", Organ.BOX: "box"}
+"""The organ kinds with a built-in prototype, by name (a ``[surfaces]`` entry of the same name replaces one)."""
 
 
 class Axis(IntEnum):

@@ -13,7 +13,9 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["MAX_COORDINATE", "Chains", "Skeleton"]
+from .commands import BUILT_IN_ORGANS
+
+__all__ = ["MAX_COORDINATE", "Chains", "Skeleton", "organ_names"]
 
 MAX_COORDINATE = 1e9
 """Largest distance from the origin along any axis, and largest width or leaf size, a skeleton may hold.
@@ -304,3 +306,16 @@ class Skeleton:
             segs = ch.segments[ch.offsets[c] : ch.offsets[c + 1]]
             out.append(np.concatenate([self.start[segs[:1]], self.end[segs]]))
         return out
+
+
+def organ_names(skeleton: Skeleton) -> np.ndarray:
+    """The prototype name of each organ the turtle recorded: ``sphere``, ``disc``, ``circle``, ``box``, or a
+    surface's name (``~flower`` -> ``flower``; Houdini's instance symbols ``J``, ``K``, ``M`` by their own name).
+    """
+    names = []
+    for kind, module in zip(skeleton.organ_kind.tolist(), skeleton.organ_name.tolist(), strict=True):
+        name = BUILT_IN_ORGANS.get(kind)
+        if name is None:  # a named surface or an instance: the [surfaces] entry of that name
+            name = module[1:] if module.startswith("~") and len(module) > 1 else module
+        names.append(name)
+    return np.asarray(names, dtype=str)

@@ -67,9 +67,7 @@ def table_markdown(name: str) -> str:
 
     The tables of ``docs/dialects/*.md`` are this function's output (the tests check it).
     """
-    from ...turtle.commands import COMMANDS
-
-    own = {c.symbol: c for c in COMMANDS}
+    own = {c.symbol: c for c in get("lsys3d").commands}
     dialect = get(name)
     rows = [f"| Symbol | In {dialect.title} | In lsys3d's own dialect |", "|---|---|---|"]
 

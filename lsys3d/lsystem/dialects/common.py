@@ -94,7 +94,7 @@ class Dialect:
         The tool's predefined variables and what becomes of them in lsys3d (for messages and docs).
     unsupported : frozenset of str
         The tool's turtle commands that lsys3d reads but does not draw: a string holding one is named in a
-        warning (:mod:`lsys3d.lsystem.diagnostics`).
+        warning (:mod:`lsys3d.turtle.diagnostics`).
     arity_check : bool
         A module whose symbol has rules, but none of its number of parameters, is an error (lsys3d's typo
         guard); off where the tool lets such a module simply match no rule (L-Py, cpfg).

@@ -23,11 +23,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import GrammarError, printable
-from ..look.organs import BUILT_IN, organ_names
+from ..lsystem import dialects
+from ..lsystem.grammar import Grammar
+from ..lsystem.modules import ModuleString
 from ..options import Options, option
-from ..turtle.skeleton import Skeleton
-from .grammar import Grammar
-from .modules import ModuleString
+from .commands import BUILT_IN_ORGANS
+from .skeleton import Skeleton, organ_names
 
 __all__ = ["Checks", "check", "findings"]
 
@@ -64,8 +65,6 @@ def findings(grammar: Grammar, shown: ModuleString, skeleton: Skeleton, table) -
 
     ``table`` is the :class:`~lsys3d.turtle.commands.SymbolTable` the turtle used.
     """
-    from . import dialects
-
     dialect = dialects.get(grammar.dialect)
     rewritten = {
         p.predecessor.symbol for group in (grammar.productions, grammar.decomposition_productions) for p in group
@@ -98,7 +97,8 @@ def findings(grammar: Grammar, shown: ModuleString, skeleton: Skeleton, table) -
     if ignored:
         out.append(f"{grammar.source}: module parameters the turtle ignores: {printable(', '.join(ignored))}")
     if skeleton.n_organs:
-        missing = sorted(set(organ_names(skeleton).tolist()) - set(BUILT_IN) - set(grammar.surfaces) - {"leaf"})
+        known = {*BUILT_IN_ORGANS.values(), *grammar.surfaces, "leaf"}
+        missing = sorted(set(organ_names(skeleton).tolist()) - known)
         if missing:
             out.append(
                 f"{grammar.source}: organs with no [surfaces] model, drawn as the leaf: "
