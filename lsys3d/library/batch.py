@@ -5,7 +5,7 @@
     jobs file --read_jobs--> [Job] --plan (skip what is done)--> runner --run_job--> files + manifest lines
                                                                                    --> library.usda
 
-* :func:`run_job` is what a worker does with one job: grow it, write its files
+* :func:`~lsys3d.library.worker.run_job` is what a worker does with one job: grow it, write its files
   (atomically), and return its manifest line -- never the meshes, so nothing
   large crosses a process or the network.
 * The runner is :func:`lsys3d.library.runners.run_local` (one process per core on this

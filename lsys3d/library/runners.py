@@ -1,7 +1,7 @@
 """Where a batch's jobs run: worker processes on this machine, or a Dask cluster.
 
 Both runners take the jobs to run and yield ``(job, manifest line)`` as jobs
-finish, in the order they finish.  A worker runs :func:`lsys3d.library.batch.run_job`:
+finish, in the order they finish.  A worker runs :func:`lsys3d.library.worker.run_job`:
 it writes the job's files itself and sends back only the line.
 
 * :func:`run_local` keeps one process per core (``spawn``ed: safe with numba
@@ -174,7 +174,7 @@ def run_local(
     workers : int, optional
         Processes (default :func:`cpu_count`; never more than there are jobs).
     memory : int, optional
-        Bytes the batch may use in all (default: :func:`lsys3d.library.batch.available_memory`
+        Bytes the batch may use in all (default: :func:`available_memory`
         when it starts).  The workers' own memory comes off it, and a job
         starts only while the jobs in flight are predicted (``size_of``) to
         fit in the rest -- or when no other job is running.
@@ -302,7 +302,7 @@ def run_dask(
 ) -> Iterator[tuple[Job, dict]]:
     """Run ``jobs`` on the Dask cluster at ``address``; yield ``(job, line)`` as each finishes.
 
-    Each job is one task, :func:`lsys3d.library.batch.run_job`, which writes the
+    Each job is one task, :func:`lsys3d.library.worker.run_job`, which writes the
     files on the worker (``outdir`` must be the same path there) and returns
     the line.  The workers need lsys3d installed.  A job whose worker died
     is retried by the scheduler; after its allowed failures the job fails
