@@ -223,8 +223,8 @@ def _procedural(spec, where: str) -> dict:
         n = len(row.default_colors)
         if not isinstance(colors, (list, tuple)) or len(colors) != n:
             raise OptionsError(
-                f"{where}: colors must be a list of {n} colours for {kind} (defaults {list(row.default_colors)}), "
-                f"not {clip(repr(colors))}"
+                f"{where}: colors must be a list of {n} colours for {kind} ({', '.join(row.roles)}; "
+                f"defaults {list(row.default_colors)}), not {clip(repr(colors))}"
             )
         colors = tuple(_color(c, f"{where}: colors[{i}]")[:3] for i, c in enumerate(colors))
     images = procedural(kind, seed, resolution, colors, tile_size)

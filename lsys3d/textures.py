@@ -56,6 +56,7 @@ __all__ = [
     "Fields",
     "TextureKind",
     "TextureSet",
+    "kinds_markdown",
     "normal_map",
     "procedural",
 ]
@@ -100,13 +101,15 @@ class TextureKind:
 
     ``make(grid, colors, tile_size)`` returns the :class:`Fields`; ``colors``
     are linear RGB triples, as many as ``default_colors`` (sRGB hex, as
-    picked in an image editor); ``tile_size`` is metres (bark only).
+    picked in an image editor), each painting what ``roles`` names;
+    ``tile_size`` is metres (bark only).
     """
 
     name: str
     group: str
     make: Callable
     default_colors: tuple[str, ...]
+    roles: tuple[str, ...]
     doc: str
 
 
@@ -655,25 +658,105 @@ def flower(g: _Grid, colors, tile_size: float) -> Fields:
 KINDS: dict[str, TextureKind] = {
     k.name: k
     for k in (
-        TextureKind("furrowed", "bark", furrowed, ("#2a1e16", "#5c4a3b", "#8d8073"), furrowed.__doc__),
-        TextureKind("plated", "bark", plated, ("#24170f", "#8a4b2c", "#6e625a"), plated.__doc__),
-        TextureKind("smooth", "bark", smooth, ("#8c8a84", "#a9a7a0", "#4c4842"), smooth.__doc__),
-        TextureKind("birch", "bark", birch, ("#ebe7dd", "#b9b2a4", "#1f1b18"), birch.__doc__),
-        TextureKind("ringed", "bark", ringed, ("#7a6d5e", "#3a3129", "#a09482"), ringed.__doc__),
-        TextureKind("fibrous", "bark", fibrous, ("#2e1e15", "#8a4f34", "#8e857b"), fibrous.__doc__),
-        TextureKind("ovate", "leaf", ovate, ("#4d8a2a", "#9cc06a", "#6b7a2e"), ovate.__doc__),
-        TextureKind("oak_leaf", "leaf", oak_leaf, ("#47782a", "#a3be6e", "#6b6a2e"), oak_leaf.__doc__),
-        TextureKind("maple", "leaf", maple, ("#4f8c2c", "#a6c777", "#8a5a2a"), maple.__doc__),
-        TextureKind("willow", "leaf", willow, ("#6a9a48", "#c2d49a", "#7a8a40"), willow.__doc__),
-        TextureKind("birch_leaf", "leaf", birch_leaf, ("#5a9a30", "#b2d080", "#6a7a30"), birch_leaf.__doc__),
-        TextureKind("needle", "leaf", needle, ("#2f5a28", "#6f9a4a", "#5a3e28"), needle.__doc__),
-        TextureKind("grass", "leaf", grass, ("#3e7326", "#a8c060", "#2f5a1c"), grass.__doc__),
-        TextureKind("fern", "leaf", fern, ("#4a8a2e", "#8cbc52", "#5a5a28"), fern.__doc__),
-        TextureKind("palm", "leaf", palm, ("#4f7f2a", "#a2b860", "#7a6a3a"), palm.__doc__),
-        TextureKind("flower", "leaf", flower, ("#f4c6d6", "#c2306a", "#f2c230"), flower.__doc__),
+        TextureKind(
+            "furrowed",
+            "bark",
+            furrowed,
+            ("#2a1e16", "#5c4a3b", "#8d8073"),
+            ("furrow", "ridge", "ridge top"),
+            furrowed.__doc__,
+        ),
+        TextureKind(
+            "plated",
+            "bark",
+            plated,
+            ("#24170f", "#8a4b2c", "#6e625a"),
+            ("fissure", "plate", "second plate shade"),
+            plated.__doc__,
+        ),
+        TextureKind(
+            "smooth",
+            "bark",
+            smooth,
+            ("#8c8a84", "#a9a7a0", "#4c4842"),
+            ("bark", "light mottle", "lenticels, dark mottle"),
+            smooth.__doc__,
+        ),
+        TextureKind(
+            "birch", "bark", birch, ("#ebe7dd", "#b9b2a4", "#1f1b18"), ("white", "grey", "marks"), birch.__doc__
+        ),
+        TextureKind(
+            "ringed",
+            "bark",
+            ringed,
+            ("#7a6d5e", "#3a3129", "#a09482"),
+            ("trunk", "scar groove", "scar lip"),
+            ringed.__doc__,
+        ),
+        TextureKind(
+            "fibrous",
+            "bark",
+            fibrous,
+            ("#2e1e15", "#8a4f34", "#8e857b"),
+            ("between fibres", "fibre", "weathered"),
+            fibrous.__doc__,
+        ),
+        TextureKind(
+            "ovate", "leaf", ovate, ("#4d8a2a", "#9cc06a", "#6b7a2e"), ("blade", "veins", "stalk"), ovate.__doc__
+        ),
+        TextureKind(
+            "oak_leaf",
+            "leaf",
+            oak_leaf,
+            ("#47782a", "#a3be6e", "#6b6a2e"),
+            ("blade", "veins", "stalk"),
+            oak_leaf.__doc__,
+        ),
+        TextureKind(
+            "maple", "leaf", maple, ("#4f8c2c", "#a6c777", "#8a5a2a"), ("blade", "veins", "stalk"), maple.__doc__
+        ),
+        TextureKind(
+            "willow", "leaf", willow, ("#6a9a48", "#c2d49a", "#7a8a40"), ("blade", "veins", "stalk"), willow.__doc__
+        ),
+        TextureKind(
+            "birch_leaf",
+            "leaf",
+            birch_leaf,
+            ("#5a9a30", "#b2d080", "#6a7a30"),
+            ("blade", "veins", "stalk"),
+            birch_leaf.__doc__,
+        ),
+        TextureKind(
+            "needle",
+            "leaf",
+            needle,
+            ("#2f5a28", "#6f9a4a", "#5a3e28"),
+            ("needle", "needle tip", "twig"),
+            needle.__doc__,
+        ),
+        TextureKind("grass", "leaf", grass, ("#3e7326", "#a8c060", "#2f5a1c"), ("base", "tip", "veins"), grass.__doc__),
+        TextureKind(
+            "fern", "leaf", fern, ("#4a8a2e", "#8cbc52", "#5a5a28"), ("leaflet", "leaflet tip", "stalk"), fern.__doc__
+        ),
+        TextureKind(
+            "palm", "leaf", palm, ("#4f7f2a", "#a2b860", "#7a6a3a"), ("leaflet", "leaflet tip", "stalk"), palm.__doc__
+        ),
+        TextureKind(
+            "flower", "leaf", flower, ("#f4c6d6", "#c2306a", "#f2c230"), ("petal", "throat", "centre"), flower.__doc__
+        ),
     )
 }
 """Every procedural kind by name: the vocabulary of ``procedural = { kind = ... }`` in ``[materials]``."""
+
+
+def kinds_markdown() -> str:
+    """The table of :data:`KINDS` in docs/textures.md (a test checks the page holds it as written here)."""
+    lines = ["| kind | group | what it looks like | colours: what each paints (default) |", "|---|---|---|---|"]
+    for name, row in KINDS.items():
+        picture = f'<img src="textures/{name}.png" width="128" alt="{name}">'
+        colors = ", ".join(f"{role} `{c}`" for role, c in zip(row.roles, row.default_colors, strict=True))
+        lines.append(f"| `{name}`<br>{picture} | {row.group} | {row.doc.splitlines()[0]} | {colors} |")
+    return "\n".join(lines) + "\n"
 
 
 # ---------------------------------------------------------------- images
@@ -819,8 +902,8 @@ def procedural(
         colors = tuple(tuple(float(c) for c in rgb[:3]) for rgb in colors)
         if len(colors) != len(row.default_colors) or any(len(c) != 3 for c in colors):
             raise ValueError(
-                f"procedural: {kind} takes {len(row.default_colors)} colours "
-                f"(defaults {', '.join(row.default_colors)}), not {len(colors)}"
+                f"procedural: {kind} takes {len(row.default_colors)} colours ({', '.join(row.roles)}; "
+                f"defaults {', '.join(row.default_colors)}), not {len(colors)}"
             )
         if not all(0.0 <= c <= 1.0 and math.isfinite(c) for rgb in colors for c in rgb):
             raise ValueError("procedural: colours must be linear RGB in [0, 1]")

@@ -276,3 +276,26 @@ def test_bad_procedural_entries_name_their_line(tmp_path, entry, message):
     with pytest.raises(lsys3d.GrammarError, match=message) as info:
         lsys3d.generate(grammar)
     assert str(info.value).startswith(f"{grammar}:4:1: [materials] materials.")
+
+
+def test_a_material_gives_tile_size_for_its_own_images(tmp_path):
+    from test_textures import write_textures
+
+    write_textures(tmp_path)
+    path = tmp_path / "plant.toml"
+    path.write_text('axiom = "F"\n[materials]\nbark = { texture = "tex/bark.png", tile_size = 0.8 }\n')
+    table = material_table(lsys3d.load(path))
+    assert table.bark.tile_size == 0.8 and table.uv_tiles(0.5)[0] == 0.8
+
+
+def test_the_docs_show_every_kind():
+    """docs/textures.md holds the table of KINDS as written from it, and a swatch under 100 kB for each kind."""
+    from pathlib import Path
+
+    from lsys3d.textures import kinds_markdown
+
+    docs = Path(__file__).resolve().parent.parent / "docs"
+    assert kinds_markdown() in (docs / "textures.md").read_text(encoding="utf-8")
+    for kind in KINDS:
+        swatch = docs / "textures" / f"{kind}.png"
+        assert swatch.is_file() and swatch.stat().st_size < 100_000, kind
