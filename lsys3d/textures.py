@@ -248,7 +248,7 @@ def furrowed(g: _Grid, colors, tile_size: float) -> Fields:
     nu = _count(tile_size, 0.04, 3)  # ridges a few centimetres apart around the trunk
     nv = _count(tile_size, 0.1, 2)
     # a ridge's place across: whole ridges around the tile, wandering along it (periodic: nu is whole)
-    phase = g.u * nu + 0.4 * g.noise(1, 1, 2, 3) + 0.3 * g.noise(2, 2, 3, 3)
+    phase = g.u * nu + 0.5 * g.noise(1, 1, 1, 3) + 0.22 * g.noise(2, max(1, nu // 3), 2, 3)
     ridge_index = np.floor(phase).astype(np.int64) % nu
     side = np.minimum(phase - np.floor(phase), np.ceil(phase) - phase) * 2.0  # 0 in a furrow, 1 on a ridge's crest
     width = 0.5 + 0.2 * g.noise(3, 3, 3, 3)  # furrows widen and close along the trunk
@@ -260,8 +260,8 @@ def furrowed(g: _Grid, colors, tile_size: float) -> Fields:
     rng = g.rng(4)
     offset = rng.random(nu)[ridge_index]
     t = g.v * nv + offset + 0.15 * g.noise(5, 4, 2, 2)
-    crack = 1.0 - _smoothstep(0.0, 0.05, np.minimum(t - np.floor(t), np.ceil(t) - t))
-    height = height * (1.0 - 0.55 * crack * _smoothstep(0.3, 0.8, side))
+    crack = 1.0 - _smoothstep(0.0, 0.07, np.minimum(t - np.floor(t), np.ceil(t) - t))
+    height = height * (1.0 - 0.75 * crack * _smoothstep(0.3, 0.8, side))
     fine = g.noise(6, 4 * nu, 8, 3)
     height = np.clip(height * (0.88 + 0.08 * fine) + 0.03 * fine, 0.0, 1.0)
     tint = rng.uniform(-1, 1, nu)[ridge_index]
