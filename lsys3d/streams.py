@@ -47,6 +47,8 @@ class Stream(IntEnum):
     """Derivation: the grammar's random functions (``ran``, ``uniform``, ``normal``...), :func:`hashed_uniform`."""
     RANDOM_TURN = 10
     """Turtle: the random turns of Lparser's and Houdini's ``~`` (three angles per module)."""
+    TEXTURE = 11
+    """Procedural textures: the noises, cells and strokes of a texture's images (:mod:`lsys3d.textures`)."""
 
 
 def generator(seed: int, stream: Stream) -> np.random.Generator:
