@@ -47,6 +47,10 @@ class Stream(IntEnum):
     """Derivation: the grammar's random functions (``ran``, ``uniform``, ``normal``...), :func:`hashed_uniform`."""
     RANDOM_TURN = 10
     """Turtle: the random turns of Lparser's and Houdini's ``~`` (three angles per module)."""
+    LEAF_SIZE = 11
+    """Leaves: the relative change of each leaf's size (``leaf_size_variation``, :mod:`lsys3d.leaf_form`)."""
+    LEAF_CLUSTER = 12
+    """Leaves: each cluster's turn about its twig and its leaves' small turns (``leaves_per_cluster``)."""
 
 
 def generator(seed: int, stream: Stream) -> np.random.Generator:
