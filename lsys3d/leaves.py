@@ -86,7 +86,7 @@ class LeafOptions(Options):
         0.0, low=0, high=1, help="how far each blade's front turns toward the light (0: not at all, 1: facing it)"
     )
     light: tuple[float, float, float] = option(
-        (0.0, 1.0, 0.0), help="direction toward the light that leaf_light turns the blades to (default straight up)"
+        (0.0, 1.0, 0.0), help="direction toward the light that leaf_light turns the blades to"
     )
     leaf_droop: float = option(0.0, low=0, high=90, help="degrees each blade's tip hangs toward the ground")
     leaf_card: str = option(

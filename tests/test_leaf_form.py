@@ -394,3 +394,12 @@ def test_a_leafy_tree3d_exports_a_valid_glb(tmp_path):
         infos = validators.gltf_issues(report, 2)
         assert {i.split(" ")[0] for i in infos} <= validators.HARMLESS_INFOS, infos
     assert report["info"]["totalTriangleCount"] == len(tree.bark.faces) + len(tree.leaves.merged.faces)
+
+
+def test_every_option_is_in_the_docs_table():
+    from dataclasses import fields
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "docs" / "leaves.md").read_text(encoding="utf-8")
+    for f in fields(LeafOptions):
+        assert f"| `{f.name}`" in text, f.name
