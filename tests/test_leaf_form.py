@@ -403,3 +403,28 @@ def test_every_option_is_in_the_docs_table():
     text = (Path(__file__).resolve().parent.parent / "docs" / "leaves.md").read_text(encoding="utf-8")
     for f in fields(LeafOptions):
         assert f"| `{f.name}`" in text, f.name
+
+
+def test_clustered_leaves_keep_their_materials_in_the_files(tmp_path):
+    from gltf_files import read_glb
+
+    text = """\
+axiom = "F(1)[+F(0.5)'(2)~][-F(0.5)'(3)~]"
+angle = 40
+
+[materials]
+2 = { name = "green", base_color = "#3f8a2a" }
+3 = { name = "red", base_color = "#a03020" }
+
+[leaves]
+leaves_per_cluster = 3
+leaf_size = 0.1
+"""
+    tree = lsys3d.generate(lsys3d.Grammar.from_text(text, "two.toml"), union=False)
+    assert tree.leaves.instance_material.tolist() == [2, 2, 2, 3, 3, 3]
+    assert np.bincount(tree.leaves.merged.face_material).tolist()[2:] == [3 * 28, 3 * 28]
+    doc, _ = read_glb(lsys3d.export(tree, tmp_path / "two.glb"))
+    names = {doc["materials"][p["material"]]["name"] for m in doc["meshes"] for p in m["primitives"]}
+    assert {"green", "red"} <= names
+    usd = (lsys3d.export(tree, tmp_path / "two.usda")).read_text()
+    assert "green" in usd and "red" in usd
