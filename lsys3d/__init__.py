@@ -9,7 +9,7 @@ The pipeline, one stage per module (``docs/architecture.md``)::
 from __future__ import annotations
 
 import importlib
-import importlib.util
+import importlib.machinery
 from typing import TYPE_CHECKING
 
 from .errors import (
@@ -76,7 +76,8 @@ def __getattr__(name: str):
         value = getattr(importlib.import_module(f"{__name__}.{home}"), name)
         globals()[name] = value  # the next use finds it without calling __getattr__
         return value
-    if not name.startswith("__") and importlib.util.find_spec(f"{__name__}.{name}") is not None:
+    # a module of this folder only (not one another finder on sys.meta_path would supply under this name)
+    if not name.startswith("__") and importlib.machinery.PathFinder.find_spec(f"{__name__}.{name}", __path__):
         return importlib.import_module(f"{__name__}.{name}")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 

@@ -181,7 +181,8 @@ def blade(shape: str = "default", points: int = 7, petiole: float = 0.0) -> Mesh
     >>> m = blade("ovate", 4, petiole=0.25)
     >>> len(m.faces), m.bounds[:, 2].round(3).tolist()
     (18, [0.0, 1.25])
-    >>> bool(blade("default").vertices.tolist() == __import__("lsys3d").leaves.default_leaf().vertices.tolist())
+    >>> from lsys3d.look.leaves import default_leaf
+    >>> bool(blade("default").vertices.tolist() == default_leaf().vertices.tolist())
     True
     """
     if points < 1:
