@@ -47,6 +47,10 @@ class Stream(IntEnum):
     """Derivation: the grammar's random functions (``ran``, ``uniform``, ``normal``...), :func:`hashed_uniform`."""
     RANDOM_TURN = 10
     """Turtle: the random turns of Lparser's and Houdini's ``~`` (three angles per module)."""
+    FORM_GNARL = 11
+    """Form: the noise that bends the branches (``gnarl``, :mod:`lsys3d.turtle.form`)."""
+    FORM_VARIATION = 12
+    """Form: each lateral's change of branching angle and length (``angle_variation``, ``length_variation``)."""
 
 
 def generator(seed: int, stream: Stream) -> np.random.Generator:
