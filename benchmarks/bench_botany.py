@@ -21,9 +21,12 @@ the form stage hands the sweep (:func:`lsys3d.pipeline.draw`):
 * ``sky%``: leaves whose blade normal (a leaf instance's up vector, a leaf
   polygon's Newell normal) lies within 60 degrees of the sky (+Y);
 * ``seeds``: distinct skeletons among seeds 0-4;
-* ``form/interp``: the form stage's time over the turtle's (best of 3).
+* ``form ms`` and ``form/interp``: the form stage's time (best of 3), and over the turtle's.
 
-``--quick``: two iterations fewer (and not below 2), for the test suite's smoke run.
+``--with-form`` adds a row per preset grown with the ``[form]`` table of
+``docs/form/tree3d-form.toml`` given as options (``name+form``): the same
+plant before and after.  ``--quick``: two iterations fewer (and not below 2),
+for the test suite's smoke run.
 """
 
 from __future__ import annotations
@@ -37,10 +40,11 @@ import numpy as np
 
 import lsys3d
 from lsys3d.grammar import Grammar
-from lsys3d.pipeline import draw
+from lsys3d.pipeline import GenerateOptions, draw
 from lsys3d.skeleton import Skeleton
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "form"
+DEMO = DOCS / "tree3d-form.toml"
 
 
 def fork_ratios(sk: Skeleton) -> tuple[int, np.ndarray, float]:
@@ -122,7 +126,7 @@ def digest(sk: Skeleton) -> str:
     return h.hexdigest()
 
 
-def timed(grammar: Grammar, n: int) -> tuple[float, float]:
+def timed(grammar: Grammar, n: int, options: GenerateOptions) -> tuple[float, float]:
     """Best of 3 of the turtle's and the form stage's seconds."""
     best = {"interpret": float("inf"), "form": float("inf")}
     for _ in range(3):
@@ -132,7 +136,7 @@ def timed(grammar: Grammar, n: int) -> tuple[float, float]:
             if event == "done":
                 seen[stage] = seconds
 
-        draw(grammar, n, grammar.seed, progress=progress)
+        draw(grammar, n, grammar.seed, options, progress=progress)
         for k in best:
             best[k] = min(best[k], seen.get(k, 0.0))
     return best["interpret"], best["form"]
@@ -142,33 +146,40 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--presets", nargs="*", default=None, help="presets (default: those with [form], and tree3d)")
     ap.add_argument("--grammars", nargs="*", default=None, help="grammar files (default: docs/form/*.toml)")
+    ap.add_argument("--with-form", action="store_true", help="also each preset with the demo's [form] as options")
     ap.add_argument("--quick", action="store_true", help="two iterations fewer: a smoke run")
     args = ap.parse_args(argv)
     logging.getLogger("lsys3d").setLevel(logging.WARNING)
-    grammars = []
+    grammars: list[tuple[str, Grammar, GenerateOptions]] = []
     names = args.presets
     if names is None:
         names = [n for n in lsys3d.list_presets() if lsys3d.load_preset(n).form] + ["tree3d"]
-    grammars += [lsys3d.load_preset(n) for n in dict.fromkeys(names)]
+    plain, formed = GenerateOptions(), GenerateOptions.from_flat(**Grammar.from_file(DEMO).form)
+    for name in dict.fromkeys(names):
+        grammars.append((name, lsys3d.load_preset(name), plain))
+        if args.with_form:
+            grammars.append((name + "+form", lsys3d.load_preset(name), formed))
     files = args.grammars if args.grammars is not None else sorted(str(p) for p in DOCS.glob("*.toml"))
-    grammars += [Grammar.from_file(p) for p in files]
+    grammars += [(Path(p).stem, Grammar.from_file(p), plain) for p in files]
     print(
         f"{'grammar':>16} {'iter':>4} {'segments':>8} {'forks':>6} {'area med':>8} {'in 0.8-1.25':>11} "
-        f"{'child/parent':>12} {'growth':>7} {'flare':>6} {'straight5':>9} {'sky%':>6} {'seeds':>5} {'form/interp':>11}"
+        f"{'child/parent':>12} {'growth':>7} {'flare':>6} {'straight5':>9} {'sky%':>6} {'seeds':>5} "
+        f"{'form ms':>7} {'form/interp':>11}"
     )
-    for g in grammars:
+    for name, g, options in grammars:
         n = max(2, g.iterations - 2) if args.quick else g.iterations
-        _, sk = draw(g, n, g.seed)
+        _, sk = draw(g, n, g.seed, options)
         forks, ratios, widest = fork_ratios(sk)
         within = 100.0 * np.mean((ratios >= 0.8) & (ratios <= 1.25)) if len(ratios) else float("nan")
         median = float(np.median(ratios)) if len(ratios) else float("nan")
-        seeds = len({digest(draw(g, n, seed)[1]) for seed in range(5)})
-        t_interp, t_form = timed(g, n)
-        ratio = f"{t_form / t_interp:.2f}" if t_form else "-"
+        seeds = len({digest(draw(g, n, seed, options)[1]) for seed in range(5)})
+        t_interp, t_form = timed(g, n, options)
+        ratio = f"{t_form / t_interp:.1f}" if t_form else "-"
+        ms = f"{1e3 * t_form:.1f}" if t_form else "-"
         print(
-            f"{g.name or Path(g.source).stem:>16} {n:>4} {len(sk):>8,} {forks:>6,} {median:>8.3f} {within:>10.1f}% "
+            f"{name:>16} {n:>4} {len(sk):>8,} {forks:>6,} {median:>8.3f} {within:>10.1f}% "
             f"{widest:>12.3f} {chain_growth(sk):>7.3f} {trunk_flare(sk):>6.2f} {straight_chains(sk):>9,} "
-            f"{sky_share(sk):>6.1f} {seeds:>5} {ratio:>11}",
+            f"{sky_share(sk):>6.1f} {seeds:>5} {ms:>7} {ratio:>11}",
             flush=True,
         )
 

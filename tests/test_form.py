@@ -304,3 +304,36 @@ def test_a_bad_form_table_is_a_grammar_error_at_its_line(table, line, col, what)
 def test_a_form_table_of_the_wrong_type_is_refused():
     with pytest.raises(GrammarError, match=re.escape("'form' must be a table")):
         Grammar.from_text('axiom = "F"\nform = 3\n')
+
+
+def test_curved_sub_segments_keep_their_rings_in_the_sweep():
+    from lsys3d.sweep import SweepOptions, sweep
+
+    points = np.zeros((11, 3))
+    points[:, 1] = np.arange(11.0)
+    sk = form(Skeleton.from_segments(points[:-1], points[1:], 0.2), FormOptions(gnarl=20, max_substep_length=0.25), 0)
+    assert len(sk) == 40 and len(sk.chains) == 1
+    tubes = sweep(sk, SweepOptions(sides=8))
+    assert len(tubes.points) == (len(sk) + 1) * 8 + 2  # a ring at every joint: none merged back straight
+
+
+def test_the_demo_grows_a_closed_bark_with_levels_of_detail():
+    tree = lsys3d.generate(Grammar.from_file(DEMO), iterations=4, lod=(0, 2))
+    assert tree.bark.is_watertight and len(tree.lods) == 2
+    assert all(level.bark.is_watertight for level in tree.lods)
+    assert tree.provenance.options == GenerateOptions.from_flat(lod=(0, 2)).plain()  # no form: not recorded
+
+
+def test_the_docs_list_every_key():
+    from lsys3d.turtle.form import options_markdown
+
+    assert options_markdown() in (ROOT / "docs" / "form.md").read_text(encoding="utf-8")
+
+
+def test_the_seed_matters_when_the_form_draws_on_it():
+    from lsys3d.pipeline import seed_dependence
+
+    g = Grammar.from_file(DEMO)
+    assert seed_dependence(g) == ("gnarl", "angle_variation", "length_variation")
+    assert seed_dependence(g, GenerateOptions.from_flat(form=False)) == ()
+    assert seed_dependence(lsys3d.load_preset("tree3d"), GenerateOptions.from_flat(pipe_model=True)) == ()

@@ -47,7 +47,16 @@ from ..options import Options, check_value, option, spec_of
 from ..skeleton import Skeleton
 from ..streams import Stream, generator
 
-__all__ = ["GOLDEN_ANGLE", "PHYLLOTAXIS", "FormOptions", "form", "pipe_widths", "tip_counts"]
+__all__ = [
+    "GOLDEN_ANGLE",
+    "GRAMMAR_KEYS",
+    "PHYLLOTAXIS",
+    "FormOptions",
+    "form",
+    "options_markdown",
+    "pipe_widths",
+    "tip_counts",
+]
 
 GOLDEN_ANGLE = 180.0 * (3.0 - math.sqrt(5.0))
 """The golden angle, 137.507... degrees: the divergence of ``phyllotaxis = "golden"``."""
@@ -240,6 +249,26 @@ _SPECS = {f.name: spec_of(f) for f in fields(FormOptions)}
 
 GRAMMAR_KEYS: frozenset[str] = frozenset(_SPECS) - {"enabled"}
 """The keys a grammar's ``[form]`` table accepts."""
+
+
+def options_markdown() -> str:
+    """The ``[form]`` keys as a Markdown table (in ``docs/form.md``; the tests check it)."""
+    rows = ["| Key | Default | Meaning |", "|---|---|---|"]
+    defaults = FormOptions()
+    for f in fields(FormOptions):
+        if f.name not in GRAMMAR_KEYS:
+            continue
+        value = getattr(defaults, f.name)
+        if isinstance(value, bool):
+            shown = f"`{str(value).lower()}`"
+        elif isinstance(value, str):
+            shown = f'`"{value}"`'
+        else:
+            shown = f"`{list(value)}`" if isinstance(value, tuple) else f"`{value}`"
+        spec = _SPECS[f.name]
+        rng = spec.range_text() if spec.low is not None or spec.high is not None else ""
+        rows.append(f"| `{f.name}` | {shown} | {spec.help}" + (f" ({rng})" if rng else "") + " |")
+    return "\n".join(rows) + "\n"
 
 
 def _phyllotaxis_ok(value: str) -> bool:
