@@ -281,7 +281,7 @@ def draw(
     table = symbol_table(shown.alphabet, turtle.draw, turtle.move, turtle.leaf, commands)
     check(grammar, shown, skeleton, table, options.checks)
     if shape.active:
-        skeleton = run_stage("form", form, skeleton, shape, seed, progress=progress)
+        skeleton = run_stage("form", form, skeleton, shape, seed, max_segments=limits.max_segments, progress=progress)
     return modules, skeleton
 
 

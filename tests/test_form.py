@@ -337,3 +337,13 @@ def test_the_seed_matters_when_the_form_draws_on_it():
     assert seed_dependence(g) == ("gnarl", "angle_variation", "length_variation")
     assert seed_dependence(g, GenerateOptions.from_flat(form=False)) == ()
     assert seed_dependence(lsys3d.load_preset("tree3d"), GenerateOptions.from_flat(pipe_model=True)) == ()
+
+
+def test_the_segment_limit_holds_for_the_pieces(plain_tree3d):
+    from lsys3d.errors import LimitError
+
+    limit = len(plain_tree3d) + 1
+    with pytest.raises(LimitError, match=rf"form: .* more than the limit of {limit:,}"):
+        form(plain_tree3d, BENT, max_segments=limit)
+    with pytest.raises(LimitError, match="max-segments"):
+        draw(Grammar.from_file(DEMO), 5, 0, GenerateOptions.from_flat(max_segments=1000))

@@ -40,12 +40,13 @@ import numba
 import numpy as np
 
 from ..arrays import dot, local_index, unit
-from ..errors import GrammarError, OptionsError, clip
+from ..errors import GrammarError, LimitError, OptionsError, clip
 from ..grammar import Grammar, table_key_line
 from ..noise import fbm3
 from ..options import Options, check_value, option, spec_of
 from ..skeleton import Skeleton
 from ..streams import Stream, generator
+from .interpret import DEFAULT_MAX_SEGMENTS
 
 __all__ = [
     "GOLDEN_ANGLE",
@@ -615,7 +616,9 @@ def _cuts(skeleton: Skeleton, options: FormOptions, length: np.ndarray, base_wid
     return s[keep], t[keep]
 
 
-def form(skeleton: Skeleton, options: FormOptions, seed: int = 0) -> Skeleton:
+def form(
+    skeleton: Skeleton, options: FormOptions, seed: int = 0, *, max_segments: int = DEFAULT_MAX_SEGMENTS
+) -> Skeleton:
     """The skeleton reshaped by ``options`` (see the module's description); the same skeleton when nothing is on.
 
     Parameters
@@ -625,6 +628,9 @@ def form(skeleton: Skeleton, options: FormOptions, seed: int = 0) -> Skeleton:
     options : FormOptions
     seed : int
         Seed of the noise and the variation.
+    max_segments : int
+        Most segments the reshaped skeleton may have (:class:`~lsys3d.errors.LimitError` before the
+        memory is taken): the turtle's limit, ``Limits.max_segments``.
 
     Returns
     -------
@@ -656,6 +662,12 @@ def form(skeleton: Skeleton, options: FormOptions, seed: int = 0) -> Skeleton:
     turn, scale = _turns(skeleton, options, seed)
     cut_seg, cut_t = _cuts(skeleton, options, length, base_width)
 
+    if n + len(cut_seg) > max_segments:
+        raise LimitError(
+            f"form: the curvature, flare and collars would split the {n:,} segments into {n + len(cut_seg):,}, "
+            f"more than the limit of {max_segments:,}; raise max_substep_length or lower substeps, or raise the "
+            "limit (--max-segments, or max_segments=)"
+        )
     # ---- pieces: segment s becomes pieces first[s] .. first[s] + count[s] - 1, in order
     count = 1 + np.bincount(cut_seg, minlength=n)
     first = np.zeros(n + 1, np.int64)
