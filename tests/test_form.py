@@ -347,3 +347,25 @@ def test_the_segment_limit_holds_for_the_pieces(plain_tree3d):
         form(plain_tree3d, BENT, max_segments=limit)
     with pytest.raises(LimitError, match="max-segments"):
         draw(Grammar.from_file(DEMO), 5, 0, GenerateOptions.from_flat(max_segments=1000))
+
+
+@pytest.mark.parametrize(
+    "options, toward, trunk_upright",
+    [
+        (FormOptions(gravitropism=(0, 20)), [0, 1, 0], True),  # order 0 has no gravitropism here
+        (FormOptions(gravitropism=(0, -20)), [0, -1, 0], True),
+        (FormOptions(phototropism=20, light=(1, 0, 0)), [1, 0, 0], False),  # every order turns to the light
+        (FormOptions(plagiotropism=20), [0.0, 0.0, 1.0], True),  # laterals only
+    ],
+)
+def test_tropisms_turn_the_branch_toward_their_target(options, toward, trunk_upright):
+    # a vertical trunk with a lateral rising at 45 degrees toward +z, 4 m long
+    sk = Skeleton.from_segments([[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [0, 1 + 2**1.5, 2**1.5]], 0.1, parent=[-1, 0])
+    sk = Skeleton(**{**{k: getattr(sk, k) for k in sk.__dataclass_fields__}, "order": np.array([0, 1], np.int32)})
+    out = form(sk, options)
+    lateral = out.order == 1
+    before = np.dot(sk.heading[1], toward)
+    after = np.einsum("ij,j->i", out.heading[lateral], toward)
+    assert (np.diff(after) > 0).all() and after[0] > before  # turning toward it, piece by piece
+    assert (after <= 1.0 + 1e-12).all()
+    assert np.allclose(out.heading[~lateral], [0, 1, 0]) == trunk_upright

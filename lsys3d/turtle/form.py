@@ -329,7 +329,7 @@ def tip_counts(parent: np.ndarray) -> np.ndarray:
 def pipe_widths(parent: np.ndarray, tip_width: float, exponent: float) -> np.ndarray:
     """Pipe-model diameters: ``tip_width * tips ** (1 / exponent)`` (:func:`tip_counts`), ``(n,) float64``.
 
-    At a fork whose children are all its continuation, the parent's ``d ** exponent``
+    At a fork the parent's ``d ** exponent``
     is the sum of its children's:
 
     >>> d = pipe_widths(np.array([-1, 0, 0]), 0.01, 2.0)
