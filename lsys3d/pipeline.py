@@ -342,7 +342,15 @@ def generate(
             f"{grammar.name or grammar.source}: nothing to mesh: the {len(modules):,} modules after {n} "
             "iterations draw no segment and no leaf (segments are drawn by F, or the [turtle] table's draw symbols)"
         )
-    tubes = stage("sweep", sweep, skeleton, options.sweep, max_triangles=options.limits.max_triangles, seed=seed)
+    tubes = stage(
+        "sweep",
+        sweep,
+        skeleton,
+        options.sweep,
+        max_triangles=options.limits.max_triangles,
+        seed=seed,
+        uv_tiles=table.uv_tiles(options.sweep.uv_tile),
+    )
     if len(tubes) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
             f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter than "
@@ -510,7 +518,8 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod,
         opts = level_options(options, level)
         kept = kept_segments(skeleton, spec.prune)
         pruned = prune(skeleton, spec.prune)
-        tubes = sweep(pruned, opts.sweep, max_triangles=options.limits.max_triangles, seed=seed)
+        uv_tiles = table.uv_tiles(opts.sweep.uv_tile)
+        tubes = sweep(pruned, opts.sweep, max_triangles=options.limits.max_triangles, seed=seed, uv_tiles=uv_tiles)
         bark = _bark([tubes], opts, seed, quiet, table.bark.base_color)
         seen = level_hierarchy(branches, kept) if branches is not None else None
         bulge = opts.sweep.bark_displacement + opts.cleanup.bulge(min(opts.sweep.sides, opts.sweep.min_sides))

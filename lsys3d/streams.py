@@ -47,9 +47,11 @@ class Stream(IntEnum):
     """Derivation: the grammar's random functions (``ran``, ``uniform``, ``normal``...), :func:`hashed_uniform`."""
     RANDOM_TURN = 10
     """Turtle: the random turns of Lparser's and Houdini's ``~`` (three angles per module)."""
-    FORM_GNARL = 11
+    TEXTURE = 11
+    """Procedural textures: the noises, cells and strokes of a texture's images (:mod:`lsys3d.textures`)."""
+    FORM_GNARL = 12
     """Form: the noise that bends the branches (``gnarl``, :mod:`lsys3d.turtle.form`)."""
-    FORM_VARIATION = 12
+    FORM_VARIATION = 13
     """Form: each lateral's change of branching angle and length (``angle_variation``, ``length_variation``)."""
 
 

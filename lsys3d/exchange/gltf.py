@@ -244,6 +244,8 @@ def _material(m: Material, texture_index) -> dict:
     }
     if m.texture is not None:
         pbr["baseColorTexture"] = {"index": texture_index(m.texture)}
+    if m.roughness_texture is not None:  # roughness in G, metallic in B, times the factors
+        pbr["metallicRoughnessTexture"] = {"index": texture_index(m.roughness_texture)}
     out = {"name": m.name, "pbrMetallicRoughness": pbr}
     if m.normal_texture is not None:
         out["normalTexture"] = {"index": texture_index(m.normal_texture)}
