@@ -75,9 +75,9 @@ class FormOptions(Options):
 
     Widths: with ``pipe_model`` every segment's diameter is ``tip_width *
     tips ** (1 / pipe_exponent)``, where ``tips`` counts the terminal segments
-    (segments without children) it carries, itself included; so at every fork
-    the parent's ``d ** e`` is the sum of its children's, and a chain never
-    grows toward its tip.  A segment keeps its diameter to its end (where its
+    (segments without children) it carries (a terminal segment: one, itself);
+    so at every fork the parent's ``d ** e`` is the sum of its children's, and
+    a chain never grows toward its tip.  A segment keeps its diameter to its end (where its
     only child starts with the same one); a tip keeps ``tip_width``.  ``flare``
     widens the trunk (order 0) toward its base: ``1 + (flare - 1) * (1 - h /
     flare_height) ** 3`` at distance ``h`` from its base along it (smooth: no
