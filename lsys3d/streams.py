@@ -53,6 +53,10 @@ class Stream(IntEnum):
     """Form: the noise that bends the branches (``gnarl``, :mod:`lsys3d.turtle.form`)."""
     FORM_VARIATION = 13
     """Form: each lateral's change of branching angle and length (``angle_variation``, ``length_variation``)."""
+    LEAF_SIZE = 14
+    """Leaves: the relative change of each leaf's size (``leaf_size_variation``, :mod:`lsys3d.leaf_form`)."""
+    LEAF_CLUSTER = 15
+    """Leaves: each cluster's turn about its twig and its leaves' small turns (``leaves_per_cluster``)."""
 
 
 def generator(seed: int, stream: Stream) -> np.random.Generator:

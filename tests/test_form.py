@@ -270,7 +270,7 @@ def test_the_form_table_survives_grammar_text():
         ({"length_variation": 1.5}, "length_variation"),
         ({"phyllotaxis": "spiral"}, "phyllotaxis"),
         ({"phyllotaxis": "whorl:1"}, "phyllotaxis"),
-        ({"light": (0, 0, 0)}, "light"),
+        ({"phototropism_light": (0, 0, 0)}, "phototropism_light"),
         ({"branch_collar": 0.9}, "branch_collar"),
     ],
 )
@@ -354,7 +354,11 @@ def test_the_segment_limit_holds_for_the_pieces(plain_tree3d):
     [
         (FormOptions(gravitropism=(0, 20)), [0, 1, 0], True),  # order 0 has no gravitropism here
         (FormOptions(gravitropism=(0, -20)), [0, -1, 0], True),
-        (FormOptions(phototropism=20, light=(1, 0, 0)), [1, 0, 0], False),  # every order turns to the light
+        (
+            FormOptions(phototropism=20, phototropism_light=(1, 0, 0)),
+            [1, 0, 0],
+            False,
+        ),  # every order turns to the light
         (FormOptions(plagiotropism=20), [0.0, 0.0, 1.0], True),  # laterals only
     ],
 )

@@ -452,7 +452,8 @@ def _author_tree(
     leaf_default = table.for_leaf(-1)
     if instanced:
         k = len(leaves.transforms)
-        index = np.asarray(tree.skeleton.leaf_material, np.int64) if table else None
+        own = leaves.instance_material if leaves.instance_material is not None else tree.skeleton.leaf_material
+        index = np.asarray(own, np.int64) if table else None
         if index is not None and len(index) != k:
             index = None
         parts = [("leaf_model", leaves.model, np.arange(k), table.for_leaf)]

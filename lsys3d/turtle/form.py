@@ -123,8 +123,10 @@ class FormOptions(Options):
         help="degrees per metre toward the sky (negative: toward the ground) per branch order, the last for "
         "higher orders",
     )
-    phototropism: float = option(0.0, low=0, high=3600, help="degrees per metre toward `light`")
-    light: tuple[float, float, float] = option((0.0, 1.0, 0.0), help="direction toward the light, `[x, y, z]`")
+    phototropism: float = option(0.0, low=0, high=3600, help="degrees per metre toward `phototropism_light`")
+    phototropism_light: tuple[float, float, float] = option(
+        (0.0, 1.0, 0.0), help="direction toward the light the branches turn to, `[x, y, z]`"
+    )
     plagiotropism: float = option(
         0.0, low=0, high=3600, help="degrees per metre by which laterals (order >= 1) turn toward the horizontal"
     )
@@ -168,8 +170,8 @@ class FormOptions(Options):
                 f"FormOptions.phyllotaxis: must be one of {', '.join(map(repr, PHYLLOTAXIS))}, "
                 f"not {clip(repr(self.phyllotaxis))}"
             )
-        if not math.hypot(*self.light) > 0:
-            raise OptionsError("FormOptions.light: must not be the zero vector")
+        if not math.hypot(*self.phototropism_light) > 0:
+            raise OptionsError("FormOptions.phototropism_light: must not be the zero vector")
 
     @property
     def curved(self) -> bool:
@@ -238,8 +240,8 @@ class FormOptions(Options):
                 values[f.name] = getattr(options, f.name)
         try:
             return cls(**values)
-        except OptionsError as exc:  # a check across fields (phyllotaxis, light) of the table's values
-            key = next((k for k in ("phyllotaxis", "light") if k in str(exc) and k in grammar.form), None)
+        except OptionsError as exc:  # a check across fields (phyllotaxis, phototropism_light)
+            key = next((k for k in ("phyllotaxis", "phototropism_light") if k in str(exc) and k in grammar.form), None)
             if key is None:
                 raise
             raise _form_error(grammar, key, str(exc)) from None
@@ -709,7 +711,7 @@ def form(
             rate = math.radians(options.gnarl)
             for k in range(2):
                 noise[:, k] = rate * fbm3(points, seed=(int(seed), int(Stream.FORM_GNARL), k), octaves=3)
-    light = unit(np.asarray(options.light, np.float64)[None])[0]
+    light = unit(np.asarray(options.phototropism_light, np.float64)[None])[0]
     q, piece_scale, p0, p1 = _place(
         seg,
         ppiece,
