@@ -29,10 +29,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from lsys3d.batch import batch, plan, read_manifests, run_job
 from lsys3d.exchange.library import read_library, write_library
-from lsys3d.forest import ForestOptions, forest
-from lsys3d.runners import cpu_count
+from lsys3d.library.batch import batch, plan, read_manifests, run_job
+from lsys3d.library.forest import ForestOptions, forest
+from lsys3d.library.runners import cpu_count
 
 PRESETS = {"tree3d": 5, "bush": 5, "monopodial": 9, "ternary": 5}
 

@@ -39,9 +39,9 @@ from pathlib import Path
 import numpy as np
 
 import lsys3d
-from lsys3d.grammar import Grammar
+from lsys3d.lsystem.grammar import Grammar
 from lsys3d.pipeline import GenerateOptions, draw
-from lsys3d.skeleton import Skeleton
+from lsys3d.turtle.skeleton import Skeleton
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "form"
 DEMO = DOCS / "tree3d-form.toml"

@@ -5,7 +5,7 @@
 Each job runs in a fresh process that has already grown and written a small tree (so
 imports and USD's plugins are not counted), as a batch worker would.  The job's peak
 is the kernel's high-water mark of resident memory (``VmHWM``, reset before the job)
-less the memory before it.  Prints the prediction of :func:`lsys3d.jobs.predict_size`,
+less the memory before it.  Prints the prediction of :func:`lsys3d.library.jobs.predict_size`,
 the measurement, and their ratio (the model should not predict less than it takes).
 ``--cases``: other jobs than the default ones, as ``PRESET:GENERATIONS`` (``:no-union``
 for the tube soup).
@@ -72,7 +72,7 @@ def main(argv=None):
     ap.add_argument("--cases", nargs="+", type=case, default=CASES, help="PRESET:GENERATIONS[:no-union] ...")
     args = ap.parse_args(argv)
     import lsys3d
-    from lsys3d.jobs import predict_size
+    from lsys3d.library.jobs import predict_size
     from lsys3d.pipeline import GenerateOptions
 
     print(f"{'job':<22} {'tube tris':>10} {'predicted':>10} {'measured':>10}  ratio")

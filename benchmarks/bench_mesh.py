@@ -6,7 +6,7 @@ For random trees of about 1k, 5k and 20k segments (turtle-free generator
 below: gently curving, tapering chains; a lateral branch at some joints)
 prints, per size:
 
-* lsys3d: :func:`lsys3d.sweep.sweep` + :func:`lsys3d.union.union` (seconds,
+* lsys3d: :func:`lsys3d.mesh.sweep.sweep` + :func:`lsys3d.mesh.union.union.union` (seconds,
   output triangles);
 * batch: the same tubes, each its own Manifold, in one
   ``Manifold.batch_boolean`` (manifold's own bounding-box grouping);
@@ -26,9 +26,9 @@ import numpy as np
 import trimesh
 from timing import best_of
 
-from lsys3d.skeleton import Skeleton
-from lsys3d.sweep import SweepOptions, sweep
-from lsys3d.union import UnionOptions, _manifold, union
+from lsys3d.mesh.sweep import SweepOptions, sweep
+from lsys3d.mesh.union.union import UnionOptions, _manifold, union
+from lsys3d.turtle.skeleton import Skeleton
 
 
 def _rotate(v, axis, angle):

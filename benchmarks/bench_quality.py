@@ -5,7 +5,7 @@
 For each preset (default: every preset that draws a mesh) prints the time of
 ``lsys3d.generate`` without the cleanup (``cleanup=False``: the union's raw
 bark) and with it (the default), their ratio, and the bark's quality both
-ways (:mod:`lsys3d.quality`: triangles, above aspect 100 and 1,000, under
+ways (:mod:`lsys3d.mesh.quality`: triangles, above aspect 100 and 1,000, under
 1 um high, median uv stretch) and the cleaned bark's volume against the raw
 union's (the collars must blend, not inflate: within 0.5%).  With ``--export``,
 also the time of the command line's whole job both ways (``lsys3d generate
@@ -30,7 +30,7 @@ from timing import best_of, best_of_each
 
 import lsys3d
 from lsys3d.arrays import small_pages
-from lsys3d.quality import quality
+from lsys3d.mesh.quality import quality
 
 SKIP = ("algae", "dog", "dog-growing")  # no mesh: a string, a 2D drawing
 

@@ -209,9 +209,9 @@ def growth(table):
 
 def compare(grammar: Path, n: int, repeat: int, naive: bool, blender: str | None, tmp: Path):
     import lsys3d
+    from lsys3d.mesh.sweep import sweep
+    from lsys3d.mesh.union.union import union
     from lsys3d.pipeline import draw
-    from lsys3d.sweep import sweep
-    from lsys3d.union import union
 
     g = lsys3d.Grammar.from_file(grammar)
     _, sk = draw(g, n, g.seed)
@@ -274,8 +274,8 @@ def hostile():
     from skeletons import make_skeleton
 
     from lsys3d.errors import LSystemError
-    from lsys3d.sweep import SweepOptions, sweep
-    from lsys3d.union import union
+    from lsys3d.mesh.sweep import SweepOptions, sweep
+    from lsys3d.mesh.union.union import union
 
     def parallel(n=500):
         x = np.arange(n) * 0.01 / n

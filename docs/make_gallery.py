@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 import lsys3d
-from lsys3d.presets import describe, preset_text
-from lsys3d.preview import PreviewOptions, preview
+from lsys3d.lsystem.presets import describe, preset_text
+from lsys3d.render.preview import PreviewOptions, preview
 
 DOCS = Path(__file__).resolve().parent
 PICTURES = DOCS / "gallery"

@@ -22,9 +22,9 @@ import numpy as np
 
 import lsys3d
 from lsys3d.images import png_bytes
+from lsys3d.look.organs import organs
 from lsys3d.noise import fbm3
-from lsys3d.organs import organs
-from lsys3d.preview import PreviewOptions, preview
+from lsys3d.render.preview import PreviewOptions, preview
 
 LOOKS = Path(__file__).resolve().parent / "looks"
 PIXELS = 360  # small pictures keep the repository small

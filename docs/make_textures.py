@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from lsys3d.images import png_bytes
-from lsys3d.textures import KINDS, procedural
+from lsys3d.look.textures import KINDS, procedural
 
 OUT = Path(__file__).resolve().parent / "textures"
 STEP = 6

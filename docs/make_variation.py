@@ -17,9 +17,9 @@ import time
 from pathlib import Path
 
 import lsys3d
+from lsys3d.mesh.sweep import SweepOptions
 from lsys3d.pipeline import GenerateOptions
-from lsys3d.preview import PreviewOptions, preview
-from lsys3d.sweep import SweepOptions
+from lsys3d.render.preview import PreviewOptions, preview
 
 PICTURES = Path(__file__).resolve().parent / "variation"
 PIXELS = 320  # small pictures keep the repository small

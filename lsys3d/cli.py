@@ -1,4 +1,8 @@
-"""The ``lsys3d`` command: each subcommand is a few calls into the public API."""
+"""The ``lsys3d`` command: each subcommand is a few calls into the public API.
+
+The stages' modules are imported when a subcommand runs (and its flags, which come from the options classes,
+when it is parsed): ``lsys3d --help`` and ``lsys3d presets`` load neither numba nor usd-core.
+"""
 
 from __future__ import annotations
 
@@ -13,18 +17,14 @@ import sys
 import threading
 import time
 import warnings
+from typing import TYPE_CHECKING
 
-from .arrays import small_pages
-from .derive import derive
 from .errors import LSystemError, OptionsError, clip, printable
-from .exchange.common import ExportOptions
-from .forest import ForestOptions
 from .options import add_arguments, from_arguments
-from .pipeline import GenerateOptions
-from .presets import DEFAULT_PRESET, describe, list_presets, load
-from .preview import PreviewOptions
-from .turtle import GRAMMAR_KEYS, TurtleOverrides
 from .version import __version__
+
+if TYPE_CHECKING:
+    from .pipeline import GenerateOptions
 
 DEFAULT_OUTPUT = "tree.glb"
 DEFAULT_PICTURE = "tree.png"
@@ -55,6 +55,9 @@ def _grammar_args(p: argparse.ArgumentParser, optional: bool = False, mesh: bool
 
     ``mesh=False`` (``derive``) adds only the derivation's limit.
     """
+    from .lsystem.presets import DEFAULT_PRESET
+    from .pipeline import GenerateOptions
+
     if optional:
         p.add_argument(
             "grammar", nargs="?", default=DEFAULT_PRESET, help=f"grammar file or preset (default: {DEFAULT_PRESET})"
@@ -82,6 +85,8 @@ def _grammar_args(p: argparse.ArgumentParser, optional: bool = False, mesh: bool
 
 def _generate_options(args) -> GenerateOptions:
     """The :class:`GenerateOptions` of the flags given (and ``--turtle`` settings)."""
+    from .pipeline import GenerateOptions
+
     options = from_arguments(GenerateOptions, args)
     if args.turtle:
         options = options.replace(turtle=dict(args.turtle))
@@ -106,6 +111,8 @@ def _turtle_setting(text: str) -> tuple[str, object]:
     """``KEY=VALUE`` with a TOML value (``0.2``, ``"normal"``, ``[0, -1, 0]``); a bare word is a string."""
     import tomllib
 
+    from .turtle import GRAMMAR_KEYS, TurtleOverrides
+
     key, sep, value = text.partition("=")
     key = key.strip()
     if not sep or key not in GRAMMAR_KEYS:
@@ -124,7 +131,7 @@ def _turtle_setting(text: str) -> tuple[str, object]:
 
 
 def _shard(text: str) -> tuple[int, int]:
-    from .jobs import parse_shard
+    from .library.jobs import parse_shard
 
     try:
         return parse_shard(text)
@@ -133,7 +140,7 @@ def _shard(text: str) -> tuple[int, int]:
 
 
 def _size(text: str) -> int:
-    from .batch import parse_bytes
+    from .library.batch import parse_bytes
 
     try:
         return parse_bytes(text)
@@ -176,7 +183,13 @@ def _output_flags(p: argparse.ArgumentParser, default) -> None:
     p.add_argument("-v", "--verbose", action="store_true", default=default, help="log each stage with its timing")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``lsys3d`` parser.
+
+    With ``command``, only that subcommand gets its arguments (the others are listed with their help; ``""``:
+    none does): their flags come from the options classes, whose modules take a while to import, so
+    ``lsys3d --help`` or ``lsys3d presets`` imports none of them.  Without, every subcommand gets its arguments.
+    """
     parser = _Parser(prog="lsys3d", description="Grow 3D plants and fractals from L-systems.")
     parser.add_argument("--version", action="version", version=f"lsys3d {__version__}")
     _output_flags(parser, default=False)
@@ -186,11 +199,26 @@ def build_parser() -> argparse.ArgumentParser:
     _output_flags(common, default=argparse.SUPPRESS)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
+    for name, (help_text, arguments) in _SUBCOMMANDS.items():
+        p = sub.add_parser(name, parents=[common], help=help_text)
+        if command is None or command == name:
+            arguments(p)
+    return parser
 
-    def add(name: str, **kw) -> argparse.ArgumentParser:
-        return sub.add_parser(name, parents=[common], **kw)
 
-    p = add("generate", help="grow a plant and write it as a mesh asset (.glb, .usdc, ...)")
+def _command(argv: list[str]) -> str | None:
+    """The subcommand named in ``argv``: its first word that is not an option (the top level's take no value)."""
+    for word in argv:
+        if word == "--":
+            return None
+        if not word.startswith("-"):
+            return word
+    return None
+
+
+def _generate_arguments(p: argparse.ArgumentParser) -> None:
+    from .exchange.common import ExportOptions
+
     _grammar_args(p, optional=True)
     p.add_argument(
         "-o",
@@ -216,17 +244,22 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_generate)
 
-    p = add("preview", help="grow a plant and render a shaded picture of it (.png) with Blender")
+
+def _preview_arguments(p: argparse.ArgumentParser) -> None:
+    from .render.preview import PreviewOptions
+
     _grammar_args(p, optional=True)
     p.add_argument("-o", "--output", default=DEFAULT_PICTURE, help=f"the .png to write (default {DEFAULT_PICTURE})")
     add_arguments(p, PreviewOptions)
     p.set_defaults(func=cmd_preview)
 
-    p = add("derive", help="print the derived module string")
+
+def _derive_arguments(p: argparse.ArgumentParser) -> None:
     _grammar_args(p, mesh=False)
     p.set_defaults(func=cmd_derive)
 
-    p = add("stats", help="print counts and extents of the drawn plant")
+
+def _stats_arguments(p: argparse.ArgumentParser) -> None:
     _grammar_args(p)
     p.add_argument("--json", action="store_true", help="one JSON object instead of a table")
     p.add_argument("--mesh", action="store_true", help="also build the mesh and report its counts and measures")
@@ -237,7 +270,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_stats)
 
-    p = add("check", help="regrow the assets of golden files and compare their counts")
+
+def _check_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("golden", nargs="+", metavar="GOLDEN.json", help="golden files written by 'stats --golden'")
     p.add_argument("--update", action="store_true", help="rewrite the golden files that changed, and say what changed")
     p.add_argument(
@@ -248,7 +282,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_check)
 
-    p = add("batch", help="grow every job of a jobs file into a folder, with a manifest and library.usda")
+
+def _batch_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("jobs", metavar="JOBS.toml", help="the jobs file (see docs/batch.md)")
     p.add_argument("-o", "--output", required=True, metavar="OUTDIR", help="the folder of the assets (made if missing)")
     p.add_argument(
@@ -272,7 +307,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dry-run", action="store_true", help="list the jobs, whether each would run, its predicted size")
     p.set_defaults(func=cmd_batch)
 
-    p = add("forest", help="scatter a library's assets over an area: USD PointInstancer or one .glb with instancing")
+
+def _forest_arguments(p: argparse.ArgumentParser) -> None:
+    from .library.forest import ForestOptions
+
     p.add_argument("library", metavar="LIBRARY", help="a library.usda written by 'lsys3d batch' (or its folder)")
     p.add_argument(
         "-o", "--output", default="forest.usdc", help="the forest: .usdc, .usda, .usd or .glb (default forest.usdc)"
@@ -283,12 +321,32 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_forest)
 
-    p = add("presets", help="list the bundled presets")
+
+def _presets_arguments(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=cmd_presets)
-    return parser
+
+
+_SUBCOMMANDS = {
+    "generate": ("grow a plant and write it as a mesh asset (.glb, .usdc, ...)", _generate_arguments),
+    "preview": ("grow a plant and render a shaded picture of it (.png) with Blender", _preview_arguments),
+    "derive": ("print the derived module string", _derive_arguments),
+    "stats": ("print counts and extents of the drawn plant", _stats_arguments),
+    "check": ("regrow the assets of golden files and compare their counts", _check_arguments),
+    "batch": ("grow every job of a jobs file into a folder, with a manifest and library.usda", _batch_arguments),
+    "forest": (
+        "scatter a library's assets over an area: USD PointInstancer or one .glb with instancing",
+        _forest_arguments,
+    ),
+    "presets": ("list the bundled presets", _presets_arguments),
+}
+"""Each subcommand's help line and the function that adds its arguments, in the order ``--help`` lists them."""
 
 
 def cmd_derive(args) -> int:
+    from .lsystem.derive import derive
+    from .lsystem.presets import load
+    from .pipeline import GenerateOptions
+
     grammar = load(args.grammar)
     options = from_arguments(GenerateOptions, args)
     result = derive(grammar, args.iterations, args.seed, max_modules=options.limits.max_modules)
@@ -301,6 +359,8 @@ def cmd_derive(args) -> int:
 
 def cmd_generate(args) -> int:
     from .exchange import check_output, export
+    from .exchange.common import ExportOptions
+    from .lsystem.presets import load
     from .pipeline import generate, run_stage
 
     export_options = from_arguments(ExportOptions, args).replace(instance_leaves=args.instance_leaves)
@@ -337,6 +397,7 @@ def cmd_generate(args) -> int:
 def _generate_siblings(args, options, export_options) -> int:
     """``generate --variants N``: the grammar grown with seeds SEED .. SEED+N-1, written by export_variants."""
     from .exchange import check_output, export_variants, variant_paths
+    from .lsystem.presets import load
     from .pipeline import generate, run_stage, warn_if_identical
 
     for target in variant_paths(args.output, args.variants):
@@ -372,8 +433,9 @@ def _generate_siblings(args, options, export_options) -> int:
 
 
 def cmd_preview(args) -> int:
+    from .lsystem.presets import load
     from .pipeline import generate, run_stage
-    from .preview import check_preview, preview
+    from .render.preview import PreviewOptions, check_preview, preview
 
     options = from_arguments(PreviewOptions, args)
     check_preview(args.output, options)  # no Blender, no minutes of work
@@ -393,6 +455,7 @@ def cmd_preview(args) -> int:
 
 
 def cmd_stats(args) -> int:
+    from .lsystem.presets import load
     from .stats import flatten, report
 
     grammar = load(args.grammar)
@@ -415,7 +478,7 @@ def cmd_stats(args) -> int:
 
         result = report(*draw(grammar, n, seed, options))
     if args.golden:
-        from .golden import recipe_for, write_golden
+        from .golden.golden import recipe_for, write_golden
 
         recipe = recipe_for(grammar, n, seed, options, mesh=args.mesh, golden_path=args.golden)
         write_golden(args.golden, recipe, result)
@@ -437,7 +500,7 @@ def print_table(stats: dict) -> None:
 
 
 def cmd_check(args) -> int:
-    from .golden import RTOL, check, format_differences
+    from .golden.golden import RTOL, check, format_differences
 
     failed = 0
     for path in args.golden:
@@ -515,7 +578,7 @@ def _duration(seconds: float) -> str:
 
 
 def cmd_batch(args) -> int:
-    from .batch import batch, plan
+    from .library.batch import batch, plan
 
     the = plan(args.jobs, args.output, args.shard)
     if args.dry_run:
@@ -571,7 +634,7 @@ def _print_plan(the) -> int:
 
 
 def cmd_forest(args) -> int:
-    from .forest import forest
+    from .library.forest import ForestOptions, forest
 
     options = from_arguments(ForestOptions, args).replace(species=tuple(args.species))
     t0 = time.perf_counter()
@@ -585,6 +648,8 @@ def cmd_forest(args) -> int:
 
 
 def cmd_presets(args) -> int:
+    from .lsystem.presets import describe, list_presets
+
     names = list_presets()
     width = max(map(len, names))
     for name in names:
@@ -637,8 +702,11 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 
 def main(argv=None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(_command(argv) or "")  # no subcommand named: none of their arguments
     args = parser.parse_args(argv)
+    from .arrays import small_pages  # numpy, numba: after the parser, so --help and usage errors go without
+
     small_pages()  # numpy's huge pages stall on this kind of machine; this process is the command line's own
     level = logging.INFO if args.verbose else logging.ERROR if args.quiet else logging.WARNING
     logging.basicConfig(format="lsys3d: %(message)s", level=level)

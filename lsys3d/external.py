@@ -13,7 +13,7 @@ current folder for a grammar built in Python or read from a string); an
 absolute name as it is.  The file is read here, once, as bytes: only regular
 files (never a device or a pipe, which could block or never end), at most a
 given number of bytes, checked before anything is allocated.  What the bytes
-mean is decided by their readers (:mod:`lsys3d.images`, :mod:`lsys3d.surfaces`),
+mean is decided by their readers (:mod:`lsys3d.images`, :mod:`lsys3d.look.surfaces`),
 which parse them as data: nothing a file holds is ever run.
 """
 

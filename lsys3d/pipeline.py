@@ -18,34 +18,45 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
-from . import bark as bark_stage
-from . import dialects, union_jobs
 from .arrays import release_memory
-from .attributes import VERTEX_KEYS, AttributeOptions, with_attributes
-from .cleanup import CleanupOptions, clean_junctions, cleanup
-from .derive import DEFAULT_MAX_MODULES, derive, interpretation
-from .diagnostics import Checks, check
 from .errors import GeometryError, OptionsError
-from .grammar import Grammar
-from .hierarchy import hierarchy
-from .leaves import LeafOptions
-from .leaves import leaves as build_leaves
-from .lod import LEVELS, Lod, LodOptions, fit_budget, kept_segments, level_hierarchy, level_options, lod_leaves, prune
-from .materials import material_table, with_face_materials
-from .mesh import Mesh
-from .modules import ModuleString
+from .look import bark as bark_stage
+from .look.attributes import VERTEX_KEYS, AttributeOptions, with_attributes
+from .look.leaves import LeafOptions
+from .look.leaves import leaves as build_leaves
+from .look.lod import (
+    LEVELS,
+    Lod,
+    LodOptions,
+    fit_budget,
+    kept_segments,
+    level_hierarchy,
+    level_options,
+    lod_leaves,
+    prune,
+)
+from .look.materials import material_table, with_face_materials
+from .look.organs import OrganOptions, bind_organs, skeleton_organs
+from .look.rig import SKIN_KEYS, RigOptions, bind, build_rig
+from .look.surfaces import surface_table, with_cards
+from .look.wind import WindOptions, sway
+from .lsystem import dialects
+from .lsystem.derive import DEFAULT_MAX_MODULES, derive, interpretation
+from .lsystem.grammar import Grammar
+from .lsystem.modules import ModuleString
+from .lsystem.presets import load
+from .mesh.cleanup import CleanupOptions, clean_junctions, cleanup
+from .mesh.mesh import Mesh
+from .mesh.sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
+from .mesh.union import jobs as union_jobs
+from .mesh.union.union import UnionOptions, concatenate, union, union_cleaning_junctions
 from .options import Options, option
-from .organs import OrganOptions, bind_organs, skeleton_organs
-from .presets import load
 from .provenance import Provenance
-from .rig import SKIN_KEYS, RigOptions, bind, build_rig
-from .skeleton import Skeleton
-from .surfaces import surface_table, with_cards
-from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, FormOptions, TurtleOptions, TurtleOverrides, form, interpret, symbol_table
-from .union import UnionOptions, concatenate, union, union_cleaning_junctions
-from .wind import WindOptions, sway
+from .turtle.diagnostics import Checks, check
+from .turtle.hierarchy import hierarchy
+from .turtle.skeleton import Skeleton
 
 __all__ = [
     "STAGES",
@@ -130,7 +141,7 @@ class GenerateOptions(Options):
     wind : WindOptions
         A sample wind animation keyed on the rig's joints (off by default; needs the rig).
     checks : Checks
-        Whether the grammar's warnings (:mod:`lsys3d.diagnostics`) are errors (``strict``).
+        Whether the grammar's warnings (:mod:`lsys3d.turtle.diagnostics`) are errors (``strict``).
     lod : LodOptions
         Levels of detail to build as well, or a triangle budget to fit.
 
@@ -256,8 +267,8 @@ def draw(
     form stage runs, as ``"form"``, only when some feature of it is on);
     :func:`generate` goes on from here to the meshes.
     The turtle reads the derived string rewritten by the grammar's homomorphism
-    rules (:func:`lsys3d.derive.interpretation`), with its dialect's commands;
-    what it cannot draw as meant is reported (:mod:`lsys3d.diagnostics`).
+    rules (:func:`lsys3d.lsystem.derive.interpretation`), with its dialect's commands;
+    what it cannot draw as meant is reported (:mod:`lsys3d.turtle.diagnostics`).
 
     Examples
     --------
@@ -450,7 +461,7 @@ def _bark(
     their faces), so with it they are kept until the cleanup is done; the
     union then makes no corner normals and uv (the cleanup makes its own), and
     cleans the junctions itself before it copies them onto repeated ones
-    (:func:`lsys3d.union.union_cleaning_junctions`): the cleanup stage then
+    (:func:`lsys3d.mesh.union.union.union_cleaning_junctions`): the cleanup stage then
     makes the normals and uv alone.
     """
     if options.union.enabled and not options.cleanup.enabled and len(held[0]):
@@ -500,7 +511,7 @@ class _Look:
 
 
 def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod, look: _Look) -> tuple[Lod, ...]:
-    """The levels of detail asked for (:mod:`lsys3d.lod`), from one skeleton; ``first`` is level 0, built already.
+    """The levels of detail asked for (:mod:`lsys3d.look.lod`), from one skeleton; ``first`` is level 0, built already.
 
     Every level carries what level 0 does: face materials, the hierarchy and
     wind attributes and the rig's skin, all indexing the tree's own branches

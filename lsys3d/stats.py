@@ -6,9 +6,9 @@ import numpy as np
 
 from .arrays import components as _labels
 from .arrays import unique
-from .modules import ModuleString
-from .quality import quality
-from .skeleton import Skeleton
+from .lsystem.modules import ModuleString
+from .mesh.quality import quality
+from .turtle.skeleton import Skeleton
 from .version import __version__
 
 __all__ = ["REPORT_FORMAT", "components", "flatten", "mesh_stats", "report", "skeleton_stats", "versions"]
@@ -166,7 +166,7 @@ def report(modules: ModuleString, skeleton: Skeleton, tree=None) -> dict:
         ``watertight``, ``winding_consistent``, ``unioned`` (after the union, or
         the tube soup without it).
         ``leaves``: ``vertices``, ``faces`` (all leaves merged).
-        ``quality``: the bark's :class:`~lsys3d.quality.Quality`: ``triangles``,
+        ``quality``: the bark's :class:`~lsys3d.mesh.quality.Quality`: ``triangles``,
         ``over_100`` and ``over_1000`` (aspect), ``slivers`` (under 1 um),
         ``max_aspect``, ``uv_stretch`` (median; None without uv area).
         ``bbox``: ``min``, ``max`` of everything exported (bark and leaves).

@@ -6,7 +6,7 @@ the others unchanged, and the result depends on nothing but the seed (no
 global state, no process, no hash seed).  A new use of randomness takes the
 next free id here.
 
-Stochastic rules (:mod:`lsys3d.derive`) draw from one stream per generation,
+Stochastic rules (:mod:`lsys3d.lsystem.derive`) draw from one stream per generation,
 symbol and pool of rules: :func:`rule_generator`.  A grammar's random functions
 (``ran``, ``uniform``, ``normal``...) take counter-based numbers instead
 (:func:`hashed_uniform`): the number a module draws at a place of the grammar
@@ -42,19 +42,19 @@ class Stream(IntEnum):
     BARK_COLOR = 7
     """Bark colour: the noise pattern of the vertex colours (``bark_color_variation``)."""
     WIND_PHASE = 8
-    """Hierarchy: the wind phase of each branch (:mod:`lsys3d.hierarchy`)."""
+    """Hierarchy: the wind phase of each branch (:mod:`lsys3d.turtle.hierarchy`)."""
     GRAMMAR_RANDOM = 9
     """Derivation: the grammar's random functions (``ran``, ``uniform``, ``normal``...), :func:`hashed_uniform`."""
     RANDOM_TURN = 10
     """Turtle: the random turns of Lparser's and Houdini's ``~`` (three angles per module)."""
     TEXTURE = 11
-    """Procedural textures: the noises, cells and strokes of a texture's images (:mod:`lsys3d.textures`)."""
+    """Procedural textures: the noises, cells and strokes of a texture's images (:mod:`lsys3d.look.textures`)."""
     FORM_GNARL = 12
     """Form: the noise that bends the branches (``gnarl``, :mod:`lsys3d.turtle.form`)."""
     FORM_VARIATION = 13
     """Form: each lateral's change of branching angle and length (``angle_variation``, ``length_variation``)."""
     LEAF_SIZE = 14
-    """Leaves: the relative change of each leaf's size (``leaf_size_variation``, :mod:`lsys3d.leaf_form`)."""
+    """Leaves: the relative change of each leaf's size (``leaf_size_variation``, :mod:`lsys3d.look.leaf_form`)."""
     LEAF_CLUSTER = 15
     """Leaves: each cluster's turn about its twig and its leaves' small turns (``leaves_per_cluster``)."""
 

@@ -43,12 +43,12 @@ def assert_matches_golden(tree, path: str | os.PathLike, *, update: bool | None 
     tree : Tree
         From :func:`lsys3d.generate`.
     path : path-like
-        The golden file (JSON, see :mod:`lsys3d.golden`).
+        The golden file (JSON, see :mod:`lsys3d.golden.golden`).
     update : bool, optional
         Write the file instead of failing when it is missing or differs;
         defaults to :func:`update_requested`.
     rtol : float, optional
-        Relative tolerance of floating values (default :data:`lsys3d.golden.RTOL`).
+        Relative tolerance of floating values (default :data:`lsys3d.golden.golden.RTOL`).
 
     Raises
     ------
@@ -57,7 +57,7 @@ def assert_matches_golden(tree, path: str | os.PathLike, *, update: bool | None 
         iterations, seed or options), or a count or measure differs; the
         message holds the table of differences and how to update.
     """
-    from .golden import RTOL, compare, format_differences, read_golden, recipe_for, write_golden
+    from .golden.golden import RTOL, compare, format_differences, read_golden, recipe_for, write_golden
     from .stats import report
 
     path = Path(path)

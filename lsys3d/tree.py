@@ -3,7 +3,7 @@
 This is the contract between the mesh stages and the writers in
 :mod:`lsys3d.exchange`.  The writers know nothing of grammars: what they need
 to name, describe or regrow the asset is :meth:`Tree.metadata` and
-:attr:`Tree.name`.  Meshes are :class:`~lsys3d.mesh.Mesh` (welded vertices,
+:attr:`Tree.name`.  Meshes are :class:`~lsys3d.mesh.mesh.Mesh` (welded vertices,
 corner normals and uv, optional vertex colours).
 """
 
@@ -11,16 +11,16 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
-from .hierarchy import Hierarchy
-from .leaves import Leaves
-from .materials import BARK, LEAF, Material, MaterialTable
-from .mesh import Mesh
-from .modules import ModuleString
-from .organs import Organs
+from .look.leaves import Leaves
+from .look.materials import BARK, LEAF, Material, MaterialTable
+from .look.organs import Organs
+from .look.rig import Rig
+from .look.wind import Animation
+from .lsystem.modules import ModuleString
+from .mesh.mesh import Mesh
 from .provenance import DEFAULT_NAME, Provenance, asset_identifier
-from .rig import Rig
-from .skeleton import Skeleton
-from .wind import Animation
+from .turtle.hierarchy import Hierarchy
+from .turtle.skeleton import Skeleton
 
 __all__ = ["BARK", "LEAF", "Material", "StageCounts", "Tree"]
 
@@ -62,25 +62,25 @@ class Tree:
         The derived string: what :func:`lsys3d.derive` gives, before the homomorphism
         (interpretation) rules, the string whose length the reports count as
         ``derive.modules`` (None for trees built by hand).  The turtle reads
-        ``lsys3d.derive.interpretation(grammar, modules)``, and ``skeleton.module``
+        ``lsys3d.lsystem.derive.interpretation(grammar, modules)``, and ``skeleton.module``
         indexes that string; the two are the same string when the grammar has no
         homomorphism rules.
     materials : MaterialTable
         The bark's and the leaves' materials, by the turtle's material index
-        (:mod:`lsys3d.materials`; the two defaults unless the grammar has a
+        (:mod:`lsys3d.look.materials`; the two defaults unless the grammar has a
         ``[materials]`` table).
     hierarchy : Hierarchy or None
         The branch hierarchy, when the tree carries hierarchy and wind
         attributes (the writers write its per-branch table).
     rig : Rig or None
         The joints, when the tree is rigged; the bark and the merged leaves
-        then carry their skins (:data:`lsys3d.rig.SKIN_KEYS`).
+        then carry their skins (:data:`lsys3d.look.rig.SKIN_KEYS`).
     organs : Organs
-        Spheres, discs, boxes and named surfaces (:mod:`lsys3d.organs`): their
+        Spheres, discs, boxes and named surfaces (:mod:`lsys3d.look.organs`): their
         prototypes and instances, and each prototype's organs merged.
     animation : Animation or None
-        The sample wind animation of the rig's joints (:mod:`lsys3d.wind`), when asked for.
-    lods : tuple of lsys3d.lod.Lod
+        The sample wind animation of the rig's joints (:mod:`lsys3d.look.wind`), when asked for.
+    lods : tuple of lsys3d.look.lod.Lod
         Its levels of detail when asked for (``lod=(0, 1, 2, 3)``), level 0
         being ``bark`` and ``leaves`` themselves; empty otherwise.
     """

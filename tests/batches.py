@@ -8,7 +8,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from lsys3d.batch import batch
+from lsys3d.library.batch import batch
 
 #: Two species, five jobs, each a fraction of a second: a tree with natural variation (every seed differs) and a
 #: grammar file beside the jobs file.

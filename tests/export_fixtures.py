@@ -3,7 +3,7 @@
 A trunk and two branches are trimesh cylinders unioned by manifold3d, with
 corner normals (smooth, creased at the caps) and cylindrical UVs computed
 here; leaves are quads placed by instance transforms and baked by
-:func:`lsys3d.leaves.instance_leaves`; one leaf is a polygon.  The provenance
+:func:`lsys3d.look.leaves.instance_leaves`; one leaf is a polygon.  The provenance
 is built by :meth:`lsys3d.provenance.Provenance.of`, the pipeline's own builder,
 so the writers read exactly what they read from a generated tree.
 """
@@ -13,13 +13,13 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from lsys3d.grammar import Grammar
-from lsys3d.leaves import Leaves, instance_leaves
-from lsys3d.mesh import Mesh
+from lsys3d.look.leaves import Leaves, instance_leaves
+from lsys3d.lsystem.grammar import Grammar
+from lsys3d.mesh.mesh import Mesh
 from lsys3d.pipeline import GenerateOptions
 from lsys3d.provenance import Provenance
-from lsys3d.skeleton import Skeleton
 from lsys3d.tree import StageCounts, Tree
+from lsys3d.turtle.skeleton import Skeleton
 
 GRAMMAR = Grammar(axiom="F[+F][-F]", name="synthetic", iterations=3, seed=42, angle=25.0)
 PROVENANCE = Provenance.of(GRAMMAR, 3, 42, GenerateOptions())
@@ -27,7 +27,7 @@ COUNTS = StageCounts(modules=9, segments=4, tubes=3, tube_vertices=0, tube_faces
 
 
 def corner_attributes(mesh: trimesh.Trimesh, crease_degrees: float = 40.0) -> Mesh:
-    """A :class:`~lsys3d.mesh.Mesh` of a welded trimesh with corner normals and uv made here.
+    """A :class:`~lsys3d.mesh.mesh.Mesh` of a welded trimesh with corner normals and uv made here.
 
     Normals are the vertex normals, except at corners whose face turns more
     than ``crease_degrees`` away from them (caps), which take the face normal.

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from lsys3d.skeleton import Skeleton
+from lsys3d.turtle.skeleton import Skeleton
 
 
 def make_skeleton(start, end, width_start, width_end=None, parent=None, order=None) -> Skeleton:

@@ -11,7 +11,8 @@ from gltf_files import accessor, node, read_glb
 from pxr import Usd, UsdGeom
 
 import lsys3d
-from lsys3d.attributes import (
+from lsys3d.exchange import ExportOptions, export
+from lsys3d.look.attributes import (
     ATTRIBUTES,
     BRANCH_KEYS,
     GLTF_PACKING,
@@ -21,8 +22,7 @@ from lsys3d.attributes import (
     gltf_attributes,
     nearest_branch,
 )
-from lsys3d.exchange import ExportOptions, export
-from lsys3d.hierarchy import hierarchy
+from lsys3d.turtle.hierarchy import hierarchy
 
 # a trunk of 3 segments (0..3 m) with a branch of 2 segments from 1 m, turned 90 degrees; a leaf at each tip
 SMALL = lsys3d.Grammar(axiom="!(0.2)F[+!(0.1)FF~]FF~", angle=90, name="small")
@@ -71,9 +71,9 @@ def test_the_seam_belongs_to_the_child(small):
     """Vertices on the seam where the branch cuts the trunk take the branch's values, not an interpolation.
 
     The seam is found by the tube each triangle is a piece of (``Mesh.face_source``): its vertices are
-    in triangles of both tubes.  The junction collar (lsys3d.cleanup) moves them a little off the trunk.
+    in triangles of both tubes.  The junction collar (lsys3d.mesh.cleanup) moves them a little off the trunk.
     """
-    from lsys3d.sweep import sweep
+    from lsys3d.mesh.sweep import sweep
 
     a = small.bark.attributes
     v = small.bark.vertices
@@ -139,7 +139,7 @@ def test_usd_primvars_in_the_file_frame(small, tmp_path):
 
 def test_geometric_match_agrees_with_the_tubes():
     """On a preset's tubes, every vertex on the surface of the union matches its own tube's branch, or a child's."""
-    from lsys3d.sweep import sweep
+    from lsys3d.mesh.sweep import sweep
     from lsys3d.turtle import interpret
 
     g = lsys3d.load_preset("tree3d")
@@ -185,7 +185,7 @@ def test_presets_with_attributes_pass_the_judges(name, tmp_path):
 
 
 def test_the_docs_table_is_the_attribute_table():
-    from lsys3d.attributes import attributes_markdown
+    from lsys3d.look.attributes import attributes_markdown
 
     text = (validators.REPO / "docs" / "engines.md").read_text(encoding="utf-8")
     assert attributes_markdown() in text

@@ -18,11 +18,11 @@ import validators
 from batches import IDS, copy_of_library, small_library, write_project
 
 import lsys3d
-from lsys3d.batch import MANIFEST, batch, plan, read_manifests
 from lsys3d.errors import BatchError
 from lsys3d.exchange.library import read_library
-from lsys3d.golden import Recipe, compare, grow
-from lsys3d.jobs import read_jobs
+from lsys3d.golden.golden import Recipe, compare, grow
+from lsys3d.library.batch import MANIFEST, batch, plan, read_manifests
+from lsys3d.library.jobs import read_jobs
 
 LINE_KEYS = {"counts", "crown_radius", "export", "files", "id", "lsys3d_manifest", "recipe", "run", "status"}
 RUN_KEYS = {"attempts", "finished", "peak_memory", "predicted_memory", "seconds", "worker"}
@@ -258,7 +258,7 @@ def test_a_memory_budget_runs_jobs_one_at_a_time(tmp_path):
 def test_the_temporary_files_of_killed_writers_are_removed_usds_own_too(tmp_path):
     """A worker killed while writing leaves the writer's temporary file, or, while USD writes, USD's own: made
     from ours with the suffix replaced by six random characters (seen: ``.tree3d_s0.695320be.tmp.NH17bU``)."""
-    from lsys3d.batch import remove_temporaries
+    from lsys3d.library.batch import remove_temporaries
 
     jobs = plan(write_project(tmp_path, '[[jobs]]\ngrammar = "koch"\nseeds = 0\nformats = ["glb", "usdc"]\n'), tmp_path)
     target = tmp_path / jobs.jobs[0].paths[0]
@@ -301,7 +301,7 @@ def test_a_stop_signal_wrapped_by_a_compiled_call_stops_the_worker(tmp_path, mon
     """SIGTERM's SystemExit raised inside a numba call comes out as a SystemError: the batch is stopping,
     the job has not failed (no traceback in the log, no failed line)."""
     from lsys3d import pipeline
-    from lsys3d.batch import run_job
+    from lsys3d.library.batch import run_job
 
     def interrupted(*args, **kw):
         try:
@@ -486,9 +486,9 @@ def test_dask_retries_a_job_whose_worker_was_killed(cluster, tmp_path):
 
 
 def test_an_unreachable_scheduler_is_one_error(tmp_path, monkeypatch):
-    import lsys3d.runners
+    import lsys3d.library.runners
 
-    monkeypatch.setattr(lsys3d.runners, "CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr(lsys3d.library.runners, "CONNECT_TIMEOUT", "1s")
     project = write_project(tmp_path)
     with pytest.raises(BatchError, match="cannot reach the Dask scheduler"):
         batch(project, tmp_path / "out", scheduler="tcp://127.0.0.1:9")

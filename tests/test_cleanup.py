@@ -11,15 +11,15 @@ from skeletons import make_skeleton
 from test_union import chainy_tree, random_tree, y_junction
 
 import lsys3d
-from lsys3d import remesh
-from lsys3d.cleanup import CleanupOptions, clean_junctions, clean_mesh, cleanup
 from lsys3d.errors import GeometryError
-from lsys3d.mesh import Mesh
+from lsys3d.mesh import remesh
+from lsys3d.mesh.cleanup import CleanupOptions, clean_junctions, clean_mesh, cleanup
+from lsys3d.mesh.mesh import Mesh
+from lsys3d.mesh.quality import quality
+from lsys3d.mesh.sweep import SweepOptions, sweep
+from lsys3d.mesh.union.union import UnionOptions, union, union_cleaning_junctions
 from lsys3d.pipeline import draw
-from lsys3d.quality import quality
 from lsys3d.stats import components
-from lsys3d.sweep import SweepOptions, sweep
-from lsys3d.union import UnionOptions, union, union_cleaning_junctions
 
 DRAWING_PRESETS = [name for name in lsys3d.list_presets() if name not in ("algae", "dog", "dog-growing")]
 
@@ -100,7 +100,7 @@ def test_cleanup_is_deterministic(tree3d_parts):
 def test_the_room_for_splits_changes_memory_not_the_result(tree3d_parts, monkeypatch):
     """The half-edges start with room for splits of an eighth of the faces; a run that fills it is made again
     with more room: the same mesh, whatever the room it started with."""
-    from lsys3d import cleanup as module
+    from lsys3d.mesh import cleanup as module
 
     tubes, raw = tree3d_parts
     roomy = clean_mesh(raw, tubes)
@@ -116,7 +116,7 @@ def test_the_room_for_splits_changes_memory_not_the_result(tree3d_parts, monkeyp
 def test_the_halves_clean_the_same_at_once_or_one_after_the_other(tree3d_parts):
     """The first cleaning runs on two halves of the mesh at once (two threads); neither reads what the other
     changes, so the mesh is the same bytes whichever half runs first, and with both at once."""
-    from lsys3d import cleanup as module
+    from lsys3d.mesh import cleanup as module
 
     tubes, raw = tree3d_parts
     assert len(raw.faces) >= module._HALVES_MIN
@@ -162,7 +162,7 @@ def test_one_thread_cleans_the_same_bytes_and_a_one_process_union_asks_for_it(tr
 def test_the_halves_are_kept_apart_by_a_band_of_locked_vertices(tree3d_parts):
     """Every face is on one side of the cut; the band holds every vertex within its width of the cut, so
     no edge joins a vertex only one half may change to one only the other half may change."""
-    from lsys3d import cleanup as module
+    from lsys3d.mesh import cleanup as module
 
     tubes, raw = tree3d_parts
     part, flat, _, scale, flags, reference = module._classify(raw, tubes)
@@ -463,7 +463,7 @@ def test_half_edges_refuse_an_open_mesh():
 
 def test_a_cut_cap_is_no_rim():
     """A thick child's base poking out of its parent (a ledge) is part of the junction: it may be smoothed."""
-    from lsys3d.skeleton import Skeleton
+    from lsys3d.turtle.skeleton import Skeleton
 
     sk = Skeleton.from_segments(
         [[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [1.0, 1.2, 0]], [0.1, 0.3], parent=[-1, 0], order=[0, 1]

@@ -15,7 +15,7 @@ import pytest
 
 import lsys3d
 from lsys3d import GrammarError, LSystemError
-from lsys3d.derive import interpretation
+from lsys3d.lsystem.derive import interpretation
 from lsys3d.turtle import interpret
 
 CORPUS = Path(__file__).parent / "corpus"

@@ -15,8 +15,8 @@ from invariants import balanced
 
 import lsys3d
 from lsys3d import DerivationError, Grammar, LimitError, derive, generations, load_preset, predict_length
-from lsys3d.derive import interpretation, predict_counts
-from lsys3d.modules import ModuleString, format_number
+from lsys3d.lsystem.derive import interpretation, predict_counts
+from lsys3d.lsystem.modules import ModuleString, format_number
 
 
 def naive_d0l(axiom: str, rules: dict[str, str], n: int) -> str:

@@ -17,9 +17,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import lsys3d
-from lsys3d import Grammar, GrammarError, dialects
-from lsys3d.derive import interpretation
-from lsys3d.modules import ASCII_ALPHABET
+from lsys3d import Grammar, GrammarError
+from lsys3d.lsystem import dialects
+from lsys3d.lsystem.derive import interpretation
+from lsys3d.lsystem.modules import ASCII_ALPHABET
 from lsys3d.provenance import grammar_text
 from lsys3d.turtle import Axis, Op, Organ, interpret, symbol_table
 
@@ -491,7 +492,7 @@ def test_native_files_never_run_what_they_hold(tmp_path, suffix, payload):
 
 def test_the_readers_have_no_door_to_python():
     for name in ("lpy", "cpfg", "lparser", "common"):
-        source = (Path(lsys3d.__file__).parent / "dialects" / f"{name}.py").read_text()
+        source = (Path(lsys3d.__file__).parent / "lsystem" / "dialects" / f"{name}.py").read_text()
         assert not re.search(r"(?<![\w.])(eval|exec|compile|getattr|__import__)\(|importlib|ast\.", source), name
 
 

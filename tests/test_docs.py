@@ -66,7 +66,7 @@ def test_architecture_names_what_exists():
 @pytest.mark.parametrize("text", [b for b in blocks("toml") if "[[jobs]]" in b.values[0]])
 def test_jobs_file_examples_parse(text, tmp_path):
     """A jobs file in the docs reads (the grammar files it names exist beside it, as one would have them)."""
-    from lsys3d.jobs import read_jobs
+    from lsys3d.library.jobs import read_jobs
 
     for name in re.findall(r'"([\w/]+\.toml)"', text):
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
@@ -87,7 +87,7 @@ def test_looks_grammars_grow(path, tmp_path):
 
 @pytest.mark.parametrize("name", ["abop", "lpy", "cpfg", "lparser", "houdini"])
 def test_each_dialect_has_a_page_with_its_generated_table(name):
-    from lsys3d.dialects import table_markdown
+    from lsys3d.lsystem.dialects import table_markdown
 
     text = (ROOT / "docs" / "dialects" / f"{name}.md").read_text(encoding="utf-8")
     assert table_markdown(name) in text

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lsys3d.expr import EvalError, ExprSyntaxError, Function, Syntax, parse_expression
+from lsys3d.lsystem.expr import EvalError, ExprSyntaxError, Function, Syntax, parse_expression
 from lsys3d.streams import Stream, hashed_uniform
 
 PY = Syntax(python=True)
@@ -67,7 +67,7 @@ def test_what_each_spelling_refuses(text, syntax, message):
 
 
 def test_the_derivation_step_is_read_from_the_evaluations_env():
-    from lsys3d.expr import STEP
+    from lsys3d.lsystem.expr import STEP
 
     e = parse_expression("2 + getIterationNb()", syntax=PY)
     assert e.evaluate({STEP: 3.0}, 2).tolist() == [5.0, 5.0]

@@ -15,7 +15,7 @@ import lsys3d
 from lsys3d.errors import ForestError
 from lsys3d.exchange import ExportOptions
 from lsys3d.exchange.library import LibraryVariant, read_library, write_library
-from lsys3d.forest import ForestOptions, forest, scatter
+from lsys3d.library.forest import ForestOptions, forest, scatter
 
 
 def pair_gaps(s, radius, spacing):

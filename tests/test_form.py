@@ -11,12 +11,12 @@ import pytest
 
 import lsys3d
 from lsys3d.errors import GrammarError, OptionsError
-from lsys3d.grammar import Grammar
+from lsys3d.lsystem.grammar import Grammar
 from lsys3d.pipeline import GenerateOptions, draw
 from lsys3d.provenance import grammar_text
-from lsys3d.skeleton import Skeleton
 from lsys3d.turtle import FormOptions, form
 from lsys3d.turtle.form import GOLDEN_ANGLE, pipe_widths, tip_counts
+from lsys3d.turtle.skeleton import Skeleton
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "docs" / "form" / "tree3d-form.toml"
@@ -307,7 +307,7 @@ def test_a_form_table_of_the_wrong_type_is_refused():
 
 
 def test_curved_sub_segments_keep_their_rings_in_the_sweep():
-    from lsys3d.sweep import SweepOptions, sweep
+    from lsys3d.mesh.sweep import SweepOptions, sweep
 
     points = np.zeros((11, 3))
     points[:, 1] = np.arange(11.0)

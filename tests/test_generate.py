@@ -11,10 +11,10 @@ from grown import grown
 import lsys3d
 from lsys3d.errors import GeometryError
 from lsys3d.exchange import ExportOptions, export
+from lsys3d.mesh.sweep import sweep
+from lsys3d.mesh.union.union import concatenate
 from lsys3d.pipeline import GenerateOptions, generate
 from lsys3d.stats import components, mesh_stats
-from lsys3d.sweep import sweep
-from lsys3d.union import concatenate
 
 DRAWING_PRESETS = [name for name in lsys3d.list_presets() if name not in ("algae", "dog", "dog-growing")]
 
@@ -102,7 +102,7 @@ def test_generate_records_provenance_and_counts():
 
 def test_tree_modules_is_the_derived_string_and_skeleton_module_indexes_the_string_the_turtle_read():
     """Tree.modules is derive()'s string, before the homomorphism; skeleton.module indexes interpretation()'s."""
-    from lsys3d.derive import interpretation
+    from lsys3d.lsystem.derive import interpretation
 
     g = lsys3d.Grammar(axiom="A", rules=["A -> I[+A]IA"], homomorphism=["I -> FF"], iterations=3, angle=30)
     tree = generate(g, union=False)

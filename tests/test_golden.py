@@ -16,9 +16,9 @@ from grown import grown
 
 import lsys3d
 from lsys3d.cli import main
-from lsys3d.derive import derive
 from lsys3d.errors import GoldenError
-from lsys3d.golden import Recipe, check, compare, format_differences, read_golden, recipe_for, write_golden
+from lsys3d.golden.golden import Recipe, check, compare, format_differences, read_golden, recipe_for, write_golden
+from lsys3d.lsystem.derive import derive
 from lsys3d.stats import report
 from lsys3d.testing import assert_matches_golden
 from lsys3d.turtle import interpret
@@ -297,10 +297,10 @@ def _grow_in_process(folder: Path, hash_seed: str, *names: str) -> dict:
 def test_same_counts_and_bytes_in_separate_processes(tmp_path):
     """Same grammar and seed: identical counts and exported bytes, whatever the hash seed, and
     whatever other grammars (one of them edited in between) the process grew before."""
-    import lsys3d.presets
+    import lsys3d.lsystem.presets
 
     for name in ("tree3d", "bush", "koch-stochastic"):
-        (tmp_path / f"{name}.toml").write_text(lsys3d.presets.preset_text(name))
+        (tmp_path / f"{name}.toml").write_text(lsys3d.lsystem.presets.preset_text(name))
     first = _grow_in_process(tmp_path, "1", "tree3d")
     bush = tmp_path / "bush.toml"
     bush.write_text(bush.read_text().replace("iterations = 7", "iterations = 3").replace("angle = 22.5", "angle = 30"))

@@ -10,7 +10,7 @@ import pytest
 
 import lsys3d
 from lsys3d import Grammar, GrammarError
-from lsys3d.expr import EvalError, ExprSyntaxError, parse_expression
+from lsys3d.lsystem.expr import EvalError, ExprSyntaxError, parse_expression
 
 
 def write(tmp_path: Path, text: str, name: str = "g.toml") -> Path:
@@ -220,13 +220,13 @@ def test_escaped_toml_strings_keep_columns(tmp_path):
 
 
 def test_grammar_size_limit(tmp_path):
-    path = write(tmp_path, 'axiom = "F"\n' + "#" * (lsys3d.grammar.MAX_GRAMMAR_BYTES + 1))
+    path = write(tmp_path, 'axiom = "F"\n' + "#" * (lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES + 1))
     with pytest.raises(GrammarError, match="larger than"):
         Grammar.from_file(path)
 
 
 def test_parameter_count_limit():
-    args = ",".join(["1"] * (lsys3d.grammar.MAX_PARAMETERS + 1))
+    args = ",".join(["1"] * (lsys3d.lsystem.grammar.MAX_PARAMETERS + 1))
     with pytest.raises(GrammarError, match="parameters, more than"):
         Grammar(axiom=f"A({args})")
 

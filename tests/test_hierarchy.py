@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import lsys3d
-from lsys3d.hierarchy import hierarchy
 from lsys3d.turtle import interpret
+from lsys3d.turtle.hierarchy import hierarchy
 
 
 def draw(axiom: str, angle: float = 90.0):

@@ -51,17 +51,17 @@ from lsys3d import (
     ModuleString,
     OptionsError,
     TurtleOptions,
-    golden,
 )
 from lsys3d.cli import build_parser, main
 from lsys3d.errors import GoldenError
 from lsys3d.exchange import atomic
+from lsys3d.golden import golden
+from lsys3d.mesh.sweep import DEFAULT_MAX_TRIANGLES, sweep
+from lsys3d.mesh.union.union import union
 from lsys3d.pipeline import GenerateOptions
-from lsys3d.sweep import DEFAULT_MAX_TRIANGLES, sweep
 from lsys3d.turtle import DEFAULT_MAX_SEGMENTS, interpret
-from lsys3d.union import union
 
-derive_module = importlib.import_module("lsys3d.derive")  # lsys3d.derive is the function
+derive_module = importlib.import_module("lsys3d.lsystem.derive")  # lsys3d.derive is the function
 
 
 # ---------------------------------------------------------------- no code execution
@@ -165,7 +165,7 @@ def test_payloads_as_toml_keys_are_refused_and_names_stay_plain_text(tmp_path):
 
 
 def test_the_parser_has_no_door_to_python():
-    import lsys3d.expr as expr
+    import lsys3d.lsystem.expr as expr
 
     source = Path(expr.__file__).read_text()
     assert not re.search(r"(?<![\w.])(eval|exec|compile|getattr|__import__)\(|importlib", source)
@@ -259,7 +259,7 @@ def nan_skeleton(ctx):
 
 
 def big_file(ctx):
-    ctx.monkeypatch.setattr(lsys3d.grammar, "MAX_GRAMMAR_BYTES", 64)
+    ctx.monkeypatch.setattr(lsys3d.lsystem.grammar, "MAX_GRAMMAR_BYTES", 64)
     lsys3d.Grammar.from_file(ctx.file('axiom = "F"\n' + "# padding\n" * 10))
 
 
@@ -336,7 +336,7 @@ CASES = [
     ("toml-iterations-string", grow(F + 'iterations = "many"\n'), GrammarError, "'iterations' must be a whole"),
     ("toml-angle-infinite", grow(F + "angle = inf\n"), GrammarError, "'angle' must be a number"),
     ("file-not-utf8", grow(b'axiom = "\xff"\n'), GrammarError, "not UTF-8"),
-    ("file-too-large", api(big_file), GrammarError, "larger than 64 (lsys3d.grammar.MAX_GRAMMAR_BYTES)"),
+    ("file-too-large", api(big_file), GrammarError, "larger than 64 (lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES)"),
     ("file-missing", cli("derive", "{tmp}/nope.toml"), GrammarError, "no such grammar file"),
     ("preset-unknown", cli("derive", "no-such-preset"), GrammarError, "no bundled preset named"),
     # -- rule syntax
@@ -522,23 +522,23 @@ def test_each_limit_can_be_raised(monkeypatch):
     deep = "(" * 80 + "1" + ")" * 80
     with pytest.raises(GrammarError, match="nested deeper than 64"):
         Grammar(axiom=f"A({deep})")
-    monkeypatch.setattr(lsys3d.expr, "MAX_DEPTH", 100)
+    monkeypatch.setattr(lsys3d.lsystem.expr, "MAX_DEPTH", 100)
     assert str(Grammar(axiom=f"A({deep})").axiom_modules) == "A(1)"
 
     chain = "+".join(["1"] * 300)
     with pytest.raises(GrammarError, match="nested deeper than 100"):
         Grammar(axiom=f"A({chain})")
-    monkeypatch.setattr(lsys3d.expr, "MAX_DEPTH", 300)
+    monkeypatch.setattr(lsys3d.lsystem.expr, "MAX_DEPTH", 300)
     assert str(Grammar(axiom=f"A({chain})").axiom_modules) == "A(300)"
 
     spaced = "1" + " " * 4100
     with pytest.raises(GrammarError, match="longer than 4096"):
         Grammar(axiom=f"A({spaced})")
-    monkeypatch.setattr(lsys3d.expr, "MAX_LENGTH", 5000)
+    monkeypatch.setattr(lsys3d.lsystem.expr, "MAX_LENGTH", 5000)
     assert str(Grammar(axiom=f"A({spaced})").axiom_modules) == "A(1)"
 
     many = ",".join(["1"] * 40)
-    monkeypatch.setattr(lsys3d.grammar, "MAX_PARAMETERS", 40)
+    monkeypatch.setattr(lsys3d.lsystem.grammar, "MAX_PARAMETERS", 40)
     assert len(Grammar(axiom=f"A({many})").axiom_modules.params) == 40
 
     still = Grammar(axiom="A", rules=["A -> B", "B -> A"])
@@ -549,10 +549,10 @@ def test_each_limit_can_be_raised(monkeypatch):
 
 
 def test_raising_the_depth_beyond_pythons_stack_is_still_an_error(monkeypatch):
-    monkeypatch.setattr(lsys3d.expr, "MAX_DEPTH", 10**6)
+    monkeypatch.setattr(lsys3d.lsystem.expr, "MAX_DEPTH", 10**6)
     with pytest.raises(GrammarError, match="nested too deeply for Python's stack"):
         Grammar(axiom="A(" + "(" * 2000 + "1" + ")" * 2000 + ")")
-    monkeypatch.setattr(lsys3d.expr, "MAX_LENGTH", 10**5)
+    monkeypatch.setattr(lsys3d.lsystem.expr, "MAX_LENGTH", 10**5)
     g = Grammar(axiom="A(1)", rules=["A(x) -> A(" + "x+" * 5000 + "1)"])  # parsed without recursion
     with pytest.raises(DerivationError, match="nested too deeply for Python's stack"):
         lsys3d.derive(g, 1)

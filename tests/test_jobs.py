@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 import lsys3d
 from lsys3d.errors import BatchError
-from lsys3d.jobs import (
+from lsys3d.library.jobs import (
     MAX_JOBS,
     Job,
     JobSize,

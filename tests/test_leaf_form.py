@@ -8,10 +8,10 @@ import validators
 
 import lsys3d
 from lsys3d.errors import GrammarError, LimitError, OptionsError
-from lsys3d.leaf_form import PETIOLE_HALF_WIDTH, SHAPES, arrange, blade, droop, spray_card, toward_light
-from lsys3d.leaves import LeafOptions, default_leaf, leaves
+from lsys3d.look.leaf_form import PETIOLE_HALF_WIDTH, SHAPES, arrange, blade, droop, spray_card, toward_light
+from lsys3d.look.leaves import LeafOptions, default_leaf, leaves
 from lsys3d.pipeline import draw
-from lsys3d.skeleton import Skeleton
+from lsys3d.turtle.skeleton import Skeleton
 
 
 @pytest.fixture(scope="module")

@@ -7,9 +7,9 @@ import pytest
 import trimesh
 
 import lsys3d
-from lsys3d.leaves import Leaves, default_leaf, instance_leaves, leaf_transforms, leaves, polygon_leaves
-from lsys3d.mesh import Mesh
-from lsys3d.skeleton import Skeleton
+from lsys3d.look.leaves import Leaves, default_leaf, instance_leaves, leaf_transforms, leaves, polygon_leaves
+from lsys3d.mesh.mesh import Mesh
+from lsys3d.turtle.skeleton import Skeleton
 
 
 def leafy_skeleton(polygons=(), instances=()) -> Skeleton:

@@ -10,8 +10,8 @@ import pytest
 import lsys3d
 from lsys3d.errors import LimitError, OptionsError
 from lsys3d.exchange import export
-from lsys3d.lod import LodOptions, fit_budget, prune, thin_leaves
-from lsys3d.quality import quality
+from lsys3d.look.lod import LodOptions, fit_budget, prune, thin_leaves
+from lsys3d.mesh.quality import quality
 from lsys3d.stats import components
 
 

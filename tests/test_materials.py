@@ -10,7 +10,7 @@ from pxr import Usd, UsdGeom, UsdShade
 
 import lsys3d
 from lsys3d.exchange import ExportOptions, export
-from lsys3d.materials import BARK, LEAF, MaterialTable, material_table
+from lsys3d.look.materials import BARK, LEAF, MaterialTable, material_table
 
 # a trunk of index 0, a branch of index 1 from its middle, a leaf of index 2 on the branch and one of 0 on the trunk
 TEXT = """\

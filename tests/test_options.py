@@ -9,25 +9,25 @@ import math
 import pytest
 
 import lsys3d
-from lsys3d.attributes import AttributeOptions
-from lsys3d.bark import BarkColorOptions
-from lsys3d.cleanup import CleanupOptions
 from lsys3d.cli import build_parser, main
-from lsys3d.diagnostics import Checks
 from lsys3d.errors import OptionsError
 from lsys3d.exchange import ExportOptions
-from lsys3d.forest import ForestOptions
-from lsys3d.leaves import LeafOptions
-from lsys3d.lod import LodOptions
+from lsys3d.library.forest import ForestOptions
+from lsys3d.look.attributes import AttributeOptions
+from lsys3d.look.bark import BarkColorOptions
+from lsys3d.look.leaves import LeafOptions
+from lsys3d.look.lod import LodOptions
+from lsys3d.look.organs import OrganOptions
+from lsys3d.look.rig import RigOptions
+from lsys3d.look.wind import WindOptions
+from lsys3d.mesh.cleanup import CleanupOptions
+from lsys3d.mesh.sweep import SweepOptions
+from lsys3d.mesh.union.union import UnionOptions
 from lsys3d.options import Options, add_arguments, check_value, flat_fields, from_arguments, spec_of
-from lsys3d.organs import OrganOptions
 from lsys3d.pipeline import GenerateOptions, Limits
-from lsys3d.preview import PreviewOptions
-from lsys3d.rig import RigOptions
-from lsys3d.sweep import SweepOptions
+from lsys3d.render.preview import PreviewOptions
 from lsys3d.turtle import FormOptions, TurtleOptions, TurtleOverrides
-from lsys3d.union import UnionOptions
-from lsys3d.wind import WindOptions
+from lsys3d.turtle.diagnostics import Checks
 
 CLASSES = [
     Limits,

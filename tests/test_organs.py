@@ -14,10 +14,10 @@ from pxr import Usd, UsdGeom, UsdShade, UsdSkel
 import lsys3d
 from lsys3d.cli import main
 from lsys3d.exchange import ExportOptions, export
-from lsys3d.hierarchy import hierarchy
 from lsys3d.images import png_bytes
-from lsys3d.organs import OrganOptions, bind_organs, box, disc, organs, sphere
-from lsys3d.surfaces import surface_table
+from lsys3d.look.organs import OrganOptions, bind_organs, box, disc, organs, sphere
+from lsys3d.look.surfaces import surface_table
+from lsys3d.turtle.hierarchy import hierarchy
 
 # ---------------------------------------------------------------- prototypes
 

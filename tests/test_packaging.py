@@ -32,7 +32,7 @@ def test_wheel_ships_the_presets(tmp_path):
     )
     code = (
         "import lsys3d, sys; assert lsys3d.__file__.startswith(sys.argv[1]), lsys3d.__file__;"
-        "from lsys3d.preview import SCRIPT; assert SCRIPT.is_file(), SCRIPT;"  # Blender's side of previews
+        "from lsys3d.render.preview import SCRIPT; assert SCRIPT.is_file(), SCRIPT;"  # Blender's side of previews
         "names = lsys3d.list_presets(); print(len(names), lsys3d.derive(lsys3d.load_preset('dog'), 1))"
     )
     env = dict(os.environ, PYTHONPATH=str(target))

@@ -20,7 +20,7 @@ from pngs import read_png
 
 import lsys3d
 from lsys3d.errors import ExportError, OptionsError, PreviewError
-from lsys3d.preview import ENV_BLENDER, SCRIPT, PreviewOptions, blender_command, check_preview, preview
+from lsys3d.render.preview import ENV_BLENDER, SCRIPT, PreviewOptions, blender_command, check_preview, preview
 
 BACKGROUND = (0.96, 0.96, 0.95)
 

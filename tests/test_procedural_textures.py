@@ -14,10 +14,10 @@ from gltf_files import read_glb
 from pxr import Usd, UsdShade
 
 import lsys3d
-from lsys3d.materials import material_table
+from lsys3d.look.materials import material_table
+from lsys3d.look.textures import KINDS, normal_map, procedural
+from lsys3d.mesh.sweep import SweepOptions, sweep
 from lsys3d.noise import fbm3, perlin3
-from lsys3d.sweep import SweepOptions, sweep
-from lsys3d.textures import KINDS, normal_map, procedural
 
 BARK = [k for k, row in KINDS.items() if row.group == "bark"]
 LEAVES = [k for k, row in KINDS.items() if row.group == "leaf"]
@@ -128,7 +128,7 @@ def test_same_seed_same_bytes_in_another_process_other_seed_other_bytes():
     assert a is procedural("plated", seed=7, resolution=64)  # made once per process
     assert a.albedo.data != b.albedo.data and a.normal.data != b.normal.data
     code = (
-        "import hashlib\nfrom lsys3d.textures import procedural\n"
+        "import hashlib\nfrom lsys3d.look.textures import procedural\n"
         "t = procedural('plated', seed=7, resolution=64)\n"
         "print(hashlib.sha256(t.albedo.data + t.normal.data + t.roughness.data).hexdigest())"
     )
@@ -292,7 +292,7 @@ def test_the_docs_show_every_kind():
     """docs/textures.md holds the table of KINDS as written from it, and a swatch under 100 kB for each kind."""
     from pathlib import Path
 
-    from lsys3d.textures import kinds_markdown
+    from lsys3d.look.textures import kinds_markdown
 
     docs = Path(__file__).resolve().parent.parent / "docs"
     assert kinds_markdown() in (docs / "textures.md").read_text(encoding="utf-8")

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from lsys3d.mesh import Mesh
-from lsys3d.quality import Quality, aspect_ratios, heights, quality, uv_stretch
+from lsys3d.mesh.mesh import Mesh
+from lsys3d.mesh.quality import Quality, aspect_ratios, heights, quality, uv_stretch
 
 TRIANGLE = np.array([[0, 1, 2]])
 

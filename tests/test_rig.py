@@ -13,9 +13,9 @@ from pxr import Usd, UsdSkel
 
 import lsys3d
 from lsys3d.exchange import ExportOptions, export
-from lsys3d.hierarchy import hierarchy
-from lsys3d.rig import BLEND, INFLUENCES, RigOptions, build_rig, skin_weights
+from lsys3d.look.rig import BLEND, INFLUENCES, RigOptions, build_rig, skin_weights
 from lsys3d.turtle import interpret
+from lsys3d.turtle.hierarchy import hierarchy
 
 # a trunk of 4 segments with a branch from its second joint and a twig on that branch; leaves at every tip
 SMALL = lsys3d.Grammar(axiom="!(0.2)F[+!(0.1)FF[-!(0.05)F~]F~]FFF~", angle=45, name="small")

@@ -11,12 +11,12 @@ import validators
 from gltf_files import node, read_glb
 
 import lsys3d
-from lsys3d import surfaces as surfaces_module
 from lsys3d.errors import AssetError
 from lsys3d.exchange import ExportOptions, export
 from lsys3d.images import png_bytes
-from lsys3d.leaves import default_leaf
-from lsys3d.surfaces import card, load_model, surface_table
+from lsys3d.look import surfaces as surfaces_module
+from lsys3d.look.leaves import default_leaf
+from lsys3d.look.surfaces import card, load_model, surface_table
 
 # a diamond leaf authored 4 units long, lying in the x-z plane facing +y, its stem end at (10, 2, -3)
 DIAMOND = np.array([[0, 0, 0], [1, 0, 2], [0, 0, 4], [-1, 0, 2]], np.float64) + np.array([10, 2, -3])
@@ -92,12 +92,12 @@ def test_bad_model_files(folder, tmp_path, monkeypatch):
     with pytest.raises(AssetError, match="no such model file"):
         load_model(tmp_path / "missing.obj")
     monkeypatch.setattr(surfaces_module, "MAX_MODEL_TRIANGLES", 1)
-    with pytest.raises(AssetError, match=r"2 triangles, more than 1 \(lsys3d.surfaces.MAX_MODEL_TRIANGLES\)"):
+    with pytest.raises(AssetError, match=r"2 triangles, more than 1 \(lsys3d.look.surfaces.MAX_MODEL_TRIANGLES\)"):
         load_model(folder / "diamond.stl")  # a binary STL: refused from its header
     with pytest.raises(AssetError, match="2 triangles, more than 1"):
         load_model(folder / "diamond.obj")
     monkeypatch.setattr(surfaces_module, "MAX_MODEL_BYTES", 10)
-    with pytest.raises(AssetError, match=r"more than 10 \(lsys3d.surfaces.MAX_MODEL_BYTES\)"):
+    with pytest.raises(AssetError, match=r"more than 10 \(lsys3d.look.surfaces.MAX_MODEL_BYTES\)"):
         load_model(folder / "diamond.obj")
 
 
@@ -206,7 +206,7 @@ def test_cli_leaf_points(tmp_path, capsys):
 
 
 def test_baked_leaves_are_counted_before_they_are_built(folder):
-    from lsys3d.leaves import leaves
+    from lsys3d.look.leaves import leaves
     from lsys3d.pipeline import draw
 
     g = grammar(folder, 'leaf = "diamond.obj"', axiom="F" + "[+F~]" * 20)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from skeletons import make_skeleton
 
-from lsys3d.skeleton import Skeleton
-from lsys3d.sweep import SweepOptions, Tubes, sweep
+from lsys3d.mesh.sweep import SweepOptions, Tubes, sweep
+from lsys3d.turtle.skeleton import Skeleton
 
 # ---------------------------------------------------------------- skeletons
 
@@ -271,7 +271,7 @@ def test_uv_tiles_around_and_square_texels_along():
     np.testing.assert_allclose(np.diff(ring_uv[:, 0, 1]), sk.lengths() / perimeter, rtol=1e-6)
     # a square of texture is square on the tube: a mitred joint ring of a bend b shears it by at most
     # tan(b / 2) (its far side ahead of its near side), a stretch of at most (s / 2 + sqrt(1 + s^2 / 4))^2
-    from lsys3d.quality import uv_stretch
+    from lsys3d.mesh.quality import uv_stretch
 
     m = tubes.mesh()
     stretch = uv_stretch(m.vertices, m.faces, m.uv)
@@ -282,7 +282,7 @@ def test_uv_tiles_around_and_square_texels_along():
 
 @pytest.mark.parametrize("turn", [60.0, 90.0, 110.0])
 def test_sharp_joints_keep_the_shear_in_a_band_at_the_elbow(turn):
-    from lsys3d.quality import uv_stretch
+    from lsys3d.mesh.quality import uv_stretch
 
     a = math.radians(90.0 - turn)
     pts = [[0, 0, 0], [0, 1, 0], [math.cos(a), 1 + math.sin(a), 0], [math.cos(a), 2 + math.sin(a), 0]]
@@ -323,7 +323,7 @@ def test_thick_chains_get_whole_tiles_around():
 def test_tapering_tube_keeps_square_texels():
     sk = polyline([[0, 0, 0], [0, 3, 0]], width=0.4, width_end=0.05)
     tubes = sweep(sk, SweepOptions(sides=12, ring_spacing=1.0))
-    from lsys3d.quality import uv_stretch
+    from lsys3d.mesh.quality import uv_stretch
 
     m = tubes.mesh()
     body = slice(0, 2 * 12 * (tubes.rings[0] - 1))
@@ -353,7 +353,7 @@ def test_v_runs_on_from_parent_into_child(blend):
 )
 def test_uv_at_gives_each_vertex_its_own_uv(skeleton):
     tubes = sweep(skeleton, SweepOptions(sides=7))
-    from lsys3d.sweep import wrap_u
+    from lsys3d.mesh.sweep import wrap_u
 
     m = tubes.mesh()
     uv = tubes.uv_at(np.repeat(m.face_source, 3), m.vertices[m.faces].reshape(-1, 3)).reshape(-1, 3, 2)
@@ -400,7 +400,7 @@ def _rotated(skeleton, rotation, shift):
 
 def test_congruent_skeletons_get_congruent_tubes_and_the_same_uv():
     # the seam is placed by the turtle's frame, not the world's: a plant turned and moved gets the same
-    # texture coordinates, and its tubes are the first ones turned and moved (lsys3d.repeats relies on it)
+    # texture coordinates, and its tubes are the first ones turned and moved (lsys3d.mesh.union.repeats relies on it)
     import lsys3d
     from lsys3d.pipeline import draw
 

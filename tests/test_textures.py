@@ -22,7 +22,7 @@ from lsys3d.errors import AssetError, ExportError
 from lsys3d.exchange import ExportOptions, export
 from lsys3d.exchange.common import gather_mesh, split_tangents
 from lsys3d.images import PNG_SIGNATURE, check_image, png_bytes, read_image
-from lsys3d.mesh import Mesh
+from lsys3d.mesh.mesh import Mesh
 
 DATA = Path(__file__).parent / "data"
 
@@ -410,7 +410,7 @@ def test_blender_connects_the_textures(textured, tmp_path, suffix):
 def test_forest_of_textured_assets(textured, tmp_path):
     """A .glb forest copies each asset's images and textures once; a USD forest's assets find theirs."""
     from lsys3d.exchange.library import LibraryVariant, write_library
-    from lsys3d.forest import ForestOptions, forest
+    from lsys3d.library.forest import ForestOptions, forest
 
     plain = lsys3d.generate("abop-1.24a", iterations=2)
     variants = []

@@ -1,4 +1,4 @@
-"""The union's broad phase (lsys3d.touch): compiled kernels against plain numpy references."""
+"""The union's broad phase (lsys3d.mesh.union.touch): compiled kernels against plain numpy references."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from skeletons import make_skeleton
 
 from lsys3d.arrays import offsets
 from lsys3d.errors import LimitError
-from lsys3d.sweep import SweepOptions, sweep
-from lsys3d.touch import _pairwise_sum, _rings, pieces, segment_distance, touching
+from lsys3d.mesh.sweep import SweepOptions, sweep
+from lsys3d.mesh.union.touch import _pairwise_sum, _rings, pieces, segment_distance, touching
 
 
 def bushy_tubes(seed: int, n: int, sides: int = 8):

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from lsys3d import Grammar, GrammarError, InterpretError, ModuleString, derive, load_preset
 from lsys3d.errors import OptionsError
-from lsys3d.modules import ASCII_ALPHABET
+from lsys3d.lsystem.modules import ASCII_ALPHABET
 from lsys3d.stats import skeleton_stats
 from lsys3d.turtle import (
     COMMANDS,

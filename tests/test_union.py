@@ -14,9 +14,9 @@ from skeletons import make_skeleton
 
 import lsys3d
 from lsys3d.errors import GeometryError
-from lsys3d.skeleton import Skeleton
-from lsys3d.sweep import SweepOptions, Tubes, _concat, sweep
-from lsys3d.union import UnionOptions, _manifold, concatenate, may_touch, union
+from lsys3d.mesh.sweep import SweepOptions, Tubes, _concat, sweep
+from lsys3d.mesh.union.union import UnionOptions, _manifold, concatenate, may_touch, union
+from lsys3d.turtle.skeleton import Skeleton
 
 
 def random_tree(seed: int, n: int, spread: float = 0.5, width: float = 0.12) -> Skeleton:
@@ -348,7 +348,7 @@ def test_presets_union(name):
 
 def _face_touching_boxes(gap: float):
     """Two closed boxes in one mesh, the second starting ``gap`` beyond the first's x = 1 face."""
-    from lsys3d.mesh import Mesh
+    from lsys3d.mesh.mesh import Mesh
 
     return Mesh.concatenate([Mesh.box((0, 0, 0), (1, 1, 1)), Mesh.box((1 + gap, 0, 0), (2, 1, 1))])
 
@@ -360,7 +360,7 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
 
     import trimesh
 
-    weld = sys.modules["lsys3d.union"]._weld_float32
+    weld = sys.modules["lsys3d.mesh.union.union"]._weld_float32
     mesh = _face_touching_boxes(gap)
     out = weld([mesh])
     v32 = np.asarray(out.vertices, np.float32)
@@ -379,7 +379,7 @@ def test_regrouping_only_moved_vertices_finds_the_same_owners():
     """_owners with the rows that may collide listed gives first_equal_row's answer; so does the separation."""
     from lsys3d.arrays import first_equal_row
 
-    mod = sys.modules["lsys3d.union"]
+    mod = sys.modules["lsys3d.mesh.union.union"]
     rng = np.random.default_rng(7)
     keys = rng.integers(0, 12, (2000, 3))
     full = first_equal_row(keys)
@@ -453,7 +453,7 @@ def test_a_twig_buried_in_its_parent_stays_out_and_changes_nothing(caplog):
         order=[0, 1, 1],
     )
     tubes = sweep(sk)
-    from lsys3d.touch import buried_tubes, pieces, touching
+    from lsys3d.mesh.union.touch import buried_tubes, pieces, touching
 
     pcs = pieces(tubes)
     buried = buried_tubes(tubes, pcs, *touching(pcs))
@@ -523,7 +523,7 @@ def test_inserted_rings_lie_on_a_straight_wall():
     assert more.mesh().is_watertight and more.mesh().is_winding_consistent
     assert more.volumes()[0] == pytest.approx(tubes.volumes()[0], rel=1e-12)
     assert np.array_equal(more.points[:8], tubes.points[:8])  # the old rings keep their exact points
-    from lsys3d.touch import straight_spans
+    from lsys3d.mesh.union.touch import straight_spans
 
     assert straight_spans(more, [0, 0, 0], [0, 1, 2]).tolist() == [True, True, True]
     bent = sweep(make_skeleton([[0, 0, 0], [0, 1, 0]], [[0, 1, 0], [0.5, 1.8, 0]], 0.1))
@@ -538,7 +538,7 @@ def plant(n: int):
 @pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
 def test_repeated_junctions_are_unioned_once_and_copied_exactly(caplog, monkeypatch):
     # without the plant's roll (/): the texture seam runs along the top of every branch (the world's +Y,
-    # lsys3d.sweep._seam_side), so a junction rolled about its parent is no rigid copy of another, its rings'
+    # lsys3d.mesh.sweep._seam_side), so a junction rolled about its parent is no rigid copy of another, its rings'
     # vertices lie elsewhere (with the roll 111 of 150 clusters go through the boolean)
     g = lsys3d.Grammar(axiom="X", rules=["X -> F[!+X][!&X]F[!-X]X", "F -> FF"], angle=22.5, iterations=5)
     tubes = sweep(interpret(lsys3d.derive(g), g))
@@ -547,7 +547,7 @@ def test_repeated_junctions_are_unioned_once_and_copied_exactly(caplog, monkeypa
     clusters, unioned = map(int, re.search(r"(\d+) clusters \((\d+) unioned", caplog.text).groups())
     assert unioned < clusters / 2
     check_union(tubes, mesh)
-    from lsys3d import repeats
+    from lsys3d.mesh.union import repeats
 
     find = repeats.find
 
@@ -583,10 +583,10 @@ def test_repeated_junctions_are_unioned_once_and_copied_exactly(caplog, monkeypa
 
 @pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
 def test_the_result_does_not_depend_on_the_number_of_workers(monkeypatch, caplog):
-    from lsys3d import union_jobs
+    from lsys3d.mesh.union import jobs as union_jobs
 
     monkeypatch.setattr(union_jobs, "POOL_MIN_TRIANGLES", 1)  # worker processes even for a small union
-    monkeypatch.setattr(sys.modules["lsys3d.union"], "_JOB_TRIANGLES", 300)  # and several jobs
+    monkeypatch.setattr(sys.modules["lsys3d.mesh.union.union"], "_JOB_TRIANGLES", 300)  # and several jobs
     tubes = sweep(random_tree(8, 150, spread=0.4))
 
     def digest(m):
@@ -604,9 +604,9 @@ def test_the_result_does_not_depend_on_the_number_of_workers(monkeypatch, caplog
 @pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
 def test_inner_merges_run_in_the_job_of_their_halves(monkeypatch):
     # a crowded cluster split into leaves: the merges of up to a quarter of the work are done in the leaves' job
-    from lsys3d import union_jobs
+    from lsys3d.mesh.union import jobs as union_jobs
 
-    monkeypatch.setattr(sys.modules["lsys3d.union"], "_JOB_TRIANGLES", 300)
+    monkeypatch.setattr(sys.modules["lsys3d.mesh.union.union"], "_JOB_TRIANGLES", 300)
     tubes = sweep(random_tree(8, 150, spread=0.4))
     plans = []
     real_plan = union_jobs.plan
@@ -646,7 +646,7 @@ def test_inner_merges_run_in_the_job_of_their_halves(monkeypatch):
 
 
 def test_plan_splits_a_crowded_cluster_into_leaves_of_its_own_size():
-    from lsys3d import union_jobs
+    from lsys3d.mesh.union import jobs as union_jobs
 
     # a chain of 64 touching items (one crowded cluster) and 20 lone ones, 10 triangles each
     n = 84
@@ -668,10 +668,10 @@ def test_plan_splits_a_crowded_cluster_into_leaves_of_its_own_size():
 
 
 def test_a_failing_worker_job_raises_a_geometry_error(monkeypatch):
-    from lsys3d import union_jobs
+    from lsys3d.mesh.union import jobs as union_jobs
 
     monkeypatch.setattr(union_jobs, "POOL_MIN_TRIANGLES", 1)
-    monkeypatch.setattr(sys.modules["lsys3d.union"], "_JOB_TRIANGLES", 300)
+    monkeypatch.setattr(sys.modules["lsys3d.mesh.union.union"], "_JOB_TRIANGLES", 300)
     tubes = sweep(random_tree(8, 150, spread=0.4))
     faces = tubes.faces.copy()
     faces[0] = faces[0, [0, 2, 1]]
@@ -714,8 +714,8 @@ def test_face_source_names_the_tube_face_on_every_path(path, caplog, monkeypatch
     elif path == "jobs":  # whole tubes in jobs
         options = UnionOptions(local=False)
     elif path == "workers":  # junction jobs in worker processes
-        monkeypatch.setattr(sys.modules["lsys3d.union_jobs"], "POOL_MIN_TRIANGLES", 1)
-        monkeypatch.setattr(sys.modules["lsys3d.union"], "_JOB_TRIANGLES", 300)
+        monkeypatch.setattr(sys.modules["lsys3d.mesh.union.jobs"], "POOL_MIN_TRIANGLES", 1)
+        monkeypatch.setattr(sys.modules["lsys3d.mesh.union.union"], "_JOB_TRIANGLES", 300)
         options = UnionOptions(workers=2)
     elif path == "culled":  # a tube given twice, and a twig buried in the trunk, left out of the boolean
         twig = make_skeleton([[0, 0.3, 0]], [[0, 0.34, 0.001]], 0.004)
@@ -770,7 +770,7 @@ def test_without_corners_the_same_geometry(options):
 @pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
 def test_repeated_junctions_found_the_same_a_block_at_a_time(monkeypatch):
     """repeats.find compares the shading of candidates a block at a time: the blocks' size changes nothing."""
-    from lsys3d import repeats
+    from lsys3d.mesh.union import repeats
 
     g = lsys3d.Grammar(axiom="X", rules=["X -> F[!+X][!&X]F[!-X]X", "F -> FF"], angle=22.5, iterations=4)
     tubes = sweep(interpret(lsys3d.derive(g), g))
@@ -833,7 +833,7 @@ def _closed_by_sorting(faces, nverts, near=None):
 
 
 def test_closed_check_agrees_with_sorting_the_edges():
-    from lsys3d.union import _closed
+    from lsys3d.mesh.union.union import _closed
 
     rng = np.random.default_rng(5)
     meshes = [lsys3d.union(sweep(random_tree(s, 12))) for s in range(3)]
@@ -855,7 +855,7 @@ def test_closed_check_agrees_with_sorting_the_edges():
 def test_cap_points_match_each_ring_point_once_whatever_the_rotation():
     """The temporary caps' triangles come back from the boolean with their corners in any of three rotations, on
     points of their own numbering: each ring point is found on exactly one of them, by position."""
-    from lsys3d.union import _cap_points
+    from lsys3d.mesh.union.union import _cap_points
 
     rng = np.random.default_rng(6)
     points = rng.normal(size=(6, 3))  # a ring of 6 tube points, one wedge each
@@ -888,7 +888,7 @@ def test_cap_points_match_each_ring_point_once_whatever_the_rotation():
 def test_weld_cells_are_numpys_rounding():
     """The compiled grid cells of _separate_float32 are numpy's rounding (half to even) of the float32 positions
     scaled by 1e8, halves and signed zeros included."""
-    from lsys3d.union import _weld_cells
+    from lsys3d.mesh.union.union import _weld_cells
 
     rng = np.random.default_rng(1)
     for trial in range(30):
@@ -900,8 +900,8 @@ def test_weld_cells_are_numpys_rounding():
 
 
 def test_corner_repair_and_float32_weld_kernels():
-    from lsys3d.mesh import Mesh, face_normals
-    from lsys3d.union import _repair_corners, _welded_faces
+    from lsys3d.mesh.mesh import Mesh, face_normals
+    from lsys3d.mesh.union.union import _repair_corners, _welded_faces
 
     rng = np.random.default_rng(8)
     vertices = rng.normal(size=(30, 3))
@@ -929,7 +929,7 @@ def test_corner_repair_and_float32_weld_kernels():
 
 def test_crumbs_are_small_flat_closed_pieces():
     """A flat tetrahedron beside a box is a crumb, a small real box is not; inside out counts only when asked."""
-    from lsys3d.mesh import Mesh, crumbs
+    from lsys3d.mesh.mesh import Mesh, crumbs
 
     box = Mesh.box()
     far = box.vertices + 10.0

@@ -13,17 +13,17 @@ from pxr import Usd, UsdGeom
 
 import lsys3d
 from lsys3d import Grammar, GrammarError, derive, load_preset
-from lsys3d.bark import bark_colors
 from lsys3d.cli import main
 from lsys3d.errors import ExportError
 from lsys3d.exchange import ExportOptions, export, export_variants, variant_paths
+from lsys3d.look.bark import bark_colors
+from lsys3d.mesh.sweep import SweepOptions, sweep
+from lsys3d.mesh.union.union import union
 from lsys3d.pipeline import GenerateOptions
 from lsys3d.stats import components
-from lsys3d.sweep import SweepOptions, sweep
 from lsys3d.tree import BARK
 from lsys3d.turtle import TurtleOptions, interpret
 from lsys3d.turtle.interpret import unit_jitter
-from lsys3d.union import union
 
 VARIATION_OFF = dict(
     angle_jitter=0.0,

@@ -11,10 +11,10 @@ from pxr import Usd, UsdSkel
 import lsys3d
 from lsys3d.errors import OptionsError
 from lsys3d.exchange import ExportOptions, export
-from lsys3d.hierarchy import hierarchy
-from lsys3d.rig import RigOptions, build_rig
+from lsys3d.look.rig import RigOptions, build_rig
+from lsys3d.look.wind import WIND, WindOptions, sway
 from lsys3d.turtle import interpret
-from lsys3d.wind import WIND, WindOptions, sway
+from lsys3d.turtle.hierarchy import hierarchy
 
 # a trunk of 4 segments with a branch from its second joint and a twig on that branch; leaves at every tip
 SMALL = lsys3d.Grammar(axiom="!(0.2)F[+!(0.1)FF[-!(0.05)F~]F~]FFF~", angle=45, name="small")

@@ -17,6 +17,7 @@ and deterministic (the same tree gives the same bytes).
 
 from __future__ import annotations
 
+import importlib
 import io
 import os
 from collections.abc import Callable, Sequence
@@ -26,38 +27,24 @@ from ..errors import ExportError
 from ..tree import Tree
 from .atomic import check_target, write_bytes
 from .common import ExportOptions, file_frame
+from .gltf import check_options, write_glb, write_gltf
+from .svg import write_svg
 
 __all__ = ["SUPPORTED_SUFFIXES", "ExportOptions", "check_output", "export", "export_variants", "variant_paths"]
 
 
-def _glb(tree, path, options):
-    from .gltf import write_glb
-
-    return write_glb(tree, path, options)
-
-
-def _gltf(tree, path, options):
-    from .gltf import write_gltf
-
-    return write_gltf(tree, path, options)
+def _usd_writer(name: str) -> Callable:
+    """``name`` of :mod:`lsys3d.exchange.usd`, loaded when a USD file is written: usd-core takes a while to
+    import, and a run that writes glTF never needs it."""
+    return getattr(importlib.import_module(".usd", __name__), name)
 
 
 def _usd(tree, path, options):
-    from .usd import write_usd
-
-    return write_usd(tree, path, options)
+    return _usd_writer("write_usd")(tree, path, options)
 
 
 def _usdz(tree, path, options):
-    from .usd import write_usdz
-
-    return write_usdz(tree, path, options)
-
-
-def _svg(tree, path, options):
-    from .svg import write_svg
-
-    return write_svg(tree, path, options)
+    return _usd_writer("write_usdz")(tree, path, options)
 
 
 def _trimesh(tree, path, options):
@@ -76,8 +63,8 @@ def _trimesh(tree, path, options):
 
 
 _WRITERS: dict[str, Callable[[Tree, Path, ExportOptions], Path]] = {
-    ".glb": _glb,
-    ".gltf": _gltf,
+    ".glb": write_glb,
+    ".gltf": write_gltf,
     ".usda": _usd,
     ".usdc": _usd,
     ".usd": _usd,
@@ -85,7 +72,7 @@ _WRITERS: dict[str, Callable[[Tree, Path, ExportOptions], Path]] = {
     ".obj": _trimesh,
     ".ply": _trimesh,
     ".stl": _trimesh,
-    ".svg": _svg,
+    ".svg": write_svg,
 }
 
 #: The file suffixes :func:`export` can write.
@@ -116,8 +103,6 @@ def check_output(path: str | os.PathLike, options: ExportOptions | None = None) 
         what = f"unknown suffix {suffix!r}" if suffix else "no suffix"
         raise ExportError(f"{path}: {what}; supported: {', '.join(SUPPORTED_SUFFIXES)}")
     if suffix in (".glb", ".gltf"):
-        from .gltf import check_options
-
         check_options(options, str(path))
     check_target(path, options.no_clobber)
     return path
@@ -219,10 +204,8 @@ def export_variants(trees: Sequence[Tree], path: str | os.PathLike, options: Exp
     for target in targets:  # the files written, not the pattern (tree.glb itself is not written)
         check_output(target, options)
     if path.suffix.lower() in _USD_SUFFIXES:
-        from .usd import write_usd_variants
-
         names = [f"seed_{t.provenance.seed if t.provenance is not None else i}" for i, t in enumerate(trees)]
         if len(set(names)) != len(names):
             raise ExportError(f"{path}: two trees have the same seed, so their variants would share a name: {names}")
-        return [write_usd_variants(trees, names, path, options)]
+        return [_usd_writer("write_usd_variants")(trees, names, path, options)]
     return [export(tree, target, options) for tree, target in zip(trees, targets, strict=True)]

@@ -15,10 +15,10 @@ import numba
 import numpy as np
 
 from ..arrays import first_equal_row, isin, unique
-from ..attributes import ATTRIBUTES
 from ..errors import ExportError
 from ..images import Image
-from ..mesh import Mesh
+from ..look.attributes import ATTRIBUTES
+from ..mesh.mesh import Mesh
 from ..options import Options, option
 
 __all__ = [
@@ -103,10 +103,10 @@ class MeshArrays:
     split_index : (f * 3,) uint32
         Split vertex of each face corner.
     colors, split_colors : (v, 3) / (s, 3) float32 or None
-        Linear RGB vertex colours (:attr:`lsys3d.mesh.Mesh.colors`), per point and per split vertex.
+        Linear RGB vertex colours (:attr:`lsys3d.mesh.mesh.Mesh.colors`), per point and per split vertex.
     attributes, split_attributes : dict of str to (v, ...) / (s, ...) float32
-        The mesh's per-vertex attributes (:attr:`lsys3d.mesh.Mesh.attributes`), points among them
-        (:data:`lsys3d.attributes.ATTRIBUTES`) in the file's frame, per point and per split vertex.
+        The mesh's per-vertex attributes (:attr:`lsys3d.mesh.mesh.Mesh.attributes`), points among them
+        (:data:`lsys3d.look.attributes.ATTRIBUTES`) in the file's frame, per point and per split vertex.
     """
 
     points: np.ndarray
@@ -423,7 +423,7 @@ def material_groups(index: np.ndarray | None, material_of) -> list[tuple[object,
 
     ``index`` holds the turtle's material index per row (None: every row the
     default, ``material_of(-1)``); ``material_of`` maps an index to its
-    :class:`~lsys3d.materials.Material`.  Indices that map to the same material
+    :class:`~lsys3d.look.materials.Material`.  Indices that map to the same material
     share a group, in the order of their smallest index; a single group has
     ``rows`` None (all of them).
 

@@ -40,6 +40,7 @@ from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, Vt
 
 from ..arrays import unique
 from ..errors import ExportError, ForestError
+from ..version import __version__
 from .atomic import atomic_path, write_bytes
 from .common import ExportOptions, decompose_transforms, file_frame, frame_transforms
 from .gltf import INSTANCING, _json_bytes
@@ -82,12 +83,10 @@ def write_forest_usd(
     """Write the forest as a PointInstancer over prototypes that reference the assets' files.
 
     ``prototypes`` are ``(name, usd file, bbox_min, bbox_max)`` (bounds in
-    metres, Y up); ``scatter`` a :class:`lsys3d.forest.Scatter` indexing
+    metres, Y up); ``scatter`` a :class:`lsys3d.library.forest.Scatter` indexing
     them; ``frame_options`` the assets' units and up axis, which the forest
     takes too.
     """
-    from .. import __version__
-
     path = Path(path)
     used = unique(scatter.variant)  # prototypes without instances are left out
     remap = np.full(len(prototypes), -1, np.int64)
@@ -296,10 +295,8 @@ def write_forest_glb(path: Path, prototypes: Sequence[tuple[str, Path]], scatter
     """Write the forest as one ``.glb``: each asset's meshes once (from its ``.glb``), instanced.
 
     ``prototypes`` are ``(name, .glb file)``; ``scatter`` a
-    :class:`lsys3d.forest.Scatter` indexing them.
+    :class:`lsys3d.library.forest.Scatter` indexing them.
     """
-    from .. import __version__
-
     path = Path(path)
     merged = _Merged()
     translation, quaternion, scale = decompose_transforms(scatter.transforms(), str(path))

@@ -24,7 +24,7 @@ than the defaults are refused.  Vertices are split per unique (position,
 normal, uv) corner as glTF requires; texture ``v`` is flipped (glTF's origin
 is the top-left corner of the image).  A bark with vertex colours gets a
 ``COLOR_0`` attribute and a white base colour factor (glTF multiplies the two).
-A material's images (:attr:`lsys3d.materials.Material.images`) are embedded in
+A material's images (:attr:`lsys3d.look.materials.Material.images`) are embedded in
 the binary buffer (``images[].bufferView``; in the ``.bin`` of a ``.gltf``),
 each once, sampled with repeat and mipmaps; ``alpha_cutoff`` is
 ``alphaMode: MASK``.
@@ -41,10 +41,10 @@ from urllib.parse import quote
 import numba
 import numpy as np
 
-from ..attributes import branch_table, gltf_attributes
 from ..errors import ExportError
 from ..images import Image
-from ..materials import Material
+from ..look.attributes import branch_table, gltf_attributes
+from ..look.materials import Material
 from ..tree import Tree
 from ..version import __version__
 from .atomic import atomic_path, check_target, write_bytes, write_chunks
@@ -423,7 +423,7 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
                 merged_node(f"organ_{proto.name}", organs.merged[p], material_of)
 
         if first and part.hierarchy is not None and len(part.hierarchy):
-            # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.attributes)
+            # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.look.attributes)
             branches = {"count": len(part.hierarchy)}
             for key, values in branch_table(part.hierarchy).items():
                 branches[key] = buf.accessor(np.ascontiguousarray(values, np.float32), target=None)

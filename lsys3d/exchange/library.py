@@ -35,6 +35,7 @@ from pathlib import Path
 from pxr import Gf, Kind, Sdf, Tf
 
 from ..errors import ExportError, ForestError
+from ..version import __version__
 from .atomic import atomic_path
 from .common import UNITS, ExportOptions
 from .usd import VARIANT_SET
@@ -102,8 +103,6 @@ def build_library(variants: Sequence[LibraryVariant], options: ExportOptions) ->
     root = layer.pseudoRoot
     root.SetInfo("upAxis", options.up_axis)
     root.SetInfo("metersPerUnit", options.meters_per_unit)
-    from .. import __version__
-
     root.SetInfo("customLayerData", {"lsys3d": {"generator": f"lsys3d {__version__}", "variants": len(variants)}})
     layer.defaultPrim = LIBRARY_ROOT
     prim = Sdf.PrimSpec(layer, LIBRARY_ROOT, Sdf.SpecifierDef, "Xform")

@@ -34,7 +34,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from ..errors import ExportError, printable
-from ..materials import Material
+from ..look.materials import Material
 from ..tree import Tree
 from .atomic import write_bytes
 from .common import UNITS, ExportOptions, metadata_json, to_float32

@@ -46,10 +46,10 @@ from pathlib import Path
 import numpy as np
 from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, UsdShade, UsdSkel, Vt
 
-from ..attributes import ATTRIBUTES, branch_table
 from ..errors import ExportError, os_reason
-from ..materials import Material
-from ..rig import INFLUENCES
+from ..look.attributes import ATTRIBUTES, branch_table
+from ..look.materials import Material
+from ..look.rig import INFLUENCES
 from ..tree import Tree
 from ..version import __version__
 from .atomic import atomic_path, check_target, scratch_path, write_bytes, write_chunks, write_failure

@@ -6,7 +6,7 @@ One module per job:
 - :mod:`~lsys3d.turtle.options`: :class:`TurtleOptions`, the ``[turtle]`` table of a grammar;
 - :mod:`~lsys3d.turtle.kernel`: the numba kernel that walks the modules;
 - :mod:`~lsys3d.turtle.interpret`: :func:`interpret`, which prepares the arrays, runs the kernel and
-  returns the :class:`~lsys3d.skeleton.Skeleton`;
+  returns the :class:`~lsys3d.turtle.skeleton.Skeleton`;
 - :mod:`~lsys3d.turtle.form`: :func:`form`, the botanical form of a drawn skeleton (:class:`FormOptions`,
   a grammar's ``[form]`` table): pipe-model widths, flare, curvature, irregularity, phyllotaxis, collars.
 """

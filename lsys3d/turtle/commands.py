@@ -19,7 +19,17 @@ from enum import IntEnum
 
 import numpy as np
 
-__all__ = ["COMMANDS", "Axis", "Command", "Op", "Organ", "SymbolTable", "commands_markdown", "symbol_table"]
+__all__ = [
+    "BUILT_IN_ORGANS",
+    "COMMANDS",
+    "Axis",
+    "Command",
+    "Op",
+    "Organ",
+    "SymbolTable",
+    "commands_markdown",
+    "symbol_table",
+]
 
 
 class Op(IntEnum):
@@ -64,6 +74,10 @@ class Organ(IntEnum):
     SURFACE = 4  # a named surface: cpfg's and L-Py's ~l
     INSTANCE = 5  # Houdini's J, K, M: a copy of an input geometry
     BOX = 6  # L-Py's @B
+
+
+BUILT_IN_ORGANS = {Organ.SPHERE: "sphere", Organ.DISC: "disc", Organ.CIRCLE: "circle", Organ.BOX: "box"}
+"""The organ kinds with a built-in prototype, by name (a ``[surfaces]`` entry of the same name replaces one)."""
 
 
 class Axis(IntEnum):
@@ -185,7 +199,7 @@ COMMANDS: tuple[Command, ...] = (
         Op.ORGAN,
         "d",
         1,
-        "Place a sphere of diameter `d` (default: the width) at the turtle: an organ (`lsys3d.organs`).",
+        "Place a sphere of diameter `d` (default: the width) at the turtle: an organ (`lsys3d.look.organs`).",
         organ=Organ.SPHERE,
     ),
     Command(
@@ -194,7 +208,7 @@ COMMANDS: tuple[Command, ...] = (
         Op.ORGAN,
         "d",
         1,
-        "Place a disc of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.organs`).",
+        "Place a disc of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.look.organs`).",
         organ=Organ.DISC,
     ),
     Command(
@@ -203,7 +217,7 @@ COMMANDS: tuple[Command, ...] = (
         Op.ORGAN,
         "d",
         1,
-        "Place a circle of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.organs`).",
+        "Place a circle of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.look.organs`).",
         organ=Organ.CIRCLE,
     ),
 )
@@ -252,7 +266,7 @@ def symbol_table(
     vocabulary with another symbol wins over a ``draw``, ``move`` or ``leaf``
     symbol (Lparser's ``~`` turns at random, whatever ``leaf`` says).
 
-    >>> from lsys3d.modules import ASCII_ALPHABET
+    >>> from lsys3d.lsystem.modules import ASCII_ALPHABET
     >>> p = symbol_table(ASCII_ALPHABET, draw="FG")
     >>> Op(p.op[ord("G")]).name, Axis(p.axis[ord("&")]).name, float(p.sign[ord("&")])
     ('FORWARD', 'L', -1.0)

@@ -1,7 +1,7 @@
 """Form: botanical shape for a drawn skeleton (pipe-model widths, flare, curvature, irregularity, phyllotaxis, collars).
 
 The stage runs between the turtle and the sweep: :func:`form` takes the
-:class:`~lsys3d.skeleton.Skeleton` the turtle drew and returns a reshaped one,
+:class:`~lsys3d.turtle.skeleton.Skeleton` the turtle drew and returns a reshaped one,
 with the same branches, leaves and organs.  Every feature is off by default
 (:class:`FormOptions`); a grammar turns them on with a ``[form]`` table, the
 CLI and :func:`lsys3d.generate` by their flat names (``--pipe-model``,
@@ -41,12 +41,12 @@ import numpy as np
 
 from ..arrays import dot, local_index, unit
 from ..errors import GrammarError, LimitError, OptionsError, clip
-from ..grammar import Grammar, table_key_line
+from ..lsystem.grammar import Grammar, table_key_line
 from ..noise import fbm3
 from ..options import Options, check_value, option, spec_of
-from ..skeleton import Skeleton
 from ..streams import Stream, generator
 from .interpret import DEFAULT_MAX_SEGMENTS
+from .skeleton import Skeleton
 
 __all__ = [
     "GOLDEN_ANGLE",

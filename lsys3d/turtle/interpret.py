@@ -1,4 +1,4 @@
-"""The 3D turtle: ModuleString -> :class:`~lsys3d.skeleton.Skeleton`.
+"""The 3D turtle: ModuleString -> :class:`~lsys3d.turtle.skeleton.Skeleton`.
 
 The turtle reads a module string left to right (ABOP chapter 1.5, Y-up world
 as in glTF).  Its state is a position and an orthonormal frame -- heading
@@ -60,15 +60,15 @@ import time
 
 import numpy as np
 
-from .. import dialects
 from ..errors import InterpretError, LimitError
-from ..grammar import Grammar
-from ..modules import ModuleString
-from ..skeleton import MAX_COORDINATE, Skeleton
+from ..lsystem import dialects
+from ..lsystem.grammar import Grammar
+from ..lsystem.modules import ModuleString
 from ..streams import Stream, generator
 from . import kernel
 from .commands import COMMANDS, Command, Op, SymbolTable, symbol_table
 from .options import TurtleOptions
+from .skeleton import MAX_COORDINATE, Skeleton
 
 __all__ = ["DEFAULT_MAX_SEGMENTS", "interpret", "unit_jitter"]
 

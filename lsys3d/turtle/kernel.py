@@ -17,8 +17,8 @@ from collections import namedtuple
 import numba
 import numpy as np
 
-from ..skeleton import MAX_COORDINATE
 from .commands import N_OPS, Axis, Op, Organ
+from .skeleton import MAX_COORDINATE
 
 __all__ = [
     "MAX_POLYGON_DEPTH",
@@ -120,15 +120,16 @@ MESSAGES = {
     2: f"more than {MAX_POLYGON_DEPTH} polygons open at once (lsys3d.turtle.kernel.MAX_POLYGON_DEPTH)",
     3: "no polygon is open ('}' without '{')",
     4: "polygon never closed (no matching '}')",
-    5: f"the turtle's position left the drawable range of +-{MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE); "
+    5: f"the turtle's position left the drawable range of +-{MAX_COORDINATE:g} "
+    "(lsys3d.turtle.skeleton.MAX_COORDINATE); "
     "check the step length (F's parameter, step, length_scale, length_jitter)",
-    6: f"the width must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
+    6: f"the width must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.turtle.skeleton.MAX_COORDINATE)",
     7: "the step length must be a finite number >= 0",
     8: "the material index must be >= 0",
-    9: f"the leaf size must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
-    10: f"the width with width_jitter is more than {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
+    9: f"the leaf size must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.turtle.skeleton.MAX_COORDINATE)",
+    10: f"the width with width_jitter is more than {MAX_COORDINATE:g} (lsys3d.turtle.skeleton.MAX_COORDINATE)",
     11: "the rotation angle must be a finite number",
-    12: f"the organ's size must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.skeleton.MAX_COORDINATE)",
+    12: f"the organ's size must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.turtle.skeleton.MAX_COORDINATE)",
 }
 
 

@@ -12,9 +12,9 @@ import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, fields
 
-from .. import dialects
 from ..errors import GrammarError, OptionsError, clip
-from ..grammar import Grammar, table_key_line
+from ..lsystem import dialects
+from ..lsystem.grammar import Grammar, table_key_line
 from ..options import Options, check_value, option, spec_of
 from .commands import RENAMEABLE, by_symbol
 

@@ -1,0 +1,411 @@
+"""cpfg / L-studio / vlab (``.l`` files; ``dialect = "cpfg"`` in TOML): the notation, the turtle and the reader.
+
+The turtle of cpfg's "Interpreted symbols" (Mech and Prusinkiewicz, the appendix of the cpfg 3.0
+tutorial at algorithmicbotany.org): ``;``/``,`` step the colour index (or set it), ``#``/``!`` step the
+line width (or set it), ``@O``, ``@c``, ``@o`` spheres and discs of a diameter (default: the line
+width), ``~c`` the predefined surface ``c``, ``@v`` rolls the turtle so that U is closest to up,
+``G``/``g`` move like ``F``/``f`` without recording a polygon vertex.  Expressions are C's, with the
+trigonometric functions in degrees as cpfg's are.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from ...errors import GrammarError, clip
+from ...turtle.commands import Axis, Command, Op, Organ
+from ..expr import ExprSyntaxError, Syntax, parse_expression
+from ..grammar import Grammar, read_text
+from .common import Dialect, Notation, fail, line_where
+
+__all__ = ["DIALECT", "MAX_INCLUDES", "UNSUPPORTED", "read"]
+
+_SYNTAX = Syntax(degrees=True)
+
+
+def _rot(symbol, name, axis, sign, what):
+    return Command(symbol, name, Op.ROTATE, "a", 1, what, axis, sign)
+
+
+COMMANDS_CPFG = (
+    Command("F", "forward", Op.FORWARD, "d", 1, "Move forward by `d` (default: the step) drawing a segment."),
+    Command("f", "move", Op.MOVE, "d", 1, "Move forward by `d` without drawing."),
+    Command("G", "forward, no vertex", Op.FORWARD, "d", 1, "As `F`, without recording a polygon vertex.", vertex=False),
+    Command("g", "move, no vertex", Op.MOVE, "d", 1, "As `f`, without recording a polygon vertex.", vertex=False),
+    _rot("+", "turn left", Axis.U, +1, "Turn left by `a` degrees around U (default: the angle increment)."),
+    _rot("-", "turn right", Axis.U, -1, "Turn right around U."),
+    _rot("&", "pitch down", Axis.L, -1, "Pitch down around L."),
+    _rot("^", "pitch up", Axis.L, +1, "Pitch up around L."),
+    _rot("\\", "roll left", Axis.H, -1, "Roll left around H."),
+    _rot("/", "roll right", Axis.H, +1, "Roll right around H."),
+    Command("|", "turn around", Op.TURN_AROUND, "", 0, "Turn around 180 degrees around U."),
+    Command("@v", "roll to vertical", Op.ROLL_HORIZONTAL, "", 0, "Roll around H so that U is closest to up."),
+    Command("$", "roll to horizontal", Op.ROLL_HORIZONTAL, "", 0, "Roll around H so that L is horizontal."),
+    Command("[", "push", Op.PUSH, "", 0, "Push the turtle's state."),
+    Command("]", "pop", Op.POP, "", 0, "Pop the turtle's state."),
+    Command("{", "begin polygon", Op.POLYGON_BEGIN, "", 0, "Start a polygon."),
+    Command("}", "end polygon", Op.POLYGON_END, "", 0, "Close the polygon."),
+    Command(".", "polygon vertex", Op.POLYGON_VERTEX, "", 0, "Record a polygon vertex."),
+    Command(
+        ";",
+        "next colour",
+        Op.MATERIAL,
+        "n",
+        1,
+        "Add 1 to the colour index, or set it to `n`.",
+        sign=+1,
+        ignored=("n2",),
+    ),
+    Command(
+        ",",
+        "previous colour",
+        Op.MATERIAL,
+        "n",
+        1,
+        "Take 1 from the colour index, or set it to `n`.",
+        sign=-1,
+        ignored=("n2",),
+    ),
+    Command("#", "wider", Op.WIDTH_ADD, "n", 1, "Add the line width increment, or set the width to `n`.", sign=+1),
+    Command(
+        "!", "narrower", Op.WIDTH_ADD, "n", 1, "Take the line width increment away, or set the width to `n`.", sign=-1
+    ),
+    Command(
+        "@O",
+        "sphere",
+        Op.ORGAN,
+        "d",
+        1,
+        "A sphere of diameter `d` (default: the line width): an organ.",
+        organ=Organ.SPHERE,
+    ),
+    Command(
+        "@c", "disc", Op.ORGAN, "d", 1, "A disc of diameter `d` in the plane of H and L: an organ.", organ=Organ.DISC
+    ),
+    Command(
+        "~",
+        "surface",
+        Op.ORGAN,
+        "s",
+        1,
+        "`~c(s)`: the predefined surface `c`, scaled by `s`: an organ.",
+        organ=Organ.SURFACE,
+        prefix=True,
+    ),
+)
+
+UNSUPPORTED = frozenset(
+    [
+        "@Gs",
+        "@Gc",
+        "@Ge",
+        "@Gt",
+        "@Gr",
+        "@Tx",
+        "@M",
+        "@m",
+        "@R",
+        "@L",
+        "@Ls",
+        "@D",
+        "@Di",
+        "@Dd",
+        "@b",
+        "@H",
+        "@#",
+        "@Tf",
+        "@S",
+        "@Ms",
+        "@Me",
+        "@Mc",
+        "@P",
+        "@J",
+        "@Tp",
+    ]
+)
+"""cpfg turtle commands that lsys3d reads but does not draw (named in a warning)."""
+
+DIALECT = Dialect(
+    name="cpfg",
+    title="cpfg",
+    notation=Notation(
+        names=frozenset(c.symbol for c in COMMANDS_CPFG if len(c.symbol) > 1) | UNSUPPORTED,
+        surface_prefix="~",
+        arrows=("-->", "->"),
+        reserved=":=",
+        syntax=_SYNTAX,
+    ),
+    commands=COMMANDS_CPFG,
+    turtle={"width_increment": 1.0},
+    angle=90.0,
+    cut="%",
+    suffixes=(".l",),
+    reader=lambda text, source, **overrides: read(text, source, **overrides),
+    unsupported=UNSUPPORTED,
+    arity_check=False,
+)
+
+
+# ---------------------------------------------------------------- the reader of .l files
+MAX_INCLUDES = 16
+"""Most files one grammar may include (``#include``), nested or not."""
+
+_DIRECTIVE = re.compile(r"#\s*(define|include|ifdef|ifndef|if|else|elif|endif|undef)\b\s*(.*)\Z")
+_KEY = re.compile(
+    r"(?P<key>Lsystem|derivation length|[Aa]xiom|ignore|consider|maximum depth|define|homomorphism|decomposition"
+    r"|production|endlsystem|[Ss]tart|[Ss]tartEach|[Ee]nd|[Ee]ndEach)\b\s*:?"
+)
+
+
+def _strip_comments(text: str) -> str:
+    """``/* ... */`` and ``// ...`` removed, line breaks kept (so line numbers stay the file's)."""
+    out = []
+    i = 0
+    while i < len(text):
+        if text.startswith("/*", i):
+            end = text.find("*/", i + 2)
+            end = len(text) if end < 0 else end + 2
+            out.append(re.sub(r"[^\n]", " ", text[i:end]))
+            i = end
+        elif text.startswith("//", i):
+            end = text.find("\n", i)
+            end = len(text) if end < 0 else end
+            out.append(" " * (end - i))
+            i = end
+        else:
+            out.append(text[i])
+            i += 1
+    return "".join(out)
+
+
+class _Reader:
+    def __init__(self, text: str, source: str):
+        self.text = text
+        self.source = source
+        self.defines: dict[str, float] = {}
+        self.macros: set[str] = set()  # names #define'd (with or without a value), for #ifdef
+        self.included = 0
+        self.lines: list[tuple[str, int]] = []  # (text, line of the main file)
+
+    def error(self, line: int, what: str, col: int | None = 1) -> GrammarError:
+        return fail(what, self.source, line, col)
+
+    # ------------------------------------------------------------ the preprocessor
+    def preprocess(self, text: str, folder: Path | None, at: int | None):
+        active = [True]
+        for k, raw in enumerate(_strip_comments(text).split("\n")):
+            number = at if at is not None else k + 1
+            line = raw.strip()
+            m = _DIRECTIVE.match(line)
+            if m:
+                word, rest = m.group(1), m.group(2).strip()
+                if word in ("ifdef", "ifndef"):
+                    active.append(active[-1] and ((rest in self.macros) == (word == "ifdef")))
+                elif word == "if":
+                    active.append(active[-1] and self.constant(rest, number) != 0)
+                elif word in ("else", "elif"):
+                    if len(active) < 2:
+                        raise self.error(number, f"#{word} without #if")
+                    if word == "elif":
+                        raise self.error(number, "#elif is not supported; nest #if ... #else ... #endif")
+                    active[-1] = active[-2] and not active[-1]
+                elif word == "endif":
+                    if len(active) < 2:
+                        raise self.error(number, "#endif without #if")
+                    active.pop()
+                elif not active[-1]:
+                    continue
+                elif word == "define":
+                    self.define(rest, number)
+                elif word == "undef":
+                    self.macros.discard(rest)
+                    self.defines.pop(rest, None)
+                elif word == "include":
+                    self.include(rest, folder, number)
+                continue
+            if active[-1] and line:
+                self.lines.append((raw.rstrip(), number))
+        if len(active) != 1:
+            raise self.error(at or 1, "#if or #ifdef without #endif")
+
+    def constant(self, text: str, line: int) -> float:
+        try:
+            return float(parse_expression(text, defines=self.defines, syntax=_SYNTAX).evaluate({})[0])
+        except (ExprSyntaxError, ArithmeticError) as exc:
+            raise self.error(line, f"{clip(text, 40)!r}: {exc}") from None
+
+    def define(self, rest: str, line: int):
+        m = re.match(r"([A-Za-z_]\w*)(\()?\s*(.*)\Z", rest)
+        if m is None:
+            raise self.error(line, f"#define {clip(rest, 40)!r}: expected a name")
+        if m.group(2):
+            raise self.error(line, f"#define {m.group(1)}(...): macros with parameters are not supported")
+        name, value = m.group(1), m.group(3).strip()
+        self.macros.add(name)
+        if value:
+            self.defines[name] = self.constant(value, line)
+
+    def include(self, rest: str, folder: Path | None, line: int):
+        m = re.match(r"""["<]([^">]+)[">]\Z""", rest)
+        if m is None:
+            raise self.error(line, f"#include {clip(rest, 40)}: expected a file name in quotes")
+        name = m.group(1)
+        if folder is None:
+            raise self.error(line, f"#include {name!r}: the grammar is not a file, so it has no folder to include from")
+        if Path(name).is_absolute() or ".." in Path(name).parts:
+            raise self.error(line, f"#include {name!r}: only files in the grammar's own folder are included")
+        self.included += 1
+        if self.included > MAX_INCLUDES:
+            raise self.error(
+                line, f"more than {MAX_INCLUDES} #include files (lsys3d.lsystem.dialects.cpfg.MAX_INCLUDES)"
+            )
+        try:
+            text = read_text(folder / name)
+        except GrammarError as exc:
+            raise self.error(line, f"#include {name!r}: {exc.reason}") from None
+        self.preprocess(text, folder, line)
+
+    # ------------------------------------------------------------ the L-system
+    def read(self, **overrides) -> Grammar:
+        path = Path(self.source)
+        folder = path.parent if self.source and not self.source.startswith("<") and path.is_file() else None
+        self.preprocess(self.text, folder, None)
+        fields: dict = {"dialect": "cpfg"}
+        where: dict = {}
+        section = "rules"
+        groups = {"rules": [], "homomorphism": [], "decomposition": []}
+        depth = None
+        systems = 0
+        lines = self.joined()
+        head = None  # a predecessor and condition whose arrow is on the next line
+        for index, (text, number) in enumerate(lines):
+            code = text.strip()
+            col = len(text) - len(text.lstrip()) + 1
+            if head is not None:
+                code, number, col = f"{head[0]} {code}", head[1], head[2]
+                head = None
+            m = _KEY.match(code)
+            if m and not _is_rule(code):
+                key = m.group("key")
+                rest = code[m.end() :].strip()
+                rest_col = col + len(code) - len(code[m.end() :].lstrip())
+                if key == "Lsystem":
+                    systems += 1
+                    if systems > 1:
+                        raise self.error(number, "more than one Lsystem: (cpfg's sub-L-systems) is not supported")
+                elif key == "derivation length":
+                    fields["iterations"] = self.whole(rest, number, key)
+                elif key in ("Axiom", "axiom"):
+                    fields["axiom"] = rest
+                    where["axiom"] = line_where(number, rest_col)
+                elif key in ("ignore", "consider"):
+                    fields[key] = (fields.get(key, "") + " " + rest).strip()
+                    where[key] = line_where(number, rest_col)
+                elif key == "maximum depth":
+                    depth = self.whole(rest, number, key)
+                    fields["decomposition_depth" if section == "decomposition" else "homomorphism_depth"] = depth
+                elif key in ("homomorphism", "decomposition", "production"):
+                    section = "rules" if key == "production" else key
+                elif key == "define":
+                    self.define_block(rest, number)
+                elif key == "endlsystem":
+                    section = None
+                else:  # start:, startEach:, end:, endEach:
+                    if re.sub(r"[{}\s;]", "", rest):
+                        raise self.error(number, f"cpfg's {key}: block runs code at run time, which is not supported")
+                continue
+            if section is None:
+                raise self.error(number, f"{clip(code, 40)!r} after endlsystem")
+            group = groups[section]
+            if not _is_rule(code):
+                # cpfg reads a production across lines: its arrow may open the next line, and a
+                # successor may go on over the lines that follow (the vlab course's files do both)
+                following = lines[index + 1][0].strip() if index + 1 < len(lines) else ""
+                if re.match(r"-?->", following):
+                    head = (code, number, col)
+                    continue
+                if group and not _KEY.match(code):
+                    group[-1] = f"{group[-1]} {code}"
+                    continue
+                raise self.error(number, f"expected a production ('predecessor --> successor'), not {clip(code, 40)!r}")
+            where[(section, len(group))] = line_where(number, col)
+            group.append(code)
+        if "axiom" not in fields:
+            raise fail("no axiom: (the start string)", self.source, 1, 1)
+        if depth is not None:
+            fields.setdefault("decomposition_depth", depth)
+            fields.setdefault("homomorphism_depth", depth)
+        fields.update(groups)
+        fields["defines"] = dict(self.defines)
+        angle = _view_angle(path) if folder is not None else None
+        if angle is not None:
+            fields["angle"] = angle
+        fields.update(overrides)
+        return Grammar(**fields, source=self.source, text=self.text, _where=where)
+
+    def joined(self) -> list[tuple[str, int]]:
+        """Lines joined while a parenthesis or a brace is open, or a line ends with a backslash."""
+        out = []
+        pending, start, depth = [], 0, 0
+        for text, number in self.lines:
+            if not pending:
+                start = number
+            piece = text[:-1] if text.rstrip().endswith("\\") else text
+            pending.append(piece if not pending else piece.strip())
+            depth += text.count("(") + text.count("{") - text.count(")") - text.count("}")
+            if depth <= 0 and not text.rstrip().endswith("\\"):
+                out.append((" ".join(pending), start))
+                pending, depth = [], 0
+        if pending:
+            out.append((" ".join(pending), start))
+        return out
+
+    def whole(self, text: str, line: int, what: str) -> int:
+        value = self.constant(text.rstrip(";").strip(), line)
+        if not (value >= 0 and float(value).is_integer()):
+            raise self.error(line, f"{what} must be a whole number >= 0, not {value:g}")
+        return int(value)
+
+    def define_block(self, rest: str, line: int):
+        """``define: { a = 1; b = a * 2; }``: named constants."""
+        body = rest.strip().strip("{}").strip()
+        for statement in body.split(";"):
+            if statement.strip():
+                name, sep, value = statement.partition("=")
+                if not sep or not re.fullmatch(r"\s*[A-Za-z_]\w*\s*", name):
+                    raise self.error(line, f"define: {clip(statement.strip(), 40)!r}: expected 'name = value'")
+                self.defines[name.strip()] = self.constant(value, line)
+
+
+def _is_rule(code: str) -> bool:
+    return "-->" in code or re.search(r"(?<!-)->", code) is not None
+
+
+def _view_angle(path: Path) -> float | None:
+    """The angle of the view file beside ``path`` (``plant.v``: ``angle increment: 30``, ``angle factor: 12``)."""
+    view = path.with_suffix(".v")
+    try:
+        text = read_text(view) if view.is_file() else ""
+    except GrammarError:
+        return None
+    m = re.search(r"^\s*angle increment\s*:\s*([-+0-9.eE]+)", text, re.MULTILINE)
+    if m:
+        return float(m.group(1))
+    m = re.search(r"^\s*angle factor\s*:\s*([-+0-9.eE]+)", text, re.MULTILINE)
+    if m and float(m.group(1)) != 0:
+        return 360.0 / float(m.group(1))
+    return None
+
+
+def read(text: str, source: str = "<string>", **overrides) -> Grammar:
+    """Read a cpfg L-system file's text into a :class:`~lsys3d.lsystem.grammar.Grammar` (dialect ``cpfg``).
+
+    ``#include`` reads files beside ``source`` (at most :data:`MAX_INCLUDES`); the angle comes from the
+    view file beside it (``plant.v``) when there is one.
+
+    >>> g = read("#define N 3\\nLsystem: 1\\nderivation length: N\\naxiom: A\\nA --> F[+A][-A]\\nendlsystem\\n", "p.l")
+    >>> g.dialect, g.iterations, g.rules
+    ('cpfg', 3, ('A --> F[+A][-A]',))
+    """
+    return _Reader(text, source).read(**overrides)
