@@ -21,7 +21,7 @@ from .exchange.common import ExportOptions
 from .forest import ForestOptions
 from .options import add_arguments, from_arguments
 from .pipeline import GenerateOptions
-from .presets import DEFAULT_PRESET, describe, list_presets, load
+from .presets import DEFAULT_PRESET, GROUPS, list_presets, load, preset_info
 from .preview import PreviewOptions
 from .turtle import GRAMMAR_KEYS, TurtleOverrides
 from .version import __version__
@@ -283,7 +283,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_forest)
 
-    p = add("presets", help="list the bundled presets")
+    p = add("presets", help="list the bundled presets: species, figures and curves")
+    p.add_argument("--json", action="store_true", help="a JSON list of {name, group, description}")
     p.set_defaults(func=cmd_presets)
     return parser
 
@@ -585,10 +586,17 @@ def cmd_forest(args) -> int:
 
 
 def cmd_presets(args) -> int:
-    names = list_presets()
-    width = max(map(len, names))
-    for name in names:
-        _print(f"{name:<{width}}  {describe(name)}")
+    infos = [preset_info(name) for name in list_presets()]
+    if args.json:
+        _print(json.dumps([info.to_json() for info in infos], indent=1))
+        return 0
+    width = max(len(info.name) for info in infos)
+    for group in GROUPS:  # species first: what a TD grows; then the textbook's figures and curves
+        members = [info for info in infos if info.group == group]
+        if members:
+            _print(f"{group}:")
+            for info in members:
+                _print(f"  {info.name:<{width}}  {info.description}")
     return 0
 
 
