@@ -88,6 +88,7 @@ _KEYS = {
     "turtle",
     "materials",
     "surfaces",
+    "leaves",
 }
 _RULE_LISTS = ("rules", "decomposition", "homomorphism")
 GROUPS = ("species", "figure", "curve")
@@ -202,6 +203,7 @@ class Grammar:
     turtle: Mapping[str, object] = field(default_factory=dict)
     materials: Mapping[str, object] = field(default_factory=dict)
     surfaces: Mapping[str, object] = field(default_factory=dict)
+    leaves: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
     dialect: str = "lsys3d"
@@ -228,7 +230,7 @@ class Grammar:
         for key in _RULE_LISTS:
             if isinstance(getattr(self, key), str):
                 raise GrammarError(f"'{key}' must be a list of rule strings, not one string", self.source)
-        for key in ("defines", "turtle", "materials", "surfaces"):
+        for key in ("defines", "turtle", "materials", "surfaces", "leaves"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         for key in (*_RULE_LISTS, "modules", "functions"):
@@ -248,6 +250,7 @@ class Grammar:
         set_(self, "turtle", MappingProxyType(dict(self.turtle)))
         set_(self, "materials", MappingProxyType(dict(self.materials)))
         set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
+        set_(self, "leaves", MappingProxyType(dict(self.leaves)))
         self._check_scalars()
         notation = dialect.notation
         names = self._declared_names(notation)
@@ -396,7 +399,7 @@ class Grammar:
             data["axiom"] = data.pop("premise")
         if "axiom" not in data:
             raise GrammarError("missing 'axiom' (the start string, e.g. axiom = \"F\")", source, 1, 1)
-        tables = (("defines", dict), ("turtle", dict), ("materials", dict), ("surfaces", dict))
+        tables = (("defines", dict), ("turtle", dict), ("materials", dict), ("surfaces", dict), ("leaves", dict))
         for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + list(tables):
             if key in data and not isinstance(data[key], kind):
                 line = _key_line(text, key)
@@ -432,6 +435,7 @@ class Grammar:
                 "turtle",
                 "materials",
                 "surfaces",
+                "leaves",
                 "source",
                 "text",
                 "dialect",

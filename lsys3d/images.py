@@ -234,11 +234,12 @@ def _inflate_rows(idat: list[memoryview], row_bytes: int, height: int, rows: lis
         raise AssetError(f"PNG: the image data are cut short ({seen:,} of {total:,} bytes)")
 
 
-def png_bytes(pixels: np.ndarray) -> bytes:
+def png_bytes(pixels: np.ndarray, level: int = 9) -> bytes:
     """Encode ``(h, w)``, ``(h, w, 3)`` or ``(h, w, 4)`` uint8 pixels (top row first) as a PNG file.
 
-    Deterministic: the same pixels give the same bytes (zlib level 9, no
-    timestamp chunk).  For the docs' example textures and the tests.
+    Deterministic: the same pixels give the same bytes (zlib ``level``, no
+    timestamp chunk).  For the procedural textures, the docs' example
+    textures and the tests.
 
     >>> png_bytes(np.full((1, 1, 3), 255, np.uint8))[:8] == PNG_SIGNATURE
     True
@@ -258,7 +259,10 @@ def png_bytes(pixels: np.ndarray) -> bytes:
 
     header = struct.pack(">IIBBBBB", w, h, 8, color, 0, 0, 0)
     return (
-        PNG_SIGNATURE + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw.tobytes(), 9)) + chunk(b"IEND", b"")
+        PNG_SIGNATURE
+        + chunk(b"IHDR", header)
+        + chunk(b"IDAT", zlib.compress(raw.tobytes(), level))
+        + chunk(b"IEND", b"")
     )
 
 

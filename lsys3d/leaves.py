@@ -24,18 +24,20 @@ normal (leaves are flat), ``uv`` maps the leaf's box onto [0, 1] x [0, 1].
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import manifold3d
 import numpy as np
 
 from .arrays import unique
-from .errors import GeometryError, LimitError
+from .errors import GeometryError, GrammarError, LimitError, OptionsError, clip
 from .hierarchy import Hierarchy
+from .leaf_form import CARDS, PHYLLOTAXIS, SHAPES, arrange, blade, card_aspect, leaf_count, spray_card
 from .mesh import Mesh
-from .options import Options, option
-from .skeleton import Skeleton
+from .options import Options, check_value, option, spec_of
+from .skeleton import MAX_COORDINATE, Skeleton
 from .sweep import DEFAULT_MAX_TRIANGLES
 
 __all__ = ["LeafOptions", "Leaves", "default_leaf", "instance_leaves", "leaf_transforms", "leaves", "polygon_leaves"]
@@ -43,11 +45,120 @@ __all__ = ["LeafOptions", "Leaves", "default_leaf", "instance_leaves", "leaf_tra
 
 @dataclass(frozen=True)
 class LeafOptions(Options):
-    """How the leaves stage builds the built-in leaf (a grammar's ``[surfaces] leaf`` replaces it)."""
+    """How the leaves stage builds and places the leaves; every option but ``leaf_points`` is off by default.
+
+    A grammar's ``[leaves]`` table sets any of these (:meth:`from_grammar`); an option given to
+    :func:`~lsys3d.pipeline.generate` or on the command line that differs from its default wins over the
+    table.  A grammar's ``[surfaces] leaf`` replaces the built-in blade (``leaf_shape``, ``petiole_length``).
+    """
 
     leaf_points: int = option(
         7, low=1, high=256, help="rows across the built-in leaf blade between base and tip (4 triangles each)"
     )
+    leaf_shape: str = option(
+        "default",
+        choices=SHAPES,
+        help="outline of the built-in blade: default, ovate, lanceolate, lobed (oak), palmate (maple), needle, "
+        "blade (grass)",
+    )
+    leaf_size: float = option(
+        0.0, low=0, high=MAX_COORDINATE, help="length of every blade in metres (0: the turtle's step in force)"
+    )
+    leaf_size_variation: float = option(
+        0.0, low=0, high=0.9, help="random relative change of each leaf's size, up to this fraction (seeded)"
+    )
+    leaves_per_cluster: int = option(
+        1, low=1, high=64, help="leaves each leaf symbol grows: a cluster fanned along the end of its twig"
+    )
+    cluster_spread: float = option(45.0, low=0, high=90, help="degrees between a clustered leaf and its twig")
+    cluster_length: float = option(
+        0.15, low=0, high=MAX_COORDINATE, help="metres of twig, back from its tip, that a cluster's leaves grow along"
+    )
+    cluster_phyllotaxis: str = option(
+        "spiral",
+        choices=PHYLLOTAXIS,
+        help="turn between a cluster's leaves: spiral (golden angle), alternate (half a turn), opposite (pairs)",
+    )
+    petiole_length: float = option(
+        0.0, low=0, high=4, help="stalk of the built-in leaf, in blade lengths (0: none); the blade sits on it"
+    )
+    leaf_light: float = option(
+        0.0, low=0, high=1, help="how far each blade's front turns toward the light (0: not at all, 1: facing it)"
+    )
+    light: tuple[float, float, float] = option(
+        (0.0, 1.0, 0.0), help="direction toward the light that leaf_light turns the blades to"
+    )
+    leaf_droop: float = option(0.0, low=0, high=90, help="degrees each blade's tip hangs toward the ground")
+    leaf_card: str = option(
+        "none",
+        choices=CARDS,
+        help="none: single leaves; spray: one textured quad per cluster; cross: two crossed quads per cluster",
+    )
+
+    def __post_init__(self):
+        super().__post_init__()
+        if not np.linalg.norm(self.light) > 0:
+            raise OptionsError(f"LeafOptions.light: must be a direction, not {list(self.light)}")
+
+    def plain(self) -> dict:
+        """The options as plain data, leaving out the leaf-form options that are at their defaults.
+
+        A plant grown without them records what it always recorded, so its files keep their bytes.
+        """
+        out = super().plain()
+        defaults = Options.plain(LeafOptions())
+        return {k: v for k, v in out.items() if k == "leaf_points" or v != defaults[k]}
+
+    @classmethod
+    def from_grammar(cls, grammar, options: LeafOptions | None = None) -> LeafOptions:
+        """The leaf options of a grammar's ``[leaves]`` table, with ``options``' non-default fields over it.
+
+        Raises
+        ------
+        GrammarError
+            An unknown key or a bad value in ``[leaves]``, with the grammar's file and the key's line.
+
+        Examples
+        --------
+        >>> from lsys3d import Grammar
+        >>> g = Grammar(axiom="F~", leaves={"leaf_size": 0.1, "leaf_light": 0.5})
+        >>> o = LeafOptions.from_grammar(g, LeafOptions(leaf_light=0.8))
+        >>> o.leaf_size, o.leaf_light
+        (0.1, 0.8)
+        """
+        options = options or cls()
+        table = dict(getattr(grammar, "leaves", {}) or {})
+        if not table:
+            return options
+        specs = {f.name: spec_of(f) for f in fields(cls)}
+        values = {}
+        for key, value in table.items():
+            if key not in specs:
+                known = ", ".join(sorted(specs))
+                raise _leaves_error(grammar, key, f"unknown key {clip(repr(key))} (known keys: {known})")
+            try:
+                values[key] = check_value(specs[key], value, key)
+            except OptionsError as exc:
+                raise _leaves_error(grammar, key, str(exc)) from None
+        defaults = cls()
+        values.update({f: getattr(options, f) for f in specs if getattr(options, f) != getattr(defaults, f)})
+        try:
+            return cls(**values)
+        except OptionsError as exc:
+            m = re.match(r"LeafOptions\.(\w+)", str(exc))
+            raise _leaves_error(grammar, m.group(1) if m else "", str(exc)) from None
+
+
+def _leaves_error(grammar, key: str, what: str) -> GrammarError:
+    from .grammar import table_key_line
+
+    text = getattr(grammar, "text", None)
+    line = table_key_line(text, "leaves", key) if text else None
+    col = None
+    if line:
+        written = text.splitlines()[line - 1]
+        col = len(written) - len(written.lstrip()) + 1  # where the key (or the table's header) starts
+    return GrammarError(f"[leaves] {what}", grammar.source, line, col)
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +180,10 @@ class Leaves:
         Per-instance attributes (the hierarchy and wind attributes of
         :mod:`lsys3d.attributes`; empty unless asked for).  The merged and
         polygon meshes carry the same attributes per vertex.
+    instance_material : (k,) int32 or None
+        The material index of each instance, when the instances are not the
+        skeleton's own (clusters, cards: :func:`lsys3d.leaf_form.arrange`);
+        None: the skeleton's ``leaf_material``.
     """
 
     merged: Mesh | None = None
@@ -76,6 +191,7 @@ class Leaves:
     transforms: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
     polygons: Mesh | None = None
     instance_attributes: Mapping[str, np.ndarray] = field(default_factory=dict)
+    instance_material: np.ndarray | None = None
 
     @property
     def instanced(self) -> bool:
@@ -275,6 +391,7 @@ def leaves(
     attributes=None,
     options: LeafOptions | None = None,
     max_triangles: int = DEFAULT_MAX_TRIANGLES,
+    seed: int = 0,
 ) -> Leaves:
     """Every leaf of a skeleton: polygons, instances (model + transforms) and all merged.
 
@@ -292,8 +409,13 @@ def leaves(
     attributes : sequence of str, optional
         Which attributes (default: all of :data:`lsys3d.attributes.ATTRIBUTES`).
     options : LeafOptions, optional
+        The built-in blade's shape and resolution, and how the instances are
+        sized, clustered, turned to the light and drooped, or shown as cards
+        (:func:`lsys3d.leaf_form.arrange`).
     max_triangles : int
         Most triangles of the leaves baked in place (instances times the model's triangles).
+    seed : int
+        The plant's seed: the leaves' size variation and the clusters' turns.
 
     Raises
     ------
@@ -303,29 +425,46 @@ def leaves(
     options = options or LeafOptions()
     if model is not None and not isinstance(model, Mesh):
         model = Mesh.from_trimesh(model)
-    instance_attrs = polygon_attrs = {}
-    if hierarchy is not None:
-        k = len(skeleton.leaf_position)
-        instance_attrs = _grown_from(hierarchy, skeleton.leaf_segment, k, skeleton.leaf_position, attributes)
-        firsts = skeleton.polygon_points[skeleton.polygon_offsets[:-1]] if skeleton.n_polygons else np.zeros((0, 3))
-        polygon_attrs = _grown_from(hierarchy, skeleton.polygon_segment, skeleton.n_polygons, firsts, attributes)
-    polygons = polygon_leaves(skeleton, polygon_attrs)
-    transforms = leaf_transforms(skeleton)
+    k = len(skeleton.leaf_position)
     leaf_model = None
-    baked = None
-    if len(transforms):
-        leaf_model = default_leaf(options.leaf_points) if model is None else model
-        total = len(transforms) * len(leaf_model.faces)
+    arranged = skeleton
+    count = 0
+    if k:
+        leaf_model = _model(skeleton, model, options)
+        count = leaf_count(k, options)
+        total = count * len(leaf_model.faces)
         if total > max_triangles:
             raise LimitError(
-                f"leaves: {len(transforms):,} leaves of {len(leaf_model.faces):,} triangles make {total:,} triangles, "
+                f"leaves: {count:,} leaves of {len(leaf_model.faces):,} triangles make {total:,} triangles, "
                 f"more than the limit of {max_triangles:,}; use a smaller leaf model or fewer leaves, or raise the "
                 "limit (--max-triangles, or max_triangles=)"
             )
-        baked = instance_leaves(leaf_model, transforms, instance_attrs, skeleton.leaf_material)
+        arranged = arrange(skeleton, options, seed)
+    instance_attrs = polygon_attrs = {}
+    if hierarchy is not None:
+        instance_attrs = _grown_from(hierarchy, arranged.leaf_segment, count, arranged.leaf_position, attributes)
+        firsts = skeleton.polygon_points[skeleton.polygon_offsets[:-1]] if skeleton.n_polygons else np.zeros((0, 3))
+        polygon_attrs = _grown_from(hierarchy, skeleton.polygon_segment, skeleton.n_polygons, firsts, attributes)
+    polygons = polygon_leaves(skeleton, polygon_attrs)
+    transforms = leaf_transforms(arranged)
+    baked = None
+    if len(transforms):
+        baked = instance_leaves(leaf_model, transforms, instance_attrs, arranged.leaf_material)
     parts = [m for m in (polygons, baked) if m is not None]
     merged = Mesh.concatenate(parts) if parts else None
-    return Leaves(merged, leaf_model, transforms, polygons, instance_attrs)
+    material = None if arranged is skeleton else np.asarray(arranged.leaf_material, np.int32)
+    return Leaves(merged, leaf_model, transforms, polygons, instance_attrs, material)
+
+
+def _model(skeleton: Skeleton, model: Mesh | None, options: LeafOptions) -> Mesh:
+    """The mesh every leaf instance copies: a cluster card, the grammar's model or the built-in blade."""
+    if options.leaf_card != "none":
+        return spray_card(card_aspect(skeleton, options), crossed=options.leaf_card == "cross")
+    if model is not None:
+        return model
+    if options.leaf_shape == "default" and options.petiole_length == 0:
+        return default_leaf(options.leaf_points)
+    return blade(options.leaf_shape, options.leaf_points, options.petiole_length)
 
 
 def _grown_from(h: Hierarchy, segment, count: int, where: np.ndarray, keys=None) -> dict:

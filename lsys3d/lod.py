@@ -183,6 +183,8 @@ def level_options(options, level: int):
     leaves = options.leaves
     if spec.leaf_rows:
         leaves = leaves.replace(leaf_points=min(leaves.leaf_points, spec.leaf_rows))
+    if leaves.leaf_size > 0 and spec.leaf_keep < 1:  # a size in metres grows with the thinning, as the step's does
+        leaves = leaves.replace(leaf_size=leaves.leaf_size / math.sqrt(spec.leaf_keep))
     return options.replace(sweep=sweep, leaves=leaves)
 
 
@@ -373,18 +375,20 @@ def lod_leaves(
     model: Mesh | None = None,
     hierarchy: Hierarchy | None = None,
     attributes=(),
+    seed: int = 0,
 ) -> Leaves:
     """The leaves of one level: thinned (levels 1, 2) or as cards (level 3), from the full skeleton's leaves.
 
     ``model`` is the leaf model (None: the built-in leaf of ``options``; a
     grammar's ``[surfaces] leaf`` keeps its shape at every level).  With the
     skeleton's ``hierarchy``, the leaves carry the ``attributes`` of the
-    branches they grow from, as at level 0.
+    branches they grow from, as at level 0.  ``seed`` is the plant's (the leaves' sizes and clusters).
     """
     from .leaves import leaves as build_leaves
 
     spec = LEVELS[level]
     kw = {"hierarchy": hierarchy, "attributes": tuple(attributes)} if hierarchy is not None and attributes else {}
+    kw["seed"] = seed
     if not spec.cards:
         return build_leaves(thin_leaves(skeleton, spec.leaf_keep), model=model, options=options, **kw)
     full = build_leaves(skeleton, model=model, options=options, **kw)

@@ -16,7 +16,23 @@ names a PNG or JPEG image for the base colour (multiplied by ``base_color``, as
 glTF does), ``normal_texture`` a tangent-space normal map, both relative to the
 grammar file (:mod:`lsys3d.external`, checked by :mod:`lsys3d.images`);
 ``alpha_cutoff`` makes the texture's alpha a cut-out mask (leaf cards): texels
-with less alpha are not drawn.  A segment or
+with less alpha are not drawn.  ``roughness_texture`` is glTF's
+metallic-roughness image (roughness in G, metallic in B), ``tile_size`` the
+metres of bark one texture tile covers (the sweep's ``uv_tile`` for the
+branches of that material).
+
+``procedural`` makes the images instead of reading them
+(:mod:`lsys3d.textures`)::
+
+    bark = { procedural = { kind = "furrowed", seed = 3, tile_size = 0.6 } }
+    leaf = { procedural = { kind = "maple", colors = ["#c0501c", "#e8a040", "#6a3a1a"] } }
+
+It fills ``texture``, ``normal_texture`` and (bark) ``roughness_texture``
+(a key the entry names itself wins), ``tile_size`` (bark), a white
+``base_color``, ``roughness = 1`` (bark: the image is the roughness) and
+``alpha_cutoff = 0.5`` (leaves) unless the entry says otherwise.  Its keys:
+``kind`` (required), ``seed``, ``resolution``, ``tile_size``, ``colors``.
+A segment or
 a leaf whose index has no entry keeps the default bark or leaf material; the
 keys ``bark`` and ``leaf`` replace those defaults.  Leaves are single sheets, so
 their materials are always double-sided.  The writers give each
@@ -55,10 +71,14 @@ MAX_MATERIAL_INDEX = 255
 class Material:
     """A PBR material: linear base colour (RGBA), roughness, metallic, double-sidedness, textures.
 
-    ``texture`` (the base colour's image, multiplied by ``base_color``) and
-    ``normal_texture`` (a tangent-space normal map) are :class:`~lsys3d.images.Image`;
-    ``alpha_cutoff`` (None: opaque, or blended when ``base_color``'s alpha is
-    below 1) makes alpha a cut-out mask: texels with less alpha are not drawn.
+    ``texture`` (the base colour's image, multiplied by ``base_color``),
+    ``normal_texture`` (a tangent-space normal map) and ``roughness_texture``
+    (roughness in G and metallic in B, multiplied by ``roughness`` and
+    ``metallic``) are :class:`~lsys3d.images.Image`; ``alpha_cutoff`` (None:
+    opaque, or blended when ``base_color``'s alpha is below 1) makes alpha a
+    cut-out mask: texels with less alpha are not drawn.  ``tile_size``
+    (metres, None: the sweep's ``uv_tile``) is how much bark one tile of the
+    textures covers, around and along a branch.
     """
 
     name: str
@@ -69,11 +89,13 @@ class Material:
     texture: Image | None = None
     normal_texture: Image | None = None
     alpha_cutoff: float | None = None
+    roughness_texture: Image | None = None
+    tile_size: float | None = None
 
     @property
     def images(self) -> tuple[Image, ...]:
-        """The material's images (base colour first), for the writers to embed or copy."""
-        return tuple(i for i in (self.texture, self.normal_texture) if i is not None)
+        """The material's images (base colour, normal, roughness), for the writers to embed or copy."""
+        return tuple(i for i in (self.texture, self.normal_texture, self.roughness_texture) if i is not None)
 
 
 BARK = Material("bark", (0.30, 0.20, 0.12, 1.0), roughness=0.9)
@@ -110,8 +132,28 @@ class MaterialTable:
         """Whether the table says anything beyond the two defaults."""
         return bool(self.by_index) or self.bark != BARK or self.leaf != LEAF
 
+    def uv_tiles(self, uv_tile: float) -> np.ndarray | None:
+        """Metres of bark a texture tile covers by material index ``(MAX_MATERIAL_INDEX + 1,)``, for the sweep.
+
+        ``uv_tile`` where a material has no :attr:`Material.tile_size`; None
+        when none has one (the sweep then uses its own ``uv_tile``).
+
+        >>> MaterialTable().uv_tiles(0.5) is None
+        True
+        >>> MaterialTable(replace(BARK, tile_size=0.8), by_index={2: BARK}).uv_tiles(0.5)[[0, 2, 9]].tolist()
+        [0.8, 0.5, 0.8]
+        """
+        if self.bark.tile_size is None and all(m.tile_size is None for m in self.by_index.values()):
+            return None
+        out = np.full(MAX_MATERIAL_INDEX + 1, self.bark.tile_size or uv_tile, np.float64)
+        for i, m in self.by_index.items():
+            out[i] = m.tile_size or uv_tile
+        return out
+
 
 _FIELDS = {f.name for f in fields(Material)}
+_KEYS = _FIELDS | {"procedural"}
+_PROCEDURAL_KEYS = ("kind", "seed", "resolution", "tile_size", "colors")
 
 
 def _srgb_to_linear(c: float) -> float:
@@ -145,13 +187,74 @@ def _texture(value, folder, where: str) -> Image:
         raise OptionsError(text if text.startswith(where) else f"{where}: {text}") from None
 
 
+def _procedural(spec, where: str) -> dict:
+    """The material fields a ``procedural = { kind = ... }`` table makes (:mod:`lsys3d.textures`)."""
+    from .textures import KINDS, MAX_RESOLUTION, MIN_RESOLUTION, procedural
+
+    if not isinstance(spec, Mapping):
+        raise OptionsError(f'{where}: expected a table such as {{ kind = "furrowed", seed = 1 }}')
+    unknown = sorted(set(spec) - set(_PROCEDURAL_KEYS))
+    if unknown:
+        raise OptionsError(f"{where}: unknown key {clip(repr(unknown[0]))} (known: {', '.join(_PROCEDURAL_KEYS)})")
+    kind = spec.get("kind")
+    if kind not in KINDS:
+        known = ", ".join(f"{k} ({v.group})" for k, v in KINDS.items())
+        raise OptionsError(f"{where}: kind must be one of {known}; not {clip(repr(kind))}")
+    row = KINDS[kind]
+    seed, resolution = spec.get("seed", 0), spec.get("resolution", 512)
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
+        raise OptionsError(f"{where}: seed must be a whole number >= 0, not {clip(repr(seed))}")
+    if (
+        isinstance(resolution, bool)
+        or not isinstance(resolution, int)
+        or not MIN_RESOLUTION <= resolution <= MAX_RESOLUTION
+    ):
+        raise OptionsError(
+            f"{where}: resolution must be a whole number of pixels in {MIN_RESOLUTION}..{MAX_RESOLUTION}, "
+            f"not {clip(repr(resolution))}"
+        )
+    tile_size = spec.get("tile_size")
+    if tile_size is not None:
+        if row.group != "bark":
+            raise OptionsError(f"{where}: tile_size is for bark kinds; {kind} is a leaf image (its uv spans the leaf)")
+        tile_size = _tile_size(tile_size, f"{where}: tile_size")
+    colors = spec.get("colors")
+    if colors is not None:
+        n = len(row.default_colors)
+        if not isinstance(colors, (list, tuple)) or len(colors) != n:
+            raise OptionsError(
+                f"{where}: colors must be a list of {n} colours for {kind} ({', '.join(row.roles)}; "
+                f"defaults {list(row.default_colors)}), not {clip(repr(colors))}"
+            )
+        colors = tuple(_color(c, f"{where}: colors[{i}]")[:3] for i, c in enumerate(colors))
+    images = procedural(kind, seed, resolution, colors, tile_size)
+    out = {"texture": images.albedo, "normal_texture": images.normal}
+    if images.roughness is not None:
+        out.update(roughness_texture=images.roughness, tile_size=images.tile_size, roughness=1.0)
+    else:
+        out.update(alpha_cutoff=0.5)
+    return out
+
+
+def _tile_size(value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.01 <= value <= 100:
+        raise OptionsError(f"{where} must be metres in 0.01..100, not {clip(repr(value))}")
+    return float(value)
+
+
 def _material(entry, default: Material, where: str, folder=None) -> Material:
     if not isinstance(entry, Mapping):
         raise OptionsError(f"{where}: expected a table such as {{ base_color = [0.3, 0.2, 0.1] }}")
-    unknown = sorted(set(entry) - _FIELDS)
+    unknown = sorted(set(entry) - _KEYS)
     if unknown:
-        raise OptionsError(f"{where}: unknown key {clip(repr(unknown[0]))} (known: {', '.join(sorted(_FIELDS))})")
+        raise OptionsError(f"{where}: unknown key {clip(repr(unknown[0]))} (known: {', '.join(sorted(_KEYS))})")
     values = {}
+    if "procedural" in entry:
+        # what the entry names itself wins over what the procedural texture makes
+        made = _procedural(entry["procedural"], f"{where}: procedural")
+        if "tile_size" in entry and "tile_size" in entry["procedural"]:
+            raise OptionsError(f"{where}: tile_size is given twice (in the entry and in procedural)")
+        values.update({k: v for k, v in made.items() if k not in entry}, base_color=(1.0, 1.0, 1.0, 1.0))
     for key, value in entry.items():
         if key == "name":
             if not isinstance(value, str) or not value.strip():
@@ -167,8 +270,10 @@ def _material(entry, default: Material, where: str, folder=None) -> Material:
             if not isinstance(value, bool):
                 raise OptionsError(f"{where}: double_sided must be true or false, not {clip(repr(value))}")
             values[key] = value
-        elif key in ("texture", "normal_texture"):
+        elif key in ("texture", "normal_texture", "roughness_texture"):
             values[key] = _texture(value, folder, f"{where}: {key}")
+        elif key == "tile_size":
+            values[key] = _tile_size(value, f"{where}: tile_size")
         elif key == "alpha_cutoff":
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value <= 1:
                 raise OptionsError(f"{where}: alpha_cutoff must be a number in [0, 1], not {clip(repr(value))}")

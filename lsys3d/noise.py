@@ -93,29 +93,49 @@ def _seed(seed) -> list[int]:
     return [int(s) for s in seed]
 
 
-def _improved(p: np.ndarray, perm: np.ndarray) -> np.ndarray:
-    """Unscaled improved noise at the rows of ``p`` ``(n, 3)``."""
+def _corners(c: np.ndarray, period: int) -> tuple[np.ndarray, np.ndarray]:
+    """The lattice coordinates of a cell's two corners along one axis, wrapped by ``period`` (0: by 256)."""
+    if period:
+        c0 = c % period
+        return c0, (c0 + 1) % period
+    c0 = c & 255
+    return c0, c0 + 1
+
+
+def _improved(p: np.ndarray, perm: np.ndarray, period=(0, 0, 0)) -> np.ndarray:
+    """Unscaled improved noise at the rows of ``p`` ``(n, 3)``; the lattice repeats every ``period`` cells (0: 256)."""
     cell = np.floor(p)
     f = p - cell
-    c = cell.astype(np.int64) & 255
-    x, y, z = c[:, 0], c[:, 1], c[:, 2]
+    c = cell.astype(np.int64)
+    xs, ys, zs = (_corners(c[:, i], period[i]) for i in range(3))
     u = _fade(f)
-    a = perm[x] + y
-    b = perm[x + 1] + y
-    rows = (perm[a] + z, perm[a + 1] + z, perm[b] + z, perm[b + 1] + z)  # (dx, dy) = 00, 01, 10, 11
     out = np.zeros(len(p))
-    for k, (dx, dy) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1))):
+    for dx, dy in ((0, 0), (0, 1), (1, 0), (1, 1)):
+        row = perm[perm[xs[dx]] + ys[dy]]
         wx = u[:, 0] if dx else 1.0 - u[:, 0]
         wy = u[:, 1] if dy else 1.0 - u[:, 1]
         for dz in (0, 1):
-            g = _GRADIENTS[perm[rows[k] + dz] & 15]
+            g = _GRADIENTS[perm[row + zs[dz]] & 15]
             d = g[:, 0] * (f[:, 0] - dx) + g[:, 1] * (f[:, 1] - dy) + g[:, 2] * (f[:, 2] - dz)
             wz = u[:, 2] if dz else 1.0 - u[:, 2]
             out += wx * wy * wz * d
     return out
 
 
-def perlin3(points, seed: int | Sequence[int] = 0) -> np.ndarray:
+def _period(period, where: str) -> tuple[int, int, int]:
+    """Lattice cells after which the noise repeats along each axis (0: 256, Perlin's own)."""
+    if period is None:
+        return (0, 0, 0)
+    p = np.broadcast_to(np.asarray(period, dtype=np.float64), (3,))
+    whole = np.round(p)
+    if not (np.isfinite(p).all() and (np.abs(p - whole) < 1e-9 * np.maximum(1.0, whole)).all()):
+        raise ValueError(f"{where}: period must be whole numbers of lattice cells, not {period!r}")
+    if ((whole < 0) | (whole > 256)).any():
+        raise ValueError(f"{where}: period must be in 0..256 lattice cells (0: not periodic), not {period!r}")
+    return tuple(int(v) for v in whole)
+
+
+def perlin3(points, seed: int | Sequence[int] = 0, period=None) -> np.ndarray:
     """Improved Perlin noise at each point.
 
     Parameters
@@ -126,6 +146,10 @@ def perlin3(points, seed: int | Sequence[int] = 0) -> np.ndarray:
         Seed of the lattice hash: a whole number >= 0 or a sequence of them;
         ``7``, ``(7, 0)`` and ``(7, 1)`` are unrelated noises (``7`` and
         ``(7,)`` are the same).
+    period : int or (3,) sequence of int, optional
+        Make the noise periodic: ``perlin3(p + period * e_i) == perlin3(p)``
+        along each axis ``i`` whose period is not 0 (whole lattice cells,
+        1..256), for tileable textures.  None: the lattice's own period of 256.
 
     Returns
     -------
@@ -143,9 +167,10 @@ def perlin3(points, seed: int | Sequence[int] = 0) -> np.ndarray:
     """
     p = _points(points, "perlin3")
     perm = _permutation(_seed(seed))
+    wrap = _period(period, "perlin3")
     out = np.empty(len(p))
     for s in range(0, len(p), _BLOCK):
-        out[s : s + _BLOCK] = _improved(p[s : s + _BLOCK], perm)
+        out[s : s + _BLOCK] = _improved(p[s : s + _BLOCK], perm, wrap)
     out *= 1.0 / PERLIN_BOUND
     return out
 
@@ -157,6 +182,7 @@ def fbm3(
     lacunarity: float = 2.0,
     gain: float = 0.5,
     frequency: float = 1.0,
+    period=None,
 ) -> np.ndarray:
     """Fractional Brownian motion: ``octaves`` layers of :func:`perlin3`, normalised to ``[-1, 1]``.
 
@@ -177,6 +203,11 @@ def fbm3(
         Amplitude ratio of neighbouring octaves (> 0; 0.5 halves it).
     frequency : float
         Features per unit length of the first octave (> 0).
+    period : float or (3,) sequence of float, optional
+        Make the sum periodic with this period in ``points``' units along each
+        axis whose period is not 0 (tileable textures): each octave's lattice
+        then repeats every ``period * frequency * lacunarity**k`` cells, which
+        must be whole numbers (a whole ``lacunarity`` and ``period * frequency``).
 
     Returns
     -------
@@ -198,11 +229,13 @@ def fbm3(
     for name, value in (("lacunarity", lacunarity), ("gain", gain), ("frequency", frequency)):
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"fbm3: {name} must be a finite number > 0, not {value!r}")
+    span = None if period is None else np.broadcast_to(np.asarray(period, dtype=np.float64), (3,))
     out = np.zeros(len(p))
     total = 0.0
     f, w = float(frequency), 1.0
     for k in range(int(octaves)):
-        out += w * perlin3(p * f + k * _OCTAVE_SHIFT, (*base, k))
+        cells = None if span is None else _period(span * f, "fbm3")
+        out += w * perlin3(p * f + k * _OCTAVE_SHIFT, (*base, k), cells)
         total += w
         f *= lacunarity
         w *= gain

@@ -117,7 +117,8 @@ class GenerateOptions(Options):
     attributes : AttributeOptions
         Hierarchy and wind attributes on the bark's vertices and the leaves (off by default).
     leaves : LeafOptions
-        The built-in leaf's resolution (a grammar's ``[surfaces] leaf`` replaces the built-in leaf).
+        The built-in leaf's shape and resolution (a grammar's ``[surfaces] leaf`` replaces the built-in leaf),
+        the leaves' size, clusters, turn to the light, droop and cards; over the grammar's ``[leaves]`` table.
     organs : OrganOptions
         The resolution of the built-in organs (spheres, discs) the dialects' ``@O``, ``@c``, ``@o`` draw.
     rig : RigOptions
@@ -314,9 +315,11 @@ def generate(
     def stage(name, fn, *args, **kw):
         return run_stage(name, fn, *args, progress=progress, **kw)
 
-    table = material_table(grammar)  # a bad [materials] or [surfaces] table fails before the work
+    table = material_table(grammar)  # a bad [materials], [surfaces] or [leaves] table fails before the work
     surfaces = surface_table(grammar)
     table = with_cards(table, surfaces, grammar)
+    leaf_options = LeafOptions.from_grammar(grammar, options.leaves)
+    grown = options if leaf_options is options.leaves else options.replace(leaves=leaf_options)
 
     modules, skeleton = draw(grammar, n, seed, options, progress=progress)
     if len(skeleton) == 0 and skeleton.n_leaves == 0:
@@ -324,7 +327,15 @@ def generate(
             f"{grammar.name or grammar.source}: nothing to mesh: the {len(modules):,} modules after {n} "
             "iterations draw no segment and no leaf (segments are drawn by F, or the [turtle] table's draw symbols)"
         )
-    tubes = stage("sweep", sweep, skeleton, options.sweep, max_triangles=options.limits.max_triangles, seed=seed)
+    tubes = stage(
+        "sweep",
+        sweep,
+        skeleton,
+        options.sweep,
+        max_triangles=options.limits.max_triangles,
+        seed=seed,
+        uv_tiles=table.uv_tiles(options.sweep.uv_tile),
+    )
     if len(tubes) == 0 and skeleton.n_leaves == 0:
         raise GeometryError(
             f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter than "
@@ -363,8 +374,9 @@ def generate(
         model=leaf_model,
         hierarchy=branches,
         attributes=keys,
-        options=options.leaves,
+        options=leaf_options,
         max_triangles=options.limits.max_triangles,
+        seed=seed,
     )
     organs = stage(
         "organs",
@@ -388,7 +400,7 @@ def generate(
     lods = ()
     if options.lod.levels or options.lod.target_triangles:
         look = _Look(table, leaf_model, branches, keys, wanted, rig)
-        lods = stage("lod", _levels, skeleton, options, seed, Lod(0, bark, leaves), look)
+        lods = stage("lod", _levels, skeleton, grown, seed, Lod(0, bark, leaves), look)
         if options.lod.target_triangles:  # the tree is the level that fits; it has no others
             bark, leaves, lods = lods[0].bark, lods[0].leaves, ()
     return Tree(
@@ -492,7 +504,8 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod,
         opts = level_options(options, level)
         kept = kept_segments(skeleton, spec.prune)
         pruned = prune(skeleton, spec.prune)
-        tubes = sweep(pruned, opts.sweep, max_triangles=options.limits.max_triangles, seed=seed)
+        uv_tiles = table.uv_tiles(opts.sweep.uv_tile)
+        tubes = sweep(pruned, opts.sweep, max_triangles=options.limits.max_triangles, seed=seed, uv_tiles=uv_tiles)
         bark = _bark([tubes], opts, seed, quiet, table.bark.base_color)
         seen = level_hierarchy(branches, kept) if branches is not None else None
         bulge = opts.sweep.bark_displacement + opts.cleanup.bulge(min(opts.sweep.sides, opts.sweep.min_sides))
@@ -500,7 +513,7 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod,
             bark = with_face_materials(bark, pruned, seen, bulge)
         if keys:
             bark = with_attributes(bark, pruned, seen, keys, bulge)
-        leaves = lod_leaves(skeleton, level, opts.leaves, look.leaf_model, branches if keys else None, keys)
+        leaves = lod_leaves(skeleton, level, opts.leaves, look.leaf_model, branches if keys else None, keys, seed)
         if look.rig is not None:
             bark, leaves = bind(bark, leaves, look.rig, branches)
             if keys != look.wanted:  # the rig's own use of them: not the user's attributes

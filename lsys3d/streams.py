@@ -47,6 +47,12 @@ class Stream(IntEnum):
     """Derivation: the grammar's random functions (``ran``, ``uniform``, ``normal``...), :func:`hashed_uniform`."""
     RANDOM_TURN = 10
     """Turtle: the random turns of Lparser's and Houdini's ``~`` (three angles per module)."""
+    TEXTURE = 11
+    """Procedural textures: the noises, cells and strokes of a texture's images (:mod:`lsys3d.textures`)."""
+    LEAF_SIZE = 14
+    """Leaves: the relative change of each leaf's size (``leaf_size_variation``, :mod:`lsys3d.leaf_form`)."""
+    LEAF_CLUSTER = 15
+    """Leaves: each cluster's turn about its twig and its leaves' small turns (``leaves_per_cluster``)."""
 
 
 def generator(seed: int, stream: Stream) -> np.random.Generator:

@@ -666,6 +666,7 @@ def sweep(
     *,
     max_triangles: int = DEFAULT_MAX_TRIANGLES,
     seed: int = 0,
+    uv_tiles: np.ndarray | None = None,
 ) -> Tubes:
     """Sweep a closed tube along every chain of a skeleton.
 
@@ -680,6 +681,11 @@ def sweep(
     max_triangles : int
         Refuse to build more triangles than this; the count is known exactly
         (see the module docstring) before the tubes are allocated.
+    uv_tiles : (m,) float64, optional
+        Metres of bark one texture tile covers, by material index (the
+        materials' :attr:`~lsys3d.materials.Material.tile_size`): a chain
+        takes that of its first segment's material instead of
+        ``options.uv_tile``.
 
     Returns
     -------
@@ -723,7 +729,7 @@ def sweep(
     cum = np.cumsum(length)
     v1 = cum - np.repeat(cum[chains.offsets[:-1]] - length[chains.offsets[:-1]], chains.lengths())
     chain_sides = opt.sides_for_order(skeleton.order[seg[chains.offsets[:-1]]])
-    tiles, tv1 = _texture_v(skeleton, opt, chain_sides, seg, chain, length)
+    tiles, tv1 = _texture_v(skeleton, opt, chain_sides, seg, chain, length, uv_tiles)
     keep = length > opt.min_length
     if not keep.any():
         return Tubes.empty()
@@ -1091,11 +1097,12 @@ def _inverse_mean(r0: np.ndarray, r1: np.ndarray) -> np.ndarray:
     return np.where(small, 1.0 - 0.5 * x, np.log1p(np.where(small, 0.0, x)) / np.where(small, 1.0, x)) / r0
 
 
-def _texture_v(skeleton: Skeleton, opt: SweepOptions, chain_sides, seg, chain, length):
+def _texture_v(skeleton: Skeleton, opt: SweepOptions, chain_sides, seg, chain, length, uv_tiles=None):
     """Tiles around each chain, and the texture ``v`` at the end of each segment (in chain order).
 
     A chain gets a whole number of tiles around, ``round(perimeter at its
-    base / uv_tile)`` and at least one, so its texture wraps without a seam;
+    base / uv_tile)`` and at least one, so its texture wraps without a seam
+    (``uv_tile`` from ``uv_tiles`` by its first segment's material when given);
     ``v`` grows by ``tiles / perimeter`` per metre, so a texel is square
     wherever the chain tapers.  A chain's ``v`` starts where its parent's ``v``
     is at the junction: the texture runs on from a branch into its child.
@@ -1105,7 +1112,8 @@ def _texture_v(skeleton: Skeleton, opt: SweepOptions, chain_sides, seg, chain, l
     r0 = 0.5 * np.maximum(skeleton.width_start[seg], opt.min_width)
     r1 = 0.5 * np.maximum(skeleton.width_end[seg], opt.min_width)
     chord = chain_sides * 2.0 * np.sin(np.pi / chain_sides)  # perimeter / radius
-    tiles = np.maximum(1.0, np.round(chord * r0[heads] / opt.uv_tile))
+    tile = opt.uv_tile if uv_tiles is None else np.asarray(uv_tiles)[skeleton.material[seg[heads]]]
+    tiles = np.maximum(1.0, np.round(chord * r0[heads] / tile))
     rate = (tiles / chord)[chain]
     step = rate * length * _inverse_mean(r0, r1)
     cum = np.cumsum(step)

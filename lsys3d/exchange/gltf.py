@@ -244,6 +244,8 @@ def _material(m: Material, texture_index) -> dict:
     }
     if m.texture is not None:
         pbr["baseColorTexture"] = {"index": texture_index(m.texture)}
+    if m.roughness_texture is not None:  # roughness in G, metallic in B, times the factors
+        pbr["metallicRoughnessTexture"] = {"index": texture_index(m.roughness_texture)}
     out = {"name": m.name, "pbrMetallicRoughness": pbr}
     if m.normal_texture is not None:
         out["normalTexture"] = {"index": texture_index(m.normal_texture)}
@@ -393,7 +395,8 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
         instanced = bool(options.instance_leaves) and rig is None  # skinned leaves and organs are merged
         if instanced and leaves.instanced:
             k = len(leaves.transforms)
-            per_leaf = np.asarray(part.skeleton.leaf_material, np.int64) if table else np.zeros(0, np.int64)
+            own = leaves.instance_material if leaves.instance_material is not None else part.skeleton.leaf_material
+            per_leaf = np.asarray(own, np.int64) if table else np.zeros(0, np.int64)
             if len(per_leaf) != k:
                 per_leaf = np.zeros(k, np.int64)
             instanced_nodes(

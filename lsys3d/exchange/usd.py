@@ -151,8 +151,17 @@ def _material(
         shader.CreateInput("normal", Sdf.ValueTypeNames.Normal3f).ConnectToSource(
             normal.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
         )
-    shader.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(float(m.roughness))
-    shader.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(float(m.metallic))
+    roughness = shader.CreateInput("roughness", Sdf.ValueTypeNames.Float)
+    metallic = shader.CreateInput("metallic", Sdf.ValueTypeNames.Float)
+    if m.roughness_texture is not None:  # glTF's packing: roughness in G, metallic in B, times the factors
+        path = f"{looks}/{name}/metallicRoughnessTexture"
+        file = textures.path_of(m.roughness_texture)
+        packed = _texture(stage, path, st, file, False, (1, float(m.roughness), float(m.metallic), 1))
+        roughness.ConnectToSource(packed.CreateOutput("g", Sdf.ValueTypeNames.Float))
+        metallic.ConnectToSource(packed.CreateOutput("b", Sdf.ValueTypeNames.Float))
+    else:
+        roughness.Set(float(m.roughness))
+        metallic.Set(float(m.metallic))
     if a < 1.0 and not (m.texture is not None and m.alpha_cutoff is not None):
         shader.CreateInput("opacity", Sdf.ValueTypeNames.Float).Set(a)
         if m.alpha_cutoff is not None:
@@ -443,7 +452,8 @@ def _author_tree(
     leaf_default = table.for_leaf(-1)
     if instanced:
         k = len(leaves.transforms)
-        index = np.asarray(tree.skeleton.leaf_material, np.int64) if table else None
+        own = leaves.instance_material if leaves.instance_material is not None else tree.skeleton.leaf_material
+        index = np.asarray(own, np.int64) if table else None
         if index is not None and len(index) != k:
             index = None
         parts = [("leaf_model", leaves.model, np.arange(k), table.for_leaf)]
