@@ -86,6 +86,7 @@ _KEYS = {
     "defines",
     "functions",
     "turtle",
+    "form",
     "materials",
     "surfaces",
     "leaves",
@@ -201,6 +202,7 @@ class Grammar:
     ignore: str = ""
     defines: Mapping[str, float] = field(default_factory=dict)
     turtle: Mapping[str, object] = field(default_factory=dict)
+    form: Mapping[str, object] = field(default_factory=dict)
     materials: Mapping[str, object] = field(default_factory=dict)
     surfaces: Mapping[str, object] = field(default_factory=dict)
     leaves: Mapping[str, object] = field(default_factory=dict)
@@ -230,7 +232,7 @@ class Grammar:
         for key in _RULE_LISTS:
             if isinstance(getattr(self, key), str):
                 raise GrammarError(f"'{key}' must be a list of rule strings, not one string", self.source)
-        for key in ("defines", "turtle", "materials", "surfaces", "leaves"):
+        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         for key in (*_RULE_LISTS, "modules", "functions"):
@@ -248,6 +250,7 @@ class Grammar:
         if self.angle is None:
             set_(self, "angle", dialect.angle)
         set_(self, "turtle", MappingProxyType(dict(self.turtle)))
+        set_(self, "form", MappingProxyType(dict(self.form)))
         set_(self, "materials", MappingProxyType(dict(self.materials)))
         set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
         set_(self, "leaves", MappingProxyType(dict(self.leaves)))
@@ -399,7 +402,14 @@ class Grammar:
             data["axiom"] = data.pop("premise")
         if "axiom" not in data:
             raise GrammarError("missing 'axiom' (the start string, e.g. axiom = \"F\")", source, 1, 1)
-        tables = (("defines", dict), ("turtle", dict), ("materials", dict), ("surfaces", dict), ("leaves", dict))
+        tables = (
+            ("defines", dict),
+            ("turtle", dict),
+            ("form", dict),
+            ("materials", dict),
+            ("surfaces", dict),
+            ("leaves", dict),
+        )
         for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + list(tables):
             if key in data and not isinstance(data[key], kind):
                 line = _key_line(text, key)
@@ -433,6 +443,7 @@ class Grammar:
                 "ignore",
                 "defines",
                 "turtle",
+                "form",
                 "materials",
                 "surfaces",
                 "leaves",

@@ -3,8 +3,8 @@
 Each stage is a call into its own module; this one only sequences them, times
 them and records the provenance that lets an exported asset be regenerated::
 
-    derive -> interpret -> sweep -> union -> cleanup -> color -> materials -> attributes -> leaves -> rig -> wind
-    (-> lod)
+    derive -> interpret (-> form) -> sweep -> union -> cleanup -> color -> materials -> attributes -> leaves
+    -> rig -> wind (-> lod)
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ from .skeleton import Skeleton
 from .surfaces import surface_table, with_cards
 from .sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
 from .tree import StageCounts, Tree
-from .turtle import DEFAULT_MAX_SEGMENTS, TurtleOptions, TurtleOverrides, interpret, symbol_table
+from .turtle import DEFAULT_MAX_SEGMENTS, FormOptions, TurtleOptions, TurtleOverrides, form, interpret, symbol_table
 from .union import UnionOptions, concatenate, union, union_cleaning_junctions
 from .wind import WindOptions, sway
 
@@ -63,6 +63,7 @@ log = logging.getLogger("lsys3d")
 STAGES = (
     "derive",
     "interpret",
+    "form",
     "sweep",
     "union",
     "cleanup",
@@ -106,6 +107,9 @@ class GenerateOptions(Options):
         ``{"width_jitter": 0.2, "branch_drop": 0.1}`` (any
         :class:`~lsys3d.turtle.TurtleOptions` field but ``angle`` and ``seed``);
         a dict is accepted and checked.
+    form : FormOptions
+        The botanical form of the skeleton (pipe-model widths, flare, curvature...), over the grammar's
+        ``[form]`` table (:meth:`FormOptions.from_grammar`); all off by default.
     sweep : SweepOptions
         Tube sides, minimum width, bend splitting, bark displacement...
     union : UnionOptions
@@ -137,6 +141,7 @@ class GenerateOptions(Options):
 
     limits: Limits = option(factory=Limits, help="size limits")
     turtle: TurtleOverrides = field(default_factory=TurtleOverrides)
+    form: FormOptions = option(factory=FormOptions, help="the botanical form")
     sweep: SweepOptions = option(factory=SweepOptions, help="tubes")
     union: UnionOptions = option(factory=UnionOptions, help="the union")
     cleanup: CleanupOptions = option(factory=CleanupOptions, help="the cleanup of the union")
@@ -158,6 +163,13 @@ class GenerateOptions(Options):
                 "WindOptions.seconds (--wind-animation): the wind animation moves the rig's joints: "
                 "it needs the rig (--rig)"
             )
+
+    def plain(self) -> dict:
+        """The options as plain data; ``form`` only when it is not the default (older records did not have it)."""
+        data = super().plain()
+        if self.form == FormOptions():
+            del data["form"]
+        return data
 
 
 _JITTERS = ("angle_jitter", "length_jitter", "width_jitter", "branch_roll", "branch_drop")
@@ -185,6 +197,7 @@ def seed_dependence(grammar: Grammar, options: GenerateOptions | None = None) ->
         found.append("stochastic rules")
     turtle = TurtleOptions.from_grammar(grammar, options.turtle)
     found += [name for name in _JITTERS if getattr(turtle, name) > 0]
+    found += FormOptions.from_grammar(grammar, options.form).seeded
     if options.sweep.bark_displacement > 0:
         found.append("bark_displacement")
     if options.color.variation > 0:
@@ -236,10 +249,12 @@ def draw(
     options: GenerateOptions | None = None,
     progress: Callable[[str, str, float], None] | None = None,
 ) -> tuple[ModuleString, Skeleton]:
-    """The first two stages: derive the module string and let the turtle draw its skeleton.
+    """The first stages: derive the module string, let the turtle draw its skeleton and give it its form.
 
-    ``options`` gives the size limits and the ``turtle`` overrides of the
-    grammar's ``[turtle]`` table; :func:`generate` goes on from here to the meshes.
+    ``options`` gives the size limits, the ``turtle`` overrides of the
+    grammar's ``[turtle]`` table and the ``form`` over its ``[form]`` table (the
+    form stage runs, as ``"form"``, only when some feature of it is on);
+    :func:`generate` goes on from here to the meshes.
     The turtle reads the derived string rewritten by the grammar's homomorphism
     rules (:func:`lsys3d.derive.interpretation`), with its dialect's commands;
     what it cannot draw as meant is reported (:mod:`lsys3d.diagnostics`).
@@ -255,6 +270,7 @@ def draw(
     limits = options.limits
     modules = run_stage("derive", derive, grammar, iterations, seed, max_modules=limits.max_modules, progress=progress)
     turtle = TurtleOptions.from_grammar(grammar, options.turtle)
+    shape = FormOptions.from_grammar(grammar, options.form)
     commands = dialects.get(grammar.dialect).commands
 
     def turtle_stage():
@@ -265,6 +281,8 @@ def draw(
     shown, skeleton = run_stage("interpret", turtle_stage, progress=progress)
     table = symbol_table(shown.alphabet, turtle.draw, turtle.move, turtle.leaf, commands)
     check(grammar, shown, skeleton, table, options.checks)
+    if shape.active:
+        skeleton = run_stage("form", form, skeleton, shape, seed, max_segments=limits.max_segments, progress=progress)
     return modules, skeleton
 
 

@@ -49,6 +49,10 @@ class Stream(IntEnum):
     """Turtle: the random turns of Lparser's and Houdini's ``~`` (three angles per module)."""
     TEXTURE = 11
     """Procedural textures: the noises, cells and strokes of a texture's images (:mod:`lsys3d.textures`)."""
+    FORM_GNARL = 12
+    """Form: the noise that bends the branches (``gnarl``, :mod:`lsys3d.turtle.form`)."""
+    FORM_VARIATION = 13
+    """Form: each lateral's change of branching angle and length (``angle_variation``, ``length_variation``)."""
     LEAF_SIZE = 14
     """Leaves: the relative change of each leaf's size (``leaf_size_variation``, :mod:`lsys3d.leaf_form`)."""
     LEAF_CLUSTER = 15

@@ -25,7 +25,7 @@ from lsys3d.pipeline import GenerateOptions, Limits
 from lsys3d.preview import PreviewOptions
 from lsys3d.rig import RigOptions
 from lsys3d.sweep import SweepOptions
-from lsys3d.turtle import TurtleOptions, TurtleOverrides
+from lsys3d.turtle import FormOptions, TurtleOptions, TurtleOverrides
 from lsys3d.union import UnionOptions
 from lsys3d.wind import WindOptions
 
@@ -40,6 +40,7 @@ CLASSES = [
     OrganOptions,
     RigOptions,
     TurtleOptions,
+    FormOptions,
     ExportOptions,
     PreviewOptions,
     ForestOptions,
@@ -63,6 +64,7 @@ def test_generate_options_nest_one_class_per_stage():
     assert list(names) == [
         "limits",
         "turtle",
+        "form",
         "sweep",
         "union",
         "cleanup",
@@ -78,6 +80,7 @@ def test_generate_options_nest_one_class_per_stage():
     assert flat_fields(GenerateOptions)["strict"] == ("checks", "strict")
     flat = flat_fields(GenerateOptions)
     assert flat["sides"] == ("sweep", "sides") and flat["union"] == ("union", "enabled")
+    assert flat["form"] == ("form", "enabled") and flat["pipe_model"] == ("form", "pipe_model")
     assert flat["max_modules"] == ("limits", "max_modules") and flat["bark_color_variation"] == ("color", "variation")
     assert len(flat) == len(set(flat.values()))
 
@@ -136,6 +139,7 @@ def test_cli_flags_come_from_the_fields():
     expected = set()
     for cls in (
         Limits,
+        FormOptions,
         SweepOptions,
         UnionOptions,
         CleanupOptions,

@@ -6,12 +6,15 @@ One module per job:
 - :mod:`~lsys3d.turtle.options`: :class:`TurtleOptions`, the ``[turtle]`` table of a grammar;
 - :mod:`~lsys3d.turtle.kernel`: the numba kernel that walks the modules;
 - :mod:`~lsys3d.turtle.interpret`: :func:`interpret`, which prepares the arrays, runs the kernel and
-  returns the :class:`~lsys3d.skeleton.Skeleton`.
+  returns the :class:`~lsys3d.skeleton.Skeleton`;
+- :mod:`~lsys3d.turtle.form`: :func:`form`, the botanical form of a drawn skeleton (:class:`FormOptions`,
+  a grammar's ``[form]`` table): pipe-model widths, flare, curvature, irregularity, phyllotaxis, collars.
 """
 
 from __future__ import annotations
 
 from .commands import COMMANDS, Axis, Command, Op, Organ, commands_markdown, symbol_table
+from .form import FormOptions, form
 from .interpret import DEFAULT_MAX_SEGMENTS, interpret
 from .options import GRAMMAR_KEYS, JITTER_DISTRIBUTIONS, TurtleOptions, TurtleOverrides, options_markdown
 
@@ -22,11 +25,13 @@ __all__ = [
     "JITTER_DISTRIBUTIONS",
     "Axis",
     "Command",
+    "FormOptions",
     "Op",
     "Organ",
     "TurtleOptions",
     "TurtleOverrides",
     "commands_markdown",
+    "form",
     "interpret",
     "options_markdown",
     "symbol_table",
