@@ -323,6 +323,7 @@ def _forest_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _presets_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--json", action="store_true", help="a JSON list of {name, group, description}")
     p.set_defaults(func=cmd_presets)
 
 
@@ -337,7 +338,7 @@ _SUBCOMMANDS = {
         "scatter a library's assets over an area: USD PointInstancer or one .glb with instancing",
         _forest_arguments,
     ),
-    "presets": ("list the bundled presets", _presets_arguments),
+    "presets": ("list the bundled presets: species, figures and curves", _presets_arguments),
 }
 """Each subcommand's help line and the function that adds its arguments, in the order ``--help`` lists them."""
 
@@ -648,12 +649,19 @@ def cmd_forest(args) -> int:
 
 
 def cmd_presets(args) -> int:
-    from .lsystem.presets import describe, list_presets
+    from .lsystem.presets import GROUPS, list_presets, preset_info
 
-    names = list_presets()
-    width = max(map(len, names))
-    for name in names:
-        _print(f"{name:<{width}}  {describe(name)}")
+    infos = [preset_info(name) for name in list_presets()]
+    if args.json:
+        _print(json.dumps([info.to_json() for info in infos], indent=1))
+        return 0
+    width = max(len(info.name) for info in infos)
+    for group in GROUPS:  # species first: what a TD grows; then the textbook's figures and curves
+        members = [info for info in infos if info.group == group]
+        if members:
+            _print(f"{group}:")
+            for info in members:
+                _print(f"  {info.name:<{width}}  {info.description}")
     return 0
 
 

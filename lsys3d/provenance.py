@@ -136,7 +136,7 @@ def grammar_text(grammar) -> str:
     lines = [f"axiom = {json.dumps(grammar.axiom)}"]
     if grammar.dialect != "lsys3d":
         lines.insert(0, f"dialect = {json.dumps(grammar.dialect)}")
-    for key in ("name", "description", "ignore", "consider"):
+    for key in ("name", "description", "group", "ignore", "consider"):
         if getattr(grammar, key):
             lines.append(f"{key} = {json.dumps(getattr(grammar, key))}")
     lines.append(f"iterations = {grammar.iterations}")

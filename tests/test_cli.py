@@ -31,8 +31,10 @@ def test_derive_with_seed(capsys):
 def test_presets_lists_one_line_each(capsys):
     assert main(["presets"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert any(line.startswith("koch ") for line in lines)
-    assert all(len(line.split(None, 1)) == 2 for line in lines)
+    assert any(line.startswith("  koch ") for line in lines)
+    # a header per group, then one indented line per preset: its name and description
+    assert all(len(line.split(None, 1)) == 2 for line in lines if line.startswith("  "))
+    assert sum(not line.startswith("  ") for line in lines) == 3
 
 
 def test_python_dash_m_and_entry_point_agree():

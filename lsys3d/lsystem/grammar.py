@@ -68,6 +68,7 @@ _SURROGATE = re.compile("[\ud800-\udfff]")
 _KEYS = {
     "name",
     "description",
+    "group",
     "dialect",
     "axiom",
     "premise",
@@ -91,6 +92,8 @@ _KEYS = {
     "leaves",
 }
 _RULE_LISTS = ("rules", "decomposition", "homomorphism")
+GROUPS = ("species", "figure", "curve")
+"""What a grammar's ``group`` may say it is: a plant species, a textbook figure, or a curve (``lsys3d presets``)."""
 _WORDS = ("and", "or", "not", "if", "else")
 
 # maps an offset in a piece of text to (line, col); line None when unknown
@@ -192,6 +195,7 @@ class Grammar:
     rules: tuple[str, ...] = ()
     name: str = ""
     description: str = ""
+    group: str = ""
     iterations: int = 1
     angle: float | None = None
     seed: int = 0
@@ -348,12 +352,14 @@ class Grammar:
                 raise bad(key, f"must be a whole number from 1 to {MAX_DEPTH}, not {clip(repr(depth))}")
         if not _finite_number(self.angle):
             raise bad("angle", f"must be a number of degrees, not {clip(repr(self.angle))}")
-        for key in ("name", "description", "axiom", "ignore", "consider"):
+        for key in ("name", "description", "group", "axiom", "ignore", "consider"):
             if not isinstance(getattr(self, key), str):
                 raise bad(key, f"must be a string, not {type(getattr(self, key)).__name__}")
         texts = [(k, getattr(self, k)) for k in ("name", "description", "axiom", "ignore", "consider")]
         for key in (*_RULE_LISTS, "modules", "functions"):
             texts += [(f"{key}[{i}]", r) for i, r in enumerate(getattr(self, key)) if isinstance(r, str)]
+        if self.group not in ("", *GROUPS):
+            raise bad("group", f"must be one of {', '.join(map(repr, GROUPS))}, not {clip(repr(self.group))}")
         for key, text in texts:
             bad_char = _SURROGATE.search(text)
             if bad_char:  # only from Python: TOML text cannot hold one; every file format would refuse it
@@ -430,6 +436,7 @@ class Grammar:
                 "rules",
                 "name",
                 "description",
+                "group",
                 "iterations",
                 "angle",
                 "seed",

@@ -3,15 +3,24 @@
 from __future__ import annotations
 
 import os
-import tomllib
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 from ..errors import GrammarError, clip
 from .dialects import SUFFIXES
-from .grammar import Grammar
+from .grammar import GROUPS, Grammar
 
-__all__ = ["DEFAULT_PRESET", "list_presets", "load", "load_preset", "preset_text"]
+__all__ = [
+    "DEFAULT_PRESET",
+    "GROUPS",
+    "PresetInfo",
+    "list_presets",
+    "load",
+    "load_preset",
+    "preset_info",
+    "preset_text",
+]
 
 DEFAULT_PRESET = "tree3d"
 """The preset the CLI grows when it is given no grammar."""
@@ -40,10 +49,43 @@ def load_preset(name: str, **overrides) -> Grammar:
     return Grammar.from_text(preset_text(name), source=f"presets/{name}.toml", **overrides)
 
 
-def describe(name: str) -> str:
-    """The one-line description of a preset."""
-    data = tomllib.loads(preset_text(name))
-    return data.get("description", "").strip().splitlines()[0] if data.get("description") else ""
+@dataclass(frozen=True)
+class PresetInfo:
+    """What ``lsys3d presets`` says of one bundled preset.
+
+    Attributes
+    ----------
+    name : str
+        The preset's name (its file's stem).
+    group : str
+        One of :data:`GROUPS`: ``species`` (a plant grown to its real size), ``figure`` (a textbook figure),
+        ``curve``.
+    description : str
+        The first line of its ``description``.
+    """
+
+    name: str
+    group: str
+    description: str
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "group": self.group, "description": self.description}
+
+
+def preset_info(name: str) -> PresetInfo:
+    """The name, group and description of a bundled preset.
+
+    The group is the file's ``group`` key. A preset without one (the figures written before species came)
+    is a ``curve`` when its strings never branch (no ``[`` in the axiom or any rule: ABOP chapter 1's curves
+    and plain strings), else a ``figure``.
+
+    >>> preset_info("koch").group, preset_info("tree3d").group
+    ('curve', 'figure')
+    """
+    grammar = load_preset(name)  # checks the group
+    group = grammar.group or ("figure" if "[" in grammar.written_symbols else "curve")
+    description = grammar.description.strip()
+    return PresetInfo(name, group, description.splitlines()[0] if description else "")
 
 
 def load(spec, **overrides) -> Grammar:

@@ -1,0 +1,167 @@
+"""Species presets: botanical grammars at real sizes, distinct siblings per seed, bounded cost, and the groups
+that `lsys3d presets` lists them by."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+from grown import grown
+
+import lsys3d
+from lsys3d.cli import main
+from lsys3d.errors import GrammarError
+from lsys3d.lsystem.derive import derive
+from lsys3d.lsystem.grammar import GROUPS, Grammar
+from lsys3d.lsystem.presets import preset_info
+from lsys3d.turtle import interpret
+
+# height of the whole plant in metres: the species' usual range (ivy: the height it climbs here)
+HEIGHTS = {
+    "oak": (15, 25),
+    "maple": (15, 25),
+    "birch": (15, 20),
+    "weeping-willow": (8, 15),
+    "aspen": (15, 22),
+    "beech": (20, 30),
+    "pine": (20, 30),
+    "spruce": (20, 30),
+    "palm": (10, 15),
+    "hazel": (2, 4),
+    "fern": (0.5, 1),
+    "grass": (0.3, 1.5),
+    "foxglove": (0.5, 1.5),
+    "ivy": (2, 6),
+}
+SPECIES = sorted(HEIGHTS)
+SOURCES = re.compile(r"ABOP|Weber & Penn|L-Py|Honda|Aono & Kunii")
+MAX_TRIANGLES = 150_000  # LOD0, bark and leaves
+MAX_LOD_TRIANGLES = 20_000  # one level of detail at most this
+
+
+def skeleton(name: str, seed: int | None = None):
+    grammar = lsys3d.load_preset(name)
+    seed = grammar.seed if seed is None else seed
+    return interpret(derive(grammar, seed=seed), grammar, seed=seed)
+
+
+def test_the_species_are_the_presets_of_their_group():
+    species = [name for name in lsys3d.list_presets() if preset_info(name).group == "species"]
+    assert species == SPECIES and len(species) >= 14
+
+
+@pytest.mark.parametrize("name", SPECIES)
+def test_description_names_the_plant_and_cites_its_model(name):
+    info = preset_info(name)
+    assert SOURCES.search(info.description), info.description
+    assert re.search(r"\([A-Z][a-z]+ [a-z-]+\)", info.description)  # the Latin name, e.g. (Quercus robur)
+    assert lsys3d.load_preset(name).group == "species"
+
+
+@pytest.mark.parametrize("name", SPECIES)
+def test_height_is_the_species_real_height_in_metres(name):
+    s = skeleton(name)
+    points = np.vstack([s.start, s.end])
+    low, high = HEIGHTS[name]
+    assert low <= points[:, 1].max() - points[:, 1].min() <= high
+    assert points[:, 1].min() > -0.1  # nothing grows far below the ground
+
+
+@pytest.mark.parametrize("name", SPECIES)
+def test_five_seeds_grow_five_different_plants(name):
+    shapes = {skeleton(name, seed).end.round(6).tobytes() for seed in range(5)}
+    assert len(shapes) == 5
+
+
+@pytest.mark.parametrize("name", SPECIES)
+def test_crown_is_not_radially_symmetric(name):
+    """The reach of the branches and leaves from the stem's base differs by direction (8 compass directions)."""
+    s = skeleton(name)
+    points = np.vstack([s.end, s.leaf_position])[:, [0, 2]] - s.start[0, [0, 2]]
+    angles = np.arange(8) * np.pi / 4
+    reach = (points @ np.stack([np.cos(angles), np.sin(angles)])).max(axis=0)
+    assert reach.std() / reach.mean() > 0.03
+
+
+@pytest.mark.parametrize(("name", "length"), [("oak", 0.1), ("birch", 0.06), ("maple", 0.14), ("beech", 0.09)])
+def test_leaves_are_real_size(name, length):
+    """Blades are sized in metres: an oak's leaf 10 cm on a 15-25 m tree, a birch's 6 cm."""
+    blades = np.linalg.norm(grown(name).leaves.transforms[:, :3, 2], axis=1)
+    assert np.median(blades) == pytest.approx(length, rel=0.1)
+
+
+@pytest.mark.parametrize("name", SPECIES)
+def test_cost_is_bounded_and_the_bark_closed(name):
+    tree = grown(name)
+    assert tree.bark.is_watertight
+    leaves = 0 if tree.leaves.merged is None else len(tree.leaves.merged.faces)
+    assert len(tree.bark.faces) + leaves <= MAX_TRIANGLES
+
+
+@pytest.mark.parametrize("name", SPECIES)
+def test_one_level_of_detail_fits_20k_triangles_and_keeps_the_outline(name):
+    tree = lsys3d.generate(name, lod=(0, 1, 2))  # the most detailed level that fits (a herb's LOD0 may)
+    full = np.vstack([tree.bark.vertices] + ([tree.leaves.merged.vertices] if tree.leaves.merged else []))
+    size = full.max(axis=0) - full.min(axis=0)
+    light = [lod for lod in tree.lods if lod.triangles <= MAX_LOD_TRIANGLES]
+    assert light, [lod.triangles for lod in tree.lods]
+    lod = light[0]
+    points = np.vstack([lod.bark.vertices] + ([lod.leaves.merged.vertices] if lod.leaves.merged else []))
+    # the silhouette's box: within 10% of the plant's height of the full tree's on every side
+    tolerance = 0.1 * size[1]
+    assert np.all(np.abs(points.min(axis=0) - full.min(axis=0)) <= tolerance)
+    assert np.all(np.abs(points.max(axis=0) - full.max(axis=0)) <= tolerance)
+
+
+# -- groups ----------------------------------------------------------------------------------------------------
+def test_every_preset_has_one_group():
+    groups = {name: preset_info(name).group for name in lsys3d.list_presets()}
+    assert set(groups.values()) == set(GROUPS)
+    assert groups["tree3d"] == groups["monopodial"] == groups["abop-1.24a"] == "figure"
+    assert groups["koch"] == groups["dragon"] == groups["hilbert3d"] == "curve"
+
+
+def test_group_is_checked_where_it_is_written():
+    text = 'name = "x"\ngroup = "tree"\naxiom = "F"\n'
+    with pytest.raises(GrammarError, match=r"^x.toml:2:1: 'group' must be one of 'species', 'figure', 'curve'"):
+        Grammar.from_text(text, source="x.toml")
+    with pytest.raises(GrammarError, match="'group' must be a string"):
+        Grammar(axiom="F", group=3)
+    assert Grammar.from_text(text.replace("tree", "species")).group == "species"
+
+
+def test_group_survives_the_grammar_text_and_replace():
+    from lsys3d.provenance import grammar_text
+
+    g = Grammar(axiom="F", group="curve")
+    assert Grammar.from_text(grammar_text(g)).group == "curve"
+    assert g.replace(iterations=2).group == "curve"
+
+
+def test_presets_json_lists_name_group_and_description(capsys):
+    assert main(["presets", "--json"]) == 0
+    listed = json.loads(capsys.readouterr().out)
+    assert [p["name"] for p in listed] == lsys3d.list_presets()
+    assert all(set(p) == {"name", "group", "description"} for p in listed)
+    oak = next(p for p in listed if p["name"] == "oak")
+    assert oak["group"] == "species" and "Quercus robur" in oak["description"]
+
+
+def test_presets_lists_the_groups_species_first(capsys):
+    assert main(["presets"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    headers = [line for line in lines if not line.startswith(" ")]
+    assert headers == ["species:", "figure:", "curve:"]
+    species = lines[1 : lines.index("figure:")]
+    assert [line.split()[0] for line in species] == SPECIES
+
+
+@pytest.mark.parametrize("name", SPECIES)
+def test_the_plant_is_fully_grown_at_its_iterations(name):
+    """No apex is left unexpanded: one more generation changes nothing, whatever the seed."""
+    grammar = lsys3d.load_preset(name)
+    for seed in range(3):
+        grown_string = derive(grammar, seed=seed)
+        assert str(derive(grammar, grammar.iterations + 1, seed=seed)) == str(grown_string)
