@@ -21,7 +21,7 @@ def kernels() -> list[CPUDispatcher]:
     """lsys3d's kernels in the modules imported so far (each once)."""
     seen: dict[int, CPUDispatcher] = {}
     for name, module in list(sys.modules.items()):
-        if name != "lsys3d" and not name.startswith("lsys3d.") or module is None:
+        if (name != "lsys3d" and not name.startswith("lsys3d.")) or module is None:
             continue
         for value in list(vars(module).values()):
             if isinstance(value, CPUDispatcher) and value.py_func.__module__ == name:
