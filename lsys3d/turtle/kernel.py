@@ -665,7 +665,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             if k >= 3:
                 if poly_depth > 0:  # the open polygons' points come first: move this one's before them
                     base = poly_stack[0, 1]
-                    _rotate_points(poly.points, base, poly_start, n_pts)
+                    _rotate_points(poly.points, base, np.int64(poly_start), n_pts)  # never a literal 0: one signature
                     for d in range(poly_depth):
                         poly_stack[d, 1] += k
                 n_poly += 1
