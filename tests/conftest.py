@@ -23,12 +23,10 @@ def compiled_kernels():
 
     numba writes them to the package's ``__pycache__``, so the tests that run ``lsys3d`` in a subprocess (the
     CLI, batch workers) load them instead of each compiling them again, and a test that interrupts a
-    subprocess does not catch it in the middle of a minute of compiling.  The default tree and a small tree
-    with a form (the hazel: flare, collars, leaves) take the paths most tests take; warm, this costs about
-    three seconds.
+    subprocess does not catch it in the middle of a minute of compiling.  The default tree (a species: form,
+    leaves) and the textbook tree3d take the paths most tests take; warm, this costs about three seconds.
     """
     import lsys3d
 
-    for preset, iterations in (("tree3d", None), ("hazel", None)):
-        grammar = lsys3d.load(preset)
-        lsys3d.generate(grammar, iterations, None)
+    for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
+        lsys3d.generate(lsys3d.load(preset))
