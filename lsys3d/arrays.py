@@ -224,6 +224,8 @@ def first_equal_row(keys: np.ndarray) -> np.ndarray:
     [0, 1, 0, 1]
     """
     keys = np.ascontiguousarray(keys)
+    if keys.dtype.kind in "iu" and keys.dtype.itemsize in (4, 8):  # equal rows are equal bits: signed or not,
+        keys = keys.view(np.int32 if keys.dtype.itemsize == 4 else np.int64)  # one compiled signature per width
     return row_table(keys, row_hash(keys))[1]
 
 
@@ -279,7 +281,8 @@ def components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     >>> components(6, np.array([0, 4, 2]), np.array([1, 5, 1])).tolist()
     [0, 0, 0, 3, 4, 4]
     """
-    a, b = np.asarray(a), np.asarray(b)
+    # one compiled signature whatever the caller holds (a column of a pair array, int32 faces)
+    a, b = np.ascontiguousarray(a, dtype=np.int64), np.ascontiguousarray(b, dtype=np.int64)
     return _components(n, a, b) if len(a) else np.arange(n, dtype=np.int64)
 
 

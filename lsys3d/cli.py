@@ -149,21 +149,48 @@ def _size(text: str) -> int:
 
 
 class _Progress:
-    """Stage names (and the union's percentage) on stderr while attached to a terminal; silent when piped or -q."""
+    """Stage names (and the union's percentage) on stderr while attached to a terminal; silent when piped or -q.
+
+    As a context manager it also counts the kernels numba compiles on a first run (:mod:`lsys3d.compiling`),
+    so minutes of compiling do not look like a hang, and clears its line on the way out.
+    """
 
     def __init__(self, enabled: bool):
         self.enabled = enabled
+        self.stage = ""
+        self._watch = contextlib.nullcontext()
 
     def __call__(self, stage: str, event: str, seconds: float) -> None:
         if not self.enabled:
             return
         if event == "start":
+            self.stage = stage
             sys.stderr.write(f"\rlsys3d: {stage}...\x1b[K")
         elif event == "progress":  # `seconds` is the fraction done
             sys.stderr.write(f"\rlsys3d: {stage} {seconds:.0%}\x1b[K")
         else:
             sys.stderr.write(f"\rlsys3d: {stage} {seconds:.2f} s\x1b[K")
         sys.stderr.flush()
+
+    def compiling(self, done: int, total: int, kernel: str) -> None:
+        """A kernel being compiled (see :func:`lsys3d.compiling.watch`)."""
+        stage = f" ({self.stage})" if self.stage else ""
+        sys.stderr.write(
+            f"\rlsys3d: compiling lsys3d's kernels (first run only): {done} of up to {total}{stage}...\x1b[K"
+        )
+        sys.stderr.flush()
+
+    def __enter__(self) -> _Progress:
+        if self.enabled:
+            from . import compiling
+
+            self._watch = compiling.watch(self.compiling)
+        self._watch.__enter__()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._watch.__exit__(*exc)
+        self.clear()
 
     def clear(self) -> None:
         if self.enabled:
@@ -374,11 +401,9 @@ def cmd_generate(args) -> int:
         return _generate_siblings(args, options, export_options)
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
-    try:
+    with progress:
         tree = generate(load(args.grammar), args.iterations, args.seed, options=options, progress=progress)
         path = run_stage("export", export, tree, args.output, export_options, progress=progress)
-    finally:
-        progress.clear()
     if not args.quiet and drawing:
         segments, leaves = len(tree.skeleton), tree.skeleton.n_leaves
         _print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
@@ -409,14 +434,12 @@ def _generate_siblings(args, options, export_options) -> int:
     first = grammar.seed if args.seed is None else args.seed
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
-    try:
+    with progress:
         trees = [
             generate(grammar, args.iterations, first + i, options=options, progress=progress)
             for i in range(args.variants)
         ]
         paths = run_stage("export", export_variants, trees, args.output, export_options, progress=progress)
-    finally:
-        progress.clear()
     if not args.quiet:
         if len(paths) == 1:
             _print(
@@ -443,13 +466,11 @@ def cmd_preview(args) -> int:
     check_preview(args.output, options)  # no Blender, no minutes of work
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
-    try:
+    with progress:
         tree = generate(
             load(args.grammar), args.iterations, args.seed, options=_generate_options(args), progress=progress
         )
         path = run_stage("render", preview, tree, args.output, options, progress=progress)
-    finally:
-        progress.clear()
     if not args.quiet:
         width, height = options.size
         _print(f"wrote {path}: {width}x{height}, {options.view} view ({time.perf_counter() - t0:.1f} s)")

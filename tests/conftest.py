@@ -9,8 +9,24 @@ from __future__ import annotations
 
 import os
 
+import pytest
 from hypothesis import settings
 
 settings.register_profile("default", derandomize=True, print_blob=True)
 settings.register_profile("fuzz", derandomize=False, max_examples=2000, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def compiled_kernels():
+    """The pipeline's kernels compiled once, in this process, before the first test.
+
+    numba writes them to the package's ``__pycache__``, so the tests that run ``lsys3d`` in a subprocess (the
+    CLI, batch workers) load them instead of each compiling them again, and a test that interrupts a
+    subprocess does not catch it in the middle of a minute of compiling.  The default tree (a species: form,
+    leaves) and the textbook tree3d take the paths most tests take; warm, this costs about three seconds.
+    """
+    import lsys3d
+
+    for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
+        lsys3d.generate(lsys3d.load(preset))

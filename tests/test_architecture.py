@@ -44,6 +44,7 @@ SHARED = {
     "lsys3d.external",
     "lsys3d.images",
     "lsys3d.noise",
+    "lsys3d.compiling",
     # The turtle's command table (symbol, name, kind, arguments): the vocabulary the dialects (lsystem) declare
     # their own rows of. It imports nothing of lsys3d.
     "lsys3d.turtle.commands",

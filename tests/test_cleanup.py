@@ -188,6 +188,7 @@ def test_the_halves_are_kept_apart_by_a_band_of_locked_vertices(tree3d_parts):
     assert not (rings & (free == 1)).any()
 
 
+@pytest.mark.slow  # compiles every kernel of the cleanup a second time, for int64 (a minute on a first run)
 def test_int32_half_edges_clean_as_int64_ones(tree3d_parts, monkeypatch):
     """The half-edges hold their indices as int32 (half the memory) while they fit, as int64 beyond: every
     kernel takes both, and the cleaned mesh is the same bytes."""

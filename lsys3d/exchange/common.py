@@ -303,7 +303,10 @@ def _split(points, corner_v, normals, uv, colors=None):
     n = len(points)
     no_uv = np.zeros((0, 2), np.uint32)
     # compare bit patterns (normals were normalised, -0.0 folded), in compiled passes
-    rep, extra, keys = _others(corner_v, n, normals.view(np.uint32), no_uv if uv is None else uv.view(np.uint32))
+    # int64 corners, whoever calls (the leaves hold int32 ones): _others is compiled once
+    rep, extra, keys = _others(
+        corner_v.astype(np.int64, copy=False), n, normals.view(np.uint32), no_uv if uv is None else uv.view(np.uint32)
+    )
     split_index = corner_v.astype(np.uint32)
     corners = rep
     vertex_of_split = None

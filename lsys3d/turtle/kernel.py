@@ -133,13 +133,13 @@ MESSAGES = {
 }
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _pair(ax, ay, az, bx, by, bz, c, s):
     """Rotate a frame pair in its plane: a toward b by the angle with cos c, sin s."""
     return ax * c + bx * s, ay * c + by * s, az * c + bz * s, bx * c - ax * s, by * c - ay * s, bz * c - az * s
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _orthonormal(hx, hy, hz, lx, ly, lz):
     """Re-orthonormalise a nearly orthonormal H, L and return H, L, U = H x L.
 
@@ -162,7 +162,7 @@ def _orthonormal(hx, hy, hz, lx, ly, lz):
     return hx, hy, hz, lx, ly, lz, hy * lz - hz * ly, hz * lx - hx * lz, hx * ly - hy * lx
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _cos_sin(degrees):
     """Cosine and sine of an angle in degrees, exact for multiples of 90 (so +(90) and heading 90 are exact)."""
     r = degrees % 360.0
@@ -178,14 +178,14 @@ def _cos_sin(degrees):
     return math.cos(a), math.sin(a)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _put(a, k, x, y, z):
     a[k, 0] = x
     a[k, 1] = y
     a[k, 2] = z
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _add_vertex(points, n, first, x, y, z):
     """Append a polygon vertex unless it repeats the previous one; return the new count."""
     if n > first and points[n - 1, 0] == x and points[n - 1, 1] == y and points[n - 1, 2] == z:
@@ -208,7 +208,7 @@ def _rotate_points(points, base, start, stop):
     points[base : base + k] = inner
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _steps(length, dlength):
     """L-Py's ``nF(length, dlength)``: (whole steps, rest, segments drawn), as PlantGL's Turtle::nF counts them.
 
@@ -221,7 +221,7 @@ def _steps(length, dlength):
     return n, rest, n + (1 if rest > STEP_EPSILON else 0)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
     """Bend H toward T about H x T: by e |H x T| radians (ABOP 2.8), or (``by_angle``) by e times the angle
     between H and T (PlantGL's Turtle::_tendTo, which turns about U by e pi when H is opposite T).
@@ -250,7 +250,7 @@ def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
     return _orthonormal(nhx, nhy, nhz, nlx, nly, nlz)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
     """Rotate the frame about one of its own axes by the angle with cos c and sin s (already signed)."""
     if axis == _AXIS_U:  # turn: H toward L
@@ -665,7 +665,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             if k >= 3:
                 if poly_depth > 0:  # the open polygons' points come first: move this one's before them
                     base = poly_stack[0, 1]
-                    _rotate_points(poly.points, base, poly_start, n_pts)
+                    _rotate_points(poly.points, base, np.int64(poly_start), n_pts)  # never a literal 0: one signature
                     for d in range(poly_depth):
                         poly_stack[d, 1] += k
                 n_poly += 1
