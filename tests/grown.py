@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import functools
 
+import lsys3d
+from lsys3d.lsystem.presets import preset_info
 from lsys3d.pipeline import generate
 
 
@@ -11,3 +13,8 @@ from lsys3d.pipeline import generate
 def grown(name: str):
     """The preset's tree at its own iterations and seed (grown on first use, then cached)."""
     return generate(name)
+
+
+def species() -> list[str]:
+    """The bundled presets of the group ``species``, sorted."""
+    return [name for name in lsys3d.list_presets() if preset_info(name).group == "species"]

@@ -19,7 +19,7 @@ BENCHMARKS = Path(__file__).resolve().parent.parent / "benchmarks"
 
 SMOKE = {
     "bench_attributes.py": ["--preset", "koch", "--repeat", "1"],
-    "bench_botany.py": ["--quick"],
+    "bench_botany.py": ["--quick", "--presets", "grass", "foxglove", "--check"],
     "bench_batch.py": ["--seeds", "1", "--skip-dask"],  # the Dask cluster itself: test_batch.py
     "bench_derive.py": ["--quick"],
     "bench_export.py": ["--quick"],

@@ -6,10 +6,13 @@ Blender runs as ``bpy`` in its own environment (``.venv-bpy``, Python 3.11,
 
 from __future__ import annotations
 
+import re
+
 import export_fixtures as fx
 import numpy as np
 import pytest
 import validators
+from grown import grown
 
 from lsys3d.exchange import ExportOptions, export
 
@@ -60,6 +63,20 @@ def test_blender_imports(tree, tmp_path, name, options):
         assert m.name in materials, sorted(materials)
         np.testing.assert_allclose(materials[m.name]["base_color"], m.base_color, atol=1e-3)
         assert materials[m.name]["roughness"] == pytest.approx(m.roughness, abs=1e-3)
+
+
+@pytest.mark.parametrize("name", ["oak.glb", "palm.glb", "spruce.usdz"])
+def test_blender_imports_species(tmp_path, name):
+    """A few species (a broadleaf, the palm, a conifer with cards) import whole, unrepaired, with their bark
+    material textured."""
+    tree = grown(name.split(".")[0])
+    report = validators.blender_import(export(tree, tmp_path / name))
+    objects = {o["name"]: o for o in report["objects"]}
+    assert objects["bark"]["faces"] == len(tree.bark.faces)
+    assert objects["bark"]["unique_positions"] == len(tree.bark.vertices)
+    assert not any(o.get("repaired") for o in report["objects"]), "Blender's Mesh.validate repaired a mesh"
+    names = {re.sub(r"\W", "_", m["name"]) for m in report["materials"]}  # USD prim names: "spruce_bark"
+    assert re.sub(r"\W", "_", tree.bark_material.name) in names, names
 
 
 def test_a_blender_crash_is_a_failure(tmp_path, monkeypatch):

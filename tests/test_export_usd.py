@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 import trimesh
 import validators
+from grown import grown, species
 from pxr import Sdf, Usd, UsdGeom, UsdShade
 
 from lsys3d.exchange import ExportOptions, export
 from lsys3d.exchange.common import file_frame
+from lsys3d.lsystem.presets import preset_text
 
 SUFFIXES = [".usda", ".usdc", ".usd", ".usdz"]
 
@@ -52,6 +54,15 @@ def world_bounds(stage: Usd.Stage, purposes=(UsdGeom.Tokens.default_,)) -> np.nd
 def test_usd_validators(tree, tmp_path, suffix, options):
     path = export(tree, tmp_path / f"tree{suffix}", options)
     assert validators.usd_problems(path) == []
+
+
+@pytest.mark.parametrize("name", species())
+def test_species_usdz_pass_the_usd_validators_with_textures_packed(name, tmp_path):
+    path = export(grown(name), tmp_path / f"{name}.usdz")
+    assert validators.usd_problems(path) == []
+    with zipfile.ZipFile(path) as z:
+        pictures = [n for n in z.namelist() if n.endswith(".png")]
+    assert bool(pictures) == ("procedural" in preset_text(name))  # a textured species carries its pictures
 
 
 def test_usd_validators_tube_soup(tmp_path):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,14 +13,12 @@ from lsys3d.errors import GrammarError, OptionsError
 from lsys3d.lsystem.grammar import Grammar
 from lsys3d.pipeline import GenerateOptions, draw
 from lsys3d.provenance import grammar_text
-from lsys3d.turtle import FormOptions, form
+from lsys3d.turtle import FormOptions, botany, form
 from lsys3d.turtle.form import GOLDEN_ANGLE, pipe_widths, tip_counts
 from lsys3d.turtle.skeleton import Skeleton
 
 ROOT = Path(__file__).resolve().parent.parent
 DEMO = ROOT / "docs" / "form" / "tree3d-form.toml"
-sys.path.insert(0, str(ROOT / "benchmarks"))
-import bench_botany  # noqa: E402  (its measures: one definition for the report and the tests)
 
 BENT = FormOptions(gnarl=40, gravitropism=(5, 2), plagiotropism=3, max_substep_length=0.2)
 
@@ -67,8 +64,8 @@ def test_tip_counts_and_pipe_widths():
 
 def test_widths_never_grow_along_a_chain(demo):
     _, sk = demo
-    assert bench_botany.chain_growth(sk) <= 1.0 + 1e-12
-    forks, ratios, widest = bench_botany.fork_ratios(sk)
+    assert botany.chain_growth(sk) <= 1.0 + 1e-12
+    forks, ratios, widest = botany.fork_ratios(sk)
     assert forks > 50 and widest <= 1.0 + 1e-12
     assert np.mean((ratios >= 0.8) & (ratios <= 1.25)) >= 0.9  # the pipe model, exponent 2
 
@@ -77,8 +74,8 @@ def test_collars_swell_into_the_parent_and_never_past_it(plain_tree3d):
     plain = form(plain_tree3d, FormOptions(pipe_model=True))
     collared = form(plain_tree3d, FormOptions(pipe_model=True, branch_collar=1.15))
     assert len(collared) > len(plain)  # each long enough lateral's first segment is split at the collar's end
-    assert bench_botany.chain_growth(collared) <= 1.0 + 1e-12
-    assert bench_botany.fork_ratios(collared)[2] <= 1.0 + 1e-12
+    assert botany.chain_growth(collared) <= 1.0 + 1e-12
+    assert botany.fork_ratios(collared)[2] <= 1.0 + 1e-12
     # the laterals' bases swell by the factor unless their parent is too thin for it
     lateral = np.flatnonzero((collared.parent >= 0) & (collared.order > collared.order[np.maximum(collared.parent, 0)]))
     base, parent_end = collared.width_start[lateral], collared.width_end[collared.parent[lateral]]
@@ -91,10 +88,10 @@ def test_flare_widens_the_trunk_base_and_the_bark_stays_closed():
     plain = draw(g, 4, 0, GenerateOptions.from_flat(pipe_model=True))[1]
     flared = draw(g, 4, 0, GenerateOptions.from_flat(pipe_model=True, flare=1.6, flare_height=1.0))[1]
     assert flared.width_start[0] / plain.width_start[0] >= 1.6 - 1e-12
-    assert bench_botany.trunk_flare(flared) >= 1.3
+    assert botany.trunk_flare(flared) >= 1.3
     trunk = flared.order == 0
     assert trunk.sum() > (plain.order == 0).sum()  # the base segment is split to sample the curve
-    assert bench_botany.chain_growth(flared) <= 1.0 + 1e-12  # the flare tapers smoothly, never steps up
+    assert botany.chain_growth(flared) <= 1.0 + 1e-12  # the flare tapers smoothly, never steps up
     tree = lsys3d.generate(g, iterations=3, pipe_model=True, flare=1.6, flare_height=1.0)
     assert tree.bark.is_watertight
 
@@ -103,7 +100,7 @@ def test_curvature_is_deterministic_per_seed_and_differs_across_seeds(plain_tree
     a, b, c = (form(plain_tree3d, BENT, seed) for seed in (1, 1, 2))
     assert np.array_equal(a.end, b.end) and np.array_equal(a.heading, b.heading)
     assert not np.allclose(a.end, c.end)
-    assert bench_botany.straight_chains(a) == 0 and len(a) > len(plain_tree3d)
+    assert botany.straight_chains(a) == 0 and len(a) > len(plain_tree3d)
     # children stay on their parent's new end, frames stay orthonormal and follow the segments
     child = np.flatnonzero(a.parent >= 0)
     attached = np.flatnonzero(
@@ -122,9 +119,9 @@ def test_curvature_is_deterministic_per_seed_and_differs_across_seeds(plain_tree
 
 def test_seeds_give_different_skeletons_through_draw(demo):
     g, _ = demo
-    digests = {bench_botany.digest(draw(g, 3, seed)[1]) for seed in range(5)}
+    digests = {botany.digest(draw(g, 3, seed)[1]) for seed in range(5)}
     assert len(digests) == 5
-    assert bench_botany.digest(draw(g, 3, 7)[1]) == bench_botany.digest(draw(g, 3, 7)[1])
+    assert botany.digest(draw(g, 3, 7)[1]) == botany.digest(draw(g, 3, 7)[1])
 
 
 def _in_frame(points, origin, sk, rows):

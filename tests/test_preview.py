@@ -20,7 +20,15 @@ from pngs import read_png
 
 import lsys3d
 from lsys3d.errors import ExportError, OptionsError, PreviewError
-from lsys3d.render.preview import ENV_BLENDER, SCRIPT, PreviewOptions, blender_command, check_preview, preview
+from lsys3d.render.preview import (
+    ENV_BLENDER,
+    SCRIPT,
+    PreviewOptions,
+    base_focus,
+    blender_command,
+    check_preview,
+    preview,
+)
 
 BACKGROUND = (0.96, 0.96, 0.95)
 
@@ -225,3 +233,13 @@ def test_a_pose_bends_a_rigged_tree_in_blender(tmp_path):
     assert not (tmp_path / "no.png").exists()
     with pytest.raises(OptionsError, match=r"PreviewOptions.pose: expected JOINT=DEGREES, not 'b0_j1'"):
         PreviewOptions(pose=("b0_j1",))
+
+
+def test_base_view_looks_at_the_foot_of_the_thickest_stem():
+    tree = lsys3d.generate("tree3d", iterations=3, flare=1.6)
+    focus = base_focus(tree)
+    d = tree.skeleton.width_start[0]
+    assert focus["size"] == pytest.approx(4 * d)
+    np.testing.assert_allclose(focus["target"], tree.skeleton.start[0] + [0, 0.9 * d, 0])
+    assert np.linalg.norm(focus["direction"]) == pytest.approx(1.0) and focus["direction"][2] > 0.9
+    assert PreviewOptions(view="base").view == "base"  # a choice of the option

@@ -3,6 +3,7 @@ that `lsys3d presets` lists them by."""
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 
@@ -17,7 +18,8 @@ from lsys3d.look.textures import _SPRAYS, KINDS
 from lsys3d.lsystem.derive import derive
 from lsys3d.lsystem.grammar import GROUPS, Grammar
 from lsys3d.lsystem.presets import preset_info
-from lsys3d.turtle import interpret
+from lsys3d.pipeline import draw
+from lsys3d.turtle import FormOptions, botany, interpret
 
 # height of the whole plant in metres: the species' usual range (ivy: the height it climbs here)
 HEIGHTS = {
@@ -37,6 +39,24 @@ HEIGHTS = {
     "ivy": (2, 6),
 }
 SPECIES = sorted(HEIGHTS)
+# the trunk's diameter at the ground (the flare included), metres; hazel: its stems, ivy: its stem
+TRUNKS = {
+    "oak": (0.8, 1.2),
+    "maple": (0.6, 1.0),
+    "birch": (0.35, 0.7),
+    "weeping-willow": (0.4, 1.0),
+    "aspen": (0.3, 0.6),
+    "beech": (0.6, 1.2),
+    "pine": (0.5, 0.9),
+    "spruce": (0.45, 0.9),
+    "palm": (0.4, 0.8),
+    "hazel": (0.03, 0.1),
+    "fern": (0.004, 0.02),
+    "grass": (0.002, 0.01),
+    "foxglove": (0.008, 0.025),
+    "ivy": (0.02, 0.08),
+}
+MAX_TIP = 0.04  # no twig thicker than 4 cm (a palm's frond: 7 cm)
 SOURCES = re.compile(r"ABOP|Weber & Penn|L-Py|Honda|Aono & Kunii")
 MAX_TRIANGLES = 150_000  # LOD0, bark and leaves
 MAX_LOD_TRIANGLES = 20_000  # one level of detail at most this
@@ -143,6 +163,54 @@ def test_one_level_of_detail_fits_20k_triangles_and_keeps_the_outline(name):
     tolerance = 0.1 * size[1]
     assert np.all(np.abs(points.min(axis=0) - full.min(axis=0)) <= tolerance)
     assert np.all(np.abs(points.max(axis=0) - full.max(axis=0)) <= tolerance)
+
+
+# -- botany goals (issue 33), measured by lsys3d.turtle.botany as benchmarks/bench_botany.py prints them ---------
+@functools.cache
+def formed(name: str, seed: int):
+    """The skeleton the sweep receives (after the form stage) at the preset's iterations."""
+    grammar = lsys3d.load_preset(name)
+    return draw(grammar, grammar.iterations, seed)[1]
+
+
+def test_the_goals_know_the_species():
+    assert set(SPECIES) >= botany.TREES | botany.BROADLEAVES
+
+
+@pytest.mark.parametrize("name", SPECIES)
+def test_species_meet_the_botany_goals(name):
+    """Pipe model at 90% of forks, no child wider than its parent, no width growth along a chain, a flared
+    trunk on the trees, no straight 5-chain in the broadleaves, five seeds five skeletons."""
+    grammar = lsys3d.load_preset(name)
+    collar = FormOptions.from_grammar(grammar).branch_collar
+    m = botany.measure(formed(name, grammar.seed), [formed(name, seed) for seed in range(5)], collar)
+    verdict = botany.verdicts(name, m)
+    assert all(v is not False for v in verdict.values()), (verdict, m)
+    assert verdict["pipe"] and verdict["child"] and verdict["growth"] and verdict["seeds"]
+    assert (verdict["flare"] is not None) == (name in botany.TREES)
+    if m.forks:
+        assert m.within >= 90.0 and 0.8 <= m.area_median <= 1.25
+
+
+@pytest.mark.parametrize("name", SPECIES)
+def test_trunks_keep_their_real_diameter_and_twigs_stay_thin(name):
+    """Pipe-model widths fitted per species: the trunk at the ground within the species' range, every tip
+    (terminal segment) at most 4 cm (the palm's fronds 7 cm)."""
+    sk = formed(name, lsys3d.load_preset(name).seed)
+    low, high = TRUNKS[name]
+    assert low <= botany.measure(sk).trunk_base_diameter <= high
+    tips = np.bincount(sk.parent[sk.parent >= 0], minlength=len(sk)) == 0
+    assert sk.width_end[tips].max() <= (0.07 if name == "palm" else MAX_TIP)
+
+
+def test_collars_are_measured_where_the_branch_leaves_its_parent():
+    """A collar (the oak's 1.3) raises the ratio at the child's very start; past the collar the pipe model's 1."""
+    assert FormOptions.from_grammar(lsys3d.load_preset("oak")).branch_collar == 1.3
+    sk = formed("oak", lsys3d.load_preset("oak").seed)
+    _, past, _ = botany.fork_ratios(sk, collar=1.3)
+    _, raw, widest = botany.fork_ratios(sk)
+    assert np.median(past) == pytest.approx(1.0, abs=0.01)
+    assert np.median(raw) > 1.3 and widest <= 1.0 + 1e-12
 
 
 # -- groups ----------------------------------------------------------------------------------------------------

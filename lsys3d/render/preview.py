@@ -49,6 +49,7 @@ __all__ = [
     "MATERIALS",
     "VIEWS",
     "PreviewOptions",
+    "base_focus",
     "blender_command",
     "check_preview",
     "junction_focus",
@@ -57,10 +58,11 @@ __all__ = [
 
 log = logging.getLogger("lsys3d")
 
-VIEWS = ("front", "side", "iso", "junction")
+VIEWS = ("front", "side", "iso", "junction", "base")
 """Camera positions: ``front`` looks along the tree's -Z (glTF's front), ``side`` along -X, ``iso`` from
 45 degrees to the side and 30 degrees above; ``junction`` is a close-up of the fork where the thickest
-branch leaves its parent, seen across the plane of the fork (:func:`junction_focus`)."""
+branch leaves its parent, seen across the plane of the fork (:func:`junction_focus`); ``base`` a close-up
+of the trunk's foot, its flare and bark (:func:`base_focus`)."""
 
 MATERIALS = ("asset", "checker")
 """``asset``: the tree's own materials; ``checker``: glossy bark with a UV checker on it (8 x 8 squares per
@@ -263,6 +265,31 @@ def junction_focus(tree: Tree) -> dict:
     return {"target": target.tolist(), "direction": normal.tolist(), "size": 9.0 * r_parent}
 
 
+def base_focus(tree: Tree) -> dict:
+    """Where the ``base`` view looks: the foot of the trunk, a little above the ground, from the front.
+
+    Returns
+    -------
+    dict
+        ``target``, ``direction`` and ``size`` as :func:`junction_focus`: the picture is four times as wide
+        as the trunk at the ground, its centre one trunk diameter up, seen from the front, a little above.
+
+    Raises
+    ------
+    PreviewError
+        A skeleton without a segment.
+    """
+    sk = tree.skeleton
+    if not len(sk):
+        raise PreviewError("the base view needs a trunk, and this tree has no segment")
+    roots = np.flatnonzero(sk.parent < 0)
+    root = int(roots[np.argmax(sk.width_start[roots])])  # the thickest stem
+    d = max(float(sk.width_start[root]), 1e-6)
+    target = sk.start[root] + np.array([0.0, 0.9 * d, 0.0])
+    direction = np.array([0.0, 0.35, 1.0]) / np.linalg.norm([0.0, 0.35, 1.0])
+    return {"target": target.tolist(), "direction": direction.tolist(), "size": 4.0 * d}
+
+
 def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None = None) -> Path:
     """Render a shaded picture of ``tree`` to the PNG file ``path``.
 
@@ -330,6 +357,8 @@ def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None 
             }
             if options.view == "junction":
                 job["focus"] = junction_focus(tree)
+            elif options.view == "base":
+                job["focus"] = base_focus(tree)
             command = _command(blender, json.dumps(job))
             log.info("render: %s", " ".join(command[:-1]))
             try:

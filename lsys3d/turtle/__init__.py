@@ -8,7 +8,9 @@ One module per job:
 - :mod:`~lsys3d.turtle.interpret`: :func:`interpret`, which prepares the arrays, runs the kernel and
   returns the :class:`~lsys3d.turtle.skeleton.Skeleton`;
 - :mod:`~lsys3d.turtle.form`: :func:`form`, the botanical form of a drawn skeleton (:class:`FormOptions`,
-  a grammar's ``[form]`` table): pipe-model widths, flare, curvature, irregularity, phyllotaxis, collars.
+  a grammar's ``[form]`` table): pipe-model widths, flare, curvature, irregularity, phyllotaxis, collars;
+- :mod:`~lsys3d.turtle.botany`: the botanical measures of a skeleton (pipe model at forks, flare,
+  straight chains, seeds) and the goals the species meet.
 """
 
 from __future__ import annotations
