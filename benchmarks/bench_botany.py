@@ -22,10 +22,11 @@ the measures of :mod:`lsys3d.turtle.botany` (their one home, which the tests use
   plant's height;
 * ``straight5``: chains of five segments or more whose headings all lie within
   0.5 degrees of each other;
-* ``sky%``: leaves whose blade normal lies within 60 degrees of the sky (+Y);
+* ``sky%``: blades whose normal lies within 60 degrees of the sky (+Y), as the
+  leaf stage places them (``[leaves]``: clusters, light, cards; :func:`lsys3d.look.leaf_form.arrange`);
 * ``seeds``: distinct skeletons among seeds 0-4;
 * ``goals``: PASS or FAIL per goal of :data:`lsys3d.turtle.botany.GOALS`
-  (pipe, child, growth, flare on trees, curved on broadleaves, seeds), ``-``
+  (pipe, child, growth, flare on trees, curved and leaves on broadleaves, seeds), ``-``
   where a goal does not apply.
 
 ``--check`` exits with status 1 when a goal fails.  ``--with-form`` adds a row
@@ -43,6 +44,8 @@ import sys
 from pathlib import Path
 
 import lsys3d
+from lsys3d.look.leaf_form import arrange
+from lsys3d.look.leaves import LeafOptions
 from lsys3d.lsystem.grammar import Grammar
 from lsys3d.lsystem.presets import preset_info
 from lsys3d.pipeline import GenerateOptions, draw
@@ -106,7 +109,8 @@ def main(argv=None) -> int:
         n = max(2, g.iterations - 2) if args.quick else g.iterations
         _, sk = draw(g, n, g.seed, options)
         collar = FormOptions.from_grammar(g, options.form).branch_collar
-        m = measure(sk, [draw(g, n, seed, options)[1] for seed in range(5)], collar)
+        blades = arrange(sk, LeafOptions.from_grammar(g, options.leaves), g.seed)
+        m = measure(sk, [draw(g, n, seed, options)[1] for seed in range(5)], collar, blades)
         verdict = verdicts(name, m)
         marks = " ".join(f"{'-' if v is None else 'PASS' if v else 'FAIL':>6}" for v in verdict.values())
         failed += [f"{name}: {goal}" for goal, v in verdict.items() if v is False]

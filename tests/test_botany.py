@@ -51,4 +51,5 @@ def test_verdicts_apply_the_goals_by_kind_of_plant():
     oak, grass = botany.verdicts("oak", m, n_seeds=2), botany.verdicts("grass", m, n_seeds=2)
     assert oak["pipe"] and oak["child"] and oak["growth"] and oak["seeds"] is False
     assert oak["flare"] is False and grass["flare"] is None and grass["curved"] is None
+    assert oak["leaves"] is False and grass["leaves"] is None  # the fork has no leaf: no blade faces the sky
     assert set(oak) == set(botany.GOALS) and np.isfinite(m.trunk_base_diameter)

@@ -14,6 +14,8 @@ from grown import grown
 import lsys3d
 from lsys3d.cli import main
 from lsys3d.errors import GrammarError
+from lsys3d.look.leaf_form import arrange
+from lsys3d.look.leaves import LeafOptions
 from lsys3d.look.textures import _SPRAYS, KINDS
 from lsys3d.lsystem.derive import derive
 from lsys3d.lsystem.grammar import GROUPS, Grammar
@@ -180,14 +182,18 @@ def test_the_goals_know_the_species():
 @pytest.mark.parametrize("name", SPECIES)
 def test_species_meet_the_botany_goals(name):
     """Pipe model at 90% of forks, no child wider than its parent, no width growth along a chain, a flared
-    trunk on the trees, no straight 5-chain in the broadleaves, five seeds five skeletons."""
+    trunk on the trees, no straight 5-chain in the broadleaves, their blades (as the leaf stage places them)
+    facing the sky, five seeds five skeletons."""
     grammar = lsys3d.load_preset(name)
     collar = FormOptions.from_grammar(grammar).branch_collar
-    m = botany.measure(formed(name, grammar.seed), [formed(name, seed) for seed in range(5)], collar)
+    sk = formed(name, grammar.seed)
+    blades = arrange(sk, LeafOptions.from_grammar(grammar), grammar.seed)
+    m = botany.measure(sk, [formed(name, seed) for seed in range(5)], collar, blades)
     verdict = botany.verdicts(name, m)
     assert all(v is not False for v in verdict.values()), (verdict, m)
     assert verdict["pipe"] and verdict["child"] and verdict["growth"] and verdict["seeds"]
     assert (verdict["flare"] is not None) == (name in botany.TREES)
+    assert (verdict["leaves"] is not None) == (name in botany.SKY_LEAVED)
     if m.forks:
         assert m.within >= 90.0 and 0.8 <= m.area_median <= 1.25
 

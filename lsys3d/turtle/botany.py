@@ -25,6 +25,7 @@ from .skeleton import Skeleton
 __all__ = [
     "BROADLEAVES",
     "GOALS",
+    "SKY_LEAVED",
     "TREES",
     "BotanyMeasures",
     "branch_base_width",
@@ -44,6 +45,10 @@ TREES = frozenset({"oak", "maple", "birch", "weeping-willow", "aspen", "beech", 
 BROADLEAVES = frozenset({"oak", "maple", "birch", "weeping-willow", "aspen", "beech", "hazel", "ivy"})
 """The broadleaf (woody dicot) species, whose chains must bend."""
 
+SKY_LEAVED = BROADLEAVES - {"ivy"}
+"""The broadleaf species whose blades must face the sky: the ivy's face its light in front of the wall it
+climbs (``+z``), not the sky."""
+
 GOALS = {
     "pipe": "at least 90% of forks have children/parent area within 0.8-1.25",
     "child": "no child starts more than 5% wider than its parent ends",
@@ -51,6 +56,8 @@ GOALS = {
     "flare": "a tree's trunk is at least 1.3x as wide at the ground as at 10% of its height",
     "curved": "no chain of 5 or more segments is straight in a broadleaf species",
     "seeds": "5 seeds give 5 different skeletons",
+    "leaves": "at least 70% of a broadleaf species' blades (leaves or leaf cards, as the leaf stage turns them) "
+    "face within 60 degrees of the sky (not the ivy: its blades face the light in front of its wall)",
 }
 """The botany goals of issue 33, by the names :func:`verdicts` gives them."""
 
@@ -189,8 +196,15 @@ class BotanyMeasures:
         return asdict(self)
 
 
-def measure(sk: Skeleton, seeds: list[Skeleton] = (), collar: float = 1.0) -> BotanyMeasures:
-    """The measures of ``sk`` (forks past collars of ``collar``), and how many of the skeletons ``seeds`` differ."""
+def measure(
+    sk: Skeleton, seeds: list[Skeleton] = (), collar: float = 1.0, blades: Skeleton | None = None
+) -> BotanyMeasures:
+    """The measures of ``sk`` (forks past collars of ``collar``), and how many of the skeletons ``seeds`` differ.
+
+    ``blades``: the skeleton whose leaf instances are the blades as the leaf stage places them
+    (:func:`lsys3d.look.leaf_form.arrange`: clustered, turned to the light, cards); ``sky`` is measured on
+    them, or on ``sk``'s own leaves (the turtle's frames) without it.
+    """
     forks, ratios, widest = fork_ratios(sk, collar)
     raw = fork_ratios(sk)[1]
     trunk = np.flatnonzero(sk.order == 0)
@@ -206,7 +220,7 @@ def measure(sk: Skeleton, seeds: list[Skeleton] = (), collar: float = 1.0) -> Bo
         flare=trunk_flare(sk),
         trunk_base_diameter=base,
         straight5=straight_chains(sk),
-        sky=sky_share(sk),
+        sky=sky_share(sk if blades is None else blades),
         seeds=len({digest(s) for s in seeds}),
     )
 
@@ -220,4 +234,5 @@ def verdicts(name: str, m: BotanyMeasures, n_seeds: int = 5) -> dict[str, bool |
         "flare": bool(m.flare >= 1.3) if name in TREES else None,
         "curved": bool(m.straight5 == 0) if name in BROADLEAVES else None,
         "seeds": bool(m.seeds == n_seeds) if m.seeds else None,
+        "leaves": bool(m.sky >= 70.0) if name in SKY_LEAVED else None,
     }
