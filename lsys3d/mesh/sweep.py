@@ -142,7 +142,12 @@ class SweepOptions(Options):
     def sides_for_order(self, order) -> np.ndarray:
         """Sides of the rings of chains of branch order ``order``, ``int64``."""
         order = np.asarray(order, np.int64)
-        return np.maximum(min(self.min_sides, self.sides), self.sides - order * self.sides_step)
+        return np.maximum(self.fewest_sides, self.sides - order * self.sides_step)
+
+    @property
+    def fewest_sides(self) -> int:
+        """The fewest sides any tube has: ``min_sides``, or ``sides`` when that is fewer."""
+        return min(self.min_sides, self.sides)
 
     @property
     def spacing(self) -> tuple[float, float]:
