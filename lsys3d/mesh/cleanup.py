@@ -54,7 +54,8 @@ from ..options import Options, option
 from . import remesh
 from .mesh import Mesh, crumbs
 from .sweep import Tubes
-from .union.union import Junctions, _separate_float32  # _separate_float32: the union's last step, kept true here
+from .union.local import Junctions
+from .union.weld import _separate_float32  # the union's last step, kept true here
 
 __all__ = ["Cleaned", "CleanupOptions", "clean_junctions", "clean_mesh", "cleanup", "smooth_normals", "tube_uv"]
 
@@ -151,7 +152,7 @@ def _classify(bark: _Surface, tubes: Tubes, caps: Junctions | None = None, pool=
     """Per face: tube, flat (cap), which cap, reference normal; per vertex: scale and flags (:mod:`lsys3d.mesh.remesh`).
 
     A face's cap is ``2 tube + (0 at the base, 1 at the tip)``, -1 on the wall.
-    With ``caps`` (:class:`lsys3d.mesh.union.union.Junctions`), the sources are faces
+    With ``caps`` (:class:`lsys3d.mesh.union.local.Junctions`), the sources are faces
     of the union's own tubes (``caps.origin`` says which face of ``tubes``
     each lies in), and from ``len(caps.origin)`` on faces of temporary caps:
     flat, cap ``2 len(tubes) + its number``, the tube of ``caps.cap_face``,
@@ -194,7 +195,7 @@ def _classify(bark: _Surface, tubes: Tubes, caps: Junctions | None = None, pool=
 def _half_edges(bark: _Surface, tubes: Tubes, room: int, pool=None, caps: Junctions | None = None):
     """The half-edges of ``bark`` with ``room`` for splits, classified and marked; the reason if it is not closed.
 
-    ``caps``: the temporary caps of :class:`lsys3d.mesh.union.union.Junctions` (see :func:`_classify`)."""
+    ``caps``: the temporary caps of :class:`lsys3d.mesh.union.local.Junctions` (see :func:`_classify`)."""
     part, flat, cap, scale, flags, reference = _classify(bark, tubes, caps, pool)
     try:
         he = remesh.build(
