@@ -282,7 +282,7 @@ def _clean_halves(
         return remesh.clean(he._replace(counts=counts[own]), rules, region, side, own, spawned)
 
     # the second half in one of the pool's threads and the first here; a test's ``order``: one after the other
-    done = sum(remesh._in_two(pool, run, (), 0, 1, None) if order is None else [run(own) for own in order])
+    done = sum(remesh.in_two(pool, run, (), 0, 1, None) if order is None else [run(own) for own in order])
     he.flags[lock] &= ~remesh.LOCKED
     full = any(_full(he._replace(counts=c)) for c in counts)
     he.counts[:2] = counts[1][:2]  # the second half's room is after the first's: the rest splits after it
@@ -466,7 +466,7 @@ def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndar
     """
     uv = np.empty((len(faces), 3, 2), np.float32)
     source, points, faces = (np.ascontiguousarray(a) for a in (source, np.asarray(points, np.float64), faces))
-    remesh._in_two(pool, tubes.corner_uv, (source, points, faces, uv), 0, len(faces) // 2, len(faces))
+    remesh.in_two(pool, tubes.corner_uv, (source, points, faces, uv), 0, len(faces) // 2, len(faces))
     return uv
 
 
