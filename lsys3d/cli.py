@@ -383,7 +383,8 @@ def cmd_generate(args) -> int:
         segments, leaves = len(tree.skeleton), tree.skeleton.n_leaves
         _print(f"wrote {path}: {segments:,} segments, {leaves:,} leaves ({time.perf_counter() - t0:.1f} s)")
     elif not args.quiet:
-        bark, leaves, organs = tree.bark, tree.skeleton.n_leaves, len(tree.organs)
+        # the leaves as built: the leaf stage's clusters, not the turtle's leaf symbols
+        bark, leaves, organs = tree.bark, tree.skeleton.n_polygons + len(tree.leaves.transforms), len(tree.organs)
         levels = "".join(f", LOD{lod.level} {lod.triangles:,}" for lod in tree.lods)
         if levels:
             levels = f"; triangles of the levels of detail{levels}"

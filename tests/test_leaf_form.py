@@ -279,6 +279,36 @@ def test_cards_one_per_cluster(tree3d_skeleton, card):
     np.testing.assert_allclose(np.linalg.norm(out.transforms[:, :3, 3] - sk.leaf_position, axis=1), 0.2, atol=1e-9)
 
 
+def test_twig_cards_take_each_leafs_place(tree3d_skeleton):
+    """leaf_card = "twigs": a square card where each clustered leaf would be, card_length leaves long."""
+    sk = tree3d_skeleton
+    base = dict(leaves_per_cluster=5, leaf_size=0.1, cluster_length=0.2, leaf_light=0.5)
+    single = leaves(sk, options=LeafOptions(**base), seed=0)
+    twigs = leaves(sk, options=LeafOptions(**base, leaf_card="twigs", card_length=3.0), seed=0)
+    k = len(sk.leaf_position)
+    assert len(twigs.transforms) == 5 * k and len(twigs.merged.faces) == 2 * 5 * k
+    np.testing.assert_allclose(twigs.transforms[:, :3, 3], single.transforms[:, :3, 3])
+    np.testing.assert_allclose(twigs.transforms[:, :3, :3], 3.0 * single.transforms[:, :3, :3])
+    np.testing.assert_allclose(twigs.model.bounds, [[-0.5, 0, 0], [0.5, 0, 1]])  # square: the picture's shape
+    aspect = leaves(sk, options=LeafOptions(**base, leaf_card="spray", card_aspect=0.7), seed=0).model
+    np.testing.assert_allclose(aspect.bounds[:, 0], [-0.35, 0.35])
+
+
+def test_leaf_outward_leans_the_light_away_from_the_crowns_axis(tree3d_skeleton):
+    sk = tree3d_skeleton
+    options = LeafOptions(leaves_per_cluster=3, leaf_size=0.1, leaf_light=1.0, leaf_outward=0.5, leaf_card="twigs")
+    out = leaves(sk, options=options, seed=0)
+    up = out.transforms[:, :3, 1] / np.linalg.norm(out.transforms[:, :3, 1], axis=1)[:, None]
+    # every card faces 45 degrees above the horizon, away from the vertical line through the leaves' middle
+    np.testing.assert_allclose(up[:, 1], np.sqrt(0.5), atol=1e-9)
+    away = out.transforms[:, [0, 2], 3] - sk.leaf_position[:, [0, 2]].mean(axis=0)
+    assert np.all(np.einsum("ij,ij->i", up[:, [0, 2]], away) > 0)
+    assert sky_share(up) == 1.0
+    # without it the same cards face straight up
+    flat = leaves(sk, options=options.replace(leaf_outward=0.0), seed=0).transforms[:, :3, 1]
+    np.testing.assert_allclose(flat[:, 1] / np.linalg.norm(flat, axis=1), 1.0)
+
+
 # ---------------------------------------------------------------- options and the grammar's [leaves]
 
 
@@ -288,7 +318,9 @@ def test_cards_one_per_cluster(tree3d_skeleton, card):
         ({"leaf_light": 1.5}, r"LeafOptions.leaf_light: must be in \[0, 1\], not 1.5"),
         ({"leaves_per_cluster": 0}, r"LeafOptions.leaves_per_cluster: must be in \[1, 64\], not 0"),
         ({"leaf_shape": "fern"}, r"LeafOptions.leaf_shape: must be one of 'default'"),
-        ({"leaf_card": "billboard"}, r"LeafOptions.leaf_card: must be one of 'none', 'spray', 'cross'"),
+        ({"leaf_card": "billboard"}, r"LeafOptions.leaf_card: must be one of 'none', 'spray', 'cross', 'twigs'"),
+        ({"card_length": 0}, r"LeafOptions.card_length: must be in \[0.1, 100\], not 0"),
+        ({"leaf_outward": 1.5}, r"LeafOptions.leaf_outward: must be in \[0, 1\], not 1.5"),
         ({"light": (0, 0, 0)}, r"LeafOptions.light: must be a direction"),
         ({"light": (0, 1)}, r"LeafOptions.light: must be a list of 3 numbers"),
         ({"leaf_droop": 91}, r"LeafOptions.leaf_droop: must be in \[0, 90\]"),
@@ -340,7 +372,10 @@ def test_leaves_table_sets_the_options():
 @pytest.mark.parametrize(
     "line, message",
     [
-        ("leaf_sise = 0.1", r"leafy.toml:12:1: \[leaves\] unknown key 'leaf_sise' \(known keys: cluster_length"),
+        (
+            "leaf_sise = 0.1",
+            r"leafy.toml:12:1: \[leaves\] unknown key 'leaf_sise' \(known keys: card_aspect, card_length",
+        ),
         ("  leaf_light = 2", r"leafy.toml:12:3: \[leaves\] leaf_light: must be in \[0, 1\], not 2"),
         ('leaf_card = "fern"', r"leafy.toml:12:1: \[leaves\] leaf_card: must be one of 'none', 'spray', 'cross'"),
         ("light = [0, 0, 0]", r"leafy.toml:12:1: \[leaves\] LeafOptions.light: must be a direction"),

@@ -299,3 +299,51 @@ def test_the_docs_show_every_kind():
     for kind in KINDS:
         swatch = docs / "textures" / f"{kind}.png"
         assert swatch.is_file() and swatch.stat().st_size < 100_000, kind
+
+
+# ---------------------------------------------------------------- leaf sprays
+
+SPRAYS = [k for k, row in KINDS.items() if row.leaf_length is not None]
+
+
+def test_the_sprays_are_the_kinds_with_a_leaf_length():
+    assert SPRAYS == ["oak_spray", "maple_spray", "birch_spray", "willow_spray", "beech_spray", "ovate_spray"]
+    assert all(KINDS[k].group == "leaf" for k in SPRAYS)
+
+
+@pytest.mark.parametrize("kind", SPRAYS)
+def test_a_spray_carries_six_to_fifteen_leaves_of_its_length_inside_the_picture(kind):
+    from lsys3d.look.textures import _SPRAYS, _spray_leaves
+
+    layout = _SPRAYS[kind]
+    lengths = []
+    for seed in range(8):
+        _, leaves = _spray_leaves(layout, np.random.default_rng(seed))
+        assert 6 <= len(leaves) <= 15
+        for _, (bx, by), (dx, dy), length, squash, *_ in leaves:
+            tip = (bx + dx * 0.97 * length, by + dy * 0.97 * length)
+            assert -0.5 < tip[0] < 0.5 and 0 < tip[1] < 1
+            assert 0.6 <= squash <= 1.0
+            lengths.append(length)
+    # the kind's leaf_length is what a card's leaves measure, in picture heights
+    assert np.mean(lengths) == pytest.approx(KINDS[kind].leaf_length, rel=0.2)
+
+
+@pytest.mark.parametrize("kind", SPRAYS)
+def test_a_spray_draws_its_leaf_kinds_outline(kind, monkeypatch):
+    """The spray's leaves come from the single-leaf kind's outline: without it only the twig and stalks remain."""
+    from lsys3d.look import textures
+
+    leaf = textures._SPRAYS[kind].leaf
+    full = pixels(procedural(kind, seed=2, resolution=RES).albedo.data)[..., 3]
+    outline, relief = textures._LEAF_OUTLINES[leaf]
+
+    def bare(x, y, n):
+        blade, petiole, veins, across = outline(x, y, n)
+        return np.zeros_like(blade), petiole, veins, across
+
+    monkeypatch.setitem(textures._LEAF_OUTLINES, leaf, (bare, relief))
+    twig = textures._spray(textures._Grid(RES, 2), [(0.1, 0.3, 0.1)] * 3, textures._SPRAYS[kind]).alpha
+    assert (full > 128).mean() > 3 * (twig > 0.5).mean()
+    # the leaf kind's own single-leaf image is unchanged by being drawn in sprays
+    assert pixels(procedural(leaf, seed=2, resolution=RES).albedo.data)[..., 3].max() == 255

@@ -13,6 +13,7 @@ from grown import grown
 import lsys3d
 from lsys3d.cli import main
 from lsys3d.errors import GrammarError
+from lsys3d.look.textures import _SPRAYS, KINDS
 from lsys3d.lsystem.derive import derive
 from lsys3d.lsystem.grammar import GROUPS, Grammar
 from lsys3d.lsystem.presets import preset_info
@@ -85,11 +86,40 @@ def test_crown_is_not_radially_symmetric(name):
     assert reach.std() / reach.mean() > 0.03
 
 
+BROADLEAVES = ["aspen", "beech", "birch", "maple", "oak", "weeping-willow"]  # the hazel keeps single leaves
+
+
+def card_kind(name: str) -> str | None:
+    """The spray kind a species' twig cards show (None: single leaves or other cards)."""
+    grammar = lsys3d.load_preset(name)
+    if (grammar.leaves or {}).get("leaf_card") != "twigs":
+        return None
+    return grammar.materials["leaf"]["procedural"]["kind"]
+
+
 @pytest.mark.parametrize(("name", "length"), [("oak", 0.1), ("birch", 0.06), ("maple", 0.14), ("beech", 0.09)])
 def test_leaves_are_real_size(name, length):
-    """Blades are sized in metres: an oak's leaf 10 cm on a 15-25 m tree, a birch's 6 cm."""
+    """Leaves are sized in metres: an oak's leaf 10 cm on a 15-25 m tree, a birch's 6 cm; a twig card's leaves
+    are its length times its picture's leaf length."""
     blades = np.linalg.norm(grown(name).leaves.transforms[:, :3, 2], axis=1)
+    kind = card_kind(name)
+    if kind is not None:
+        blades = blades * KINDS[kind].leaf_length
     assert np.median(blades) == pytest.approx(length, rel=0.1)
+
+
+@pytest.mark.parametrize("name", BROADLEAVES)
+def test_broadleaf_crowns_are_twig_cards_facing_the_sky(name):
+    """Issue 33: 70% of the blades (a card's normal) within 60 degrees of the sky, a leaf mass far above the
+    20k single leaves that 150k triangles held (cards times the leaves each picture draws)."""
+    tree = grown(name)
+    kind = card_kind(name)
+    assert kind is not None and KINDS[kind].leaf_length is not None
+    up = tree.leaves.transforms[:, :3, 1]
+    assert np.mean(up[:, 1] / np.linalg.norm(up, axis=1) > np.cos(np.radians(60))) >= 0.7
+    fewest = _SPRAYS[kind].count[0]
+    assert len(tree.leaves.transforms) * fewest >= 120_000
+    assert len(tree.leaves.merged.faces) == 2 * len(tree.leaves.transforms)
 
 
 @pytest.mark.parametrize("name", SPECIES)

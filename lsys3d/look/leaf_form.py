@@ -9,7 +9,10 @@ as (all of it off by default, :class:`~lsys3d.look.leaves.LeafOptions`):
   optional petiole: a narrow strip from the attachment point to the blade's
   base, the blade moved up by it;
 * :func:`spray_card`: one quad (or a crossed pair) for a whole cluster, to be
-  shown with an alpha-cut texture of a spray of needles or leaves;
+  shown with an alpha-cut texture of a spray of needles or leaves; or
+  (``leaf_card = "twigs"``) one quad in the place of each leaf of a cluster,
+  showing a twig of many leaves, so a crown of a few thousand clusters carries
+  a hundred thousand leaves in two triangles each;
 * :func:`arrange`: the leaf instances of a skeleton with a size in metres,
   each grown into a cluster of leaves fanned along the last part of its twig,
   turned toward the light and drooping -- a new skeleton, plain data, that
@@ -47,8 +50,9 @@ __all__ = [
 SHAPES = ("default", "ovate", "lanceolate", "lobed", "palmate", "needle", "blade")
 """The built-in blade outlines (``LeafOptions.leaf_shape``): ``default`` is the original pointed oval."""
 
-CARDS = ("none", "spray", "cross")
-"""``LeafOptions.leaf_card``: single leaves, one quad per cluster, or two crossed quads per cluster."""
+CARDS = ("none", "spray", "cross", "twigs")
+"""``LeafOptions.leaf_card``: single leaves, one quad per cluster, two crossed quads per cluster, or a quad per
+leaf of a cluster (each showing a leafy twig, ``card_length`` leaves long)."""
 
 PHYLLOTAXIS = ("spiral", "alternate", "opposite")
 """How the leaves of a cluster turn around their twig: by the golden angle, by half a turn, or in pairs a
@@ -259,8 +263,8 @@ def toward_light(heading, left, up, light, fraction: float):
     ----------
     heading, left, up : (k, 3) float64
         Orthonormal frames (``H x L = U``).
-    light : 3 floats
-        Direction toward the light (any length but 0).
+    light : 3 floats or (k, 3) float64
+        Direction toward the light (any length but 0), or one per frame.
     fraction : float
         0: unchanged; 1: every blade faces the light.
 
@@ -273,8 +277,9 @@ def toward_light(heading, left, up, light, fraction: float):
     heading, left, up = (np.asarray(a, np.float64).reshape(-1, 3) for a in (heading, left, up))
     if fraction <= 0 or not len(up):
         return heading, left, up
-    target = np.asarray(light, np.float64) / np.linalg.norm(light)
-    cos = np.clip(up @ target, -1.0, 1.0)
+    target = np.asarray(light, np.float64)
+    target = target / np.linalg.norm(target, axis=-1, keepdims=True)
+    cos = np.clip(dot(up, np.broadcast_to(target, up.shape)), -1.0, 1.0)
     angle = np.arccos(cos)
     axis = np.cross(up, target)
     n = np.linalg.norm(axis, axis=1)
@@ -306,7 +311,7 @@ def droop(heading, left, up, degrees: float):
 
 def leaf_count(k: int, options) -> int:
     """How many instances :func:`arrange` makes of ``k`` (one card per cluster, else a leaf per cluster member)."""
-    return k if options.leaf_card != "none" else k * options.leaves_per_cluster
+    return k if options.leaf_card in ("spray", "cross") else k * options.leaves_per_cluster
 
 
 def _back_along_twig(skeleton: Skeleton, segment: np.ndarray, position: np.ndarray, heading, distance):
@@ -392,7 +397,7 @@ def arrange(skeleton: Skeleton, options, seed: int = 0) -> Skeleton:
     if not k or not _active(o):
         return skeleton
     n = o.leaves_per_cluster
-    per = 1 if o.leaf_card != "none" else n
+    per = 1 if o.leaf_card in ("spray", "cross") else n
     heading = np.asarray(skeleton.leaf_heading, np.float64)
     left = np.asarray(skeleton.leaf_left, np.float64)
     up = np.asarray(skeleton.leaf_up, np.float64)
@@ -410,7 +415,7 @@ def arrange(skeleton: Skeleton, options, seed: int = 0) -> Skeleton:
     else:
         size = size[owner]
     length = o.cluster_length if n > 1 else 0.0
-    if o.leaf_card != "none":
+    if o.leaf_card in ("spray", "cross"):
         # the card spans the cluster: from where it starts on the twig to the tips of the leaves at the top
         base, axis = _back_along_twig(skeleton, segment, position, heading, np.full(k, length))
         along = unit(position - base, 1e-12)
@@ -449,7 +454,9 @@ def arrange(skeleton: Skeleton, options, seed: int = 0) -> Skeleton:
             h = np.where(tip[:, None], h, fan_h)
             uu = np.where(tip[:, None], uu, fan_u)
             lf = np.where(tip[:, None], lf, np.cross(fan_u, fan_h))
-    h, lf, uu = toward_light(h, lf, uu, o.light, o.leaf_light)
+    if o.leaf_card == "twigs":
+        size = size * o.card_length  # a twig card is card_length of its leaves long
+    h, lf, uu = toward_light(h, lf, uu, _light_targets(o, pos, position), o.leaf_light)
     h, lf, uu = droop(h, lf, uu, o.leaf_droop)
     return replace(
         skeleton,
@@ -463,14 +470,37 @@ def arrange(skeleton: Skeleton, options, seed: int = 0) -> Skeleton:
     )
 
 
+def _light_targets(o, pos: np.ndarray, instances: np.ndarray):
+    """What each blade turns to: the light, or with ``leaf_outward`` the light tilted away from the crown's axis.
+
+    The axis is the vertical line through the mean of the skeleton's leaf ``instances``; a blade's outward
+    direction is horizontal, from the axis to the blade, and its target ``(1 - w) light + w outward``.
+    """
+    light = np.asarray(o.light, np.float64)
+    light = light / np.linalg.norm(light)
+    if o.leaf_outward <= 0 or not len(pos):
+        return light
+    out = pos - instances.mean(axis=0)
+    out[:, 1] = 0.0
+    out = unit(out, 1e-12)
+    target = (1.0 - o.leaf_outward) * light + o.leaf_outward * out
+    ok = np.linalg.norm(target, axis=1) > 1e-9
+    return np.where(ok[:, None], unit(target, 1e-12), light)
+
+
 def card_aspect(skeleton: Skeleton, options) -> float:
-    """Width over length of the cluster cards of :func:`arrange`: the fan's width over the cluster's length.
+    """Width over length of the cards of :func:`arrange`: ``card_aspect``, else for ``spray`` and ``cross`` cards
+    the cluster fan's width over the cluster's length, for ``twigs`` cards 1 (a square picture).
 
     A cluster of leaves ``s`` long fanned ``cluster_spread`` off its twig is about ``2 s sin(spread)`` wide
     plus a blade's width (``s / 2``), and ``cluster_length + (1 + petiole) s cos(spread)`` long (one leaf:
     the leaf's own box); ``s`` is the plant's mean leaf size.
     """
     o = options
+    if o.card_aspect > 0:
+        return float(o.card_aspect)
+    if o.leaf_card == "twigs":
+        return 1.0
     s = o.leaf_size if o.leaf_size > 0 else float(np.mean(skeleton.leaf_size)) if len(skeleton.leaf_size) else 1.0
     clustered = o.leaves_per_cluster > 1
     spread = math.radians(o.cluster_spread) if clustered else 0.0

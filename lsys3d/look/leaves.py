@@ -94,7 +94,24 @@ class LeafOptions(Options):
     leaf_card: str = option(
         "none",
         choices=CARDS,
-        help="none: single leaves; spray: one textured quad per cluster; cross: two crossed quads per cluster",
+        help="none: single leaves; spray: one textured quad per cluster; cross: two crossed quads per cluster; "
+        "twigs: a textured quad in each leaf's place, showing a twig of leaves",
+    )
+    card_length: float = option(
+        3.0,
+        low=0.1,
+        high=100,
+        help="twigs cards: a card's length in leaf lengths (leaf_size), as its picture draws them",
+    )
+    card_aspect: float = option(
+        0.0, low=0, high=20, help="width over length of a card (0: spray and cross the cluster's fan, twigs 1)"
+    )
+    leaf_outward: float = option(
+        0.0,
+        low=0,
+        high=1,
+        help="how far the light that leaf_light turns the blades to leans out from the crown's axis (0: not at all, "
+        "1: horizontal)",
     )
 
     def __post_init__(self):

@@ -111,6 +111,9 @@ class TextureKind:
     default_colors: tuple[str, ...]
     roles: tuple[str, ...]
     doc: str
+    leaf_length: float | None = None
+    """Spray kinds: a leaf's mean length over the picture's height (a card ``c`` metres long shows leaves of
+    about ``c * leaf_length`` metres); None for the others."""
 
 
 @dataclass(frozen=True)
@@ -380,9 +383,9 @@ def _leaf_coords(g: _Grid) -> tuple[np.ndarray, np.ndarray]:
     return np.broadcast_to(g.u - 0.5, shape), np.broadcast_to(g.v, shape)
 
 
-def _edge(distance, g: _Grid) -> np.ndarray:
-    """Coverage from a signed distance (positive inside, tile units): a pixel and a half of anti-aliasing."""
-    return np.clip(0.5 + np.asarray(distance) * g.n / 1.5, 0.0, 1.0)
+def _edge(distance, n: float) -> np.ndarray:
+    """Coverage from a signed distance (positive inside; ``n`` pixels a unit): a pixel and a half of anti-aliasing."""
+    return np.clip(0.5 + np.asarray(distance) * n / 1.5, 0.0, 1.0)
 
 
 def _segment_distance(x, y, a, b):
@@ -392,14 +395,18 @@ def _segment_distance(x, y, a, b):
     return np.hypot(x - a[0] - t * ex, y - a[1] - t * ey), t
 
 
-def _blade(g: _Grid, colors, width: Callable, veins: int, vein_angle: float, relief: float, y0: float = 0.08):
+# A single leaf's outline is a function of leaf coordinates (x across from the middle, y up from the base, the
+# leaf's picture the unit square) and n, the pixels per leaf unit; it returns the leaf's masks (blade, petiole,
+# veins) and `across`, 0 on the midrib to 1 at the edge.  The single-leaf kinds draw one over the whole image;
+# the spray kinds (below) draw several, each in its own frame.
+
+
+def _blade_masks(x, y, n, width: Callable, veins: int, vein_angle: float, y0: float = 0.08):
     """A pinnate leaf: half-width ``width(t)`` at ``t`` of the blade, midrib, ``veins`` veins a side, petiole."""
-    leaf, vein_color, stalk = colors
-    x, y = _leaf_coords(g)
     t = (y - y0) / (0.97 - y0)
     w = np.where((t > 0) & (t < 1), width(np.clip(t, 0, 1)), 0.0)
-    blade = _edge(w - np.abs(x), g) * (t > -0.01)
-    petiole = _edge(0.008 - np.abs(x), g) * (y > 0.005) * (t < 0.05)
+    blade = _edge(w - np.abs(x), n) * (t > -0.01)
+    petiole = _edge(0.008 - np.abs(x), n) * (y > 0.005) * (t < 0.05)
     # veins: the midrib, and veins leaving it toward the tip at vein_angle
     ax = np.abs(x)
     s = (t - ax * math.tan(math.radians(90 - vein_angle)) / (0.97 - y0)) * veins
@@ -409,60 +416,37 @@ def _blade(g: _Grid, colors, width: Callable, veins: int, vein_angle: float, rel
     )
     midrib = 1.0 - _smoothstep(0.004, 0.010, ax)
     veins_all = np.maximum(vein * 0.7, midrib)
-    return _leaf_fields(g, leaf, vein_color, stalk, blade, petiole, veins_all, ax / np.maximum(w, 1e-9), relief)
+    return blade, petiole, veins_all, ax / np.maximum(w, 1e-9)
 
 
-def _leaf_fields(g, leaf, vein_color, stalk, blade, petiole, veins, across, relief) -> Fields:
-    """Colour, height and coverage of a leaf from its masks: a blade, a stalk, veins, ``across`` 0 (mid) to 1 (edge)."""
-    tone = g.noise(20, 4, 4, 4)
-    color = np.asarray(leaf) * (1.0 + 0.12 * tone + 0.1 * (1.0 - np.clip(across, 0, 1)))[..., None]
-    color = _mix(color, vein_color, 0.75 * veins)
-    color = _mix(color, np.asarray(leaf) * 0.6, 0.5 * _smoothstep(0.8, 1.0, np.clip(across, 0, 1)))  # darker rim
-    color = _mix(color, stalk, petiole * (1.0 - blade))
-    alpha = np.maximum(blade, petiole)
-    bulge = np.sqrt(np.clip(1.0 - np.clip(across, 0, 1) ** 2, 0, 1))
-    height = np.clip(blade * (0.5 + 0.25 * bulge - 0.2 * veins + 0.03 * tone) + petiole * 0.6, 0, 1)
-    return Fields(height, np.clip(color, 0, 1), None, alpha, relief)
+def _ovate_masks(x, y, n):
+    return _blade_masks(x, y, n, lambda t: 0.3 * np.sin(np.pi * t**0.75) ** 0.85, 8, 45)
 
 
-def ovate(g: _Grid, colors, tile_size: float) -> Fields:
-    """Ovate leaf (beech, aspen, lime): widest below the middle, a pointed tip, pinnate veins."""
-    return _blade(g, colors, lambda t: 0.3 * np.sin(np.pi * t**0.75) ** 0.85, 8, 45, 0.004)
-
-
-def willow(g: _Grid, colors, tile_size: float) -> Fields:
-    """Lanceolate leaf (willow, olive): long and narrow, a long tip, finely toothed."""
-
+def _willow_masks(x, y, n):
     def width(t):
         return 0.1 * np.sin(np.pi * t**0.9) ** 0.9 * (1.0 - 0.06 * np.abs(np.sin(np.pi * 40 * t)))
 
-    return _blade(g, colors, width, 16, 35, 0.003, y0=0.04)
+    return _blade_masks(x, y, n, width, 16, 35, y0=0.04)
 
 
-def birch_leaf(g: _Grid, colors, tile_size: float) -> Fields:
-    """Birch leaf: triangular-ovate with a doubly serrate margin and a pointed tip."""
-
+def _birch_masks(x, y, n):
     def width(t):
         teeth = 1.0 - 0.07 * (np.abs(np.sin(np.pi * 14 * t)) + 0.5 * np.abs(np.sin(np.pi * 28 * t)))
         return 0.36 * np.sin(np.pi * t**0.55) ** 0.7 * (1.0 - 0.25 * t) * teeth
 
-    return _blade(g, colors, width, 7, 50, 0.004, y0=0.12)
+    return _blade_masks(x, y, n, width, 7, 50, y0=0.12)
 
 
-def oak_leaf(g: _Grid, colors, tile_size: float) -> Fields:
-    """Oak leaf: obovate with four or five deep rounded lobes a side."""
-
+def _oak_masks(x, y, n):
     def width(t):
         lobes = 0.5 + 0.5 * np.cos(2 * np.pi * (4.5 * t**0.9 - 0.2))
         return 0.36 * np.sin(np.pi * t**1.15) ** 0.6 * (0.45 + 0.55 * lobes**0.45)
 
-    return _blade(g, colors, width, 5, 40, 0.004, y0=0.06)
+    return _blade_masks(x, y, n, width, 5, 40, y0=0.06)
 
 
-def maple(g: _Grid, colors, tile_size: float) -> Fields:
-    """Maple leaf: palmate, five pointed, toothed lobes from one point, veins radiating to their tips."""
-    leaf, vein_color, stalk = colors
-    x, y = _leaf_coords(g)
+def _maple_masks(x, y, n):
     cx, cy = 0.0, 0.36
     r = np.hypot(x - cx, y - cy)
     theta = np.arctan2(x - cx, y - cy)  # 0 up, positive to the right
@@ -475,8 +459,8 @@ def maple(g: _Grid, colors, tile_size: float) -> Fields:
         teeth = 1.0 - 0.12 * np.abs(np.sin(d / 0.75 * 3.0 * np.pi)) * (d < 0.75)
         reach = np.maximum(reach, length * profile * teeth)
     outline = np.maximum(0.2, reach)  # the sinuses stop short of the centre
-    blade = _edge(outline - r, g)
-    petiole = _edge(0.009 - np.abs(x), g) * (y > 0.005) * (y < cy)
+    blade = _edge(outline - r, n)
+    petiole = _edge(0.009 - np.abs(x), n) * (y > 0.005) * (y < cy)
     vein = np.zeros_like(r)
     for angle, length in lobes:
         ux, uy = math.sin(angle), math.cos(angle)
@@ -489,7 +473,63 @@ def maple(g: _Grid, colors, tile_size: float) -> Fields:
         second = (1.0 - _smoothstep(0.03, 0.08, np.abs(s - np.round(s)))) * (s > 0.6) * (np.abs(side) < 0.16)
         vein = np.maximum(vein, 0.55 * second * (np.abs(np.angle(np.exp(1j * (theta - angle)))) < 0.55))
     across = np.clip(r / np.maximum(outline, 1e-9), 0, 1)
-    return _leaf_fields(g, leaf, vein_color, stalk, blade, petiole, vein, across, 0.004)
+    return blade, petiole, vein, across
+
+
+_LEAF_OUTLINES: dict[str, tuple[Callable, float]] = {
+    "ovate": (_ovate_masks, 0.004),
+    "willow": (_willow_masks, 0.003),
+    "birch_leaf": (_birch_masks, 0.004),
+    "oak_leaf": (_oak_masks, 0.004),
+    "maple": (_maple_masks, 0.004),
+}
+"""The single-leaf kinds' outlines and reliefs, by kind: what the single-leaf and the spray kinds draw."""
+
+
+def _leaf_paint(tone, leaf, vein_color, stalk, blade, petiole, veins, across):
+    """Colour, height and coverage of a leaf from its masks and a tone noise (unit deviation)."""
+    color = np.asarray(leaf) * (1.0 + 0.12 * tone + 0.1 * (1.0 - np.clip(across, 0, 1)))[..., None]
+    color = _mix(color, vein_color, 0.75 * veins)
+    color = _mix(color, np.asarray(leaf) * 0.6, 0.5 * _smoothstep(0.8, 1.0, np.clip(across, 0, 1)))  # darker rim
+    color = _mix(color, stalk, petiole * (1.0 - blade))
+    alpha = np.maximum(blade, petiole)
+    bulge = np.sqrt(np.clip(1.0 - np.clip(across, 0, 1) ** 2, 0, 1))
+    height = np.clip(blade * (0.5 + 0.25 * bulge - 0.2 * veins + 0.03 * tone) + petiole * 0.6, 0, 1)
+    return color, alpha, height
+
+
+def _single(g: _Grid, colors, kind: str) -> Fields:
+    """One leaf of ``kind`` (a key of :data:`_LEAF_OUTLINES`) over the whole image."""
+    outline, relief = _LEAF_OUTLINES[kind]
+    x, y = _leaf_coords(g)
+    masks = outline(x, y, g.n)
+    color, alpha, height = _leaf_paint(g.noise(20, 4, 4, 4), *colors, *masks)
+    return Fields(height, np.clip(color, 0, 1), None, alpha, relief)
+
+
+def ovate(g: _Grid, colors, tile_size: float) -> Fields:
+    """Ovate leaf (beech, aspen, lime): widest below the middle, a pointed tip, pinnate veins."""
+    return _single(g, colors, "ovate")
+
+
+def willow(g: _Grid, colors, tile_size: float) -> Fields:
+    """Lanceolate leaf (willow, olive): long and narrow, a long tip, finely toothed."""
+    return _single(g, colors, "willow")
+
+
+def birch_leaf(g: _Grid, colors, tile_size: float) -> Fields:
+    """Birch leaf: triangular-ovate with a doubly serrate margin and a pointed tip."""
+    return _single(g, colors, "birch_leaf")
+
+
+def oak_leaf(g: _Grid, colors, tile_size: float) -> Fields:
+    """Oak leaf: obovate with four or five deep rounded lobes a side."""
+    return _single(g, colors, "oak_leaf")
+
+
+def maple(g: _Grid, colors, tile_size: float) -> Fields:
+    """Maple leaf: palmate, five pointed, toothed lobes from one point, veins radiating to their tips."""
+    return _single(g, colors, "maple")
 
 
 def _strokes(g: _Grid, strokes, canvas_color, canvas_alpha, canvas_height):
@@ -557,6 +597,178 @@ def needle(g: _Grid, colors, tile_size: float) -> Fields:
     return _painted(g, strokes, 0.004)
 
 
+@dataclass(frozen=True)
+class _Spray:
+    """How a spray kind lays its leaves along its twig (all lengths in image heights)."""
+
+    leaf: str
+    """The single-leaf kind it draws (a key of :data:`_LEAF_OUTLINES`)."""
+    count: tuple[int, int]
+    """Fewest and most leaves (the seed picks)."""
+    length: float
+    """A leaf's mean length, its picture's height (the leaves shrink a little toward the twig's tip)."""
+    petiole: float
+    """Stalk from the twig to the leaf's picture."""
+    angle: tuple[float, float]
+    """Degrees between a leaf and the twig, near the base and near the tip."""
+    arrangement: str
+    """``alternate`` (two-ranked, sides taking turns), ``opposite`` (pairs) or ``tip`` (crowded at the tip)."""
+    twig: float
+    """How far up the picture the twig reaches."""
+    bend: float
+    """Sideways bow of the twig."""
+
+
+def _twig_point(layout: _Spray, bend: float, s: float) -> tuple[float, float, float, float]:
+    """The twig's point at ``s`` (0 base, 1 tip) and its unit direction there."""
+    y0, y1 = 0.02, layout.twig
+    x = bend * math.sin(math.pi * s)
+    y = y0 + (y1 - y0) * s
+    dx, dy = bend * math.pi * math.cos(math.pi * s), y1 - y0
+    norm = math.hypot(dx, dy)
+    return x, y, dx / norm, dy / norm
+
+
+def _spray_leaves(layout: _Spray, rng: np.random.Generator):
+    """Where the leaves of a spray go: the twig's bow, and per leaf its point on the twig, its base (the stalk's
+    end), direction, length, width factor (a leaf at a slant is narrower), underside, tint and mirroring."""
+    count = int(rng.integers(layout.count[0], layout.count[1] + 1))
+    bend = rng.uniform(-1.0, 1.0) * layout.bend
+    leaves = []
+    for i in range(count):
+        q = i / max(count - 1, 1)
+        if layout.arrangement == "opposite":
+            pair = i // 2
+            pairs = (count + 1) // 2
+            s = 0.2 + 0.8 * (pair + 1) / pairs
+            side = 1 if i % 2 else -1
+        elif layout.arrangement == "tip":
+            s = 1.0 - 0.55 * q**1.2
+            side = 1 if i % 2 else -1
+        else:
+            s = 0.12 + 0.88 * (i + 0.5 + 0.3 * rng.uniform(-1, 1)) / count
+            side = 1 if i % 2 else -1
+        s = min(max(s, 0.0), 1.0)
+        px, py, tx, ty = _twig_point(layout, bend, s)
+        angle = math.radians(layout.angle[0] + (layout.angle[1] - layout.angle[0]) * s + rng.uniform(-12, 12))
+        if layout.arrangement == "tip" and i == 0:
+            angle = math.radians(rng.uniform(-8, 8))  # the leading leaf carries the twig on
+        a = math.atan2(tx, ty) + side * angle
+        dx, dy = math.sin(a), math.cos(a)
+        length = layout.length * rng.uniform(0.8, 1.2) * (1.12 - 0.25 * s)
+        squash = rng.uniform(0.6, 1.0) if rng.random() < 0.45 else 1.0  # seen at a slant
+        stalk = layout.petiole * rng.uniform(0.7, 1.2)
+        bx, by = px + dx * stalk, py + dy * stalk
+        # shrink a leaf whose picture would cross the image's edge (its outline fills most of its unit square)
+        for _ in range(8):
+            corners = [
+                (bx + dx * v * length + dy * u * length * squash, by + dy * v * length - dx * u * length * squash)
+                for u in (-0.45, 0.45)
+                for v in (0.0, 0.97)
+            ]
+            if all(-0.49 < cx < 0.49 and 0.01 < cy < 0.99 for cx, cy in corners):
+                break
+            length *= 0.85
+        under = rng.random() < 0.2
+        tint = np.array([rng.uniform(-0.06, 0.06), rng.uniform(-0.04, 0.06), rng.uniform(-0.05, 0.03)])
+        leaves.append(((px, py), (bx, by), (dx, dy), length, squash, under, tint, rng.random() < 0.5))
+    return bend, leaves
+
+
+def _spray(g: _Grid, colors, layout: _Spray) -> Fields:
+    """A twig carrying leaves of ``layout.leaf``: each leaf drawn by that kind's outline in its own frame.
+
+    The leaves turn to both sides at their angles, vary in size and shade, and some are foreshortened (seen
+    at a slant) or show their paler underside; those drawn first (behind) are darker.  Everything stays
+    inside the picture; the twig starts at the bottom centre.
+    """
+    leaf_color, vein_color, twig_color = (np.asarray(c) for c in colors)
+    outline, relief = _LEAF_OUTLINES[layout.leaf]
+    rng = g.rng(1)
+    n = g.n
+    bend, leaves = _spray_leaves(layout, rng)
+    count = len(leaves)
+    color, alpha, height = _canvas(g)
+    # the twig and the stalks first: the blades cover them where they meet
+    points = [_twig_point(layout, bend, t)[:2] for t in np.linspace(0.0, 1.0, 10)]
+    strokes = [
+        (p, q, 0.011 - 0.005 * k / 9, 0.010 - 0.005 * k / 9, twig_color, twig_color)
+        for k, (p, q) in enumerate(itertools.pairwise(points))
+    ]
+    strokes += [(p, b, 0.0045, 0.0035, twig_color, leaf_color * 0.8) for p, b, *_ in leaves]
+    _strokes(g, strokes, color, alpha, height)
+    tone_all = g.noise(20, 4, 4, 4)
+    order = rng.permutation(count)
+    for rank, i in enumerate(order):
+        _, (bx, by), (dx, dy), length, squash, under, tint, flip = leaves[i]
+        # the leaf's unit square in the image, and the pixels it covers
+        wx, wy = length * squash, length
+        cxs = [bx + dx * v * wy + dy * u * wx for u in (-0.5, 0.5) for v in (0.0, 1.0)]
+        cys = [by + dy * v * wy - dx * u * wx for u in (-0.5, 0.5) for v in (0.0, 1.0)]
+        c0, c1 = max(0, int((min(cxs) + 0.5) * n) - 1), min(n, int((max(cxs) + 0.5) * n) + 2)
+        r0, r1 = max(0, int((1.0 - max(cys)) * n) - 1), min(n, int((1.0 - min(cys)) * n) + 2)
+        if c0 >= c1 or r0 >= r1:
+            continue
+        x = (np.arange(c0, c1) + 0.5)[None, :] / n - 0.5 - bx
+        y = 1.0 - (np.arange(r0, r1) + 0.5)[:, None] / n - by
+        lx = (x * dy - y * dx) / wx * (-1.0 if flip else 1.0)
+        ly = (x * dx + y * dy) / wy
+        inside = (np.abs(lx) <= 0.5) & (ly >= 0.0) & (ly <= 1.0)
+        masks = outline(lx, ly, n * wx)
+        base = leaf_color * (1.0 + tint)
+        if under:  # the underside: paler and greyer
+            base = _mix(base, np.full(3, base.mean() * 1.25 + 0.03), np.array(0.45))
+        shade = 0.85 + 0.2 * rank / max(count - 1, 1)  # behind (drawn first): darker
+        box = (slice(r0, r1), slice(c0, c1))
+        c, a, h = _leaf_paint(tone_all[box], base * shade, vein_color * shade, twig_color, *masks)
+        a = a * inside
+        color[box] = color[box] * (1.0 - a[..., None]) + c * a[..., None]
+        alpha[box] = np.maximum(alpha[box], a)
+        height[box] = height[box] * (1.0 - a) + (0.15 + 0.85 * h) * a
+    return Fields(np.clip(height, 0, 1), np.clip(color, 0, 1), None, alpha, relief)
+
+
+_SPRAYS: dict[str, _Spray] = {
+    "oak_spray": _Spray("oak_leaf", (7, 10), 0.42, 0.012, (80.0, 35.0), "tip", 0.45, 0.06),
+    "maple_spray": _Spray("maple", (6, 8), 0.38, 0.07, (75.0, 45.0), "opposite", 0.5, 0.03),
+    "birch_spray": _Spray("birch_leaf", (10, 14), 0.22, 0.035, (65.0, 40.0), "alternate", 0.88, 0.08),
+    "willow_spray": _Spray("willow", (12, 15), 0.34, 0.01, (38.0, 22.0), "alternate", 0.92, 0.06),
+    "beech_spray": _Spray("ovate", (8, 11), 0.28, 0.015, (80.0, 50.0), "alternate", 0.85, 0.05),
+    "ovate_spray": _Spray("ovate", (8, 12), 0.25, 0.06, (70.0, 40.0), "alternate", 0.8, 0.07),
+}
+"""The spray kinds' layouts, by kind."""
+
+
+def oak_spray(g: _Grid, colors, tile_size: float) -> Fields:
+    """An oak shoot: six to nine lobed leaves on short stalks crowded at the tip of a short twig."""
+    return _spray(g, colors, _SPRAYS["oak_spray"])
+
+
+def maple_spray(g: _Grid, colors, tile_size: float) -> Fields:
+    """A maple shoot: three or four opposite pairs of palmate leaves on long stalks."""
+    return _spray(g, colors, _SPRAYS["maple_spray"])
+
+
+def birch_spray(g: _Grid, colors, tile_size: float) -> Fields:
+    """A birch twig: ten to fourteen small serrate leaves alternating along a slender, bowed twig."""
+    return _spray(g, colors, _SPRAYS["birch_spray"])
+
+
+def willow_spray(g: _Grid, colors, tile_size: float) -> Fields:
+    """A willow whip: twelve to fifteen long narrow leaves alternating close to a long twig."""
+    return _spray(g, colors, _SPRAYS["willow_spray"])
+
+
+def beech_spray(g: _Grid, colors, tile_size: float) -> Fields:
+    """A beech spray: eight to eleven ovate leaves in two ranks, alternating wide of the twig."""
+    return _spray(g, colors, _SPRAYS["beech_spray"])
+
+
+def ovate_spray(g: _Grid, colors, tile_size: float) -> Fields:
+    """A twig of ovate leaves on long stalks (aspen, hazel, lime): eight to twelve, alternating."""
+    return _spray(g, colors, _SPRAYS["ovate_spray"])
+
+
 def grass(g: _Grid, colors, tile_size: float) -> Fields:
     """A grass blade: a long strap tapering to a point, parallel veins, darker at the base."""
     base, tip, vein_color = colors
@@ -564,7 +776,7 @@ def grass(g: _Grid, colors, tile_size: float) -> Fields:
     lean = 0.06 * y**2
     w = 0.07 * (1.0 - y**1.6) ** 0.7
     xx = x - lean
-    blade = _edge(w - np.abs(xx), g) * (y > 0.01)
+    blade = _edge(w - np.abs(xx), g.n) * (y > 0.01)
     across = np.abs(xx) / np.maximum(w, 1e-9)
     stripes = 0.5 + 0.5 * np.cos(np.pi * 7 * np.clip(across, 0, 1))
     color = _mix(base, tip, _smoothstep(0.0, 1.0, y))
@@ -635,12 +847,12 @@ def flower(g: _Grid, colors, tile_size: float) -> Fields:
     k = 5
     phase = np.angle(np.exp(1j * k * theta)) / k  # angle from the nearest petal's middle
     petal_shape = 0.47 * (np.cos(phase * k / 2) ** 0.45) * (1.0 - 0.1 * np.exp(-((phase / 0.05) ** 2)))
-    blade = _edge(petal_shape - r, g)
+    blade = _edge(petal_shape - r, g.n)
     rr = np.clip(r / np.maximum(petal_shape, 1e-9), 0, 1)
     veins = (1.0 - _smoothstep(0.2, 0.6, np.abs(np.sin(theta * 40)))) * _smoothstep(0.2, 0.5, rr) * 0.35
     color = _mix(throat, petal, _smoothstep(0.12, 0.6, rr))
     color = _mix(color, np.asarray(throat) * 0.9, veins)
-    disc = _edge(0.085 - r, g)
+    disc = _edge(0.085 - r, g.n)
     dots = g.rng(1).random((24, 2))
     stamen = np.zeros_like(r)
     for a, d in dots:
@@ -733,6 +945,60 @@ KINDS: dict[str, TextureKind] = {
             ("#2f5a28", "#6f9a4a", "#5a3e28"),
             ("needle", "needle tip", "twig"),
             needle.__doc__,
+        ),
+        TextureKind(
+            "oak_spray",
+            "leaf",
+            oak_spray,
+            ("#5a8a34", "#a3be6e", "#5e4a36"),
+            ("leaf", "veins", "twig"),
+            oak_spray.__doc__,
+            _SPRAYS["oak_spray"].length,
+        ),
+        TextureKind(
+            "maple_spray",
+            "leaf",
+            maple_spray,
+            ("#4f8c2c", "#a6c777", "#8a5a2a"),
+            ("leaf", "veins", "twig"),
+            maple_spray.__doc__,
+            _SPRAYS["maple_spray"].length,
+        ),
+        TextureKind(
+            "birch_spray",
+            "leaf",
+            birch_spray,
+            ("#5a9a30", "#b2d080", "#4a3a30"),
+            ("leaf", "veins", "twig"),
+            birch_spray.__doc__,
+            _SPRAYS["birch_spray"].length,
+        ),
+        TextureKind(
+            "willow_spray",
+            "leaf",
+            willow_spray,
+            ("#6a9a48", "#c2d49a", "#8a7a40"),
+            ("leaf", "veins", "twig"),
+            willow_spray.__doc__,
+            _SPRAYS["willow_spray"].length,
+        ),
+        TextureKind(
+            "beech_spray",
+            "leaf",
+            beech_spray,
+            ("#4d8a2a", "#9cc06a", "#5a4a3a"),
+            ("leaf", "veins", "twig"),
+            beech_spray.__doc__,
+            _SPRAYS["beech_spray"].length,
+        ),
+        TextureKind(
+            "ovate_spray",
+            "leaf",
+            ovate_spray,
+            ("#5a8e34", "#a8c878", "#6a5a3a"),
+            ("leaf", "veins", "twig"),
+            ovate_spray.__doc__,
+            _SPRAYS["ovate_spray"].length,
         ),
         TextureKind("grass", "leaf", grass, ("#3e7326", "#a8c060", "#2f5a1c"), ("base", "tip", "veins"), grass.__doc__),
         TextureKind(
@@ -854,7 +1120,8 @@ def procedural(
         A name of :data:`KINDS`: bark ``furrowed``, ``plated``, ``smooth``,
         ``birch``, ``ringed``, ``fibrous``; leaves ``ovate``, ``oak_leaf``,
         ``maple``, ``willow``, ``birch_leaf``, ``needle``, ``grass``, ``fern``,
-        ``palm``, ``flower``.
+        ``palm``, ``flower``; leaf sprays ``oak_spray``, ``maple_spray``,
+        ``birch_spray``, ``willow_spray``, ``beech_spray``, ``ovate_spray``.
     seed : int
         Seed of the pattern (>= 0).
     resolution : int

@@ -22,7 +22,7 @@ __all__ = [
     "preset_text",
 ]
 
-DEFAULT_PRESET = "tree3d"
+DEFAULT_PRESET = "oak"
 """The preset the CLI grows when it is given no grammar."""
 
 _GRAMMAR_SUFFIXES = {".toml", *SUFFIXES}
