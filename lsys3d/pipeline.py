@@ -47,7 +47,7 @@ from .lsystem.modules import ModuleString
 from .lsystem.presets import load
 from .mesh.cleanup import CleanupOptions, clean_junctions, cleanup
 from .mesh.mesh import Mesh
-from .mesh.sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, sweep
+from .mesh.sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, Tubes, sweep
 from .mesh.union import jobs as union_jobs
 from .mesh.union.union import UnionOptions, concatenate, union, union_cleaning_junctions
 from .options import Options, option
@@ -356,79 +356,43 @@ def generate(
             f"{grammar.name or grammar.source}: nothing to mesh: the {len(modules):,} modules after {n} "
             "iterations draw no segment and no leaf (segments are drawn by F, or the [turtle] table's draw symbols)"
         )
-    tubes = stage(
-        "sweep",
-        sweep,
-        skeleton,
-        options.sweep,
-        max_triangles=options.limits.max_triangles,
-        seed=seed,
-        uv_tiles=table.uv_tiles(options.sweep.uv_tile),
-    )
-    if len(tubes) == 0 and skeleton.n_leaves == 0:
-        raise GeometryError(
-            f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter than "
-            f"min_length ({options.sweep.min_length:g}) and there is no leaf"
+    wanted = options.attributes.keys
+    # the rig binds by branch and t, so it needs those two whatever the attributes' layout
+    keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
+    branches = hierarchy(skeleton, seed) if keys or table else None
+    rig = build_rig(branches, skeleton, options.rig) if options.rig.enabled else None
+    leaf_model = surfaces.leaf.mesh if surfaces.leaf is not None else None
+    look = _Look(table, leaf_model, branches, keys, wanted, rig, surfaces)
+    counts = None
+
+    def tubes_made(tubes: Tubes) -> None:
+        nonlocal counts
+        if len(tubes) == 0 and skeleton.n_leaves == 0:
+            raise GeometryError(
+                f"{grammar.name or grammar.source}: nothing to mesh: all {len(skeleton):,} segments are shorter "
+                f"than min_length ({options.sweep.min_length:g}) and there is no leaf"
+            )
+        counts = StageCounts(
+            modules=len(modules),
+            segments=len(skeleton),
+            tubes=len(tubes.sides),
+            tube_vertices=len(tubes.points),
+            tube_faces=len(tubes.faces),
         )
-    counts = StageCounts(
-        modules=len(modules),
-        segments=len(skeleton),
-        tubes=len(tubes.sides),
-        tube_vertices=len(tubes.points),
-        tube_faces=len(tubes.faces),
-    )
+
     union_progress = None
     if progress:
 
         def union_progress(fraction: float) -> None:
             progress("union", "progress", fraction)
 
-    held, tubes = [tubes], None  # _bark holds the tube soup alone (and hands it on to the union when it can)
-    bark = _bark(held, options, seed, stage, table.bark.base_color, union_progress)
-    wanted = options.attributes.keys
-    # the rig binds by branch and t, so it needs those two whatever the attributes' layout
-    keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
-    branches = hierarchy(skeleton, seed) if keys or table else None
-    # how far the bark may stand out of the tubes: the bark noise, and the junction collars
-    bulge = options.sweep.bark_displacement + options.cleanup.bulge(min(options.sweep.sides, options.sweep.min_sides))
-    if table and counts.tubes:
-        bark = stage("materials", with_face_materials, bark, skeleton, branches, bulge)
-    if keys:
-        bark = stage("attributes", with_attributes, bark, skeleton, branches, keys, bulge)
-    leaf_model = surfaces.leaf.mesh if surfaces.leaf is not None else None
-    leaves = stage(
-        "leaves",
-        build_leaves,
-        skeleton,
-        model=leaf_model,
-        hierarchy=branches,
-        attributes=keys,
-        options=leaf_options,
-        max_triangles=options.limits.max_triangles,
-        seed=seed,
-    )
-    organs = stage(
-        "organs",
-        skeleton_organs,
-        skeleton,
-        surfaces=surfaces,
-        options=options.organs,
-        hierarchy=branches if keys else None,
-        attributes=keys,
-        max_triangles=options.limits.max_triangles,
-    )
-    rig = animation = None
-    if options.rig.enabled:
-        rig = build_rig(branches, skeleton, options.rig)
-        bark, leaves = stage("rig", bind, bark, leaves, rig, branches)
-        organs = bind_organs(organs, rig, branches)
-        if keys != wanted:  # the rig's own use of them: not the user's attributes
-            bark, leaves, organs = _keep(bark, leaves, organs, wanted + SKIN_KEYS)
-        if options.wind.enabled:
-            animation = stage("wind", sway, rig, branches, options.wind)
+    first = _level(skeleton, 0, grown, seed, look, stage, tubes_made, union_progress)
+    bark, leaves, organs = first.bark, first.leaves, first.organs
+    animation = None
+    if rig is not None and options.wind.enabled:
+        animation = stage("wind", sway, rig, branches, options.wind)
     lods = ()
     if options.lod.levels or options.lod.target_triangles:
-        look = _Look(table, leaf_model, branches, keys, wanted, rig)
         lods = stage("lod", _levels, skeleton, grown, seed, Lod(0, bark, leaves), look)
         if options.lod.target_triangles:  # the tree is the level that fits; it has no others
             bark, leaves, lods = lods[0].bark, lods[0].leaves, ()
@@ -508,6 +472,110 @@ class _Look:
     keys: tuple  # the attributes the stages compute (the user's, and the rig's own)
     wanted: tuple  # the attributes the user asked for
     rig: object  # Rig or None
+    surfaces: object  # the grammar's SurfaceTable (organs' models)
+
+
+@dataclass(frozen=True)
+class _Grown:
+    """What :func:`_level` makes of a skeleton: the bark, the leaves and (level 0 only) the organs, bound."""
+
+    bark: Mesh
+    leaves: object  # Leaves
+    organs: object  # Organs, or None at a level of detail above 0
+
+
+def bulge(options: GenerateOptions) -> float:
+    """How far the bark may stand out of its tubes, in radii: the bark noise, and the junction collars
+    (:meth:`CleanupOptions.bulge` on the thinnest tube); the stages that find a face's branch by its distance
+    from the skeleton (materials, attributes) allow it."""
+    return options.sweep.bark_displacement + options.cleanup.bulge(options.sweep.fewest_sides)
+
+
+def _level(
+    skeleton: Skeleton,
+    level: int,
+    options: GenerateOptions,
+    seed: int,
+    look: _Look,
+    stage,
+    tubes_made: Callable | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> _Grown:
+    """The one sequence from a skeleton to a plant's surfaces: sweep -> bark (union, cleanup, color) ->
+    materials -> attributes -> leaves (-> organs at level 0) -> bind to the rig.
+
+    :func:`generate` runs it for the tree (level 0) and :func:`_levels` for each level of detail, with
+    ``options`` the level's (:func:`level_options`); a level above 0 sweeps the pruned skeleton, and its
+    faces find their branches among the kept ones.  ``stage`` runs (and times) each step;
+    ``tubes_made(tubes)`` is called with the tube soup before the union takes it.
+    """
+    table, keys, branches = look.table, look.keys, look.branches
+    if level == 0:
+        drawn, seen = skeleton, branches
+    else:
+        spec = LEVELS[level]
+        drawn = prune(skeleton, spec.prune)
+        seen = level_hierarchy(branches, kept_segments(skeleton, spec.prune)) if branches is not None else None
+    tubes = stage(
+        "sweep",
+        sweep,
+        drawn,
+        options.sweep,
+        max_triangles=options.limits.max_triangles,
+        seed=seed,
+        uv_tiles=table.uv_tiles(options.sweep.uv_tile),
+    )
+    if tubes_made is not None:
+        tubes_made(tubes)
+    swept = len(tubes)
+    held, tubes = [tubes], None  # _bark holds the tube soup alone (and hands it on to the union when it can)
+    bark = _bark(held, options, seed, stage, table.bark.base_color, progress)
+    if table and swept:
+        bark = stage("materials", with_face_materials, bark, drawn, seen, bulge(options))
+    if keys:
+        bark = stage("attributes", with_attributes, bark, drawn, seen, keys, bulge(options))
+    if level == 0:
+        leaves = stage(
+            "leaves",
+            build_leaves,
+            skeleton,
+            model=look.leaf_model,
+            hierarchy=branches,
+            attributes=keys,
+            options=options.leaves,
+            max_triangles=options.limits.max_triangles,
+            seed=seed,
+        )
+        organs = stage(
+            "organs",
+            skeleton_organs,
+            skeleton,
+            surfaces=look.surfaces,
+            options=options.organs,
+            hierarchy=branches if keys else None,
+            attributes=keys,
+            max_triangles=options.limits.max_triangles,
+        )
+    else:
+        leaves = stage(
+            "leaves",
+            lod_leaves,
+            skeleton,
+            level,
+            options.leaves,
+            look.leaf_model,
+            branches if keys else None,
+            keys,
+            seed,
+        )
+        organs = None
+    if look.rig is not None:
+        bark, leaves = stage("rig", bind, bark, leaves, look.rig, branches)
+        if organs is not None:
+            organs = bind_organs(organs, look.rig, branches)
+        if keys != look.wanted:  # the rig's own use of them: not the user's attributes
+            bark, leaves, organs = _keep(bark, leaves, organs, look.wanted + SKIN_KEYS)
+    return _Grown(bark, leaves, organs)
 
 
 def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod, look: _Look) -> tuple[Lod, ...]:
@@ -518,44 +586,27 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod,
     and joints (a pruned level is the tree's skeleton without some chains, not
     a new plant), so one branch table and one rig serve every level.  With a
     triangle budget, the one level that fits: the most detailed one whose bark
-    and leaves stay within it (levels are built until one does).
+    and leaves stay within it (levels are built until one does).  Each level is
+    :func:`_level`, the sequence the tree itself was built by.
     """
 
     def quiet(name, fn, *args, **kw):
         return fn(*args, **kw)
 
-    table, keys, branches = look.table, look.keys, look.branches
-
     def build(level: int) -> Lod:
         if level == 0:
             return first
-        spec = LEVELS[level]
         opts = level_options(options, level)
-        kept = kept_segments(skeleton, spec.prune)
-        pruned = prune(skeleton, spec.prune)
-        uv_tiles = table.uv_tiles(opts.sweep.uv_tile)
-        tubes = sweep(pruned, opts.sweep, max_triangles=options.limits.max_triangles, seed=seed, uv_tiles=uv_tiles)
-        bark = _bark([tubes], opts, seed, quiet, table.bark.base_color)
-        seen = level_hierarchy(branches, kept) if branches is not None else None
-        bulge = opts.sweep.bark_displacement + opts.cleanup.bulge(min(opts.sweep.sides, opts.sweep.min_sides))
-        if table and len(tubes):
-            bark = with_face_materials(bark, pruned, seen, bulge)
-        if keys:
-            bark = with_attributes(bark, pruned, seen, keys, bulge)
-        leaves = lod_leaves(skeleton, level, opts.leaves, look.leaf_model, branches if keys else None, keys, seed)
-        if look.rig is not None:
-            bark, leaves = bind(bark, leaves, look.rig, branches)
-            if keys != look.wanted:  # the rig's own use of them: not the user's attributes
-                bark, leaves = _keep_in(bark, leaves, look.wanted + SKIN_KEYS)
+        grown = _level(skeleton, level, opts, seed, look, quiet)
         sw = opts.sweep
         settings = {
             "sides": sw.sides,
             "sides_step": sw.sides_step,
             "min_sides": sw.min_sides,
-            "prune": spec.prune,
+            "prune": LEVELS[level].prune,
             "merge_angle": sw.merge_angle,
         }
-        return Lod(level, bark, leaves, settings)
+        return Lod(level, grown.bark, grown.leaves, settings)
 
     budget = options.lod.target_triangles
     if budget:
@@ -578,20 +629,16 @@ def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod,
     return tuple(first if level == 0 else others[level] for level in options.lod.levels)
 
 
-def _keep_in(bark: Mesh, leaves, keys):
-    """``bark`` and ``leaves`` with only the attributes ``keys``."""
+def _keep(bark: Mesh, leaves, organs, keys):
+    """``bark``, ``leaves`` and ``organs`` (None: none) with only the attributes ``keys``."""
     merged = leaves.merged.keeping(keys) if leaves.merged is not None else None
     polygons = leaves.polygons.keeping(keys) if leaves.polygons is not None else None
     instance = {k: a for k, a in leaves.instance_attributes.items() if k in keys}
-    return bark.keeping(keys), replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance)
-
-
-def _keep(bark: Mesh, leaves, organs, keys):
-    """``bark``, ``leaves`` and ``organs`` with only the attributes ``keys``."""
-    bark, leaves = _keep_in(bark, leaves, keys)
-    organs = replace(
-        organs,
-        merged=tuple(m.keeping(keys) if m is not None else None for m in organs.merged),
-        instance_attributes={k: a for k, a in organs.instance_attributes.items() if k in keys},
-    )
-    return bark, leaves, organs
+    leaves = replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance)
+    if organs is not None:
+        organs = replace(
+            organs,
+            merged=tuple(m.keeping(keys) if m is not None else None for m in organs.merged),
+            instance_attributes={k: a for k, a in organs.instance_attributes.items() if k in keys},
+        )
+    return bark.keeping(keys), leaves, organs

@@ -203,7 +203,7 @@ def test_int32_half_edges_clean_as_int64_ones(tree3d_parts, monkeypatch):
 
     monkeypatch.setattr(remesh, "build", spy)
     narrow = clean_mesh(raw, tubes)
-    monkeypatch.setattr(remesh, "INDEX_LIMIT", 3 * len(raw.faces) // 2)  # fewer half-edges than the mesh has
+    monkeypatch.setattr(remesh.halfedge, "INDEX_LIMIT", 3 * len(raw.faces) // 2)  # fewer half-edges than the mesh has
     wide = clean_mesh(raw, tubes)
     assert dtypes == [{np.dtype(np.int32)}, {np.dtype(np.int64)}]
     for name in ("vertices", "faces", "normals", "uv", "face_source"):

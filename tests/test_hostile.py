@@ -538,7 +538,7 @@ def test_each_limit_can_be_raised(monkeypatch):
     assert str(Grammar(axiom=f"A({spaced})").axiom_modules) == "A(1)"
 
     many = ",".join(["1"] * 40)
-    monkeypatch.setattr(lsys3d.lsystem.grammar, "MAX_PARAMETERS", 40)
+    monkeypatch.setattr(lsys3d.lsystem.rules, "MAX_PARAMETERS", 40)  # the rules read it where they are parsed
     assert len(Grammar(axiom=f"A({many})").axiom_modules.params) == 40
 
     still = Grammar(axiom="A", rules=["A -> B", "B -> A"])

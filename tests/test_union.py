@@ -14,7 +14,8 @@ from skeletons import make_skeleton
 
 import lsys3d
 from lsys3d.errors import GeometryError
-from lsys3d.mesh.sweep import SweepOptions, Tubes, _concat, sweep
+from lsys3d.mesh.sweep import SweepOptions, Tubes, sweep
+from lsys3d.mesh.sweep.tubes import _concat
 from lsys3d.mesh.union.union import UnionOptions, _manifold, concatenate, may_touch, union
 from lsys3d.turtle.skeleton import Skeleton
 
@@ -360,7 +361,7 @@ def test_vertices_a_weld_would_break_are_moved_apart(gap):
 
     import trimesh
 
-    weld = sys.modules["lsys3d.mesh.union.union"]._weld_float32
+    weld = sys.modules["lsys3d.mesh.union.weld"]._weld_float32
     mesh = _face_touching_boxes(gap)
     out = weld([mesh])
     v32 = np.asarray(out.vertices, np.float32)
@@ -379,7 +380,7 @@ def test_regrouping_only_moved_vertices_finds_the_same_owners():
     """_owners with the rows that may collide listed gives first_equal_row's answer; so does the separation."""
     from lsys3d.arrays import first_equal_row
 
-    mod = sys.modules["lsys3d.mesh.union.union"]
+    mod = sys.modules["lsys3d.mesh.union.weld"]
     rng = np.random.default_rng(7)
     keys = rng.integers(0, 12, (2000, 3))
     full = first_equal_row(keys)
@@ -538,8 +539,8 @@ def plant(n: int):
 @pytest.mark.skipif(interpret is None, reason="lsys3d.turtle not available")
 def test_repeated_junctions_are_unioned_once_and_copied_exactly(caplog, monkeypatch):
     # without the plant's roll (/): the texture seam runs along the top of every branch (the world's +Y,
-    # lsys3d.mesh.sweep._seam_side), so a junction rolled about its parent is no rigid copy of another, its rings'
-    # vertices lie elsewhere (with the roll 111 of 150 clusters go through the boolean)
+    # lsys3d.mesh.sweep.frames._seam_side), so a junction rolled about its parent is no rigid copy of another, its
+    # rings' vertices lie elsewhere (with the roll 111 of 150 clusters go through the boolean)
     g = lsys3d.Grammar(axiom="X", rules=["X -> F[!+X][!&X]F[!-X]X", "F -> FF"], angle=22.5, iterations=5)
     tubes = sweep(interpret(lsys3d.derive(g), g))
     with caplog.at_level("DEBUG", logger="lsys3d"):
@@ -586,7 +587,7 @@ def test_the_result_does_not_depend_on_the_number_of_workers(monkeypatch, caplog
     from lsys3d.mesh.union import jobs as union_jobs
 
     monkeypatch.setattr(union_jobs, "POOL_MIN_TRIANGLES", 1)  # worker processes even for a small union
-    monkeypatch.setattr(sys.modules["lsys3d.mesh.union.union"], "_JOB_TRIANGLES", 300)  # and several jobs
+    monkeypatch.setattr(sys.modules["lsys3d.mesh.union.plan"], "_JOB_TRIANGLES", 300)  # and several jobs
     tubes = sweep(random_tree(8, 150, spread=0.4))
 
     def digest(m):
@@ -606,7 +607,7 @@ def test_inner_merges_run_in_the_job_of_their_halves(monkeypatch):
     # a crowded cluster split into leaves: the merges of up to a quarter of the work are done in the leaves' job
     from lsys3d.mesh.union import jobs as union_jobs
 
-    monkeypatch.setattr(sys.modules["lsys3d.mesh.union.union"], "_JOB_TRIANGLES", 300)
+    monkeypatch.setattr(sys.modules["lsys3d.mesh.union.plan"], "_JOB_TRIANGLES", 300)
     tubes = sweep(random_tree(8, 150, spread=0.4))
     plans = []
     real_plan = union_jobs.plan
@@ -671,7 +672,7 @@ def test_a_failing_worker_job_raises_a_geometry_error(monkeypatch):
     from lsys3d.mesh.union import jobs as union_jobs
 
     monkeypatch.setattr(union_jobs, "POOL_MIN_TRIANGLES", 1)
-    monkeypatch.setattr(sys.modules["lsys3d.mesh.union.union"], "_JOB_TRIANGLES", 300)
+    monkeypatch.setattr(sys.modules["lsys3d.mesh.union.plan"], "_JOB_TRIANGLES", 300)
     tubes = sweep(random_tree(8, 150, spread=0.4))
     faces = tubes.faces.copy()
     faces[0] = faces[0, [0, 2, 1]]
@@ -715,7 +716,7 @@ def test_face_source_names_the_tube_face_on_every_path(path, caplog, monkeypatch
         options = UnionOptions(local=False)
     elif path == "workers":  # junction jobs in worker processes
         monkeypatch.setattr(sys.modules["lsys3d.mesh.union.jobs"], "POOL_MIN_TRIANGLES", 1)
-        monkeypatch.setattr(sys.modules["lsys3d.mesh.union.union"], "_JOB_TRIANGLES", 300)
+        monkeypatch.setattr(sys.modules["lsys3d.mesh.union.plan"], "_JOB_TRIANGLES", 300)
         options = UnionOptions(workers=2)
     elif path == "culled":  # a tube given twice, and a twig buried in the trunk, left out of the boolean
         twig = make_skeleton([[0, 0.3, 0]], [[0, 0.34, 0.001]], 0.004)
@@ -833,7 +834,7 @@ def _closed_by_sorting(faces, nverts, near=None):
 
 
 def test_closed_check_agrees_with_sorting_the_edges():
-    from lsys3d.mesh.union.union import _closed
+    from lsys3d.mesh.union.parts import _closed
 
     rng = np.random.default_rng(5)
     meshes = [lsys3d.union(sweep(random_tree(s, 12))) for s in range(3)]
@@ -855,7 +856,7 @@ def test_closed_check_agrees_with_sorting_the_edges():
 def test_cap_points_match_each_ring_point_once_whatever_the_rotation():
     """The temporary caps' triangles come back from the boolean with their corners in any of three rotations, on
     points of their own numbering: each ring point is found on exactly one of them, by position."""
-    from lsys3d.mesh.union.union import _cap_points
+    from lsys3d.mesh.union.parts import _cap_points
 
     rng = np.random.default_rng(6)
     points = rng.normal(size=(6, 3))  # a ring of 6 tube points, one wedge each
@@ -888,7 +889,7 @@ def test_cap_points_match_each_ring_point_once_whatever_the_rotation():
 def test_weld_cells_are_numpys_rounding():
     """The compiled grid cells of _separate_float32 are numpy's rounding (half to even) of the float32 positions
     scaled by 1e8, halves and signed zeros included."""
-    from lsys3d.mesh.union.union import _weld_cells
+    from lsys3d.mesh.union.weld import _weld_cells
 
     rng = np.random.default_rng(1)
     for trial in range(30):
@@ -901,7 +902,7 @@ def test_weld_cells_are_numpys_rounding():
 
 def test_corner_repair_and_float32_weld_kernels():
     from lsys3d.mesh.mesh import Mesh, face_normals
-    from lsys3d.mesh.union.union import _repair_corners, _welded_faces
+    from lsys3d.mesh.union.weld import _repair_corners, _welded_faces
 
     rng = np.random.default_rng(8)
     vertices = rng.normal(size=(30, 3))

@@ -68,6 +68,7 @@ INSTANCING = "EXT_mesh_gpu_instancing"
 _TYPES = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
 UNSIGNED_BYTE = 5121
 LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT = 9729, 9987, 10497
+_EYE = np.eye(3)  # the glTF frame is the tree's
 SAMPLER = {"magFilter": LINEAR, "minFilter": LINEAR_MIPMAP_LINEAR, "wrapS": REPEAT, "wrapT": REPEAT}
 """The one sampler of every texture: bark uv run past 1 (along a branch, in metres), so they repeat."""
 
@@ -287,6 +288,284 @@ SCREEN_COVERAGE = (0.4, 0.15, 0.05, 0.01)
 this share of the screen (and less than the level before's)."""
 
 
+class _Gather:
+    """The glTF objects gathered from one tree, each kind by its own ``gather_*`` method (Blender's glTF-IO
+    gathers its objects first, then writes), in the order they reach the buffer: the bytes depend on it."""
+
+    def __init__(self, tree: Tree, options: ExportOptions, where: str):
+        self.tree, self.options, self.where = tree, options, where
+        self.buf = _Buffer()
+        self.meshes: list[dict] = []
+        self.nodes: list[dict] = []
+        self.materials: list[dict] = []
+        self.images: list[dict] = []
+        self.textures: list[dict] = []
+        self.skins: list[dict] = []
+        self.animations: list[dict] = []
+        self.extensions_used: list[str] = []
+        self.rig = tree.rig
+        self.joints = len(self.rig) if self.rig is not None else None
+        self.table = tree.materials
+        self.roots = [0]  # scene roots: the asset's node, and skinned meshes (glTF ignores a skinned mesh's parents)
+        self.asset = 0  # the node the parts go under: the asset's, or the level's
+        self.level_parts: list[dict] | None = None  # a rigged level's skinned primitives, gathered into one node
+        self.joint_base = 0  # the node of the first joint
+        self._made: dict[Material, int] = {}
+        self._texture_of: dict[Image, int] = {}
+
+    # textures and images
+    def gather_texture(self, image: Image) -> int:
+        """The texture of an image, embedding the image once."""
+        if image not in self._texture_of:
+            self.images.append({"name": image.name, "bufferView": self.buf.image(image.data), "mimeType": image.mime})
+            self.textures.append({"sampler": 0, "source": len(self.images) - 1})
+            self._texture_of[image] = len(self.textures) - 1
+        return self._texture_of[image]
+
+    # materials
+    def gather_material(self, m: Material) -> int:
+        """The glTF material of ``m``, made once."""
+        if m not in self._made:
+            self.materials.append(_material(m, self.gather_texture))
+            self._made[m] = len(self.materials) - 1
+        return self._made[m]
+
+    def material_groups(self, face_material, material_of, white: bool = False) -> list[tuple[int, np.ndarray | None]]:
+        """(glTF material, faces) of each material index the faces use; one group of all faces without a table."""
+
+        def index_of(m: Material) -> int:  # vertex colours: the colour is COLOR_0, glTF multiplies it by the factor
+            return self.gather_material(replace(m, base_color=(1.0, 1.0, 1.0, m.base_color[3])) if white else m)
+
+        index = face_material if self.table else None
+        return [(index_of(m), faces) for m, _, faces in material_groups(index, material_of)]
+
+    # meshes and their primitives
+    def gather_primitives(self, arrays, groups, joints=None) -> list[dict]:
+        """The primitives of one mesh, with tangents when a material has a normal map."""
+        tangents = any("normalTexture" in self.materials[material] for material, _ in groups)
+        return _mesh_primitives(self.buf, arrays, groups, joints, tangents)
+
+    def gather_mesh_node(self, name: str, primitives: list[dict], extensions: dict | None = None, skinned=False):
+        """A mesh of ``primitives`` and its node, under the asset's (or the level's) node; a skinned one in the
+        scene (or, in a rigged level, among the level's parts)."""
+        if self.level_parts is not None and skinned:  # the rest (the skeleton curves) go under the asset's node
+            self.level_parts.extend(primitives)
+            return
+        self.meshes.append({"name": name, "primitives": primitives})
+        node = {"name": name, "mesh": len(self.meshes) - 1}
+        if extensions:
+            node["extensions"] = extensions
+        self.nodes.append(node)
+        if skinned:
+            node["skin"] = 0
+            self.roots.append(len(self.nodes) - 1)
+        else:
+            self.nodes[self.asset]["children"].append(len(self.nodes) - 1)
+
+    def gather_instanced(self, base: str, model_mesh, transforms, index, instance_attributes, material_of):
+        """One node per material of the instances, each drawing ``model_mesh`` at its instances' transforms."""
+        buf, where = self.buf, self.where
+        model = gather_mesh(model_mesh, _EYE, f"{where}: {base} model")
+        translation, quaternion, scale = decompose_transforms(transforms, where)
+        extra = gltf_attributes(instance_attributes)  # the branch each instance grows from
+        for n, (m, i, rows) in enumerate(material_groups(index, material_of)):
+            sel = slice(None) if rows is None else rows
+            attributes = {
+                "TRANSLATION": buf.accessor(to_float32(translation[sel], f"{base} positions", where), target=None),
+                "ROTATION": buf.accessor(quaternion[sel].astype(np.float32), target=None),
+                "SCALE": buf.accessor(to_float32(scale[sel], f"{base} sizes", where), target=None),
+            }
+            for name, values in extra.items():
+                attributes[name] = buf.accessor(np.ascontiguousarray(values[sel]), target=None)
+            primitives = self.gather_primitives(model, [(self.gather_material(m), None)])
+            self.gather_mesh_node(
+                base if n == 0 else f"{base}_{i}", primitives, {INSTANCING: {"attributes": attributes}}
+            )
+        if INSTANCING not in self.extensions_used:
+            self.extensions_used.append(INSTANCING)
+
+    def gather_merged(self, name: str, mesh, material_of) -> None:
+        """One mesh node of ``mesh`` (None or empty: none), its faces grouped by material."""
+        if mesh is None or not len(mesh.faces):
+            return
+        arrays = gather_mesh(mesh, _EYE, f"{self.where}: {name}")
+        skinned = self.rig is not None and "skin_joints" in mesh.attributes
+        groups = self.material_groups(mesh.face_material, material_of)
+        self.gather_mesh_node(
+            name, self.gather_primitives(arrays, groups, self.joints if skinned else None), skinned=skinned
+        )
+
+    def gather_parts(self, part: Tree, first: bool) -> None:
+        """The meshes of ``part``: bark, leaves, organs (and for the first level the skeleton curves)."""
+        table, rig = self.table, self.rig
+        if len(part.bark.faces):  # a tree of polygon leaves alone has no bark
+            bark = gather_mesh(part.bark, _EYE, f"{self.where}: bark")
+            bark_groups = self.material_groups(
+                part.bark.face_material, table.for_bark, white=bark.split_colors is not None
+            )
+            self.gather_mesh_node(
+                "bark", self.gather_primitives(bark, bark_groups, self.joints), skinned=rig is not None
+            )
+        leaves = part.leaves
+        instanced = bool(self.options.instance_leaves) and rig is None  # skinned leaves and organs are merged
+        if instanced and leaves.instanced:
+            k = len(leaves.transforms)
+            own = leaves.instance_material if leaves.instance_material is not None else part.skeleton.leaf_material
+            per_leaf = np.asarray(own, np.int64) if table else np.zeros(0, np.int64)
+            if len(per_leaf) != k:
+                per_leaf = np.zeros(k, np.int64)
+            self.gather_instanced(
+                "leaf", leaves.model, leaves.transforms, per_leaf, leaves.instance_attributes, table.for_leaf
+            )
+            if leaves.polygons is not None and len(leaves.polygons.faces):
+                self.gather_merged("leaf_polygons", leaves.polygons, table.for_leaf)
+        else:
+            # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
+            self.gather_merged("leaf", leaves.merged if leaves.merged is not None else leaves.polygons, table.for_leaf)
+
+        organs = part.organs
+        for p, proto in enumerate(organs.prototypes):  # a part per kind of organ: organ_sphere, organ_flower...
+            material_of = table.for_leaf if proto.material is None else (lambda i, m=proto.material: m)
+            if instanced:
+                mine = organs.of(p)
+                if len(mine):
+                    attributes = {key: a[mine] for key, a in organs.instance_attributes.items()}
+                    index = organs.material[mine] if table else None
+                    self.gather_instanced(
+                        f"organ_{proto.name}", proto.mesh, organs.transforms[mine], index, attributes, material_of
+                    )
+            else:
+                self.gather_merged(f"organ_{proto.name}", organs.merged[p], material_of)
+        if first:
+            self.gather_branch_table(part)
+            if self.options.skeleton_curves:
+                self.gather_skeleton_curves()
+
+    def gather_skeleton_curves(self) -> None:
+        """The skeleton as a mesh of lines."""
+        lines = _skeleton_lines(self.tree)
+        if lines is not None:
+            points, pairs = lines
+            primitive = {
+                "attributes": {"POSITION": self.buf.accessor(points, bounds=True)},
+                "indices": self.buf.accessor(_indices(pairs, len(points)), ELEMENT_ARRAY_BUFFER),
+                "mode": LINES,
+            }
+            self.gather_mesh_node("skeleton", [primitive])
+
+    # extras
+    def gather_branch_table(self, part: Tree) -> None:
+        """The per-branch attributes in the asset node's extras, a row per branch, indexed by _BRANCH_ID
+        (:mod:`lsys3d.look.attributes`)."""
+        if part.hierarchy is not None and len(part.hierarchy):
+            branches = {"count": len(part.hierarchy)}
+            for key, values in branch_table(part.hierarchy).items():
+                branches[key] = self.buf.accessor(np.ascontiguousarray(values, np.float32), target=None)
+            self.nodes[self.asset].setdefault("extras", {})["lsys3d_branches"] = branches
+
+    # nodes
+    def gather_nodes(self) -> None:
+        """The asset's node and its parts; with levels of detail a node per level, named for the importers that
+        group ``_LOD<n>`` nodes, level 0 naming the others with ``MSFT_lod``."""
+        tree, nodes = self.tree, self.nodes
+        if not tree.lods:
+            nodes.append({"name": tree.name, "children": []})
+            self.gather_parts(tree, True)
+            return
+        level_nodes = []
+        if self.rig is not None:
+            # a skinned mesh ignores its parents: each level is one skinned node of all its parts, level 0 in the
+            # scene; the asset's node holds the joints (and the branch table, the skeleton curves)
+            nodes.append({"name": tree.name, "children": []})
+            for i, lod in enumerate(tree.lods):
+                self.level_parts = []
+                self.gather_parts(tree.at_level(i), i == 0)
+                self.meshes.append({"name": f"{tree.name}_LOD{lod.level}", "primitives": self.level_parts})
+                nodes.append({"name": f"{tree.name}_LOD{lod.level}", "mesh": len(self.meshes) - 1, "skin": 0})
+                level_nodes.append(len(nodes) - 1)
+            self.level_parts = None
+            self.roots.append(level_nodes[0])
+        else:
+            for i, lod in enumerate(tree.lods):
+                nodes.append({"name": f"{tree.name}_LOD{lod.level}", "children": []})
+                self.asset = len(nodes) - 1
+                level_nodes.append(self.asset)
+                self.gather_parts(tree.at_level(i), i == 0)
+            self.asset = 0
+        if len(level_nodes) > 1:  # the scene holds level 0; it names the others
+            nodes[level_nodes[0]]["extensions"] = {LOD: {"ids": level_nodes[1:]}}
+            coverage = [SCREEN_COVERAGE[lod.level] for lod in tree.lods]
+            nodes[level_nodes[0]].setdefault("extras", {})["MSFT_screencoverage"] = coverage
+            self.extensions_used.append(LOD)
+
+    # skins
+    def gather_skin(self) -> None:
+        """The rig's joints under the asset's node, each translated from its parent (no rotation), and its skin."""
+        rig, nodes, where = self.rig, self.nodes, self.where
+        if rig is None:
+            return
+        base = self.joint_base = len(nodes)
+        local = to_float32(rig.local, "joint positions", where)
+        for i, name in enumerate(rig.names):
+            nodes.append({"name": name, "translation": local[i].tolist()})
+        for i, up in enumerate(rig.parent.tolist()):
+            if up >= 0:
+                nodes[base + up].setdefault("children", []).append(base + i)
+        nodes[0]["children"].append(base)
+        inverse_bind = np.zeros((len(rig), 16), np.float32)
+        inverse_bind[:, [0, 5, 10, 15]] = 1.0
+        inverse_bind[:, 12:15] = -to_float32(rig.position, "joint positions", where)  # column-major translation
+        self.skins.append(
+            {
+                "name": "rig",
+                "joints": list(range(base, base + len(rig))),
+                "skeleton": base,
+                "inverseBindMatrices": self.buf.accessor(inverse_bind, target=None),
+            }
+        )
+
+    # animations
+    def gather_animations(self) -> None:
+        """The wind: a rotation channel per joint but the root."""
+        rig, anim = self.rig, self.tree.animation
+        if rig is None or anim is None:
+            return
+        times = self.buf.accessor(anim.times.astype(np.float32), target=None, bounds=True)
+        samplers, channels = [], []
+        for i in range(1, len(rig)):
+            output = self.buf.accessor(np.ascontiguousarray(anim.rotations[:, i], np.float32), target=None)
+            samplers.append({"input": times, "interpolation": "LINEAR", "output": output})
+            channels.append({"sampler": len(samplers) - 1, "target": {"node": self.joint_base + i, "path": "rotation"}})
+        if channels:
+            self.animations.append({"name": "wind", "channels": channels, "samplers": samplers})
+
+    # the document
+    def document(self) -> dict:
+        """The glTF JSON of what was gathered, the tree's metadata in the asset's and the scene's extras."""
+        tree, buf = self.tree, self.buf
+        metadata = metadata_json(tree, self.where)
+        doc = {"asset": {"version": "2.0", "generator": f"lsys3d {__version__}"}}
+        if metadata:
+            doc["asset"]["extras"] = metadata
+        if self.extensions_used:
+            doc["extensionsUsed"] = self.extensions_used
+        scene = {"name": tree.name, "nodes": self.roots}
+        if metadata:
+            scene["extras"] = metadata
+        doc.update(scene=0, scenes=[scene], nodes=self.nodes)
+        # glTF arrays may not be empty: leave out what a tree without geometry lacks
+        samplers = [SAMPLER] if self.textures else []
+        parts = (("meshes", self.meshes), ("materials", self.materials), ("textures", self.textures))
+        parts += (("images", self.images), ("samplers", samplers), ("skins", self.skins))
+        parts += (("animations", self.animations), ("accessors", buf.accessors))
+        for key, value in parts:
+            if value:
+                doc[key] = value
+        if buf.views:
+            doc.update(bufferViews=buf.views, buffers=[{"byteLength": buf.size + (-buf.size % 4)}])
+        return doc
+
+
 def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer]:
     """Gather ``tree`` into a glTF JSON document and its binary buffer (not yet serialised).
 
@@ -298,233 +577,11 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
     extension shows level 0 alone.
     """
     check_options(options, where)
-    eye = np.eye(3)
-    buf = _Buffer()
-    meshes, nodes, materials = [], [], []
-    extensions_used = []
-
-    rig = tree.rig
-    joints = len(rig) if rig is not None else None
-    roots = [0]  # scene roots: the asset's node, and skinned meshes (glTF ignores a skinned mesh's parents)
-    asset = 0  # the node the parts go under: the asset's, or the level's
-    level_parts: list[dict] | None = None  # a rigged level's skinned primitives, gathered into one node
-
-    def add_node(name: str, primitives: list[dict], extensions: dict | None = None, skinned: bool = False):
-        if level_parts is not None and skinned:  # the rest (the skeleton curves) go under the asset's node
-            level_parts.extend(primitives)
-            return
-        meshes.append({"name": name, "primitives": primitives})
-        node = {"name": name, "mesh": len(meshes) - 1}
-        if extensions:
-            node["extensions"] = extensions
-        nodes.append(node)
-        if skinned:
-            node["skin"] = 0
-            roots.append(len(nodes) - 1)
-        else:
-            nodes[asset]["children"].append(len(nodes) - 1)
-
-    made: dict[Material, int] = {}
-    images, textures = [], []
-    texture_of: dict[Image, int] = {}
-
-    def texture_index(image: Image) -> int:
-        """The texture of an image, embedding the image once."""
-        if image not in texture_of:
-            images.append({"name": image.name, "bufferView": buf.image(image.data), "mimeType": image.mime})
-            textures.append({"sampler": 0, "source": len(images) - 1})
-            texture_of[image] = len(textures) - 1
-        return texture_of[image]
-
-    def material_index(m: Material) -> int:
-        if m not in made:
-            materials.append(_material(m, texture_index))
-            made[m] = len(materials) - 1
-        return made[m]
-
-    def primitives_of(buf, arrays, groups, joints=None):  # with tangents when a material has a normal map
-        tangents = any("normalTexture" in materials[material] for material, _ in groups)
-        return _mesh_primitives(buf, arrays, groups, joints, tangents)
-
-    table = tree.materials
-
-    def groups(face_material, material_of, white: bool = False) -> list[tuple[int, np.ndarray | None]]:
-        """(glTF material, faces) of each material index the faces use; one group of all faces without a table."""
-
-        def index_of(m: Material) -> int:  # vertex colours: the colour is COLOR_0, glTF multiplies it by the factor
-            return material_index(replace(m, base_color=(1.0, 1.0, 1.0, m.base_color[3])) if white else m)
-
-        index = face_material if table else None
-        return [(index_of(m), faces) for m, _, faces in material_groups(index, material_of)]
-
-    def add_parts(part: Tree, first: bool) -> None:
-        """The bark, leaves, organs (and for the first level the branch table and skeleton) of ``part``."""
-        if len(part.bark.faces):  # a tree of polygon leaves alone has no bark
-            bark = gather_mesh(part.bark, eye, f"{where}: bark")
-            bark_groups = groups(part.bark.face_material, table.for_bark, white=bark.split_colors is not None)
-            add_node("bark", primitives_of(buf, bark, bark_groups, joints), skinned=rig is not None)
-
-        def instanced_nodes(base: str, model_mesh, transforms, index, instance_attributes, material_of):
-            """One node per material of the instances, each drawing ``model_mesh`` at its instances' transforms."""
-            model = gather_mesh(model_mesh, eye, f"{where}: {base} model")
-            translation, quaternion, scale = decompose_transforms(transforms, where)
-            extra = gltf_attributes(instance_attributes)  # the branch each instance grows from
-            for n, (m, i, rows) in enumerate(material_groups(index, material_of)):
-                sel = slice(None) if rows is None else rows
-                attributes = {
-                    "TRANSLATION": buf.accessor(to_float32(translation[sel], f"{base} positions", where), target=None),
-                    "ROTATION": buf.accessor(quaternion[sel].astype(np.float32), target=None),
-                    "SCALE": buf.accessor(to_float32(scale[sel], f"{base} sizes", where), target=None),
-                }
-                for name, values in extra.items():
-                    attributes[name] = buf.accessor(np.ascontiguousarray(values[sel]), target=None)
-                primitives = primitives_of(buf, model, [(material_index(m), None)])
-                add_node(base if n == 0 else f"{base}_{i}", primitives, {INSTANCING: {"attributes": attributes}})
-            if INSTANCING not in extensions_used:
-                extensions_used.append(INSTANCING)
-
-        def merged_node(name: str, mesh, material_of):
-            if mesh is None or not len(mesh.faces):
-                return
-            arrays = gather_mesh(mesh, eye, f"{where}: {name}")
-            skinned = rig is not None and "skin_joints" in mesh.attributes
-            mesh_groups = groups(mesh.face_material, material_of)
-            add_node(name, primitives_of(buf, arrays, mesh_groups, joints if skinned else None), skinned=skinned)
-
-        leaves = part.leaves
-        instanced = bool(options.instance_leaves) and rig is None  # skinned leaves and organs are merged
-        if instanced and leaves.instanced:
-            k = len(leaves.transforms)
-            own = leaves.instance_material if leaves.instance_material is not None else part.skeleton.leaf_material
-            per_leaf = np.asarray(own, np.int64) if table else np.zeros(0, np.int64)
-            if len(per_leaf) != k:
-                per_leaf = np.zeros(k, np.int64)
-            instanced_nodes(
-                "leaf", leaves.model, leaves.transforms, per_leaf, leaves.instance_attributes, table.for_leaf
-            )
-            if leaves.polygons is not None and len(leaves.polygons.faces):
-                merged_node("leaf_polygons", leaves.polygons, table.for_leaf)
-        else:
-            # the merged leaves hold the polygons too; a tree with polygons alone may leave them out
-            merged_node("leaf", leaves.merged if leaves.merged is not None else leaves.polygons, table.for_leaf)
-
-        organs = part.organs
-        for p, proto in enumerate(organs.prototypes):  # a part per kind of organ: organ_sphere, organ_flower...
-            material_of = table.for_leaf if proto.material is None else (lambda i, m=proto.material: m)
-            if instanced:
-                mine = organs.of(p)
-                if len(mine):
-                    attributes = {key: a[mine] for key, a in organs.instance_attributes.items()}
-                    index = organs.material[mine] if table else None
-                    instanced_nodes(
-                        f"organ_{proto.name}", proto.mesh, organs.transforms[mine], index, attributes, material_of
-                    )
-            else:
-                merged_node(f"organ_{proto.name}", organs.merged[p], material_of)
-
-        if first and part.hierarchy is not None and len(part.hierarchy):
-            # the per-branch attributes, a row per branch, indexed by _BRANCH_ID (lsys3d.look.attributes)
-            branches = {"count": len(part.hierarchy)}
-            for key, values in branch_table(part.hierarchy).items():
-                branches[key] = buf.accessor(np.ascontiguousarray(values, np.float32), target=None)
-            nodes[asset].setdefault("extras", {})["lsys3d_branches"] = branches
-
-        if first and options.skeleton_curves:
-            lines = _skeleton_lines(tree)
-            if lines is not None:
-                points, pairs = lines
-                primitive = {
-                    "attributes": {"POSITION": buf.accessor(points, bounds=True)},
-                    "indices": buf.accessor(_indices(pairs, len(points)), ELEMENT_ARRAY_BUFFER),
-                    "mode": LINES,
-                }
-                add_node("skeleton", [primitive])
-
-    if tree.lods and rig is not None:
-        # a skinned mesh ignores its parents: each level is one skinned node of all its parts, level 0 in the
-        # scene; the asset's node holds the joints (and the branch table, the skeleton curves)
-        nodes.append({"name": tree.name, "children": []})
-        level_nodes = []
-        for i, lod in enumerate(tree.lods):
-            level_parts = []
-            add_parts(tree.at_level(i), i == 0)
-            meshes.append({"name": f"{tree.name}_LOD{lod.level}", "primitives": level_parts})
-            nodes.append({"name": f"{tree.name}_LOD{lod.level}", "mesh": len(meshes) - 1, "skin": 0})
-            level_nodes.append(len(nodes) - 1)
-        level_parts = None
-        roots.append(level_nodes[0])
-    elif tree.lods:
-        level_nodes = []
-        for i, lod in enumerate(tree.lods):
-            nodes.append({"name": f"{tree.name}_LOD{lod.level}", "children": []})
-            asset = len(nodes) - 1
-            level_nodes.append(asset)
-            add_parts(tree.at_level(i), i == 0)
-        asset = 0
-    if tree.lods:
-        if len(level_nodes) > 1:  # the scene holds level 0; it names the others
-            nodes[level_nodes[0]]["extensions"] = {LOD: {"ids": level_nodes[1:]}}
-            coverage = [SCREEN_COVERAGE[lod.level] for lod in tree.lods]
-            nodes[level_nodes[0]].setdefault("extras", {})["MSFT_screencoverage"] = coverage
-            extensions_used.append(LOD)
-    else:
-        nodes.append({"name": tree.name, "children": []})
-        add_parts(tree, True)
-
-    skins = []
-    if rig is not None:  # the joints under the asset's node, each translated from its parent (no rotation)
-        base = len(nodes)
-        local = to_float32(rig.local, "joint positions", where)
-        for i, name in enumerate(rig.names):
-            nodes.append({"name": name, "translation": local[i].tolist()})
-        for i, up in enumerate(rig.parent.tolist()):
-            if up >= 0:
-                nodes[base + up].setdefault("children", []).append(base + i)
-        nodes[0]["children"].append(base)
-        inverse_bind = np.zeros((len(rig), 16), np.float32)
-        inverse_bind[:, [0, 5, 10, 15]] = 1.0
-        inverse_bind[:, 12:15] = -to_float32(rig.position, "joint positions", where)  # column-major translation
-        skins.append(
-            {
-                "name": "rig",
-                "joints": list(range(base, base + len(rig))),
-                "skeleton": base,
-                "inverseBindMatrices": buf.accessor(inverse_bind, target=None),
-            }
-        )
-
-    animations = []
-    if rig is not None and tree.animation is not None:  # the wind: a rotation channel per joint but the root
-        anim = tree.animation
-        times = buf.accessor(anim.times.astype(np.float32), target=None, bounds=True)
-        samplers, channels = [], []
-        for i in range(1, len(rig)):
-            output = buf.accessor(np.ascontiguousarray(anim.rotations[:, i], np.float32), target=None)
-            samplers.append({"input": times, "interpolation": "LINEAR", "output": output})
-            channels.append({"sampler": len(samplers) - 1, "target": {"node": base + i, "path": "rotation"}})
-        if channels:
-            animations.append({"name": "wind", "channels": channels, "samplers": samplers})
-
-    metadata = metadata_json(tree, where)
-    doc = {"asset": {"version": "2.0", "generator": f"lsys3d {__version__}"}}
-    if metadata:
-        doc["asset"]["extras"] = metadata
-    if extensions_used:
-        doc["extensionsUsed"] = extensions_used
-    scene = {"name": tree.name, "nodes": roots}
-    if metadata:
-        scene["extras"] = metadata
-    doc.update(scene=0, scenes=[scene], nodes=nodes)
-    # glTF arrays may not be empty: leave out what a tree without geometry lacks
-    samplers = [SAMPLER] if textures else []
-    parts = (("meshes", meshes), ("materials", materials), ("textures", textures), ("images", images))
-    parts += (("samplers", samplers), ("skins", skins), ("animations", animations), ("accessors", buf.accessors))
-    for key, value in parts:
-        if value:
-            doc[key] = value
-    if buf.views:
-        doc.update(bufferViews=buf.views, buffers=[{"byteLength": buf.size + (-buf.size % 4)}])
-    return doc, buf
+    gathered = _Gather(tree, options, where)
+    gathered.gather_nodes()  # meshes, their materials and textures, as the parts are reached
+    gathered.gather_skin()
+    gathered.gather_animations()
+    return gathered.document(), gathered.buf
 
 
 def _json_bytes(doc: dict, indent: int | None = None) -> bytes:

@@ -54,7 +54,8 @@ from ..options import Options, option
 from . import remesh
 from .mesh import Mesh, crumbs
 from .sweep import Tubes
-from .union.union import Junctions, _separate_float32  # _separate_float32: the union's last step, kept true here
+from .union.local import Junctions
+from .union.weld import _separate_float32  # the union's last step, kept true here
 
 __all__ = ["Cleaned", "CleanupOptions", "clean_junctions", "clean_mesh", "cleanup", "smooth_normals", "tube_uv"]
 
@@ -151,7 +152,7 @@ def _classify(bark: _Surface, tubes: Tubes, caps: Junctions | None = None, pool=
     """Per face: tube, flat (cap), which cap, reference normal; per vertex: scale and flags (:mod:`lsys3d.mesh.remesh`).
 
     A face's cap is ``2 tube + (0 at the base, 1 at the tip)``, -1 on the wall.
-    With ``caps`` (:class:`lsys3d.mesh.union.union.Junctions`), the sources are faces
+    With ``caps`` (:class:`lsys3d.mesh.union.local.Junctions`), the sources are faces
     of the union's own tubes (``caps.origin`` says which face of ``tubes``
     each lies in), and from ``len(caps.origin)`` on faces of temporary caps:
     flat, cap ``2 len(tubes) + its number``, the tube of ``caps.cap_face``,
@@ -194,7 +195,7 @@ def _classify(bark: _Surface, tubes: Tubes, caps: Junctions | None = None, pool=
 def _half_edges(bark: _Surface, tubes: Tubes, room: int, pool=None, caps: Junctions | None = None):
     """The half-edges of ``bark`` with ``room`` for splits, classified and marked; the reason if it is not closed.
 
-    ``caps``: the temporary caps of :class:`lsys3d.mesh.union.union.Junctions` (see :func:`_classify`)."""
+    ``caps``: the temporary caps of :class:`lsys3d.mesh.union.local.Junctions` (see :func:`_classify`)."""
     part, flat, cap, scale, flags, reference = _classify(bark, tubes, caps, pool)
     try:
         he = remesh.build(
@@ -281,7 +282,7 @@ def _clean_halves(
         return remesh.clean(he._replace(counts=counts[own]), rules, region, side, own, spawned)
 
     # the second half in one of the pool's threads and the first here; a test's ``order``: one after the other
-    done = sum(remesh._in_two(pool, run, (), 0, 1, None) if order is None else [run(own) for own in order])
+    done = sum(remesh.in_two(pool, run, (), 0, 1, None) if order is None else [run(own) for own in order])
     he.flags[lock] &= ~remesh.LOCKED
     full = any(_full(he._replace(counts=c)) for c in counts)
     he.counts[:2] = counts[1][:2]  # the second half's room is after the first's: the rest splits after it
@@ -465,7 +466,7 @@ def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndar
     """
     uv = np.empty((len(faces), 3, 2), np.float32)
     source, points, faces = (np.ascontiguousarray(a) for a in (source, np.asarray(points, np.float64), faces))
-    remesh._in_two(pool, tubes.corner_uv, (source, points, faces, uv), 0, len(faces) // 2, len(faces))
+    remesh.in_two(pool, tubes.corner_uv, (source, points, faces, uv), 0, len(faces) // 2, len(faces))
     return uv
 
 

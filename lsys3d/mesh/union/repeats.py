@@ -269,7 +269,7 @@ def with_copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> Part:
     """The representatives' boolean results (``out``, face ids as given to the boolean) and their copies, as one Part.
 
     ``out`` first, then for every representative that has copies all its
-    copies side by side, with their own face ids: the arrays ``union._concat``
+    copies side by side, with their own face ids: the arrays ``parts._concat``
     makes of ``out`` and one part per representative, written in place (no
     per-copy temporaries and no second copy of the whole).
     """
