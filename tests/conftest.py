@@ -17,15 +17,20 @@ settings.register_profile("fuzz", derandomize=False, max_examples=2000, print_bl
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 
-@pytest.fixture(scope="session", autouse=True)
-def compiled_kernels():
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionstart(session):
     """The pipeline's kernels compiled once, in this process, before the first test.
 
     numba writes them to the package's ``__pycache__``, so the tests that run ``lsys3d`` in a subprocess (the
     CLI, batch workers) load them instead of each compiling them again, and a test that interrupts a
-    subprocess does not catch it in the middle of a minute of compiling.  The default tree (a species: form,
-    leaves) and the textbook tree3d take the paths most tests take; warm, this costs about three seconds.
+    subprocess does not catch it in the middle of a minute of compiling.  Under pytest-xdist (``make test``
+    runs ``pytest -n auto``) this runs in the controller before it starts the workers, so the workers load the
+    kernels instead of compiling them side by side (two processes writing one kernel's cache index at once
+    can point it at the other's machine code).  The default tree (a species: form, leaves) and the textbook
+    tree3d take the paths most tests take; warm, this costs about three seconds.
     """
+    if hasattr(session.config, "workerinput") or session.config.option.collectonly:
+        return  # an xdist worker: the controller has compiled them
     import lsys3d
 
     for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
