@@ -237,29 +237,7 @@ def default_leaf(points: int = 7) -> Mesh:
     """
     if points < 1:
         raise ValueError(f"default_leaf: points must be >= 1, got {points}")
-    z = np.linspace(0.0, 1.0, points + 2)[1:-1]
-    half = np.sin(np.pi * z) ** 0.8
-    half *= 0.25 / half.max()
-    # vertices: base, then (left, mid, right) per row, then tip
-    verts = np.zeros((3 * points + 2, 3))
-    verts[1:-1:3, 0] = -half
-    verts[3:-1:3, 0] = half
-    verts[1:-1, 2] = np.repeat(z, 3)
-    verts[-1, 2] = 1.0
-    faces = [[0, 1, 2], [0, 2, 3]]
-    for i in range(points - 1):
-        a, b = 1 + 3 * i, 4 + 3 * i
-        faces += [[a, b, b + 1], [a, b + 1, a + 1], [a + 1, b + 1, b + 2], [a + 1, b + 2, a + 2]]
-    a, t = 1 + 3 * (points - 1), len(verts) - 1
-    faces += [[a, t, a + 1], [a + 1, t, a + 2]]
-    faces = np.array(faces, np.int64)
-    # wind every triangle so that the front faces +y
-    tri = verts[faces]
-    back = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[:, 1] < 0
-    faces[back] = faces[back][:, ::-1]
-    normals = np.broadcast_to(np.array([0.0, 1.0, 0.0], np.float32), (len(faces), 3, 3))
-    uv = np.stack([verts[:, 0] / 0.5 + 0.5, verts[:, 2]], axis=1)[faces]
-    return Mesh(verts, faces, normals, uv)
+    return blade("default", points)  # one home for the blade's rows: leaf_form
 
 
 def leaf_transforms(skeleton: Skeleton) -> np.ndarray:
