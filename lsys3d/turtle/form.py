@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numba
 import numpy as np
@@ -785,7 +785,8 @@ def form(
         per_point = np.repeat(polygon_segment, np.diff(skeleton.polygon_offsets))
         _, polygon_points, _ = carried(per_point, polygon_points)
         polygon_segment = np.where(polygon_segment >= 0, last[np.maximum(polygon_segment, 0)], -1)
-    return Skeleton(
+    return replace(
+        skeleton,
         start=p0,
         end=p1,
         width_start=w0,
@@ -798,24 +799,15 @@ def form(
         material=skeleton.material[seg],
         module=skeleton.module[seg],
         polygon_points=polygon_points,
-        polygon_offsets=skeleton.polygon_offsets,
-        polygon_material=skeleton.polygon_material,
         leaf_position=leaf_position,
         leaf_heading=leaf_heading,
         leaf_left=leaf_left,
         leaf_up=leaf_up,
-        leaf_size=skeleton.leaf_size,
-        leaf_material=skeleton.leaf_material,
         polygon_segment=polygon_segment,
         leaf_segment=leaf_segment,
-        organ_kind=skeleton.organ_kind,
         organ_position=organ_position,
         organ_heading=organ_heading,
         organ_left=organ_left,
         organ_up=organ_up,
-        organ_size=skeleton.organ_size,
-        organ_material=skeleton.organ_material,
         organ_segment=organ_segment,
-        organ_module=skeleton.organ_module,
-        organ_name=skeleton.organ_name,
     )
