@@ -8,13 +8,11 @@ so the relief shows; the leaves keep their alpha.  Run from the repository's roo
 
 from __future__ import annotations
 
-import struct
-import zlib
 from pathlib import Path
 
 import numpy as np
 
-from lsys3d.images import png_bytes
+from lsys3d.images import png_bytes, png_pixels
 from lsys3d.look.textures import KINDS, procedural
 
 OUT = Path(__file__).resolve().parent / "textures"
@@ -22,23 +20,10 @@ STEP = 6
 LIGHT = np.array([-0.45, 0.45, 0.77])  # from the upper left: -u, +v, out of the surface
 
 
-def pixels(data: bytes) -> np.ndarray:
-    """The pixels of a PNG lsys3d wrote (8 bits, no filter)."""
-    w, h, _, color = struct.unpack(">IIBB", data[16:26])
-    channels = {0: 1, 2: 3, 4: 2, 6: 4}[color]
-    pos, idat = 8, b""
-    while pos < len(data):
-        n, kind = struct.unpack(">I4s", data[pos : pos + 8])
-        if kind == b"IDAT":
-            idat += data[pos + 8 : pos + 8 + n]
-        pos += 12 + n
-    return np.frombuffer(zlib.decompress(idat), np.uint8).reshape(h, 1 + w * channels)[:, 1:].reshape(h, w, channels)
-
-
 def swatch(kind: str) -> np.ndarray:
     t = procedural(kind, seed=1, resolution=512)
-    albedo = pixels(t.albedo.data).astype(np.float64) / 255
-    normal = pixels(t.normal.data).astype(np.float64) / 255 * 2 - 1
+    albedo = png_pixels(t.albedo.data).astype(np.float64) / 255
+    normal = png_pixels(t.normal.data).astype(np.float64) / 255 * 2 - 1
     light = LIGHT / np.linalg.norm(LIGHT)
     shade = 0.3 + 0.85 * np.clip(normal @ light, 0, 1)  # sRGB values shaded directly: a preview, not a render
     rgb = np.clip(albedo[..., :3] * shade[..., None], 0, 1)

@@ -31,7 +31,7 @@ import numpy as np
 from .errors import AssetError, clip
 from .external import read_file
 
-__all__ = ["MAX_IMAGE_BYTES", "MAX_IMAGE_SIDE", "Image", "check_image", "png_bytes", "read_image"]
+__all__ = ["MAX_IMAGE_BYTES", "MAX_IMAGE_SIDE", "Image", "check_image", "png_bytes", "png_pixels", "read_image"]
 
 MAX_IMAGE_BYTES = 64 << 20
 """Largest texture file read, in bytes."""
@@ -264,6 +264,31 @@ def png_bytes(pixels: np.ndarray, level: int = 9) -> bytes:
         + chunk(b"IDAT", zlib.compress(raw.tobytes(), level))
         + chunk(b"IEND", b"")
     )
+
+
+def png_pixels(data: bytes) -> np.ndarray:
+    """The ``(h, w, c)`` uint8 pixels of a PNG that :func:`png_bytes` wrote: its inverse.
+
+    Only that encoder's form (8 bits, filter 0 on every row); other PNGs raise ``ValueError``.
+
+    >>> p = np.arange(12, dtype=np.uint8).reshape(2, 2, 3)
+    >>> bool((png_pixels(png_bytes(p)) == p).all())
+    True
+    """
+    w, h, depth, color = struct.unpack(">IIBB", data[16:26])
+    channels = {0: 1, 2: 3, 4: 2, 6: 4}.get(color)
+    if depth != 8 or channels is None:
+        raise ValueError(f"png_pixels: not an 8-bit PNG of png_bytes (depth {depth}, colour type {color})")
+    pos, idat = len(PNG_SIGNATURE), []
+    while pos < len(data):
+        n, kind = struct.unpack(">I4s", data[pos : pos + 8])
+        if kind == b"IDAT":
+            idat.append(data[pos + 8 : pos + 8 + n])
+        pos += 12 + n
+    raw = np.frombuffer(zlib.decompress(b"".join(idat)), np.uint8).reshape(h, 1 + w * channels)
+    if (raw[:, 0] != 0).any():
+        raise ValueError("png_pixels: a row with a filter other than 0 (not written by png_bytes)")
+    return raw[:, 1:].reshape(h, w, channels)
 
 
 # ---------------------------------------------------------------- JPEG
