@@ -17,7 +17,7 @@ BPY_VENV := .venv-bpy
 BPY_STAMP := $(BPY_VENV)/.installed
 BPY_VERSION := 5.0.1
 
-.PHONY: demo preview gallery test lint format bench validators clean
+.PHONY: demo preview gallery test lint format bench validators browser clean
 
 # pip's and the build backend's chatter (setuptools notes on editable installs) goes to a log,
 # shown only when the install fails, so a new user's first screen is the tree, not warnings.
@@ -37,7 +37,16 @@ $(BPY_STAMP):
 	$(BPY_VENV)/bin/python -c "import bpy" || { echo "bpy does not import: install the X11/GL libraries it links (see README)"; exit 1; }
 	touch $(BPY_STAMP)
 
-validators: node_modules/.package-lock.json $(BPY_STAMP)
+# Debian's Chromium, driven headless by playwright-core (package.json) in the browser tests (three.js pages).
+# Installed with apt-get when missing and make runs as root; otherwise the command to run is printed.
+CHROMIUM ?= /usr/bin/chromium
+browser: node_modules/.package-lock.json
+	@test -x $(CHROMIUM) || { if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	  { apt-get install -y -q chromium || { apt-get update -q && apt-get install -y -q chromium; }; } \
+	    > .chromium-install.log 2>&1 || { cat .chromium-install.log; exit 1; }; \
+	  else echo "Chromium is missing: run 'sudo apt-get install chromium' (the browser tests skip locally, fail under CI)"; fi; }
+
+validators: node_modules/.package-lock.json $(BPY_STAMP) browser
 
 demo: $(STAMP)
 	$(BIN)/lsys3d generate
