@@ -14,6 +14,7 @@ import re
 from pathlib import Path
 
 from ...errors import GrammarError, clip
+from ...external import FileRefused, inside
 from ...turtle.commands import Axis, Command, Op, Organ
 from ..expr import ExprSyntaxError, Syntax, parse_expression
 from ..grammar import Grammar, read_text
@@ -261,7 +262,9 @@ class _Reader:
                 line, f"more than {MAX_INCLUDES} #include files (lsys3d.lsystem.dialects.cpfg.MAX_INCLUDES)"
             )
         try:
-            text = read_text(folder / name)
+            text = read_text(inside(folder, name, "#include file"))
+        except FileRefused as exc:
+            raise self.error(line, f"#include {name!r}: {exc.reason}") from None
         except GrammarError as exc:
             raise self.error(line, f"#include {name!r}: {exc.reason}") from None
         self.preprocess(text, folder, line)
@@ -384,10 +387,10 @@ def _is_rule(code: str) -> bool:
 
 def _view_angle(path: Path) -> float | None:
     """The angle of the view file beside ``path`` (``plant.v``: ``angle increment: 30``, ``angle factor: 12``)."""
-    view = path.with_suffix(".v")
     try:
+        view = inside(path.parent, path.with_suffix(".v").name, "view file")
         text = read_text(view) if view.is_file() else ""
-    except GrammarError:
+    except (FileRefused, GrammarError):
         return None
     m = re.search(r"^\s*angle increment\s*:\s*([-+0-9.eE]+)", text, re.MULTILINE)
     if m:
