@@ -560,7 +560,7 @@ class _BatchProgress:
         self.shown = False
 
     def __call__(self, event) -> None:
-        if event.kind == "failed":
+        if event.kind == "failed" and event.total > 1:  # a batch of one job says it in its one error line
             self.clear()
             print(f"lsys3d: {event.job_id} failed: {_one_line(event.error or '')}", file=sys.stderr)
         if not self.enabled:
@@ -621,6 +621,10 @@ def cmd_batch(args) -> int:
         )
         if result.library:
             print(f"library {result.library}: {result.library_variants} assets")
+    if len(result.failed) == 1 and len(the.jobs) == 1:  # its failure, printed once
+        job_id = result.failed[0]
+        print(f"lsys3d: error: {job_id} failed: {_one_line(result.errors[job_id])}", file=sys.stderr)
+        return EXIT_USER_ERROR
     if result.failed:
         shown = ", ".join(result.failed[:10]) + (
             f" and {len(result.failed) - 10} more" if len(result.failed) > 10 else ""

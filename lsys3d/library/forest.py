@@ -34,9 +34,10 @@ from ..options import Options, option
 
 __all__ = ["MAX_INSTANCES", "ForestOptions", "Scatter", "forest", "scatter"]
 
-MAX_INSTANCES = 2_000_000
-"""Most instances of one forest: about 800 bytes each while scattered and written (1,000,000 took 0.93 GB as
-.usdc, 0.80 GB as .glb), so the most fits in 2 GB.  It was 10,000,000, which ran out of memory at 4.7 GB."""
+MAX_INSTANCES = 1_000_000
+"""Most instances of one forest: about 800 bytes and 40 microseconds each while scattered and written (1,000,000
+took 0.93 GB and 38 s as .usdc, 0.80 GB and 17 s as .glb; 2,000,000 1.6 GB and 155 s on a busy machine), so the
+most ends within a minute and 1 GB.  It was 10,000,000, which ran out of memory at 4.7 GB."""
 
 ATTEMPTS = 400
 """Random positions tried for each instance before the forest is declared full."""
