@@ -64,7 +64,7 @@ class GrowthOptions(Options):
     birth: bool = option(
         False,
         name="birth_attribute",
-        help="each vertex's birth, 0 (the seed) to 1 (the last birth), as glTF _BIRTH and USD primvars:birth",
+        help="each vertex's birth, a share of the growth (0: seed, 1: full grown): glTF _BIRTH, USD primvars:birth",
     )
 
     @property
@@ -93,7 +93,8 @@ class Growth:
     function : (j,) int8
         Each joint's growth function (an index into :data:`lsys3d.lsystem.ages.FUNCTION_NAMES`).
     keyed : (j,) bool
-        Joints that grow (the root and joints carrying nothing stay at scale 1).
+        Joints that grow (joints carrying nothing stay at scale 1; the root grows with the first joint on it,
+        whose base is bound half to it).
     seconds : float
         The clip's length.
     fps : int
@@ -185,7 +186,7 @@ def grow(
     >>> import lsys3d
     >>> tree = lsys3d.generate("abop-1.24a", iterations=2, growth_animation=2)
     >>> scales = tree.growth.scales()
-    >>> scales.shape == (49, len(tree.rig)), bool((scales[-1] == 1).all()), bool((scales[0, 1:] == 0).all())
+    >>> scales.shape == (49, len(tree.rig)), bool((scales[-1] == 1).all()), bool((scales[0] == 0).all())
     (True, True, True)
     """
     j = len(rig)
@@ -209,7 +210,11 @@ def grow(
         low, high = leaf_windows
         begin, end = np.minimum(begin, low), np.maximum(end, high)
     keyed = np.isfinite(begin) & np.isfinite(end)
-    keyed[0] = False  # the root
+    keyed[0] = False
+    first = np.flatnonzero(keyed & (rig.parent == 0))
+    if len(first):  # the root grows with the first joint on it: the trunk's base is bound half to it
+        k = first[np.argmin(begin[first])]
+        begin[0], end[0], fn[0], keyed[0] = begin[k], end[k], fn[k], True
     span = plant_span(skeleton)
     if leaf_windows is not None and np.isfinite(leaf_windows[1]).any():
         span = max(span, float(leaf_windows[1][np.isfinite(leaf_windows[1])].max()))

@@ -45,7 +45,7 @@ def timed(skeleton: Skeleton, shown: ModuleString, ages: Ages, table: GrowthTabl
     >>> modules, ages = derive_with_ages(g)
     >>> sk = timed(interpret(modules, TurtleOptions()), modules, ages, growth_table(g))
     >>> sk.birth.tolist(), sk.mature.tolist()
-    ([0.0, 2.0, 1.0], [3.0, 3.0, 3.0])
+    ([0.0, 2.0, 1.0, 2.0], [3.0, 3.0, 3.0, 3.0])
     """
     mature = ages.mature(shown, table)
     birth_of = ages.birth[skeleton.module]
