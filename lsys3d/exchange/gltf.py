@@ -564,8 +564,9 @@ class _Gather:
             name = FUNCTION_NAMES[growth.function[j]]
             b, e = float(growth.begin[j]), float(growth.end[j])
             if name == "logistic":
-                times = np.unique(np.concatenate([[b, e], frames[(frames > b) & (frames < e)]]))
-                values = np.repeat(growth.scales(times)[:, j : j + 1], 3, axis=1)
+                # the keys as the file stores them (float32), each once: two times apart in float64 may not be
+                times = np.unique(np.concatenate([[b, e], frames[(frames > b) & (frames < e)]]).astype(np.float32))
+                values = np.repeat(growth.scales(times.astype(np.float64))[:, j : j + 1], 3, axis=1)
                 kinds.append("LINEAR")
             elif name == "smooth":  # (in-tangent, value, out-tangent) per key; flat tangents
                 times = np.array([b, e])

@@ -221,6 +221,9 @@ def grow(
     scale = options.seconds / span
     begin = np.where(keyed, np.clip(begin * scale, 0.0, options.seconds), 0.0)
     end = np.where(keyed, np.clip(end * scale, 0.0, options.seconds), 0.0)
+    if leaf_windows is not None:  # a leaf unfolds after the joint it hangs on starts to grow, never before
+        leafy = np.flatnonzero(np.isfinite(leaf_windows[0]) & keyed)
+        begin[leafy] = np.maximum(begin[leafy], begin[rig.parent[leafy]])
     # widen short windows (toward the end, then back from it) so that no frame steps too far
     shortest = np.array([frames_for(name) for name in FUNCTION_NAMES])[fn] / options.fps
     shortest = np.minimum(shortest, options.seconds)
