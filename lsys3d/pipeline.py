@@ -446,10 +446,10 @@ def generate(
 
     first = _level(skeleton, 0, grown, seed, look, stage, tubes_made, union_progress)
     bark, leaves, organs = first.bark, first.leaves, first.organs
-    grown = None
+    development = None
     if options.growth.enabled:
         rig, look = first.rig, replace(look, rig=first.rig, joint_map=first.joint_map)
-        grown = stage(
+        development = stage(
             "growth", growth_stage.grow, rig, branches, skeleton, options.growth, timing.function, first.windows
         )
     animation = None
@@ -473,7 +473,7 @@ def generate(
         organs=organs,
         materials=table,
         animation=animation,
-        growth=grown,
+        growth=development,
         lods=lods,
     )
 

@@ -359,3 +359,15 @@ def test_three_js_plays_the_growth(tmp_path):
     for mesh in last["meshes"].values():
         assert mesh["fromRest"] <= 1e-5 * size
     assert np.allclose(last["meshes"]["bark"]["min"], final.min(axis=0), atol=1e-5 * size)
+
+
+def test_levels_of_detail_share_the_growing_rig(tmp_path):
+    tree = lsys3d.generate("tree3d", iterations=4, growth_animation=2.0, lod=(0, 1))
+    assert len(tree.lods) == 2
+    joints = len(tree.rig)
+    for lod in tree.lods:
+        for mesh in (lod.bark, lod.leaves.merged):
+            assert mesh.attributes["skin_joints"].max() < joints
+    path = export(tree, tmp_path / "lod.glb")
+    report = validators.validate_gltf(path)
+    assert validators.gltf_issues(report, 0) == [] and validators.gltf_issues(report, 1) == []
