@@ -309,6 +309,14 @@ def test_blender_plays_the_growth(tmp_path, suffix):
     assert height(tenth["meshes"]["bark"]["bbox"]) < height(half["meshes"]["bark"]["bbox"])
     for name in ("bark", "leaf"):
         assert last["meshes"][name]["from_rest"] <= 1e-5 * size
+    low = np.minimum(*(np.array(rest[n][0]) for n in ("bark", "leaf")))
+    high = np.maximum(*(np.array(rest[n][1]) for n in ("bark", "leaf")))
+    reach = 0.05 * np.linalg.norm(high - low)
+    for frame in report["frames"]:  # no vertex outside the grown plant's box by more than 5% of its size
+        for mesh in frame["meshes"].values():
+            assert (np.array(mesh["bbox"][0]) >= low - reach).all() and (
+                np.array(mesh["bbox"][1]) <= high + reach
+            ).all()
 
 
 SCRIPT = validators.REPO / "tools" / "three_growth.mjs"
@@ -359,6 +367,12 @@ def test_three_js_plays_the_growth(tmp_path):
     for mesh in last["meshes"].values():
         assert mesh["fromRest"] <= 1e-5 * size
     assert np.allclose(last["meshes"]["bark"]["min"], final.min(axis=0), atol=1e-5 * size)
+    low = np.minimum.reduce([m["min"] for m in last["meshes"].values()])
+    high = np.maximum.reduce([m["max"] for m in last["meshes"].values()])
+    reach = 0.05 * np.linalg.norm(high - low)
+    for frame in result["frames"]:  # no vertex outside the grown plant's box by more than 5% of its size
+        for mesh in frame["meshes"].values():
+            assert (np.array(mesh["min"]) >= low - reach).all() and (np.array(mesh["max"]) <= high + reach).all()
 
 
 def test_levels_of_detail_share_the_growing_rig(tmp_path):
