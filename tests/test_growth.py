@@ -15,6 +15,8 @@ import validators
 from browser import CHROMIUM, CHROMIUM_ARGS, require_browser
 from gltf_files import accessor, read_glb
 from growing import joint_transforms, skinned
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from pxr import Usd, UsdGeom, UsdSkel
 
 import lsys3d
@@ -58,12 +60,54 @@ def test_the_same_string_as_derive(name):
     assert shown == interpretation(g, modules) and len(shown_ages.birth) == len(shown)
 
 
+def naive_births(axiom: str, rules: dict[str, str], n: int) -> list[int]:
+    """The textbook rewriter with a birth per character: a successor's characters are born at the step, but for
+    the first one at bracket depth 0 with the predecessor's own symbol, which keeps the predecessor's birth."""
+    s = [(c, 0) for c in axiom]
+    for step in range(1, n + 1):
+        out = []
+        for c, born in s:
+            if c not in rules:
+                out.append((c, born))
+                continue
+            depth, kept = 0, False
+            for d in rules[c]:
+                if d == "[":
+                    depth += 1
+                elif d == "]":
+                    depth -= 1
+                keep = not kept and depth == 0 and d == c
+                kept |= keep
+                out.append((d, born if keep else step))
+        s = out
+    return [b for _, b in s]
+
+
+@st.composite
+def d0l_grammars(draw):
+    axiom = draw(st.text("ABF+[", min_size=1, max_size=5)).replace("[", "[F]")
+    preds = draw(st.lists(st.sampled_from("ABF"), unique=True, min_size=1, max_size=3))
+    successors = [draw(st.lists(st.sampled_from(["A", "B", "F", "+", "[A]", "[FB]"]), max_size=4)) for _ in preds]
+    return lsys3d.Grammar(axiom=axiom, rules=[f"{p} -> {''.join(s)}" for p, s in zip(preds, successors, strict=True)])
+
+
+@settings(max_examples=60, deadline=None)
+@given(d0l_grammars(), st.integers(0, 4))
+def test_ages_match_a_textbook_rewriter(g, n):
+    """Any D0L grammar: the births equal an independent rewriter's, and a module born at step k has age n - k."""
+    rules = {p.predecessor.symbol: "".join(m.symbol for m in p.successor) for p in g.productions}
+    modules, ages = derive_with_ages(g, n, max_modules=100_000)
+    expected = naive_births(g.axiom, rules, n)
+    assert modules == derive(g, n, max_modules=100_000) and ages.birth.tolist() == expected
+    assert ages.time == n and ages.age.tolist() == [n - b for b in expected]
+
+
 def test_timed_rules_fractional_ages_by_hand():
     """A's terminal age 0.5, B's 1.5 and initial age 0.25: the births follow the clocks, worked out by hand.
 
     A(0) -> A B at 0.5: B born 0.5 - 0.25 = 0.25.  Step 2: A (clock 0.5) rewritten at 1.0, new B born 0.75;
     B (born 0.25) rewritten at 1.75 into A, born 1.75.  String A B A: births 0, 0.75, 1.75; clocks 1.0, 0.75,
-    1.75; the derivation's end is the latest rewrite, 1.75."""
+    1.75; the derivation ends at 2 (two steps of the table's terminal age, 1: later than the latest rewrite)."""
     text = (
         'axiom = "A"\nrules = ["A -> AB", "B -> A"]\n[growth]\n'
         "A = { terminal_age = 0.5 }\nB = { terminal_age = 1.5, initial_age = 0.25, duration = 2 }\n"
@@ -73,7 +117,7 @@ def test_timed_rules_fractional_ages_by_hand():
     assert str(modules) == "ABA"
     assert ages.birth.tolist() == [0.0, 0.75, 1.75]
     assert ages.clock.tolist() == [1.0, 0.75, 1.75]
-    assert ages.time == 1.75 and ages.age.tolist() == [1.75, 1.0, 0.0]
+    assert ages.time == 2.0 and ages.age.tolist() == [2.0, 1.25, 0.25]
     # full grown: A a terminal age (0.5) after its clock, B its duration (2)
     assert ages.mature(modules, growth_table(g)).tolist() == [1.5, 2.75, 2.25]
 

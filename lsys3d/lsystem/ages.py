@@ -232,7 +232,8 @@ class Ages:
     clock : (m,) float64
         When each module was last rewritten (its birth if never): it is full grown ``duration`` later.
     time : float
-        The end of the derivation: the latest rewrite (0 without any).
+        The end of the derivation: its steps times the table's terminal age (``n`` by default), or the latest
+        rewrite when a symbol's own terminal age puts it later.
     """
 
     birth: np.ndarray
@@ -300,6 +301,8 @@ def derive_with_ages(
     clock = _Clock(grammar.axiom_modules, table)
     # the last generation; a deque of one keeps no other alive
     last = deque(generations(grammar, iterations, seed, max_modules=max_modules, trace=clock), maxlen=1).pop()
+    steps = grammar.iterations if iterations is None else int(iterations)
+    clock.time = max(clock.time, steps * table.terminal_age)  # time goes on when nothing is rewritten
     return last, clock.ages()
 
 
