@@ -7,8 +7,8 @@ full size, by its growth function of its age (ABOP chapter 6):
 
     scale_j(t) = g_j((t - begin_j) / (end_j - begin_j)),  clipped to [0, 1]
 
-``begin_j`` is the birth of the earliest segment the joint carries and
-``end_j`` when the latest of them is full grown (:mod:`lsys3d.turtle.timing`),
+``begin_j`` is the birth of the earliest segment that starts on the joint's
+bone and ``end_j`` when the latest of them is full grown (:mod:`lsys3d.turtle.timing`),
 mapped from the plant's time onto the clip's seconds (the last organ full
 grown at the last second).  A joint's scale is *local*: a twig is scaled by
 its own growth and by that of every joint below it, so a young twig sits on a
@@ -196,9 +196,11 @@ def grow(
     if n:
         b = h.branch_of
         k = rig.count[b]
-        mid = 0.5 * (h.t_start + h.t_end)
         own = k > 0  # segments on branches without joints ride their carrier: they grow with it
-        joint = rig.first[b] + np.minimum(np.floor(mid * k + 1e-9), np.maximum(k - 1, 0)).astype(np.int64)
+        # a segment grows from its base: it times the joint whose span its base lies in (a joint whose span no
+        # segment starts in stays at 1: the segment over it grows with the joint below)
+        at = np.floor(h.t_start * k + 1e-9)
+        joint = rig.first[b] + np.minimum(at, np.maximum(k - 1, 0)).astype(np.int64)
         begin, _ = _window(skeleton.birth[own], joint[own], j)
         _, end = _window(skeleton.mature[own], joint[own], j)
         if skeleton.growth_function is not None:  # the function of the first segment each joint carries
