@@ -429,3 +429,14 @@ def test_levels_of_detail_share_the_growing_rig(tmp_path):
     path = export(tree, tmp_path / "lod.glb")
     report = validators.validate_gltf(path)
     assert validators.gltf_issues(report, 0) == [] and validators.gltf_issues(report, 1) == []
+
+
+def test_a_long_segment_grows_from_its_base():
+    """One segment over four joints grows as one: from the joint its base is on, the joints above it stay at 1."""
+    g = lsys3d.Grammar(axiom="!(0.2)A", rules=["A -> F(4)"], iterations=1, name="stem")
+    tree = lsys3d.generate(g, growth_animation=2.0, rig_joints_per_branch=4)
+    trunk = [j for j, n in enumerate(tree.rig.names) if n.startswith("b0_")]
+    assert len(trunk) == 4 and tree.growth.keyed[trunk].tolist() == [True, False, False, False]
+    scales = frames(tree)
+    tenth = skinned(tree.bark, tree.rig, scales[round(0.1 * len(scales))])
+    assert np.ptp(tenth[:, 1]) <= 0.15 * np.ptp(tree.bark.vertices[:, 1])
