@@ -487,7 +487,9 @@ def cmd_stats(args) -> int:
         from pathlib import Path
 
         from .exchange.atomic import check_target
+        from .golden.golden import make_folder
 
+        make_folder(args.golden)
         check_target(Path(args.golden), no_clobber=False)
     n = grammar.iterations if args.iterations is None else args.iterations
     seed = grammar.seed if args.seed is None else args.seed
@@ -523,23 +525,34 @@ def print_table(stats: dict) -> None:
 
 
 def cmd_check(args) -> int:
-    from .golden.golden import RTOL, check, format_differences
+    from .golden.golden import RTOL, check, format_changes, format_differences, summarize
 
-    failed = 0
+    failed = missing = errors = 0
     for path in args.golden:
         try:
             result = check(path, update=args.update, rtol=RTOL if args.rtol is None else args.rtol)
         except LSystemError as exc:  # one bad file does not stop the others
-            failed += 1
+            errors += 1
             _print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
             continue
         for warning in result.warnings:
             _print(f"{path}: warning: {warning}")
-        if result.updated:
-            what = ", ".join(d.key for d in result.differences) or "only the versions that produced it"
+        if result.created:
+            _print(f"recorded {path} ({result.recipe.describe()}): it was missing; a new golden file of the preset")
+        elif result.missing:
+            missing += 1
+            why = (
+                "its name is no bundled preset's, so --update cannot tell what to grow"
+                if args.update
+                else "'lsys3d check --update' records a file named after a bundled preset (koch.json)"
+            )
+            _print(f"MISSING {path}: no such golden file; {why}; 'lsys3d stats GRAMMAR --golden {path}' records any")
+        elif result.updated:
+            n = len(result.differences)
+            what = f"{n} key{'s' if n > 1 else ''} changed" if n else "only the versions that produced it changed"
             _print(f"updated {path} ({result.recipe.describe()}): {what}")
             if result.differences:
-                _print(format_differences(result.differences))
+                _print(format_changes(result.differences))
         elif result.ok:
             within = sum(not d.failed for d in result.differences)
             extra = f" ({within} within tolerance)" if within else ""
@@ -547,11 +560,17 @@ def cmd_check(args) -> int:
                 _print(f"ok      {path} ({result.recipe.describe()}){extra}")
         else:
             failed += 1
-            n = sum(d.failed for d in result.differences)
-            _print(f"FAILED  {path} ({result.recipe.describe()}): {n} difference{'s' if n > 1 else ''}")
+            _print(f"FAILED  {path} ({result.recipe.describe()}): {summarize(result.differences)}")
             _print(format_differences(result.differences))
-    if failed:
-        _print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
+    if failed or missing or errors:
+        counts = (
+            (failed, "differ" if failed > 1 else "differs"),
+            (missing, "missing"),
+            (errors, "could not be checked"),
+        )
+        what = ", ".join(f"{n} {word}" for n, word in counts if n)
+        hint = "; 'lsys3d check --update' records the new counts" if failed and not args.update else ""
+        _print(f"{len(args.golden)} golden file{'s' if len(args.golden) > 1 else ''}: {what}{hint}")
         return EXIT_USER_ERROR
     return 0
 
