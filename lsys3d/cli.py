@@ -55,15 +55,15 @@ def _grammar_args(p: argparse.ArgumentParser, optional: bool = False, mesh: bool
 
     ``mesh=False`` (``derive``) adds only the derivation's limit.
     """
+    from .lsystem.dialects import suffixes_text
     from .lsystem.presets import DEFAULT_PRESET
     from .pipeline import GenerateOptions
 
+    what = f"a grammar file ({suffixes_text()}) or the name of a bundled preset ('lsys3d presets')"
     if optional:
-        p.add_argument(
-            "grammar", nargs="?", default=DEFAULT_PRESET, help=f"grammar file or preset (default: {DEFAULT_PRESET})"
-        )
+        p.add_argument("grammar", nargs="?", default=DEFAULT_PRESET, help=f"{what} (default: {DEFAULT_PRESET})")
     else:
-        p.add_argument("grammar", help="a grammar file (.toml) or the name of a bundled preset")
+        p.add_argument("grammar", help=what)
     p.add_argument(
         "-n", "--iterations", type=_at_least(0), default=None, help="number of generations (default: the grammar's)"
     )
@@ -283,6 +283,12 @@ def _preview_arguments(p: argparse.ArgumentParser) -> None:
 
 def _derive_arguments(p: argparse.ArgumentParser) -> None:
     _grammar_args(p, mesh=False)
+    p.add_argument(
+        "--interpretation",
+        action="store_true",
+        help="print the string the turtle reads instead: the derived string cut at the cut symbol and rewritten "
+        "by the grammar's homomorphism (interpretation) rules, as 'generate' draws it",
+    )
     p.set_defaults(func=cmd_derive)
 
 
@@ -357,7 +363,7 @@ def _presets_arguments(p: argparse.ArgumentParser) -> None:
 _SUBCOMMANDS = {
     "generate": ("grow a plant and write it as a mesh asset (.glb, .usdc, ...)", _generate_arguments),
     "preview": ("grow a plant and render a shaded picture of it (.png) with Blender", _preview_arguments),
-    "derive": ("print the derived module string", _derive_arguments),
+    "derive": ("print the derived module string (--interpretation: the string the turtle reads)", _derive_arguments),
     "stats": ("print counts and extents of the drawn plant", _stats_arguments),
     "check": ("regrow the assets of golden files and compare their counts", _check_arguments),
     "batch": ("grow every job of a jobs file into a folder, with a manifest and library.usda", _batch_arguments),
@@ -378,6 +384,12 @@ def cmd_derive(args) -> int:
     grammar = load(args.grammar)
     options = from_arguments(GenerateOptions, args)
     result = derive(grammar, args.iterations, args.seed, max_modules=options.limits.max_modules)
+    if args.interpretation:
+        from .lsystem.derive import interpretation
+
+        result = interpretation(
+            grammar, result, args.seed, max_modules=options.limits.max_modules, iterations=args.iterations
+        )
     out = sys.stdout
     for piece in result.iter_text():  # never the whole text at once: it can be gigabytes
         out.write(piece)
