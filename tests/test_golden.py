@@ -459,7 +459,17 @@ def test_a_recipe_without_mesh_keeps_the_turtle_settings(tmp_path, capsys):
 
 
 def test_docs_golden_counts_are_the_golden_files():
-    """docs/golden.md quotes tree3d's bark faces: the count pinned in tests/golden/tree3d.json."""
-    doc = (Path(__file__).parent.parent / "docs" / "golden.md").read_text()
-    quoted = re.search(r"\(bark\.faces  (\d+)\)", doc)
-    assert quoted and int(quoted.group(1)) == read_golden(GOLDEN / "tree3d.json")[1]["bark"]["faces"]
+    """docs/golden.md and the README quote tree3d's counts: those pinned in tests/golden/tree3d.json."""
+    repo = Path(__file__).parent.parent
+    recorded = read_golden(GOLDEN / "tree3d.json")[1]
+    quoted = re.search(r"\(bark\.faces  (\d+)\)", (repo / "docs" / "golden.md").read_text())
+    assert quoted and int(quoted.group(1)) == recorded["bark"]["faces"]
+    readme = " ".join((repo / "README.md").read_text().split())
+    quoted = re.search(r"tree3d's ([\d,]+) bark triangles hold (\d+) slivers .* and (\d+) of aspect over 100", readme)
+    quality = recorded["quality"]
+    assert quoted, "the README's sentence on tree3d's triangles changed"
+    assert [int(g.replace(",", "")) for g in quoted.groups()] == [
+        quality["triangles"],
+        quality["slivers"],
+        quality["over_100"],
+    ]
