@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
+from .look.growth import Growth
 from .look.leaves import Leaves
 from .look.materials import BARK, LEAF, Material, MaterialTable
 from .look.organs import Organs
@@ -80,6 +81,8 @@ class Tree:
         prototypes and instances, and each prototype's organs merged.
     animation : Animation or None
         The sample wind animation of the rig's joints (:mod:`lsys3d.look.wind`), when asked for.
+    growth : Growth or None
+        The growth animation of the rig's joints (:mod:`lsys3d.look.growth`), when asked for.
     lods : tuple of lsys3d.look.lod.Lod
         Its levels of detail when asked for (``lod=(0, 1, 2, 3)``), level 0
         being ``bark`` and ``leaves`` themselves; empty otherwise.
@@ -97,6 +100,7 @@ class Tree:
     rig: Rig | None = None
     organs: Organs = field(default_factory=Organs)
     animation: Animation | None = None
+    growth: Growth | None = None
     lods: tuple = ()
 
     @property
