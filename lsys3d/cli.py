@@ -743,13 +743,17 @@ def cmd_edit(args) -> int:
 
     app = make_app(settings, announce=announce)
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
-    if not args.quiet:
-        _print(f"lsys3d edit: {url} (Ctrl-C to stop)")
 
-    def open_page() -> None:
+    def open_page() -> None:  # once the server listens
         while not server.started and not server.should_exit:
             time.sleep(0.05)
-        if server.started and not args.no_browser:
+        if not server.started:
+            return
+        if not args.quiet:
+            announce("")
+            _print(f"lsys3d edit: {url} (Ctrl-C to stop)")
+            sys.stdout.flush()
+        if not args.no_browser:
             webbrowser.open(url)
 
     threading.Thread(target=open_page, daemon=True).start()

@@ -142,6 +142,7 @@ class Pool:
             await self._spawn()
 
     def _kill(self, worker: _Worker) -> None:
+        worker.ready = False  # never handed another job: it is on its way out
         with contextlib.suppress(ProcessLookupError):
             worker.process.kill()  # its reader sees the pipe close and starts another worker
 
@@ -199,7 +200,8 @@ class Pool:
 
     @property
     def status(self) -> dict:
-        """``{"workers", "ready", "busy", "waiting", "compiling": {"done", "total"} or None}``."""
+        """``{"workers", "ready", "busy", "waiting", "compiling": {"done", "total"} or None, "started", "pids"}``:
+        ``started`` counts the workers started so far (one more each time a superseded one is replaced)."""
         return {
             "workers": len(self.workers),
             "ready": sum(w.ready for w in self.workers),
@@ -207,6 +209,7 @@ class Pool:
             "waiting": len(self.waiting),
             "compiling": None if self.compiling is None else dict(zip(("done", "total"), self.compiling, strict=True)),
             "started": self.started,
+            "pids": [w.process.pid for w in self.workers],
         }
 
     async def close(self) -> None:
