@@ -93,6 +93,7 @@ def run_job(job: dict, trees: OrderedDict | None = None, progress=None) -> dict:
     try:
         with confined_to(job["folder"]):
             tree = trees.get(job["key"]) if trees is not None else None
+            cached = tree is not None
             if tree is None:
                 grammar = Grammar.from_text(job["text"], source=job["source"])
                 options = GenerateOptions.from_flat(**job["options"])
@@ -124,7 +125,7 @@ def run_job(job: dict, trees: OrderedDict | None = None, progress=None) -> dict:
     return {
         "ok": True,
         "data": data,
-        "stats": _stats(tree, seconds, time.perf_counter() - t0),
+        "stats": {**_stats(tree, seconds, time.perf_counter() - t0), "cached": cached},
         "diagnostics": findings.lines,
         "grammar": about,
     }
@@ -154,7 +155,8 @@ def _about(grammar: Grammar, options: GenerateOptions) -> dict:
 
 
 def _stats(tree, seconds: dict, total: float) -> dict:
-    """Counts of what was grown and the seconds of each stage (``seconds.total``: the job in the worker)."""
+    """Counts of what was grown and the seconds of each stage (``seconds.total``: the job in the worker; a tree
+    the worker kept, ``cached``, took only the export's)."""
     leaves = tree.leaves
     leaf_triangles = len(leaves.merged.faces) if leaves.merged is not None else 0
     organ_triangles = sum(len(m.faces) for m in tree.organs.merged if m is not None)

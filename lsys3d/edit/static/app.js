@@ -144,7 +144,8 @@ function stats(s, kind) {
   const n = Math.max(rows.length, stages.length + 1);
   for (let i = 0; i < n; i++) {
     const [a, b] = rows[i] || ['', ''];
-    const [c, d] = stages[i] || (i === stages.length ? ['total (worker)', s.seconds.total] : ['', '']);
+    const total = s.cached ? 'total (kept tree)' : 'total (worker)';
+    const [c, d] = stages[i] || (i === stages.length ? [total, s.seconds.total] : ['', '']);
     const fmt = (v) => (typeof v === 'number' ? (Number.isInteger(v) ? v.toLocaleString('en') : v.toFixed(3)) : v);
     html += `<tr><td>${a}</td><td class="n">${fmt(b)}</td><td>${c}</td><td class="n">${fmt(d)}</td></tr>`;
   }

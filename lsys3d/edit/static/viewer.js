@@ -235,6 +235,12 @@ export function createViewer(container, options = {}) {
     get loads() {
       return state.loads;
     },
+    /** The shown tree's bounding box, [[x, y, z], [x, y, z]] in metres. */
+    bounds() {
+      if (!state.shown) return null;
+      const box = new THREE.Box3().setFromObject(state.shown);
+      return [box.min.toArray(), box.max.toArray()];
+    },
     /** Show the .glb in `data` (an ArrayBuffer); keeps the camera unless `frame` or the first one. */
     async load(data, { frame: refit = false } = {}) {
       const gltf = await loader.parseAsync(data, '');
