@@ -3,8 +3,9 @@
 Each worker is ``python -m lsys3d.edit.worker`` (:mod:`lsys3d.edit.worker`), started once and kept warm (its
 kernels loaded), so an edit's tube soup takes the time of the pipeline alone.  A request may name a
 *channel* (the page uses ``soup``, ``full`` and ``variants``): a newer request on a channel supersedes the
-older ones still waiting or running on it.  A waiting one is dropped; a running one's worker is killed (a
-union cannot be interrupted, a process can) and a fresh worker started in its place.  The superseded
+older ones still waiting or running on it.  A waiting one is dropped; a running union's worker is killed (a
+union cannot be interrupted, a process can) and a fresh worker started in its place; a running soup (a tenth
+of a second) finishes, its answer dropped.  The superseded
 request answers :class:`Superseded`, never a stale tree.
 
 Jobs that find every worker busy wait in a queue of bounded length (:class:`Busy` past it); tube soups
@@ -183,7 +184,9 @@ class Pool:
         if ticket in self.waiting:
             self.waiting.remove(ticket)
         worker = ticket.worker
-        if worker is not None and worker.ticket is ticket:
+        # A running union is killed: it may have seconds or minutes to go.  A running soup is left to finish
+        # (a tenth of a second, its answer dropped): a new worker would take seconds to start in its place.
+        if worker is not None and worker.ticket is ticket and not ticket.urgent:
             worker.ticket = None
             self._kill(worker)
 
