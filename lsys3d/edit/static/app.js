@@ -11,6 +11,9 @@ const $ = (id) => document.getElementById(id);
 
 const TURTLE_CONTROLS = ['step', 'width', 'width_scale', 'length_scale', 'elasticity', 'tropism', 'angle_jitter',
   'length_jitter', 'width_jitter', 'branch_roll', 'branch_drop'];
+// slider ranges where the option's own range is open (the number box beside takes any value)
+const RANGES = { angle_jitter: [0, 30], branch_roll: [0, 180], length_jitter: [0, 1], width_jitter: [0, 1],
+  branch_drop: [0, 1], elasticity: [0, 1], tropism: [-1, 1] };
 const OPTION_CONTROLS = ['sides', 'min_sides', 'leaf_size', 'leaf_size_variation', 'bark_color_variation'];
 
 const state = {
@@ -249,8 +252,11 @@ function grammarControls(g) {
   // the turtle's settings in force, for the controls not touched yet
   for (const [name, value] of Object.entries(g.turtle)) {
     if (name in state.turtle) continue;
-    const row = $('option-controls').querySelector(`[data-name="${name}"]`);
-    if (row && !Array.isArray(value)) row.__update?.(value);
+    const rows = Array.isArray(value) ? ['x', 'y', 'z'].map((axis) => `${name} ${axis}`) : [name];
+    rows.forEach((label, i) => {
+      const row = $('option-controls').querySelector(`[data-name="${label}"]`);
+      row?.__update?.(Array.isArray(value) ? value[i] : value);
+    });
   }
 }
 
@@ -305,7 +311,8 @@ async function optionControls() {
   const host = $('option-controls');
   const add = (target, spec, label, index) => {
     const value = index === undefined ? spec.default : spec.default[index];
-    const [lo, hi, step] = spec.kind === 'int' ? [spec.low ?? 0, spec.high ?? Math.max(value * 4, 16), 1]
+    const fixed = RANGES[spec.name];
+    const [lo, hi, step] = fixed ? [fixed[0], fixed[1], (fixed[1] - fixed[0]) / 200] : spec.kind === 'int' ? [spec.low ?? 0, spec.high ?? Math.max(value * 4, 16), 1]
       : span(value, spec.low ?? (spec.kind === 'vector' ? -1 : 0), spec.high ?? (spec.kind === 'vector' ? 1 : null));
     const c = control(target, {
       name: label, label, value, low: lo, high: hi, step, integer: spec.kind === 'int', help: spec.help,
