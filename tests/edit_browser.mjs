@@ -73,6 +73,21 @@ try {
   out.trianglesWithoutLeaves = await triangles();
   await page.locator('[data-testid=leaves]').check();
 
+  // levels of detail: the union grown with LOD1..3, each one fewer triangles
+  await page.locator('[data-testid=lods]').check();
+  await page.waitForFunction(() => document.querySelectorAll('[data-testid=lod] option').length === 4, null, {
+    timeout: 120000,
+  });
+  await settled();
+  out.lodTriangles = [];
+  for (const level of ['0', '1', '2', '3']) {
+    await page.locator('[data-testid=lod]').selectOption(level);
+    out.lodTriangles.push(await triangles());
+  }
+  await page.locator('[data-testid=lod]').selectOption('0');
+  await page.locator('[data-testid=lods]').uncheck();
+  await settled();
+
   // export the .glb shown
   const [download] = await Promise.all([
     page.waitForEvent('download', { timeout: 60000 }),

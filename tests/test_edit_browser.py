@@ -65,6 +65,9 @@ def test_the_editor_in_chromium(server, tmp_path):
     views = seen["views"]
     assert views["wireframe"] == views["uv"] == views["shaded"] == views["skeleton"] > 0
     assert 0 < seen["trianglesWithoutLeaves"] < views["shaded"]
+    # levels of detail: fewer triangles level by level
+    lods = seen["lodTriangles"]
+    assert lods[0] == views["shaded"] and lods == sorted(lods, reverse=True) and lods[3] < lods[0]
     # the exported .glb is valid glTF
     report = validate_gltf(tmp_path / "exported.glb")
     assert gltf_issues(report, 0) == []
