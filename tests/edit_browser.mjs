@@ -54,6 +54,18 @@ try {
   await error.waitFor({ state: 'detached', timeout: 60000 });
   await settled();
 
+  // a symbol with no meaning: the CLI's warning, listed and the symbol marked where it is written
+  await select('(45)A"', '(45)A'.length, 0);
+  await page.keyboard.type('X');
+  const marked = page.locator('[data-testid=warned-symbol]');
+  await marked.first().waitFor({ timeout: 60000 });
+  out.warnedSymbol = await marked.first().textContent();
+  out.warning = await page.locator('[data-testid=warning]').first().textContent();
+  out.warningGutter = await page.locator('.warning-gutter').first().textContent();
+  await page.keyboard.press('Backspace');
+  await marked.first().waitFor({ state: 'detached', timeout: 60000 });
+  await settled();
+
   // a slider: the define `a` (the branch angle) is written into the text and the tree changes shape
   const boundsBefore = await page.evaluate(() => window.lsys3d.viewer.bounds());
   await page.locator('[data-testid=slider-define-a]').fill('30');

@@ -270,3 +270,34 @@ def test_the_cli_serves_and_stops(folder):
     for pid in pids:  # the workers ended with the server
         with pytest.raises(ProcessLookupError):
             os.kill(pid, 0)
+
+
+HOST_ARGS = ("--host", "127.0.0.2", "--port", "0", "--no-browser", "--jobs", "1")
+
+
+def test_another_address_needs_a_token(folder):
+    """``--host`` other than the loopback's 127.0.0.1: the address printed carries a token the API insists on."""
+    import signal
+    import subprocess
+    import sys
+    import urllib.error
+    import urllib.request
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "lsys3d", "edit", str(folder / "plant.toml"), *HOST_ARGS],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        url = proc.stdout.readline().split()[2]
+        base, _, token = url.partition("?token=")
+        assert base.startswith("http://127.0.0.2:") and len(token) >= 20
+        with pytest.raises(urllib.error.HTTPError) as refused:
+            urllib.request.urlopen(base + "api/document", timeout=30)
+        assert refused.value.code == 401
+        with urllib.request.urlopen(f"{base}api/document?token={token}", timeout=30) as answer:
+            assert json.loads(answer.read())["name"] == "plant.toml"
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=60)

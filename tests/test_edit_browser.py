@@ -59,6 +59,9 @@ def test_the_editor_in_chromium(server, tmp_path):
     assert seen["errorLine"] == seen["badLine"] > 0
     assert seen["errorGutter"] == str(seen["badLine"])
     assert "unclosed" in seen["errorText"] or "(" in seen["errorText"]
+    # the warning of a symbol with no meaning: listed as the CLI prints it, the symbol marked on its line
+    assert seen["warnedSymbol"] == "X" and "no rule and no turtle meaning: 'X'" in seen["warning"]
+    assert seen["warningGutter"] == "3"  # the axiom's line
     # the slider wrote the define and the tree changed shape
     assert seen["boundsChanged"]
     # views: the same mesh in wireframe and UV checker; the skeleton view ghosts it; no leaves, fewer

@@ -222,6 +222,8 @@ def main() -> None:
         out.write(data)
 
     logging.basicConfig(format="lsys3d edit worker: %(message)s", level=logging.ERROR)
+    for handler in logging.getLogger().handlers:  # the grammar's warnings go to the page, not the terminal
+        handler.setLevel(logging.ERROR)
     with contextlib.suppress(KeyboardInterrupt, BrokenPipeError):  # the server stopped
         _serve(read, write)
 

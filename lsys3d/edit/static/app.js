@@ -109,11 +109,19 @@ async function grow(kind, seq, t0) {
   if (kind === 'soup' && seq === state.seq) state.fullId = null;
   if (seq === state.seq) {
     editor.setError(null);
+    editor.setWarnings(json.diagnostics.map((d) => ({ message: d.message, symbols: warnedSymbols(d.message) })));
     diagnostics(json.diagnostics, null);
     grammarControls(json.grammar);
   }
   stats(json.stats, kind);
   status(kind === 'full' || state.options.union === false ? 'ready' : 'tube soup shown; union on its way…');
+}
+
+// the symbols a warning names, quoted after its colon: "...: symbols with no rule and no turtle meaning: 'X', 'Y'",
+// "...: module parameters the turtle ignores: 'F' (w), '+' (a)"
+function warnedSymbols(message) {
+  const tail = message.slice(message.lastIndexOf(': ') + 2);
+  return [...tail.matchAll(/'([^']+)'/g)].map((m) => m[1]);
 }
 
 function status(text) {

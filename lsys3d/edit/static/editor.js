@@ -3,27 +3,52 @@
 // a vendored editor library: CodeMirror 6 needs a bundler, and a textarea keeps the browser's own editing,
 // undo, selection and accessibility.
 
+let warned = new Map(); // symbol -> the warning naming it (underlined in rules, the message as its tooltip)
 const esc = (s) => s.replace(/&/g, '&amp;').replace(/</g, '&lt;').replace(/>/g, '&gt;');
 const span = (cls, s) => `<span class="t-${cls}">${esc(s)}</span>`;
 
-// the L-system inside rules: arrows, branches, turtle symbols, parameters, numbers
+// the L-system inside rules: arrows, branches, turtle symbols, modules and their parameters. Outside parentheses
+// a module is one character (lsys3d's TOML) or a word (the native dialects); inside, names are parameters.
 const RULE = [
   [/^(->|→|-->|<|>|:)/, 'arrow'],
   [/^[[\]]/, 'branch'],
   [/^[0-9]+(\.[0-9]*)?([eE][-+]?[0-9]+)?/, 'number'],
-  [/^[A-Za-z_][A-Za-z0-9_]*/, 'symbol'],
   [/^[+\-&^\\/|!~$"'%@]/, 'turtle'],
-  [/^[(),*]/, 'paren'],
 ];
 
-function rule(text) {
+function rule(text, words = false) {
   let out = '';
+  let depth = 0;
   while (text) {
+    let m;
+    if (text[0] === '(' || text[0] === ')') {
+      depth = Math.max(0, depth + (text[0] === '(' ? 1 : -1));
+      out += span('paren', text[0]);
+      text = text.slice(1);
+      continue;
+    }
+    if (depth > 0) {
+      m = /^[A-Za-z_][A-Za-z0-9_]*|^[0-9.]+([eE][-+]?[0-9]+)?|^[^()A-Za-z0-9_.]+/.exec(text);
+      const cls = /^[A-Za-z_]/.test(m[0]) ? 'param' : /^[0-9.]/.test(m[0]) ? 'number' : 'paren';
+      out += span(cls, m[0]);
+      text = text.slice(m[0].length);
+      continue;
+    }
+    if ((m = (words ? /^[A-Za-z_][A-Za-z0-9_]*/ : /^[A-Za-z]/).exec(text))) {
+      const warning = warned.get(m[0]);
+      out += warning
+        ? `<span class="t-symbol warned" data-testid="warned-symbol" title="${esc(warning)}">${esc(m[0])}</span>`
+        : span('symbol', m[0]);
+      text = text.slice(m[0].length);
+      continue;
+    }
     let hit = false;
     for (const [re, cls] of RULE) {
-      const m = re.exec(text);
-      if (m) {
-        out += span(cls, m[0]);
+      if ((m = re.exec(text))) {
+        const warning = cls === 'turtle' && warned.get(m[0]);
+        out += warning
+          ? `<span class="t-${cls} warned" data-testid="warned-symbol" title="${esc(warning)}">${esc(m[0])}</span>`
+          : span(cls, m[0]);
         text = text.slice(m[0].length);
         hit = true;
         break;
@@ -131,7 +156,7 @@ function nativeLine(line, state, suffix) {
       // up to the next comment or string: L-system text
       const stop = rest.search(suffix === '.l' ? /\/\/|\/\*|"/ : /#|"/);
       const piece = stop <= 0 ? rest : rest.slice(0, stop);
-      out += rule(piece);
+      out += rule(piece, true);
       rest = stop <= 0 ? '' : rest.slice(stop);
     }
   }
@@ -151,13 +176,15 @@ export function createEditor(host, { onChange, suffix = '.toml' } = {}) {
   const pre = host.querySelector('.highlight');
   const area = host.querySelector('textarea');
   const marks = host.querySelector('.marks');
-  let diagnostics = { error: null };
+  let diagnostics = { error: null, warnings: [] };
 
   function lineHeight() {
     return parseFloat(getComputedStyle(area).lineHeight) || 18;
   }
 
   function draw() {
+    warned = new Map();
+    for (const w of diagnostics.warnings) for (const symbol of w.symbols) warned.set(symbol, w.message);
     const lines = highlight(area.value, suffix);
     const error = diagnostics.error;
     if (error && error.line && error.line <= lines.length) {
@@ -165,9 +192,15 @@ export function createEditor(host, { onChange, suffix = '.toml' } = {}) {
     }
     pre.innerHTML = lines.join('\n') + '\n';
     gutter.textContent = lines.map((_, i) => String(i + 1)).join('\n') + '\n';
-    if (error && error.line) {
+    if ((error && error.line) || warned.size) {
       gutter.innerHTML = lines
-        .map((_, i) => (i + 1 === error.line ? `<span class="error-gutter" title="error">${i + 1}</span>` : `${i + 1}`))
+        .map((html, i) => {
+          if (error && i + 1 === error.line) return `<span class="error-gutter" title="error">${i + 1}</span>`;
+          if (html.includes('class="t-symbol warned"') || html.includes('class="t-turtle warned"')) {
+            return `<span class="warning-gutter" title="warning">${i + 1}</span>`;
+          }
+          return `${i + 1}`;
+        })
         .join('\n');
     }
     marks.innerHTML = '';
@@ -244,7 +277,12 @@ export function createEditor(host, { onChange, suffix = '.toml' } = {}) {
       draw();
     },
     setError(error) {
-      diagnostics = { error };
+      diagnostics = { ...diagnostics, error };
+      draw();
+    },
+    /** Warnings to mark in the text: [{message, symbols: [...]}] (the symbols the CLI's warning names). */
+    setWarnings(warnings) {
+      diagnostics = { ...diagnostics, warnings };
       draw();
     },
     /** Replace the characters [start, end) (a slider writing a define's value), keeping the caret. */
