@@ -280,7 +280,7 @@ def test_no_module_is_too_long():
     assert TOO_LONG - set(long) == set(), "split already: remove it from TOO_LONG"
 
 
-HEAVY = ("numpy", "numba", "pxr", "dask", "distributed", "trimesh", "manifold3d")
+HEAVY = ("numpy", "numba", "pxr", "dask", "distributed", "trimesh", "manifold3d", "starlette", "uvicorn")
 
 
 @pytest.mark.parametrize(

@@ -301,3 +301,34 @@ def test_another_address_needs_a_token(folder):
     finally:
         proc.send_signal(signal.SIGTERM)
         proc.wait(timeout=60)
+
+
+def test_a_full_queue_is_a_503_and_a_dead_worker_a_500(folder):
+    """One worker and room for one waiting request: a third is refused at once; a worker killed mid-union (as
+    the system's out-of-memory killer would) fails its request with a clear 500 and is replaced."""
+    import os
+    import signal
+
+    slow = {"text": TREE3D, "iterations": 7}
+    with _client(EditSettings(str(folder / "plant.toml"), workers=1, queue=1)) as c:
+        _wait_ready(c, 1)
+        with ThreadPoolExecutor(2) as pool:
+            running = pool.submit(c.post, "/api/generate", json={**slow, "channel": "a"})
+            _until(c, lambda s: s["busy"] == 1)
+            waiting = pool.submit(c.post, "/api/generate", json={**slow, "seed": 1, "channel": "b"})
+            _until(c, lambda s: s["waiting"] == 1)
+            refused = c.post("/api/generate", json={**slow, "seed": 2, "channel": "c"})
+            assert refused.status_code == 503 and "waiting" in refused.json()["error"]["message"]
+            (pid,) = c.get("/api/status").json()["pids"]
+            os.kill(pid, signal.SIGKILL)
+            died = running.result(timeout=300)
+            assert died.status_code == 500 and "worker ended" in died.json()["error"]["message"]
+            assert waiting.result(timeout=300).status_code == 200  # the replacement worker took it
+        assert c.get("/api/status").json()["started"] == 2
+
+
+def _until(client: TestClient, condition) -> None:
+    deadline = time.monotonic() + 120
+    while not condition(client.get("/api/status").json()):
+        assert time.monotonic() < deadline, client.get("/api/status").json()
+        time.sleep(0.02)
