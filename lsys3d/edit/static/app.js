@@ -6,7 +6,7 @@ import { createEditor } from './editor.js';
 
 const token = new URLSearchParams(location.search).get('token');
 const auth = token ? { 'X-Lsys3d-Token': token } : {};
-const FULL_DELAY = 250; // ms of quiet before the union is asked for (the soup is asked for at once)
+const FULL_DELAY = 250; // ms of quiet after an edit before the union is asked for (the soup: at once)
 const $ = (id) => document.getElementById(id);
 
 const TURTLE_CONTROLS = ['step', 'width', 'width_scale', 'length_scale', 'elasticity', 'tropism', 'angle_jitter',
@@ -50,7 +50,8 @@ async function bytes(path) {
 }
 
 const viewer = createViewer($('viewer'));
-const editor = createEditor($('editor'), { onChange: () => edited(performance.now()) });
+// the page's timings start at the input event's own time stamp: the keypress, as near as a page can know it
+const editor = createEditor($('editor'), { onChange: (text, stamp) => edited(stamp ?? performance.now()) });
 
 function body(kind, extra = {}) {
   const options = { ...state.options };
@@ -73,9 +74,13 @@ let fullTimer = null;
 function edited(t0) {
   state.seq += 1;
   const seq = state.seq;
-  grow('soup', seq, t0);
   clearTimeout(fullTimer);
-  if (state.options.union !== false) fullTimer = setTimeout(() => grow('full', seq, t0), FULL_DELAY);
+  // the union is asked for once the soup is on screen and the edits paused: it never takes the cores from
+  // the soup of the same edit (a newer edit cancels it on the server anyway)
+  grow('soup', seq, t0).finally(() => {
+    if (seq !== state.seq || state.options.union === false) return;
+    fullTimer = setTimeout(() => grow('full', seq, t0), Math.max(0, FULL_DELAY - (performance.now() - t0)));
+  });
   flags();
 }
 

@@ -248,9 +248,9 @@ export function createEditor(host, { onChange, suffix = '.toml' } = {}) {
     gutter.scrollTop = area.scrollTop;
   }
 
-  area.addEventListener('input', () => {
+  area.addEventListener('input', (e) => {
+    onChange?.(area.value, e.timeStamp); // the request first, then the highlighting
     draw();
-    onChange?.(area.value);
   });
   area.addEventListener('scroll', () => {
     sync();
