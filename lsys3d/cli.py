@@ -741,6 +741,8 @@ def cmd_edit(args) -> int:
             sys.stderr.write(f"\rlsys3d: {text}\x1b[K" if text else "\r\x1b[K")
             sys.stderr.flush()
 
+    # asyncio's child watcher warns when a worker it killed was reaped first; nothing the user can act on
+    logging.getLogger("asyncio").setLevel(logging.ERROR)
     app = make_app(settings, announce=announce)
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
 

@@ -332,3 +332,35 @@ def _until(client: TestClient, condition) -> None:
     while not condition(client.get("/api/status").json()):
         assert time.monotonic() < deadline, client.get("/api/status").json()
         time.sleep(0.02)
+
+
+def test_a_missing_file_is_made_on_the_first_save(folder):
+    path = folder / "new-plant.toml"
+    with _client(EditSettings(str(path), workers=1)) as c:
+        doc = c.get("/api/document").json()
+        assert not doc["exists"] and not doc["read_only"] and "axiom" in doc["text"]
+        saved = c.post("/api/save", json={"text": doc["text"], "version": doc["version"]})
+        assert saved.status_code == 200 and path.read_text() == doc["text"]
+
+
+def test_workers_that_cannot_start_fail_requests_with_the_reason(folder):
+    """A worker that dies before it is ready (here: not even Python) is not restarted forever."""
+    import asyncio
+
+    from lsys3d.edit.pool import Pool, WorkerFailed
+
+    async def attempt():
+        pool = Pool(1, python="/bin/false")
+        await pool.start()
+        for _ in range(200):
+            if pool.broken:
+                break
+            await asyncio.sleep(0.02)
+        try:
+            with pytest.raises(WorkerFailed, match="in a row ended before they were ready"):
+                await pool.run({"options": {}, "key": "k"})
+            return pool.started
+        finally:
+            await pool.close()
+
+    assert asyncio.run(attempt()) == 3

@@ -29,6 +29,11 @@ __all__ = ["Busy", "Pool", "Superseded", "WorkerFailed"]
 log = logging.getLogger("lsys3d")
 
 
+MAX_FAILED_STARTS = 3
+"""Workers that may end in a row before they are ready (an install without numba, no memory) before the pool
+stops starting more and fails every request with the reason."""
+
+
 class Superseded(Exception):
     """A newer request on the same channel replaced this one."""
 
@@ -57,6 +62,8 @@ class _Worker:
     ticket: _Ticket | None = None
     keys: list = field(default_factory=list)
     reader: asyncio.Task | None = None
+    started: bool = False  # it said ready once
+    killed: bool = False  # by the pool (superseded), not by a failure
 
 
 class Pool:
@@ -79,6 +86,8 @@ class Pool:
         self.failures = 0
         self._ids = itertools.count(1)
         self._closed = False
+        self.broken: str | None = None  # why no worker can start (then every request fails at once)
+        self._failed_starts = 0
 
     # -------------------------------------------------------------- workers
     async def start(self) -> None:
@@ -111,7 +120,8 @@ class Pool:
                 if kind == "compiling":
                     self.compiling = (message["done"], message["total"])
                 elif kind == "ready":
-                    worker.ready = True
+                    worker.ready = worker.started = True
+                    self._failed_starts = 0
                     self.compiling = None
                     self._dispatch()
                 elif kind == "result":
@@ -139,11 +149,22 @@ class Pool:
         if ticket is not None and not ticket.future.done():
             self.failures += 1
             ticket.future.set_exception(WorkerFailed(f"the worker ended (exit status {worker.process.returncode})"))
+        if not worker.started and not worker.killed:
+            self._failed_starts += 1
+        if self._failed_starts >= MAX_FAILED_STARTS:  # it would fail again: say so instead of trying forever
+            self.broken = (
+                f"{self._failed_starts} workers in a row ended before they were ready (exit status "
+                f"{worker.process.returncode}; their errors are on the server's terminal)"
+            )
+            for waiting in list(self.waiting):
+                self._cancel(waiting, WorkerFailed(self.broken))
+            return
         if not self._closed:
             await self._spawn()
 
     def _kill(self, worker: _Worker) -> None:
         worker.ready = False  # never handed another job: it is on its way out
+        worker.killed = True
         with contextlib.suppress(ProcessLookupError):
             worker.process.kill()  # its reader sees the pipe close and starts another worker
 
@@ -154,6 +175,8 @@ class Pool:
         Raises :class:`Superseded` when a newer request on ``channel`` came before it finished,
         :class:`Busy` when the queue is full, :class:`WorkerFailed` when its worker died.
         """
+        if self.broken is not None:
+            raise WorkerFailed(self.broken)
         if channel is not None:
             self.supersede(channel)
         if len(self.waiting) >= self.queue_limit:
@@ -213,6 +236,7 @@ class Pool:
             "compiling": None if self.compiling is None else dict(zip(("done", "total"), self.compiling, strict=True)),
             "started": self.started,
             "pids": [w.process.pid for w in self.workers],
+            "broken": self.broken,
         }
 
     async def close(self) -> None:
