@@ -15,7 +15,7 @@ pytest.importorskip("starlette")
 pytest.importorskip("httpx2")
 
 from starlette.testclient import TestClient
-from validators import gltf_issues, validate_gltf
+from validators import REPO, gltf_issues, validate_gltf
 
 from lsys3d.edit.server import MAX_BODY, EditSettings, make_app
 from lsys3d.lsystem.presets import preset_text
@@ -364,3 +364,39 @@ def test_workers_that_cannot_start_fail_requests_with_the_reason(folder):
             await pool.close()
 
     assert asyncio.run(attempt()) == 3
+
+
+def test_a_first_runs_compiling_is_reported(tmp_path):
+    """While a worker compiles the kernels (a first run) the pool's status says how far it is: the page's
+    status line and the terminal show it.  A stand-in worker reports one kernel of five, then waits."""
+    import asyncio
+    import stat
+    import sys
+
+    from lsys3d.edit.pool import Pool
+
+    script = tmp_path / "python"
+    script.write_text(
+        f"#!{sys.executable}\n"
+        "import sys\n"
+        f"sys.path.insert(0, {str(REPO)!r})\n"
+        "from lsys3d.edit import frames\n"
+        "sys.stdout.buffer.write(frames.encode({'kind': 'compiling', 'done': 1, 'total': 5}))\n"
+        "sys.stdout.buffer.flush()\n"
+        "sys.stdin.buffer.read()\n"
+    )
+    script.chmod(script.stat().st_mode | stat.S_IEXEC)
+
+    async def watch():
+        pool = Pool(1, python=str(script))
+        await pool.start()
+        try:
+            for _ in range(500):
+                if pool.status["compiling"]:
+                    return pool.status
+                await asyncio.sleep(0.02)
+        finally:
+            await pool.close()
+
+    status = asyncio.run(watch())
+    assert status["compiling"] == {"done": 1, "total": 5} and status["ready"] == 0
