@@ -72,3 +72,11 @@ def test_the_viewer_html_is_self_contained():
     assert all(name.split("/")[-1] in html for name in MODULES)
     assert html.count("</script>") == 3
     assert "<\\/" in html  # "</" inside the inlined sources is escaped
+
+
+def test_a_tree_too_large_to_inline_shows_a_note(monkeypatch):
+    from lsys3d.edit import notebook
+
+    monkeypatch.setattr(notebook, "MAX_INLINE_BYTES", 1000)
+    html = lsys3d.generate("koch", 2)._repr_html_()
+    assert "more than a notebook output should hold" in html and "<script" not in html

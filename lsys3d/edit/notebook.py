@@ -63,6 +63,11 @@ _LOADER = """
 """
 
 
+MAX_INLINE_BYTES = 64 << 20
+"""The largest .glb a notebook output inlines (base64 makes it a third larger, and the notebook file keeps it);
+a larger tree shows a note instead: export it and open it elsewhere."""
+
+
 def _script_text(data: str) -> str:
     """Text safe inside a ``<script>`` element (which ends at the first ``</``)."""
     return data.replace("</", "<\\/")
@@ -92,10 +97,17 @@ def viewer_html(tree: Tree, height: int = 480) -> str:
         .glb's size in base64).
     """
     ident = f"lsys3d-view-{secrets.token_hex(6)}"
+    data = glb_of(tree)
+    if len(data) > MAX_INLINE_BYTES:
+        return (
+            f'<div class="lsys3d-view" data-asset="{html.escape(tree.identifier)}">lsys3d: {html.escape(tree.name)} '
+            f"is {len(data) / 1e6:,.0f} MB as .glb, more than a notebook output should hold "
+            f"({MAX_INLINE_BYTES >> 20} MB): export it (lsys3d.export) and open it in a viewer</div>"
+        )
     sources = [[name, (STATIC / name).read_text(encoding="utf-8")] for name in MODULES]
-    glb = base64.b64encode(glb_of(tree)).decode("ascii")
+    glb = base64.b64encode(data).decode("ascii")
     return (
-        f'<div class="lsys3d-view" data-asset="{tree.identifier}">'
+        f'<div class="lsys3d-view" data-asset="{html.escape(tree.identifier)}">'
         f'<div id="{ident}" data-testid="lsys3d-viewer" style="width:100%;height:{int(height)}px"></div>'
         f'<script type="application/json" id="{ident}-modules">{_script_text(json.dumps(sources))}</script>'
         f'<script type="application/octet-stream" id="{ident}-glb">{glb}</script>'

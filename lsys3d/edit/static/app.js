@@ -235,6 +235,7 @@ function tomlNumber(text, name, scope) {
 let grammarKey = '';
 function grammarControls(g) {
   state.grammar = g;
+  if (state.seed === null) $('seed-controls').querySelector('[data-name="seed"]')?.__update(g.seed);
   const host = $('grammar-controls');
   const key = JSON.stringify([Object.keys(g.defines), state.doc.suffix]);
   if (key === grammarKey) return;
