@@ -75,6 +75,11 @@ try {
   const boundsAfter = await page.evaluate(() => window.lsys3d.viewer.bounds());
   out.boundsChanged = JSON.stringify(boundsBefore) !== JSON.stringify(boundsAfter);
 
+  // a turtle setting's slider writes it into the grammar's [turtle] table
+  await page.locator('[data-testid=slider-elasticity]').fill('0.5');
+  await page.waitForFunction(() => /\nelasticity = 0\.5\n/.test(window.lsys3d.editor.value), null, { timeout: 10000 });
+  await settled();
+
   // the view menu: wireframe, skeleton, UV checker and leaves off change what is drawn
   out.views = {};
   for (const view of ['wireframe', 'skeleton', 'uv', 'shaded']) {

@@ -77,5 +77,6 @@ def test_the_editor_in_chromium(server, tmp_path):
     # saved to the file, and read back by the reloaded page
     text = grammar.read_text(encoding="utf-8")
     assert text == seen["textSaved"] == seen["textReloaded"]
+    assert "\nelasticity = 0.5\n" in text and "elasticity = 0.22" not in text
     assert "iterations = 5" in text and f"a = {seen['sliderValue']:g}" in text and "a = 18.95" not in text
     assert seen["trianglesReloaded"] == seen["trianglesAfter"] or seen["trianglesReloaded"] > 0

@@ -215,21 +215,63 @@ function span(value, low, high) {
 }
 
 // the grammar's numeric defines and its angle are written into the text (TOML grammars), so Save keeps them
-function tomlNumber(text, name, scope) {
-  const number = '(-?[0-9][0-9_]*(?:\\.[0-9_]*)?(?:[eE][-+]?[0-9]+)?)';
-  let re;
-  if (scope) {
-    const start = text.search(new RegExp(`^\\s*(\\[${scope}\\]|${scope}\\s*=)`, 'm'));
-    if (start < 0) return null;
-    re = new RegExp(`(^|[\\s{,])${name}\\s*=\\s*${number}`, 'g');
-    re.lastIndex = start;
-  } else {
-    re = new RegExp(`^()\\s*${name}\\s*=\\s*${number}`, 'gm');
+const NUMBER = '(-?[0-9][0-9_]*(?:\\.[0-9_]*)?(?:[eE][-+]?[0-9]+)?)';
+
+// the body of the TOML table `scope`: [start, end) of `[scope]` up to the next header, or of `scope = {...}`
+function tomlSection(text, scope) {
+  const header = new RegExp(`^[ \\t]*\\[${scope}\\][^\\n]*\\n?`, 'm').exec(text);
+  if (header) {
+    const start = header.index + header[0].length;
+    const next = /^[ \t]*\[/m.exec(text.slice(start));
+    return { start, end: next ? start + next.index : text.length, inline: false };
   }
-  const m = re.exec(text);
+  const inline = new RegExp(`^[ \\t]*${scope}\\s*=\\s*\\{`, 'm').exec(text);
+  if (inline) {
+    const start = inline.index + inline[0].length;
+    const close = text.indexOf('}', start);
+    return { start, end: close < 0 ? text.length : close, inline: true };
+  }
+  return null;
+}
+
+// where the number (or, with `array`, the [x, y, z]) of `name` is written: in table `scope`, or at the top level
+function tomlValue(text, name, scope, array = false) {
+  const value = array ? '(\\[[^\\]\\n]*\\])' : NUMBER;
+  let start = 0;
+  let end = text.length;
+  let re = new RegExp(`^()[ \\t]*${name}\\s*=\\s*${value}`, 'm');
+  if (scope) {
+    const section = tomlSection(text, scope);
+    if (!section) return null;
+    ({ start, end } = section);
+    re = new RegExp(`(^|[\\s{,])${name}\\s*=\\s*${value}`);
+  }
+  const m = re.exec(text.slice(start, end));
   if (!m) return null;
-  const at = m.index + m[0].length - m[2].length;
+  const at = start + m.index + m[0].length - m[2].length;
   return [at, at + m[2].length];
+}
+
+function tomlNumber(text, name, scope) {
+  return tomlValue(text, name, scope);
+}
+
+// a [turtle] setting written into the text (TOML): replaced where it is, else added to the table (made if
+// missing). False when the text cannot take it (a native dialect, an inline `turtle = {...}` without the key).
+function writeTurtle(name, value) {
+  if (state.doc.suffix !== '.toml') return false;
+  const text = editor.value;
+  const written = Array.isArray(value) ? `[${value.map((v) => Number(v.toFixed(6))).join(', ')}]` : String(Number(value.toFixed(6)));
+  const at = tomlValue(text, name, 'turtle', Array.isArray(value));
+  if (at) {
+    editor.replace(at[0], at[1], written);
+    return true;
+  }
+  const section = tomlSection(text, 'turtle');
+  if (section?.inline) return false;
+  if (section) editor.replace(section.start, section.start, `${name} = ${written}\n`);
+  else editor.replace(text.length, text.length, `${text.endsWith('\n') ? '' : '\n'}\n[turtle]\n${name} = ${written}\n`);
+  return true;
 }
 
 let grammarKey = '';
@@ -332,13 +374,15 @@ async function optionControls() {
       name: label, label, value, low: lo, high: hi, step, integer: spec.kind === 'int', help: spec.help,
       onInput: (v) => {
         if (spec.group === 'turtle') {
-          if (index === undefined) state.turtle[spec.name] = v;
-          else {
-            const now = state.turtle[spec.name] ?? state.grammar?.turtle?.[spec.name] ?? spec.default;
-            const vec = [...now];
-            vec[index] = v;
-            state.turtle[spec.name] = vec;
+          let value = v;
+          if (index !== undefined) {
+            value = [...(state.turtle[spec.name] ?? state.grammar?.turtle?.[spec.name] ?? spec.default)];
+            value[index] = v;
           }
+          // into the grammar's [turtle] table when it can be (Save keeps it), else an override of it
+          if (writeTurtle(spec.name, value)) delete state.turtle[spec.name];
+          else state.turtle[spec.name] = value;
+          if (index !== undefined && state.grammar) state.grammar.turtle[spec.name] = value;
         } else state.options[spec.name] = v;
         edited(performance.now());
       },
