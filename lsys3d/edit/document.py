@@ -16,14 +16,14 @@ from pathlib import Path
 
 from ..errors import ExportError, GrammarError, LSystemError
 from ..exchange.atomic import write_bytes
-from ..lsystem.dialects import SUFFIXES
+from ..lsystem.dialects import GRAMMAR_SUFFIXES
 from ..lsystem.grammar import MAX_GRAMMAR_BYTES
 from ..lsystem.presets import list_presets, preset_text
 
 __all__ = ["EDITABLE_SUFFIXES", "Conflict", "Document", "ReadOnly", "Version"]
 
-EDITABLE_SUFFIXES = (".toml", *SUFFIXES)
-"""The suffixes of the files the editor opens: lsys3d's TOML and the native dialects'."""
+EDITABLE_SUFFIXES = GRAMMAR_SUFFIXES
+"""The suffixes of the files the editor opens: lsys3d's TOML and the native dialects' (the files lsys3d reads)."""
 
 
 class Conflict(LSystemError):
