@@ -34,6 +34,8 @@ absolute name as it is (a grammar is the user's own file, like a command line).
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import json
 import os
 import stat
@@ -47,6 +49,7 @@ from .errors import AssetError, clip, os_reason
 __all__ = [
     "MAX_JSON_DEPTH",
     "FileRefused",
+    "confined_to",
     "grammar_folder",
     "inside",
     "json_depth",
@@ -137,6 +140,37 @@ def inside(folder: str | os.PathLike, name: str | os.PathLike, what: str) -> Pat
     return path
 
 
+_CONFINED: contextvars.ContextVar[Path | None] = contextvars.ContextVar("lsys3d_confined_to", default=None)
+
+
+@contextlib.contextmanager
+def confined_to(folder: str | os.PathLike) -> Iterator[Path]:
+    """Within the block, :func:`open_regular` (so every reader) opens only files inside ``folder`` (symlinks
+    resolved).
+
+    The editor's server (``lsys3d edit``) grows grammars sent over HTTP: the files they name must stay in the
+    folder of the grammar being edited.  A context variable, so that other threads are not affected.
+    """
+    root = Path(folder).resolve()
+    token = _CONFINED.set(root)
+    try:
+        yield root
+    finally:
+        _CONFINED.reset(token)
+
+
+def _check_confined(path, what: str) -> None:
+    root = _CONFINED.get()
+    if root is None:
+        return
+    try:
+        within = Path(path).resolve().is_relative_to(root)
+    except (OSError, RuntimeError):  # a symlink loop
+        within = False
+    if not within:
+        raise FileRefused(path, f"the {what} is outside the grammar's folder {clip(str(root), 100)}")
+
+
 def open_regular(path: str | os.PathLike, limit: int, what: str, limit_name: str, *, follow: bool = True) -> int:
     """A file descriptor open for reading on the regular file ``path`` of at most ``limit`` bytes.
 
@@ -157,6 +191,7 @@ def open_regular(path: str | os.PathLike, limit: int, what: str, limit_name: str
         flags |= getattr(os, "O_NOFOLLOW", 0)
     if "\0" in os.fspath(path):
         raise FileRefused(path, "a file name cannot hold a NUL character")
+    _check_confined(path, what)
     try:
         fd = os.open(path, flags)
     except FileNotFoundError:
