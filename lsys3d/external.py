@@ -19,13 +19,18 @@ which parse them as data: nothing a file holds is ever run.
 
 from __future__ import annotations
 
+import io
 import os
 import stat
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import AssetError, clip, os_reason
 
-__all__ = ["grammar_folder", "read_file", "resolve"]
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+__all__ = ["grammar_folder", "load_scene", "read_file", "resolve"]
 
 
 def grammar_folder(grammar) -> Path:
@@ -107,3 +112,37 @@ def read_file(path: Path, limit: int, what: str, limit_name: str) -> bytes:
         raise AssetError(f"{shown}: cannot read the {what}: {os_reason(exc)}") from None
     finally:
         os.close(fd)
+
+
+def load_scene(data: bytes, file_type: str, shown: str, max_triangles: int, too_many: Callable[[str, int], str]):
+    """A model file's bytes as a ``trimesh.Scene`` with triangles, parsed as data: one clear line when it is not.
+
+    ``too_many(shown, count)`` words the error for more than ``max_triangles`` triangles (a binary STL
+    is refused from its header, before parsing).
+
+    Raises
+    ------
+    AssetError
+        ``shown: what``: not a readable model of that type, no triangles, too many.
+    """
+    import numpy as np
+    import trimesh
+
+    if file_type == "stl" and len(data) >= 84 and data[:5].lower() != b"solid":
+        (count,) = np.frombuffer(data[80:84], "<u4")
+        if count > max_triangles:  # binary STL says its size up front: refuse before parsing
+            raise AssetError(too_many(shown, int(count)))
+    try:
+        scene = trimesh.load(io.BytesIO(data), file_type=file_type, process=False, force="scene")
+        meshes = [g for g in scene.geometry.values() if hasattr(g, "faces") and len(g.faces)]
+        if not meshes:
+            raise AssetError(f"{shown}: the model has no triangles")
+        triangles = sum(len(g.faces) for g in meshes)
+        if triangles > max_triangles:
+            raise AssetError(too_many(shown, triangles))
+    except AssetError:
+        raise
+    except Exception as exc:  # trimesh's readers raise anything on a damaged file: one line, never a traceback
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise AssetError(f"{shown}: not a readable .{file_type} model ({clip(reason, 80)})") from None
+    return scene

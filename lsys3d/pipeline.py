@@ -41,7 +41,7 @@ from .look.rig import SKIN_KEYS, RigOptions, bind, build_rig
 from .look.surfaces import surface_table, with_cards
 from .look.wind import WindOptions, sway
 from .lsystem import dialects
-from .lsystem.derive import DEFAULT_MAX_MODULES, derive, interpretation
+from .lsystem.derive import DEFAULT_MAX_MODULES, interpretation
 from .lsystem.grammar import Grammar
 from .lsystem.modules import ModuleString
 from .lsystem.presets import load
@@ -55,7 +55,9 @@ from .provenance import Provenance
 from .tree import StageCounts, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, FormOptions, TurtleOptions, TurtleOverrides, form, interpret, symbol_table
 from .turtle.diagnostics import Checks, check
+from .turtle.environment import EnvironmentOptions, load_environment
 from .turtle.hierarchy import hierarchy
+from .turtle.query import derive_answering
 from .turtle.skeleton import Skeleton
 
 __all__ = [
@@ -164,6 +166,7 @@ class GenerateOptions(Options):
     wind: WindOptions = option(factory=WindOptions, help="the wind animation")
     checks: Checks = option(factory=Checks, help="the grammar's warnings")
     lod: LodOptions = option(factory=LodOptions, help="levels of detail")
+    environment: EnvironmentOptions = option(factory=EnvironmentOptions, help="the place the plant grows in")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
@@ -180,6 +183,8 @@ class GenerateOptions(Options):
         data = super().plain()
         if self.form == FormOptions():
             del data["form"]
+        if self.environment == EnvironmentOptions():
+            del data["environment"]
         return data
 
 
@@ -279,14 +284,28 @@ def draw(
     """
     options = options or GenerateOptions()
     limits = options.limits
-    modules = run_stage("derive", derive, grammar, iterations, seed, max_modules=limits.max_modules, progress=progress)
     turtle = TurtleOptions.from_grammar(grammar, options.turtle)
     shape = FormOptions.from_grammar(grammar, options.form)
     commands = dialects.get(grammar.dialect).commands
+    environment = load_environment(grammar, options.environment)
+    scene = environment.scene() if environment is not None else None
+    modules = run_stage(
+        "derive",
+        derive_answering,
+        grammar,
+        iterations,
+        seed,
+        turtle=turtle,
+        commands=commands,
+        environment=environment,
+        max_modules=limits.max_modules,
+        max_segments=limits.max_segments,
+        progress=progress,
+    )
 
     def turtle_stage():
         shown = interpretation(grammar, modules, seed, max_modules=limits.max_modules, iterations=iterations)
-        skeleton = interpret(shown, turtle, seed=seed, max_segments=limits.max_segments, commands=commands)
+        skeleton = interpret(shown, turtle, seed=seed, max_segments=limits.max_segments, commands=commands, scene=scene)
         return shown, skeleton
 
     shown, skeleton = run_stage("interpret", turtle_stage, progress=progress)

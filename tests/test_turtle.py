@@ -514,7 +514,7 @@ def test_skeleton_stats_empty():
 def test_command_table():
     symbols = [c.symbol for c in COMMANDS]
     assert len(symbols) == len(set(symbols))
-    assert set("Ff+-&^\\/|$[]!'\"{.}~") | {"@O", "@c", "@o"} == set(symbols)
+    assert set("Ff+-&^\\/|$[]!'\"{.}~") | {"@O", "@c", "@o", "?P", "?H", "?L", "?U", "?E"} == set(symbols)
     # one row per behaviour; rotations say their axis and sign (the other ops are the dialects': test_dialects)
     assert len({(c.op, c.axis, c.sign, c.organ) for c in COMMANDS}) == len(COMMANDS)
     assert {c.op for c in COMMANDS} <= set(Op) - {Op.NONE}
