@@ -1,6 +1,6 @@
 """What query modules and an environment cost: a 50k-segment derivation and its turtle, with them and without.
 
-    python benchmarks/bench_environment.py [--repeat 3] [--iterations 96]
+    python benchmarks/bench_environment.py [--repeat 3] [--iterations 101]
 
 Both grammars grow the same plant: apices that step forward every generation and fork every 8th.  The
 open one asks the turtle where each apex is (``A(k) > ?P(x, y, z) : y < 1000``, true everywhere, so the
@@ -51,7 +51,7 @@ def grammar(open_: bool, iterations: int, wall: str) -> Grammar:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--iterations", type=int, default=96)
+    ap.add_argument("--iterations", type=int, default=101)
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as folder:
         wall = trimesh.creation.box(extents=(40, 40, 0.3))

@@ -365,7 +365,7 @@ _SUBCOMMANDS = {
         "scatter a library's assets over an area: USD PointInstancer or one .glb with instancing",
         _forest_arguments,
     ),
-    "presets": ("list the bundled presets: species, figures and curves", _presets_arguments),
+    "presets": ("list the bundled presets: species, figures, curves and plants in a scene", _presets_arguments),
 }
 """Each subcommand's help line and the function that adds its arguments, in the order ``--help`` lists them."""
 

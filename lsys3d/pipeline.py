@@ -316,6 +316,12 @@ def draw(
     return modules, skeleton
 
 
+def _scene(grammar: Grammar, options: GenerateOptions) -> tuple:
+    """The meshes of the place the plant grew in (read again: draw keeps nothing), for ``--scene``."""
+    environment = load_environment(grammar, options.environment)
+    return environment.meshes if environment is not None else ()
+
+
 def generate(
     grammar: Grammar | str,
     iterations: int | None = None,
@@ -429,6 +435,7 @@ def generate(
         materials=table,
         animation=animation,
         lods=lods,
+        scene=_scene(grammar, options),
     )
 
 

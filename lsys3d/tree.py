@@ -98,6 +98,7 @@ class Tree:
     organs: Organs = field(default_factory=Organs)
     animation: Animation | None = None
     lods: tuple = ()
+    scene: tuple = ()
 
     @property
     def bark_material(self) -> Material:

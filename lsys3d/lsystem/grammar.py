@@ -71,8 +71,9 @@ MAX_DEPTH = 1000
 
 _NAME = re.compile(r"[A-Za-z_@?~][A-Za-z_0-9@]*\Z")  # a declared module name (Leaf, @Gs, ?P)
 _SURROGATE = re.compile("[\ud800-\udfff]")
-GROUPS = ("species", "figure", "curve")
-"""What a grammar's ``group`` may say it is: a plant species, a textbook figure, or a curve (``lsys3d presets``)."""
+GROUPS = ("species", "figure", "curve", "scene")
+"""What a grammar's ``group`` may say it is: a plant species, a textbook figure, a curve, or a plant growing in
+a scene it ships with (``lsys3d presets``)."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -280,7 +280,7 @@ def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
     return _orthonormal(hx, hy, hz, lx, ly, lz)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _sample(grid, origin, cell, x, y, z):
     """The grid's signed distance at a point: trilinear between its nodes, :data:`FAR_OUTSIDE` off the grid."""
     nx, ny, nz = grid.shape
@@ -300,13 +300,43 @@ def _sample(grid, origin, cell, x, y, z):
     return (c00 * (1 - b) + c10 * b) * (1 - c) + (c01 * (1 - b) + c11 * b) * c
 
 
+@numba.njit(cache=True, inline="always")
+def _sample_gradient(grid, origin, cell, x, y, z):
+    """The grid's trilinear distance at a point and its gradient (the interpolant's own, from the same eight
+    nodes); :data:`FAR_OUTSIDE` and a zero gradient off the grid."""
+    nx, ny, nz = grid.shape
+    fx = (x - origin[0]) / cell
+    fy = (y - origin[1]) / cell
+    fz = (z - origin[2]) / cell
+    if not (0.0 <= fx <= nx - 1 and 0.0 <= fy <= ny - 1 and 0.0 <= fz <= nz - 1):
+        return FAR_OUTSIDE, 0.0, 0.0, 0.0
+    i = min(int(fx), nx - 2)
+    j = min(int(fy), ny - 2)
+    k = min(int(fz), nz - 2)
+    a, b, c = fx - i, fy - j, fz - k
+    g000, g100 = grid[i, j, k], grid[i + 1, j, k]
+    g010, g110 = grid[i, j + 1, k], grid[i + 1, j + 1, k]
+    g001, g101 = grid[i, j, k + 1], grid[i + 1, j, k + 1]
+    g011, g111 = grid[i, j + 1, k + 1], grid[i + 1, j + 1, k + 1]
+    c00 = g000 + (g100 - g000) * a
+    c10 = g010 + (g110 - g010) * a
+    c01 = g001 + (g101 - g001) * a
+    c11 = g011 + (g111 - g011) * a
+    c0 = c00 + (c10 - c00) * b
+    c1 = c01 + (c11 - c01) * b
+    d = c0 + (c1 - c0) * c
+    dx0 = (g100 - g000) + ((g110 - g010) - (g100 - g000)) * b
+    dx1 = (g101 - g001) + ((g111 - g011) - (g101 - g001)) * b
+    gx = (dx0 + (dx1 - dx0) * c) / cell
+    gy = ((c10 - c00) + ((c11 - c01) - (c10 - c00)) * c) / cell
+    gz = (c1 - c0) / cell
+    return d, gx, gy, gz
+
+
 @numba.njit(cache=True)
 def _normal(grid, origin, cell, x, y, z):
     """The unit gradient of the grid's distance at a point (the outward normal of the nearest surface)."""
-    e = 0.5 * cell
-    gx = _sample(grid, origin, cell, x + e, y, z) - _sample(grid, origin, cell, x - e, y, z)
-    gy = _sample(grid, origin, cell, x, y + e, z) - _sample(grid, origin, cell, x, y - e, z)
-    gz = _sample(grid, origin, cell, x, y, z + e) - _sample(grid, origin, cell, x, y, z - e)
+    _, gx, gy, gz = _sample_gradient(grid, origin, cell, x, y, z)
     n = math.sqrt(gx * gx + gy * gy + gz * gz)
     if not (0.0 < n < 1e6):  # flat or off the grid
         return 0.0, 0.0, 0.0
@@ -333,7 +363,7 @@ def _aim(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz):
     return _orthonormal(nx, ny, nz, nlx, nly, nlz)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _blocked(scene, x, y, z):
     """How far inside a solid the point is (> 0: inside an obstacle or a solid support, or outside the volume)."""
     o, cell, prm = scene.origin, scene.cell[0], scene.params
@@ -348,7 +378,7 @@ def _blocked(scene, x, y, z):
     return worst
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _worst_along(scene, px, py, pz, hx, hy, hz, length):
     """The deepest :func:`_blocked` along a segment, sampled every half cell and at its end, and that point."""
     n = min(64, 1 + int(2.0 * length / scene.cell[0]))
@@ -363,12 +393,15 @@ def _worst_along(scene, px, py, pz, hx, hy, hz, length):
     return worst, wx, wy, wz
 
 
-@numba.njit(cache=True)
-def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length):
-    """The environment's say on one segment from P of this length: the new frame, and whether it is cut.
+@numba.njit(cache=True, inline="always")
+def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging):
+    """The environment's say on one segment from P of this length: the new frame, whether it is cut, and
+    whether the branch now hangs.
 
     Light bends H toward it (phototropism); near a support H is pulled onto the surface (adhesion), up its
-    slope (climb) and toward the set distance from it; away from any support it bends down (hanging).  Then
+    slope (climb) and toward the middle of the band it may use; a branch that was on the support and leaves
+    its reach (over an edge) hangs (``hanging`` 2; 0: never on a support, 1: on it): from there on it and
+    the branches it bears bend down and no longer adhere.  Then
     a segment whose end would enter a solid slides along its surface (deflect) or is cut, and one that
     ends outside the pruning volume, or farther than the set distance from the support, is cut.
     """
@@ -385,16 +418,23 @@ def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length):
             )
     distance = prm[SCENE_DISTANCE]
     if scene.support.shape[0] > 0:
-        d = _sample(scene.support, o, cell, px, py, pz)
-        if d <= prm[SCENE_REACH]:
-            nx, ny, nz = _normal(scene.support, o, cell, px, py, pz)
+        d, nx, ny, nz = _sample_gradient(scene.support, o, cell, px, py, pz)
+        if d <= prm[SCENE_REACH] and hanging == 0:
+            hanging = 1
+        elif d > prm[SCENE_REACH] and hanging == 1:
+            hanging = 2
+        n = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if hanging == 1 and 0.0 < n < 1e6:
+            nx, ny, nz = nx / n, ny / n, nz / n
             hn = hx * nx + hy * ny + hz * nz
             tx, ty, tz = hx - hn * nx, hy - hn * ny, hz - hn * nz
             climb = prm[SCENE_CLIMB]  # world up along the surface
             tx -= climb * ny * nx
             ty += climb * (1.0 - ny * ny)
             tz -= climb * ny * nz
-            target = 0.5 * distance
+            target = 0.5 * prm[SCENE_REACH]
+            if distance > 0.0:
+                target = min(target, 0.5 * distance)
             pull = max(-1.0, min(1.0, (d - target) / max(length, 1e-9)))
             tx -= pull * nx
             ty -= pull * ny
@@ -410,7 +450,7 @@ def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length):
                     hx, hy, hz, lx, ly, lz, ux, uy, uz = _aim(
                         hx, hy, hz, lx, ly, lz, ux, uy, uz, vx / v, vy / v, vz / v
                     )
-        elif prm[SCENE_HANG] > 0.0:
+        if hanging == 2 and prm[SCENE_HANG] > 0.0:
             hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
                 hx, hy, hz, lx, ly, lz, ux, uy, uz, 0.0, -1.0, 0.0, prm[SCENE_HANG], True
             )
@@ -438,7 +478,7 @@ def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length):
     cut = inside > 0.0
     if not cut and distance > 0.0 and scene.support.shape[0] > 0:
         cut = _sample(scene.support, o, cell, px + hx * length, py + hy * length, pz + hz * length) > distance
-    return hx, hy, hz, lx, ly, lz, ux, uy, uz, cut
+    return hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging
 
 
 @numba.njit(cache=True, nogil=True)
@@ -537,7 +577,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     first_child = np.full(n_cap, -1, np.int64)
     same_child = np.full(n_cap, -1, np.int64)  # first child of the same order
     stack_f = np.empty((max_depth, 19))
-    stack_i = np.empty((max_depth, 3), np.int64)
+    stack_i = np.empty((max_depth, 4), np.int64)
 
     angle = config.angle
     cos_angle, sin_angle = _cos_sin(angle)
@@ -564,6 +604,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     drop_branch = variation.skipped.shape[0] > 0
     in_scene = scene.params.shape[0] > 0
     skipping = 0  # > 0: inside a branch the scene cut, that many brackets deep
+    hanging = 0  # 0 free (never on a support), 1 on a support, 2 hanging: left it over an edge
     n_query = 0
     n_cut = 0
 
@@ -617,8 +658,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             if jitter_length:
                 length *= variation.length[i]
             if in_scene and code == _FORWARD and poly_open < 0:
-                hx, hy, hz, lx, ly, lz, ux, uy, uz, cut = _steer(
-                    scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length
+                hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = _steer(
+                    scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging
                 )
                 if cut:
                     query.cut[n_cut] = i
@@ -807,6 +848,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             stack_i[depth, 0] = material
             stack_i[depth, 1] = last
             stack_i[depth, 2] = anchor
+            stack_i[depth, 3] = hanging
             depth += 1
             if roll_branch:  # the branch starts rolled about H; the saved state is not
                 c, s = _cos_sin(variation.roll[i])
@@ -832,6 +874,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             material = stack_i[depth, 0]
             last = stack_i[depth, 1]
             anchor = stack_i[depth, 2]
+            hanging = stack_i[depth, 3]
         elif code in (_WIDTH, _WIDTH_ADD, _WIDTH_FACTOR):
             if code == _WIDTH:
                 width = arg * width_unit if has_arg else width * width_scale
