@@ -17,7 +17,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 import trimesh
 
 from lsys3d import Grammar
@@ -82,7 +81,6 @@ def main(argv=None) -> None:
     print(f"scene grid (once):      {grid:.3f} s")
     print(f"ratio (derive + turtle): {best['answered'] / best['plain']:.2f}x")
     print(f"ratio (with the grid):   {(best['answered'] + grid) / best['plain']:.2f}x")
-    _ = np  # numpy is imported for trimesh's arrays
 
 
 if __name__ == "__main__":

@@ -18,6 +18,8 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
+import numpy as np
+
 from .arrays import release_memory
 from .errors import GeometryError, OptionsError
 from .look import bark as bark_stage
@@ -316,6 +318,14 @@ def draw(
     return modules, skeleton
 
 
+def _environment_light(grammar: Grammar, options: GenerateOptions, leaves: LeafOptions) -> LeafOptions:
+    """The leaves turn (``leaf_light``) to the environment's light direction unless ``[leaves]`` names a light."""
+    light = EnvironmentOptions.from_grammar(grammar, options.environment).light
+    if not any(light) or "light" in grammar.leaves or leaves.light != LeafOptions().light:
+        return leaves
+    return replace(leaves, light=tuple(float(x) for x in np.asarray(light) / np.linalg.norm(light)))
+
+
 def _scene(grammar: Grammar, options: GenerateOptions) -> tuple:
     """The meshes of the place the plant grew in (read again: draw keeps nothing), for ``--scene``."""
     environment = load_environment(grammar, options.environment)
@@ -372,7 +382,7 @@ def generate(
     table = material_table(grammar)  # a bad [materials], [surfaces] or [leaves] table fails before the work
     surfaces = surface_table(grammar)
     table = with_cards(table, surfaces, grammar)
-    leaf_options = LeafOptions.from_grammar(grammar, options.leaves)
+    leaf_options = _environment_light(grammar, options, LeafOptions.from_grammar(grammar, options.leaves))
     grown = options if leaf_options is options.leaves else options.replace(leaves=leaf_options)
 
     modules, skeleton = draw(grammar, n, seed, options, progress=progress)

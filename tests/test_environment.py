@@ -99,14 +99,15 @@ def test_climber_stays_within_distance_of_its_support(tmp_path):
 
 
 def test_hanging_from_an_edge(tmp_path):
-    # a shelf: a climber crawling along its top goes over the front edge and hangs down, within reach
+    # a shelf: a climber crawling along its top goes over the front edge, out of the support's reach (3 cm),
+    # and hangs down (with a longer reach it wraps round the edge: the next test)
     shelf = _box(tmp_path, "shelf", (-1, 0.9, -1), (1, 1.0, 0.0))
     g = Grammar(
         axiom="f(1.02)&(90)f(0.5)^(180)A",  # on the shelf's top at z = -0.5, heading (+z) to its edge at z = 0
         rules=["A -> F(0.05)A"],
         iterations=30,
         turtle={"heading": 90},
-        environment={"support": shelf, "distance": 0.3, "hang": 0.5, "reach": 0.06, "climb": 0},
+        environment={"support": shelf, "distance": 0.3, "hang": 0.5, "reach": 0.03, "climb": 0},
         source=str(tmp_path / "hang.toml"),
     )
     _, sk = _grow(g)
@@ -114,6 +115,24 @@ def test_hanging_from_an_edge(tmp_path):
     assert sk.end[-1, 1] < 0.85  # hanging below the shelf
     assert sk.heading[-1, 1] < -0.9  # straight down
     assert _inside(shelf, _along(sk)).max() <= 1e-6
+
+
+def test_a_climber_within_reach_wraps_round_an_edge(tmp_path):
+    # the same shelf and strand with a reach of 6 cm: the support holds it round the front edge, down the
+    # front and on along the underside, as ivy crawls round a ledge
+    shelf = _box(tmp_path, "shelf", (-1, 0.9, -1), (1, 1.0, 0.0))
+    g = Grammar(
+        axiom="f(1.02)&(90)f(0.5)^(180)A",
+        rules=["A -> F(0.05)A"],
+        iterations=30,
+        turtle={"heading": 90},
+        environment={"support": shelf, "distance": 0.3, "hang": 0.5, "reach": 0.06, "climb": 0},
+        source=str(tmp_path / "wrap.toml"),
+    )
+    _, sk = _grow(g)
+    d = _inside(shelf, _along(sk))
+    assert d.max() <= 1e-6 and (-d).max() <= 0.06
+    assert ((sk.end[:, 1] < 0.9) & (sk.end[:, 2] < -0.2)).any()  # under the shelf, back from its front
 
 
 def test_topiary_keeps_every_segment_inside_the_volume(tmp_path):
@@ -243,3 +262,35 @@ def test_no_environment_changes_nothing():
     g = Grammar(axiom="A", rules=BUSH, iterations=4, angle=25)
     assert load_environment(g) is None
     assert str(derive_answering(g)) == str(draw(g, 4, 0)[0])
+
+
+def test_leaves_turn_to_the_environment_light_unless_leaves_name_one():
+    from lsys3d.look.leaves import LeafOptions
+    from lsys3d.pipeline import _environment_light
+
+    g = Grammar(axiom="F~", environment={"light": [3, 4, 0]}, leaves={"leaf_light": 0.5})
+    opts = GenerateOptions()
+    turned = _environment_light(g, opts, LeafOptions.from_grammar(g))
+    assert turned.light == pytest.approx((0.6, 0.8, 0.0)) and turned.leaf_light == 0.5
+    own = g.replace(leaves={"leaf_light": 0.5, "light": [0, 0, 1]})
+    assert _environment_light(own, opts, LeafOptions.from_grammar(own)).light == (0.0, 0.0, 1.0)
+
+
+def test_usd_scene_in_z_up_centimetres_is_read_in_metres_y_up(tmp_path):
+    from pxr import Usd, UsdGeom, Vt
+
+    path = tmp_path / "scene.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    box = trimesh.creation.box(extents=(100, 20, 300))  # 1 m wide, 0.2 m deep, 3 m high (Z up)
+    box.apply_translation((0, 0, 150))
+    mesh = UsdGeom.Mesh.Define(stage, "/World/support_wall")
+    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(box.vertices.astype(np.float32)))
+    mesh.CreateFaceVertexCountsAttr([3] * len(box.faces))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(box.faces.reshape(-1).astype(np.int32)))
+    stage.GetRootLayer().Save()
+    (wall,) = read_scene(path)
+    assert wall.role == "support" and wall.closed
+    assert wall.vertices.min(axis=0) == pytest.approx((-0.5, 0.0, -0.1))
+    assert wall.vertices.max(axis=0) == pytest.approx((0.5, 3.0, 0.1))

@@ -148,3 +148,22 @@ def test_scene_without_an_environment_is_one_clear_error(tmp_path):
     tree = lsys3d.generate("koch", iterations=1, union=False)
     with pytest.raises(ExportError, match="--scene: the plant grew in no scene"):
         lsys3d.export(tree, tmp_path / "k.glb", ExportOptions(scene=True))
+
+
+def test_same_bytes_in_another_process():
+    import hashlib
+    import subprocess
+    import sys
+
+    code = (
+        "import hashlib, lsys3d\n"
+        "from lsys3d.pipeline import draw\n"
+        "g = lsys3d.load_preset('ivy-wall')\n"
+        "m, sk = draw(g, g.iterations, g.seed)\n"
+        "print(hashlib.sha256(str(m).encode() + sk.end.tobytes() + sk.leaf_position.tobytes()).hexdigest())\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=root)
+    m, sk = grown("ivy-wall")
+    here = hashlib.sha256(str(m).encode() + sk.end.tobytes() + sk.leaf_position.tobytes()).hexdigest()
+    assert out.stdout.strip() == here

@@ -354,7 +354,7 @@ def _aim(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz):
     if s <= 1e-12:
         if c > 0.0:
             return hx, hy, hz, lx, ly, lz, ux, uy, uz
-        return _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, _AXIS_U, -1.0, 0.0)
+        return _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, np.int64(_AXIS_U), -1.0, 0.0)
     kx, ky, kz = cx / s, cy / s, cz / s
     d = (kx * lx + ky * ly + kz * lz) * (1.0 - c)
     nlx = lx * c + (ky * lz - kz * ly) * s + kx * d
@@ -414,15 +414,15 @@ def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hangin
         n = math.sqrt(vx * vx + vy * vy + vz * vz)
         if n > 1e-12:
             hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
-                hx, hy, hz, lx, ly, lz, ux, uy, uz, vx / n, vy / n, vz / n, photo, True
+                hx, hy, hz, lx, ly, lz, ux, uy, uz, vx / n, vy / n, vz / n, photo, np.bool_(True)
             )
     distance = prm[SCENE_DISTANCE]
     if scene.support.shape[0] > 0:
         d, nx, ny, nz = _sample_gradient(scene.support, o, cell, px, py, pz)
         if d <= prm[SCENE_REACH] and hanging == 0:
-            hanging = 1
+            hanging = np.int64(1)
         elif d > prm[SCENE_REACH] and hanging == 1:
-            hanging = 2
+            hanging = np.int64(2)
         n = math.sqrt(nx * nx + ny * ny + nz * nz)
         if hanging == 1 and 0.0 < n < 1e6:
             nx, ny, nz = nx / n, ny / n, nz / n
@@ -452,7 +452,7 @@ def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hangin
                     )
         if hanging == 2 and prm[SCENE_HANG] > 0.0:
             hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
-                hx, hy, hz, lx, ly, lz, ux, uy, uz, 0.0, -1.0, 0.0, prm[SCENE_HANG], True
+                hx, hy, hz, lx, ly, lz, ux, uy, uz, 0.0, -1.0, 0.0, prm[SCENE_HANG], np.bool_(True)
             )
     inside, qx, qy, qz = _worst_along(scene, px, py, pz, hx, hy, hz, length)
     if inside > 0.0 and prm[SCENE_DEFLECT] > 0.0:
@@ -603,10 +603,10 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     roll_branch = variation.roll.shape[0] > 0
     drop_branch = variation.skipped.shape[0] > 0
     in_scene = scene.params.shape[0] > 0
-    skipping = 0  # > 0: inside a branch the scene cut, that many brackets deep
-    hanging = 0  # 0 free (never on a support), 1 on a support, 2 hanging: left it over an edge
-    n_query = 0
-    n_cut = 0
+    skipping = np.int64(0)  # > 0: inside a branch the scene cut, that many brackets deep
+    hanging = np.int64(0)  # 0 free (never on a support), 1 on a support, 2 hanging: left it over an edge
+    n_query = np.int64(0)
+    n_cut = np.int64(0)
 
     px = py = pz = 0.0
     hx, hy = _cos_sin(config.heading)
@@ -666,7 +666,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                 if cut:
                     query.cut[n_cut] = i
                     n_cut += 1
-                    skipping = 1
+                    skipping = np.int64(1)
                     continue
             qx = px + hx * length
             qy = py + hy * length
