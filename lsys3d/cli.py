@@ -55,15 +55,15 @@ def _grammar_args(p: argparse.ArgumentParser, optional: bool = False, mesh: bool
 
     ``mesh=False`` (``derive``) adds only the derivation's limit.
     """
+    from .lsystem.dialects import suffixes_text
     from .lsystem.presets import DEFAULT_PRESET
     from .pipeline import GenerateOptions
 
+    what = f"a grammar file ({suffixes_text()}) or the name of a bundled preset ('lsys3d presets')"
     if optional:
-        p.add_argument(
-            "grammar", nargs="?", default=DEFAULT_PRESET, help=f"grammar file or preset (default: {DEFAULT_PRESET})"
-        )
+        p.add_argument("grammar", nargs="?", default=DEFAULT_PRESET, help=f"{what} (default: {DEFAULT_PRESET})")
     else:
-        p.add_argument("grammar", help="a grammar file (.toml) or the name of a bundled preset")
+        p.add_argument("grammar", help=what)
     p.add_argument(
         "-n", "--iterations", type=_at_least(0), default=None, help="number of generations (default: the grammar's)"
     )
@@ -283,6 +283,12 @@ def _preview_arguments(p: argparse.ArgumentParser) -> None:
 
 def _derive_arguments(p: argparse.ArgumentParser) -> None:
     _grammar_args(p, mesh=False)
+    p.add_argument(
+        "--interpretation",
+        action="store_true",
+        help="print the string the turtle reads instead: the derived string cut at the cut symbol and rewritten "
+        "by the grammar's homomorphism (interpretation) rules, as 'generate' draws it",
+    )
     p.set_defaults(func=cmd_derive)
 
 
@@ -349,6 +355,35 @@ def _forest_arguments(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=cmd_forest)
 
 
+def _edit_arguments(p: argparse.ArgumentParser) -> None:
+    from .lsystem.presets import DEFAULT_PRESET
+    from .pipeline import GenerateOptions
+
+    p.add_argument(
+        "grammar",
+        nargs="?",
+        default=DEFAULT_PRESET,
+        help=f"the grammar file to edit (.toml, .lpy, .l, .ls; made on the first save when missing), or a preset's "
+        f"name, opened read-only (default: {DEFAULT_PRESET})",
+    )
+    p.add_argument(
+        "--port", type=_at_least(0), default=8737, help="the port to listen on; 0: any free one (default 8737)"
+    )
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="the address to listen on (default 127.0.0.1, this machine only); any other needs a token, made "
+        "unless --token gives one",
+    )
+    p.add_argument("--token", default=None, help="the token every API call must carry (default: none on 127.0.0.1)")
+    p.add_argument("--no-browser", action="store_true", help="do not open the page in the default browser")
+    p.add_argument(
+        "--jobs", type=_at_least(1), default=2, metavar="N", help="worker processes growing trees at once (default 2)"
+    )
+    add_arguments(p, GenerateOptions, only={"max_modules", "max_segments", "max_triangles"})
+    p.set_defaults(func=cmd_edit)
+
+
 def _presets_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="a JSON list of {name, group, description}")
     p.set_defaults(func=cmd_presets)
@@ -357,7 +392,7 @@ def _presets_arguments(p: argparse.ArgumentParser) -> None:
 _SUBCOMMANDS = {
     "generate": ("grow a plant and write it as a mesh asset (.glb, .usdc, ...)", _generate_arguments),
     "preview": ("grow a plant and render a shaded picture of it (.png) with Blender", _preview_arguments),
-    "derive": ("print the derived module string", _derive_arguments),
+    "derive": ("print the derived module string (--interpretation: the string the turtle reads)", _derive_arguments),
     "stats": ("print counts and extents of the drawn plant", _stats_arguments),
     "check": ("regrow the assets of golden files and compare their counts", _check_arguments),
     "batch": ("grow every job of a jobs file into a folder, with a manifest and library.usda", _batch_arguments),
@@ -365,6 +400,7 @@ _SUBCOMMANDS = {
         "scatter a library's assets over an area: USD PointInstancer or one .glb with instancing",
         _forest_arguments,
     ),
+    "edit": ("edit a grammar in the browser: the tree redrawn as you type, sliders, export and save", _edit_arguments),
     "presets": ("list the bundled presets: species, figures, curves and plants in a scene", _presets_arguments),
 }
 """Each subcommand's help line and the function that adds its arguments, in the order ``--help`` lists them."""
@@ -378,6 +414,12 @@ def cmd_derive(args) -> int:
     grammar = load(args.grammar)
     options = from_arguments(GenerateOptions, args)
     result = derive(grammar, args.iterations, args.seed, max_modules=options.limits.max_modules)
+    if args.interpretation:
+        from .lsystem.derive import interpretation
+
+        result = interpretation(
+            grammar, result, args.seed, max_modules=options.limits.max_modules, iterations=args.iterations
+        )
     out = sys.stdout
     for piece in result.iter_text():  # never the whole text at once: it can be gigabytes
         out.write(piece)
@@ -487,7 +529,9 @@ def cmd_stats(args) -> int:
         from pathlib import Path
 
         from .exchange.atomic import check_target
+        from .golden.golden import make_folder
 
+        make_folder(args.golden)
         check_target(Path(args.golden), no_clobber=False)
     n = grammar.iterations if args.iterations is None else args.iterations
     seed = grammar.seed if args.seed is None else args.seed
@@ -523,23 +567,34 @@ def print_table(stats: dict) -> None:
 
 
 def cmd_check(args) -> int:
-    from .golden.golden import RTOL, check, format_differences
+    from .golden.golden import RTOL, check, format_changes, format_differences, summarize
 
-    failed = 0
+    failed = missing = errors = 0
     for path in args.golden:
         try:
             result = check(path, update=args.update, rtol=RTOL if args.rtol is None else args.rtol)
         except LSystemError as exc:  # one bad file does not stop the others
-            failed += 1
+            errors += 1
             _print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
             continue
         for warning in result.warnings:
             _print(f"{path}: warning: {warning}")
-        if result.updated:
-            what = ", ".join(d.key for d in result.differences) or "only the versions that produced it"
+        if result.created:
+            _print(f"recorded {path} ({result.recipe.describe()}): it was missing; a new golden file of the preset")
+        elif result.missing:
+            missing += 1
+            why = (
+                "its name is no bundled preset's, so --update cannot tell what to grow"
+                if args.update
+                else "'lsys3d check --update' records a file named after a bundled preset (koch.json)"
+            )
+            _print(f"MISSING {path}: no such golden file; {why}; 'lsys3d stats GRAMMAR --golden {path}' records any")
+        elif result.updated:
+            n = len(result.differences)
+            what = f"{n} key{'s' if n > 1 else ''} changed" if n else "only the versions that produced it changed"
             _print(f"updated {path} ({result.recipe.describe()}): {what}")
             if result.differences:
-                _print(format_differences(result.differences))
+                _print(format_changes(result.differences))
         elif result.ok:
             within = sum(not d.failed for d in result.differences)
             extra = f" ({within} within tolerance)" if within else ""
@@ -547,11 +602,17 @@ def cmd_check(args) -> int:
                 _print(f"ok      {path} ({result.recipe.describe()}){extra}")
         else:
             failed += 1
-            n = sum(d.failed for d in result.differences)
-            _print(f"FAILED  {path} ({result.recipe.describe()}): {n} difference{'s' if n > 1 else ''}")
+            _print(f"FAILED  {path} ({result.recipe.describe()}): {summarize(result.differences)}")
             _print(format_differences(result.differences))
-    if failed:
-        _print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
+    if failed or missing or errors:
+        counts = (
+            (failed, "differ" if failed > 1 else "differs"),
+            (missing, "missing"),
+            (errors, "could not be checked"),
+        )
+        what = ", ".join(f"{n} {word}" for n, word in counts if n)
+        hint = "; 'lsys3d check --update' records the new counts" if failed and not args.update else ""
+        _print(f"{len(args.golden)} golden file{'s' if len(args.golden) > 1 else ''}: {what}{hint}")
         return EXIT_USER_ERROR
     return 0
 
@@ -667,6 +728,69 @@ def cmd_forest(args) -> int:
         _print(
             f"wrote {path}: {options.count:,} instances on {width:g} x {depth:g} m ({time.perf_counter() - t0:.1f} s)"
         )
+    return 0
+
+
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+def cmd_edit(args) -> int:
+    import secrets
+    import socket
+    import webbrowser
+
+    from .pipeline import GenerateOptions
+
+    try:
+        import uvicorn
+
+        from .edit.server import EditSettings, make_app
+    except ImportError as exc:
+        raise LSystemError(
+            f"lsys3d edit needs the 'edit' extra ({exc.name} is missing): pip install 'lsys3d[edit]'"
+        ) from None
+    local = args.host in LOOPBACK
+    token = args.token or (None if local else secrets.token_urlsafe(18))
+    limits = from_arguments(GenerateOptions, args).limits
+    hosts = ("127.0.0.1", "localhost", "[::1]") if local else None
+    settings = EditSettings(args.grammar, limits=limits, workers=args.jobs, token=token, hosts=hosts)
+    family = socket.AF_INET6 if ":" in args.host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((args.host, args.port))
+    except OSError as exc:
+        sock.close()
+        raise LSystemError(f"lsys3d edit: cannot listen on {args.host}:{args.port}: {exc.strerror or exc}") from None
+    port = sock.getsockname()[1]
+    shown_host = f"[{args.host}]" if ":" in args.host else args.host
+    url = f"http://{shown_host}:{port}/" + (f"?token={token}" if token else "")
+    terminal = sys.stderr.isatty() and not args.quiet
+
+    def announce(text: str) -> None:
+        if terminal:
+            sys.stderr.write(f"\rlsys3d: {text}\x1b[K" if text else "\r\x1b[K")
+            sys.stderr.flush()
+
+    # asyncio's child watcher warns when a worker it killed was reaped first; nothing the user can act on
+    logging.getLogger("asyncio").setLevel(logging.ERROR)
+    app = make_app(settings, announce=announce)
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
+
+    def open_page() -> None:  # once the server listens
+        while not server.started and not server.should_exit:
+            time.sleep(0.05)
+        if not server.started:
+            return
+        if not args.quiet:
+            announce("")
+            _print(f"lsys3d edit: {url} (Ctrl-C to stop)")
+            sys.stdout.flush()
+        if not args.no_browser:
+            webbrowser.open(url)
+
+    threading.Thread(target=open_page, daemon=True).start()
+    server.run(sockets=[sock])
     return 0
 
 

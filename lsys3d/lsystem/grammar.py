@@ -115,6 +115,7 @@ class Grammar:
     surfaces: Mapping[str, object] = field(default_factory=dict)
     leaves: Mapping[str, object] = field(default_factory=dict)
     environment: Mapping[str, object] = field(default_factory=dict)
+    growth: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
     dialect: str = "lsys3d"
@@ -141,7 +142,7 @@ class Grammar:
         for key in _RULE_LISTS:
             if isinstance(getattr(self, key), str):
                 raise GrammarError(f"'{key}' must be a list of rule strings, not one string", self.source)
-        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "environment"):
+        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "environment", "growth"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         for key in (*_RULE_LISTS, "modules", "functions"):
@@ -164,6 +165,7 @@ class Grammar:
         set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
         set_(self, "leaves", MappingProxyType(dict(self.leaves)))
         set_(self, "environment", MappingProxyType(dict(self.environment)))
+        set_(self, "growth", MappingProxyType(dict(self.growth)))
         self._check_scalars()
         notation = dialect.notation
         names = self._declared_names(notation)
@@ -320,6 +322,7 @@ class Grammar:
             ("surfaces", dict),
             ("leaves", dict),
             ("environment", dict),
+            ("growth", dict),
         )
         for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + list(tables):
             if key in data and not isinstance(data[key], kind):
@@ -359,6 +362,7 @@ class Grammar:
                 "surfaces",
                 "leaves",
                 "environment",
+                "growth",
                 "source",
                 "text",
                 "dialect",
