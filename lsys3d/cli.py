@@ -390,7 +390,7 @@ _SUBCOMMANDS = {
         _forest_arguments,
     ),
     "edit": ("edit a grammar in the browser: the tree redrawn as you type, sliders, export and save", _edit_arguments),
-    "presets": ("list the bundled presets: species, figures and curves", _presets_arguments),
+    "presets": ("list the bundled presets: species, figures, curves and plants in a scene", _presets_arguments),
 }
 """Each subcommand's help line and the function that adds its arguments, in the order ``--help`` lists them."""
 

@@ -36,15 +36,20 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import io
 import json
 import os
 import stat
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .errors import AssetError, clip, os_reason
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 __all__ = [
     "MAX_JSON_DEPTH",
@@ -54,6 +59,7 @@ __all__ = [
     "inside",
     "json_depth",
     "load_json",
+    "load_scene",
     "open_regular",
     "read_file",
     "read_lines",
@@ -328,3 +334,38 @@ def load_json(text: str | bytes, max_depth: int = MAX_JSON_DEPTH):
     if depth > max_depth:
         raise ValueError(f"JSON nested {depth} deep, more than {max_depth} (lsys3d.external.MAX_JSON_DEPTH)")
     return json.loads(text)
+
+
+def load_scene(data: bytes, file_type: str, shown: str, max_triangles: int, too_many: Callable[[str, int], str]):
+    """A model file's bytes as a ``trimesh.Scene`` with triangles, parsed as data: one clear line when it is not.
+
+    ``too_many(shown, count)`` words the error for more than ``max_triangles`` triangles (a binary STL
+    is refused from its header, before parsing).
+
+    Raises
+    ------
+    AssetError
+        ``shown: what``: not a readable model of that type, no triangles, too many.
+    """
+    import trimesh
+
+    if file_type == "stl" and len(data) >= 84 and data[:5].lower() != b"solid":
+        (count,) = np.frombuffer(data[80:84], "<u4")
+        if count > max_triangles:  # binary STL says its size up front: refuse before parsing
+            raise AssetError(too_many(shown, int(count)))
+    try:
+        scene = trimesh.load(io.BytesIO(data), file_type=file_type, process=False, force="scene")
+        meshes = {k: g for k, g in scene.geometry.items() if hasattr(g, "faces") and len(g.faces)}
+        if not meshes:
+            raise AssetError(f"{shown}: the model has no triangles")
+        # flattening copies each mesh once per node that places it: count the copies before making them
+        placed = scene.graph.geometry_nodes
+        triangles = sum(len(g.faces) * max(len(placed.get(k, ())), 1) for k, g in meshes.items())
+        if triangles > max_triangles:
+            raise AssetError(too_many(shown, triangles))
+    except AssetError:
+        raise
+    except Exception as exc:  # trimesh's readers raise anything on a damaged file: one line, never a traceback
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise AssetError(f"{shown}: not a readable .{file_type} model ({clip(reason, 80)})") from None
+    return scene

@@ -22,6 +22,7 @@ SMOKE = {
     "bench_botany.py": ["--quick", "--presets", "grass", "foxglove", "--check"],
     "bench_batch.py": ["--seeds", "1", "--skip-dask"],  # the Dask cluster itself: test_batch.py
     "bench_derive.py": ["--quick"],
+    "bench_environment.py": ["--iterations", "20", "--repeat", "1"],
     "bench_edit.py": ["--preset", "koch", "--edits", "1"],
     "bench_export.py": ["--quick"],
     "bench_growth.py": ["--preset", "abop-1.24a", "--repeat", "1", "--seconds", "1"],

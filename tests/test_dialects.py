@@ -49,6 +49,9 @@ LPY = {
     "@o": Op.ORGAN, "Circle": Op.ORGAN, "@B": Op.ORGAN, "Box": Op.ORGAN, "~l": Op.ORGAN,
     "@Ts": Op.ELASTICITY, "Elasticity": Op.ELASTICITY, "@Tp": Op.TROPISM_VECTOR, "Tropism": Op.TROPISM_VECTOR,
     "nF": Op.FORWARD_STEPS,
+    # query modules (the helpcard's "Query" section): filled by the turtle between the steps
+    "?P": Op.QUERY, "?H": Op.QUERY, "?L": Op.QUERY, "?U": Op.QUERY, "?R": Op.QUERY, "GetPos": Op.QUERY,
+    "GetHead": Op.QUERY, "GetLeft": Op.QUERY, "GetUp": Op.QUERY, "GetRight": Op.QUERY,
 }  # fmt: skip
 # cpfg: "Interpreted symbols", appendix of the cpfg 3.0 tutorial (algorithmicbotany.org), and its
 # circles-and-spheres page (@c, @O)
@@ -59,6 +62,8 @@ CPFG = {
     "[": Op.PUSH, "]": Op.POP, "{": Op.POLYGON_BEGIN, ".": Op.POLYGON_VERTEX, "}": Op.POLYGON_END,
     ";": Op.MATERIAL, ",": Op.MATERIAL, "#": Op.WIDTH_ADD, "!": Op.WIDTH_ADD, "@O": Op.ORGAN, "@c": Op.ORGAN,
     "~l": Op.ORGAN, "$": Op.ROLL_HORIZONTAL,
+    # query and communication modules (Mech and Prusinkiewicz 1996; the cpfg manual's environment section)
+    "?P": Op.QUERY, "?H": Op.QUERY, "?L": Op.QUERY, "?U": Op.QUERY, "?E": Op.QUERY,
 }  # fmt: skip
 # Lparser: lparser.txt (L. Lapre), the symbol table reproduced in the Lparser ports
 LPARSER = {
@@ -300,7 +305,7 @@ endlsystem
         ("Axiom: A\nproduction:\nA :\n    for i in range(3):\n        nproduce F\n", "plant.lpy:4:5: Python's 'for'"),
         ("Axiom: A\nproduction:\nA :\n    print(1)\n    x.y = 3\n", "plant.lpy:5:5: this Python statement"),
         ("v = [1, 2]\nAxiom: F(v)\n", "unknown name 'v': 'v' is Python that lsys3d does not run (line 1"),
-        ("Axiom: A\nproduction:\n?P(x,y,z) --> A\n", "query modules (?P, ?H...) need the turtle"),
+        ("Axiom: A\nproduction:\n?F(x,y,z) --> A\n", "?F, ?I and GetFrame queries (the whole frame) are not supported"),
         ("Axiom: A\ngroup 1:\n", "plant.lpy:2:1: 'group 1:' (rules that Python code switches on"),
         ("derivation length: 3\n", "plant.lpy:1:1: no 'Axiom:'"),
         ("Axiom: A\nwhile True:\n    pass\n", "plant.lpy:2:1: Python code ('while True:') is never run"),

@@ -213,6 +213,7 @@ def derive(
     *,
     start: ModuleString | None = None,
     max_modules: int = DEFAULT_MAX_MODULES,
+    between: Callable[[ModuleString, int], ModuleString] | None = None,
 ) -> ModuleString:
     """Rewrite the axiom ``iterations`` times (default: the grammar's own).
 
@@ -227,6 +228,10 @@ def derive(
         Rewrite this string instead of the axiom (e.g. a result of an earlier call).
     max_modules : int
         Refuse (before allocating) to build a string longer than this.
+    between : callable, optional
+        ``between(string, step) -> string``, called on the string before each step and on the last
+        string (``step`` the number of steps made so far): an open L-system's environment, here the
+        turtle that fills query modules (:mod:`lsys3d.turtle.query`). The string it returns goes on.
 
     Raises
     ------
@@ -243,7 +248,9 @@ def derive(
     """
     n = _check_iterations(grammar, iterations)
     plan = _Plan(grammar)
-    if plan.predictable and start is None:  # fail at once, not after building the generations below the limit
+    if (
+        plan.predictable and start is None and between is None
+    ):  # fail at once, not after building the generations below the limit
         growth = _growth(plan, n, presence=plan.d0l)
         _check_size(growth.modules[n], growth.params[n], max_modules, grammar, n)
         if plan.d0l:  # builds no generation but the last
@@ -253,7 +260,7 @@ def derive(
             g = int(np.argmax(cost > max_modules))
             _check_size(growth.modules[g], growth.params[g], max_modules, grammar, g)
     # the last generation; a deque of one keeps no other alive
-    return deque(generations(grammar, n, seed, start=start, max_modules=max_modules), maxlen=1).pop()
+    return deque(generations(grammar, n, seed, start=start, max_modules=max_modules, between=between), maxlen=1).pop()
 
 
 def generations(
@@ -263,6 +270,7 @@ def generations(
     *,
     start: ModuleString | None = None,
     max_modules: int = DEFAULT_MAX_MODULES,
+    between: Callable[[ModuleString, int], ModuleString] | None = None,
     trace: Trace | None = None,
 ) -> Iterator[ModuleString]:
     """Yield the axiom (or ``start``) and then every generation up to ``iterations``, one at a time.
@@ -285,6 +293,10 @@ def generations(
     _check_size(len(current), len(current.params), max_modules, grammar, 0)
     if start is not None:
         _check_finite_start(current)
+    if between is not None and trace is not None:  # its cuts and fillings are no rewriting the trace could follow
+        raise DerivationError("generations: a trace cannot follow what 'between' changes in the string")
+    if between is not None:
+        current = between(current, 0)
     yield current
     decompose = _Plan(grammar, grammar.decomposition_productions) if grammar.decomposition_productions else None
     fixed = False
@@ -309,6 +321,8 @@ def generations(
                     trace=trace,
                 )
             log.debug("generation %d: %d modules", g, len(current))
+            if between is not None:
+                current = between(current, g)
             # without chance, a string that rewrites to itself stays itself: the rest is this string
             fixed = not (plan.stochastic or (decompose is not None and decompose.stochastic)) and current == previous
             del previous

@@ -71,8 +71,9 @@ MAX_DEPTH = 1000
 
 _NAME = re.compile(r"[A-Za-z_@?~][A-Za-z_0-9@]*\Z")  # a declared module name (Leaf, @Gs, ?P)
 _SURROGATE = re.compile("[\ud800-\udfff]")
-GROUPS = ("species", "figure", "curve")
-"""What a grammar's ``group`` may say it is: a plant species, a textbook figure, or a curve (``lsys3d presets``)."""
+GROUPS = ("species", "figure", "curve", "scene")
+"""What a grammar's ``group`` may say it is: a plant species, a textbook figure, a curve, or a plant growing in
+a scene it ships with (``lsys3d presets``)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,6 +114,7 @@ class Grammar:
     materials: Mapping[str, object] = field(default_factory=dict)
     surfaces: Mapping[str, object] = field(default_factory=dict)
     leaves: Mapping[str, object] = field(default_factory=dict)
+    environment: Mapping[str, object] = field(default_factory=dict)
     growth: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
@@ -140,7 +142,7 @@ class Grammar:
         for key in _RULE_LISTS:
             if isinstance(getattr(self, key), str):
                 raise GrammarError(f"'{key}' must be a list of rule strings, not one string", self.source)
-        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "growth"):
+        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "environment", "growth"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         for key in (*_RULE_LISTS, "modules", "functions"):
@@ -162,6 +164,7 @@ class Grammar:
         set_(self, "materials", MappingProxyType(dict(self.materials)))
         set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
         set_(self, "leaves", MappingProxyType(dict(self.leaves)))
+        set_(self, "environment", MappingProxyType(dict(self.environment)))
         set_(self, "growth", MappingProxyType(dict(self.growth)))
         self._check_scalars()
         notation = dialect.notation
@@ -325,6 +328,7 @@ class Grammar:
             ("materials", dict),
             ("surfaces", dict),
             ("leaves", dict),
+            ("environment", dict),
             ("growth", dict),
         )
         for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + list(tables):
@@ -364,6 +368,7 @@ class Grammar:
                 "materials",
                 "surfaces",
                 "leaves",
+                "environment",
                 "growth",
                 "source",
                 "text",

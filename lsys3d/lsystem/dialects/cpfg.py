@@ -16,7 +16,7 @@ from pathlib import Path
 
 from ...errors import GrammarError, clip
 from ...external import FileRefused, inside
-from ...turtle.commands import Axis, Command, Op, Organ
+from ...turtle.commands import ENVIRONMENT_QUERY, Axis, Command, Op, Organ, queries
 from ..expr import ExprSyntaxError, Syntax, parse_expression
 from ..grammar import Grammar, read_text
 from .common import Dialect, Notation, fail, line_where
@@ -97,6 +97,8 @@ COMMANDS_CPFG = (
         organ=Organ.SURFACE,
         prefix=True,
     ),
+    *queries("PHLU"),  # cpfg's world is lsys3d's: Y up
+    ENVIRONMENT_QUERY,
 )
 
 UNSUPPORTED = frozenset(

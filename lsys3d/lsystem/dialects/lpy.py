@@ -18,7 +18,7 @@ import re
 from dataclasses import replace
 
 from ...errors import GrammarError, clip
-from ...turtle.commands import Axis, Command, Op, Organ
+from ...turtle.commands import Axis, Command, Op, Organ, queries
 from ..expr import ExprSyntaxError, Function, Syntax, parse_expression
 from ..grammar import Grammar
 from .common import Dialect, Located, Notation, fail, line_where
@@ -116,7 +116,14 @@ _ALIASED = {"+": "Left", "-": "Right", "^": "Up", "&": "Down", "/": "RollL", "\\
             "@v": "RollToVert", "[": "SB", "]": "EB", "{": "BP", "}": "EP", ".": "PP", "_": "IncWidth",
             "!": "DecWidth", ";": "IncColor", ",": "DecColor", "@O": "Sphere", "@o": "Circle", "@B": "Box",
             "@Ts": "Elasticity", "@Tp": "Tropism"}  # fmt: skip
-COMMANDS_LPY = _BASE + tuple(replace(c, symbol=_ALIASED[c.symbol]) for c in _BASE if c.symbol in _ALIASED)
+_QUERY_ROWS = queries("PHLUR", world=(1, 2, 0))  # PlantGL's Z-up world: its (x, y, z) is lsys3d's (y, z, x)
+_QUERY_ALIASES = {"?P": "GetPos", "?H": "GetHead", "?L": "GetLeft", "?U": "GetUp", "?R": "GetRight"}
+COMMANDS_LPY = (
+    _BASE
+    + tuple(replace(c, symbol=_ALIASED[c.symbol]) for c in _BASE if c.symbol in _ALIASED)
+    + _QUERY_ROWS
+    + tuple(replace(c, symbol=_QUERY_ALIASES[c.symbol]) for c in _QUERY_ROWS)
+)
 
 UNSUPPORTED = frozenset(
     [
@@ -182,10 +189,10 @@ UNSUPPORTED = frozenset(
 )
 """PlantGL turtle commands that lsys3d reads but does not draw (named in a warning)."""
 
-_QUERIES = frozenset(
-    ["?P", "?H", "?U", "?L", "?R", "?F", "?I", "GetPos", "GetHead", "GetUp", "GetLeft", "GetRight", "GetFrame"]
-)
-"""L-Py's query modules: filled by the turtle during derivation, which lsys3d's derivation has no turtle for."""
+_QUERIES = frozenset(["?F", "?I", "GetFrame"])
+"""L-Py's query modules lsys3d does not fill (the whole frame, the interpretation's state); ``?P``, ``?H``,
+``?L``, ``?U``, ``?R`` and their ``Get...`` names are rows of the table, filled between the steps
+(:mod:`lsys3d.turtle.query`)."""
 
 DIALECT = Dialect(
     name="lpy",
@@ -627,10 +634,8 @@ class _Reader:
         return nxt
 
     def no_queries(self, line: _Line, pattern: str):
-        if any(q in pattern for q in _QUERIES if q.startswith("?")) or re.search(
-            r"\bGet(Pos|Head|Up|Left|Right|Frame)\b", pattern
-        ):
-            raise self.error(line, "L-Py's query modules (?P, ?H...) need the turtle during derivation: not supported")
+        if any(q in pattern for q in _QUERIES if q.startswith("?")) or re.search(r"\bGetFrame\b", pattern):
+            raise self.error(line, "L-Py's ?F, ?I and GetFrame queries (the whole frame) are not supported")
 
     def add_rule(self, section: str, text: Located):
         group = self.groups[section]
