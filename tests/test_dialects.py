@@ -58,7 +58,7 @@ CPFG = {
     "\\": (Op.ROTATE, H, -1), "/": (Op.ROTATE, H, +1), "|": Op.TURN_AROUND, "@v": Op.ROLL_HORIZONTAL,
     "[": Op.PUSH, "]": Op.POP, "{": Op.POLYGON_BEGIN, ".": Op.POLYGON_VERTEX, "}": Op.POLYGON_END,
     ";": Op.MATERIAL, ",": Op.MATERIAL, "#": Op.WIDTH_ADD, "!": Op.WIDTH_ADD, "@O": Op.ORGAN, "@c": Op.ORGAN,
-    "~l": Op.ORGAN, "$": Op.ROLL_HORIZONTAL,
+    "@o": Op.ORGAN, "~l": Op.ORGAN, "$": Op.ROLL_HORIZONTAL,
 }  # fmt: skip
 # Lparser: lparser.txt (L. Lapre), the symbol table reproduced in the Lparser ports
 LPARSER = {
@@ -363,7 +363,7 @@ endlsystem
         ("#define F(x) x\n", "macros with parameters are not supported"),
         ("Lsystem: 1\naxiom: A\nendlsystem\nLsystem: 2\n", "more than one Lsystem"),
         ("#ifdef X\naxiom: A\n", "#if or #ifdef without #endif"),
-        ("Lsystem: 1\nStart: {x = 1;}\naxiom: A\n", "cpfg's Start: block runs code"),
+        ("Lsystem: 1\nStart: {x[1] = 1;}\naxiom: A\n", "Start: block: arrays ('x[...]') are not supported"),
         ("Lsystem: 1\naxiom: A\nA == B\n", "expected a production"),
     ]:
         bad = tmp_path / "bad.l"

@@ -36,6 +36,7 @@ from types import MappingProxyType
 
 from ..errors import GrammarError, clip, os_reason
 from . import dialects
+from .blocks import Program, parse_blocks
 from .locations import _KEYS, _RULE_LISTS, _api_where, _key_line, _loc, _locate_strings, _toml_error, table_key_line
 from .modules import ModuleString
 from .rules import (
@@ -123,6 +124,7 @@ class Grammar:
     consider: str = ""
     modules: tuple[str, ...] = ()
     functions: tuple[str, ...] = ()
+    blocks: Mapping[str, str] = field(default_factory=dict)
     # parsed, filled in by __post_init__
     productions: tuple[Production, ...] = field(init=False, repr=False)
     homomorphism_productions: tuple[Production, ...] = field(init=False, repr=False)
@@ -132,6 +134,7 @@ class Grammar:
     ignored: frozenset[str] = field(init=False, repr=False)
     _axiom_parsed: tuple = field(init=False, repr=False, compare=False)
     considered: frozenset[str] | None = field(init=False, repr=False)
+    program: Program | None = field(init=False, repr=False, compare=False)
     _where: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
@@ -139,7 +142,7 @@ class Grammar:
         for key in _RULE_LISTS:
             if isinstance(getattr(self, key), str):
                 raise GrammarError(f"'{key}' must be a list of rule strings, not one string", self.source)
-        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves"):
+        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "blocks"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         for key in (*_RULE_LISTS, "modules", "functions"):
@@ -161,6 +164,7 @@ class Grammar:
         set_(self, "materials", MappingProxyType(dict(self.materials)))
         set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
         set_(self, "leaves", MappingProxyType(dict(self.leaves)))
+        set_(self, "blocks", MappingProxyType(dict(self.blocks)))
         self._check_scalars()
         notation = dialect.notation
         names = self._declared_names(notation)
@@ -173,7 +177,10 @@ class Grammar:
                 _check_defines(dict(self.defines), self.source, self._where.get("defines"), notation, functions)
             ),
         )
-        context = _RuleContext(self.source, self.defines, scanner, notation, functions, dialect)
+        program, constants = self._program()
+        set_(self, "program", program)
+        context = _RuleContext(self.source, {**self.defines, **constants}, scanner, notation, functions, dialect)
+        context.globals = program.step_names if program is not None else frozenset()
         where_axiom = self._where.get("axiom") or _api_where("axiom")
         if not self.axiom.strip():
             raise GrammarError("the axiom is empty", *_loc(self.source, where_axiom, 0))
@@ -202,6 +209,14 @@ class Grammar:
         set_(self, "_axiom_parsed", axiom)
         set_(self, "alphabet", context.alphabet.table())
         set_(self, "axiom_modules", _evaluate_axiom(axiom, context.alphabet, self.source, where_axiom))
+
+    def _program(self) -> tuple[Program | None, dict[str, float]]:
+        """cpfg's blocks parsed, and the globals that stay constant after ``Start`` (constants of the rules)."""
+        if not self.blocks:
+            return None, {}
+        program = parse_blocks(self.blocks, self.defines, self.source, self._where.get("blocks"))
+        values, _ = program.run_start(self.seed)
+        return program, {k: v for k, v in values.items() if k not in program.step_names}
 
     def _dialect(self):
         if not isinstance(self.dialect, str):
@@ -316,6 +331,7 @@ class Grammar:
             ("materials", dict),
             ("surfaces", dict),
             ("leaves", dict),
+            ("blocks", dict),
         )
         for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + list(tables):
             if key in data and not isinstance(data[key], kind):
@@ -364,6 +380,7 @@ class Grammar:
                 "consider",
                 "modules",
                 "functions",
+                "blocks",
             )
         }
         fields.update(changes)
