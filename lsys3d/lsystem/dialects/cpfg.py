@@ -31,7 +31,16 @@ def _rot(symbol, name, axis, sign, what):
 COMMANDS_CPFG = (
     Command("F", "forward", Op.FORWARD, "d", 1, "Move forward by `d` (default: the step) drawing a segment."),
     Command("f", "move", Op.MOVE, "d", 1, "Move forward by `d` without drawing."),
-    Command("G", "forward, no vertex", Op.FORWARD, "d", 1, "As `F`, without recording a polygon vertex.", vertex=False),
+    Command(
+        "G",
+        "forward, no vertex",
+        Op.FORWARD,
+        "d, r",
+        2,
+        "As `F(d)`, without recording a polygon vertex; `r`, the growth rate of ABOP's leaves (chapter 5: "
+        "`G(s,r) --> G(s*r,r)`), is for the rules: the turtle reads `d` only, as cpfg's does.",
+        vertex=False,
+    ),
     Command("g", "move, no vertex", Op.MOVE, "d", 1, "As `f`, without recording a polygon vertex.", vertex=False),
     _rot("+", "turn left", Axis.U, +1, "Turn left by `a` degrees around U (default: the angle increment)."),
     _rot("-", "turn right", Axis.U, -1, "Turn right around U."),
@@ -132,6 +141,19 @@ UNSUPPORTED = frozenset(
         "@P",
         "@J",
         "@Tp",
+        # the rest of cpfg's blackbox.c: cylinder sides, tropisms, patches, objects, bounded circles, cuts
+        "@!",
+        "@Ts",
+        "@Ti",
+        "@Td",
+        "@I",
+        "@PS",
+        "@PC",
+        "@PD",
+        "@mo",
+        "@mc",
+        "@bo",
+        "@bc",
     ]
 )
 """cpfg turtle commands that lsys3d reads but does not draw (named in a warning)."""
