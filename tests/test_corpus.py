@@ -273,3 +273,13 @@ def test_each_gathered_file_reads_unmodified_and_matches(name, caplog):
         assert skeleton.n_polygons == expected["polygons"]
     if "organs" in expected:
         assert skeleton.n_organs == expected["organs"]
+
+
+def test_strict_turns_a_fresh_files_warning_into_an_error():
+    """GeneralizedCylinder reads with a warning (its generalized cylinders are not drawn); --strict refuses it."""
+    from lsys3d.pipeline import draw
+
+    grammar = lsys3d.Grammar.from_file(CORPUS / "cpfg/real/manual-GeneralizedCylinder-fractal.l")
+    with pytest.raises(GrammarError) as info:
+        draw(grammar, grammar.iterations, 0, lsys3d.GenerateOptions.from_flat(strict=True))
+    assert "does not draw" in str(info.value) and "--strict" in str(info.value) and "\n" not in str(info.value)

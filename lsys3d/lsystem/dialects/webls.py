@@ -36,7 +36,7 @@ from .common import fail, line_where
 __all__ = ["read", "recognise"]
 
 _SETTING = re.compile(r"([A-Za-z_]\w*)\s*=(?!=)\s*(.*)\Z", re.DOTALL)
-_ONE_SETTING_LINE = re.compile(r"^\s*(?:n|delta|stemsize|step|view)\s*=(?!=)[^,\n]*$", re.MULTILINE)
+_ONE_SETTING_LINE = re.compile(r"^\s*[A-Za-z_]\w*\s*=(?!=)(?!\s*[-+\d.]+\s*,\s*\w+\s*=).*$", re.MULTILINE)
 _SEMICOLONS = re.compile(r"^\s*[A-Za-z_]\w*\s*=(?!=)[^;\n]*;", re.MULTILINE)
 _AXIOM = re.compile(r"^\s*axiom\s*:", re.MULTILINE | re.IGNORECASE)
 _KEY = re.compile(
@@ -51,7 +51,8 @@ FORMS = "the web tools' ABOP-like form (n=..; delta=..; stemsize=.., axiom:, p1:
 
 
 def recognise(text: str) -> bool:
-    """Whether ``text`` is in this form: settings with ';' or alone on a line, or ``/* */``, and ``axiom:``."""
+    """Whether ``text`` is in this form: an ``axiom:`` line and settings lines (``name = value``, several with
+    ';', not the older form's ``n=30,delta=22.5``) or ``/* */`` comments."""
     if not _AXIOM.search(text):
         return False
     return bool(_ONE_SETTING_LINE.search(text) or _SEMICOLONS.search(text) or "/*" in text)
