@@ -551,6 +551,9 @@ def test_the_web_tools_ls_form_is_recognised_by_its_settings_lines():
     # derivation length: wins over n, and 1 is the default
     assert Grammar.from_text("n=7\nderivation length: 2\naxiom: F\n", source="a.ls").iterations == 2
     assert Grammar.from_text("delta=30\naxiom: F\n", source="a.ls").iterations == 1
+    # 'name: value' settings, as L-System Explorer also reads them
+    colon = Grammar.from_text("Lsystem: 1\nstemsize: 0.3\ndelta: 45\naxiom: F\n", source="c.ls")
+    assert (colon.dialect, colon.turtle["width"], colon.angle) == ("cpfg", 0.3, 45.0)
     # the older ABOP-like form (n=..,delta=.. with a comma) keeps its reader
     assert not webls.recognise("n=30,delta=22.5\naxiom: F\n")
 

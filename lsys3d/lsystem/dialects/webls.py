@@ -8,6 +8,7 @@ example L-System Explorer, github.com/Lowclouds/lsystem, whose quick reference d
     /* a comment, over lines */
     #define R 1.456
     n=5; delta=22.5; stemsize=0.1     settings: any 'name = expression', several on a line with ';'
+    stemsize: 0.1                     or 'name: value'
     derivation length: 4              (or dlength:); wins over n; 1 when neither is given
     axiom: F
     p1: F -> F[+F]F[-F]F               labels, '->' or '-->', contexts, ': condition', '*' for nothing
@@ -38,6 +39,7 @@ __all__ = ["read", "recognise"]
 _SETTING = re.compile(r"([A-Za-z_]\w*)\s*=(?!=)\s*(.*)\Z", re.DOTALL)
 _ONE_SETTING_LINE = re.compile(r"^\s*[A-Za-z_]\w*\s*=(?!=)(?!\s*[-+\d.]+\s*,\s*\w+\s*=).*$", re.MULTILINE)
 _SEMICOLONS = re.compile(r"^\s*[A-Za-z_]\w*\s*=(?!=)[^;\n]*;", re.MULTILINE)
+_COLON_SETTING = re.compile(r"^\s*(?:stemsize|delta|step|lsystem)\s*:", re.MULTILINE | re.IGNORECASE)
 _AXIOM = re.compile(r"^\s*axiom\s*:", re.MULTILINE | re.IGNORECASE)
 _KEY = re.compile(
     r"(?P<key>derivation length|dlength|axiom|ignore|consider|lsystem|maximum depth|max depth|homomorphism"
@@ -55,7 +57,9 @@ def recognise(text: str) -> bool:
     ';', not the older form's ``n=30,delta=22.5``) or ``/* */`` comments."""
     if not _AXIOM.search(text):
         return False
-    return bool(_ONE_SETTING_LINE.search(text) or _SEMICOLONS.search(text) or "/*" in text)
+    return bool(
+        _ONE_SETTING_LINE.search(text) or _SEMICOLONS.search(text) or "/*" in text or _COLON_SETTING.search(text)
+    )
 
 
 def _strip_block_comments(text: str) -> str:
@@ -150,6 +154,10 @@ def read(text: str, source: str = "<string>", **overrides) -> Grammar:
         if _SETTING.match(code.split(";", 1)[0].strip()):
             _settings(code, number, col, variables, values, fields, source)
             continue
+        m = re.match(r"([A-Za-z_]\w*)\s*:\s*(\S.*)\Z", code)
+        if m:  # 'stemsize: 0.1': a variable too (L-System Explorer reads 'name: value' lines as globals)
+            _settings(f"{m.group(1)} = {m.group(2)}", number, col, variables, values, fields, source)
+            continue
         raise fail(f"unknown line {clip(code, 40)!r} (read as {FORMS}: settings, axiom:, derivation length:, "
                    "p1: A -> B, #define, ignore:, Start: {...})", source, number, col)  # fmt: skip
     if "axiom" not in fields:
@@ -187,7 +195,7 @@ def _settings(code, number, col, variables, values, fields, source):
             raise fail(f"expected 'name = value', not {clip(stripped, 30)!r}", source, number, at)
         name, value = m.group(1), m.group(2).strip()
         if name == "view":  # the camera of the tool's viewer
-            return
+            continue
         if re.match(r"[\[{'\"]|function\b", value):
             raise fail(f"setting {name!r} holds a JavaScript value ({clip(value, 20)}), not a number; lsys3d reads "
                        "numbers only", source, number, at)  # fmt: skip
