@@ -245,7 +245,7 @@ class Grammar:
                 i += 1
                 continue
             symbol = scanner.name(text, i, len(text))
-            if symbol in "()," and len(symbol) == 1:
+            if len(symbol) == 1 and (symbol in "()" or (symbol == "," and "," in context.notation.reserved)):
                 raise GrammarError(f"'{key}' holds {symbol!r}, which cannot be a symbol", *_loc(self.source, where, i))
             try:
                 context.alphabet.code(symbol)

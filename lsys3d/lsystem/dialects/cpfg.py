@@ -16,7 +16,7 @@ from pathlib import Path
 from ...errors import GrammarError, clip
 from ...turtle.commands import Axis, Command, Op, Organ
 from ..expr import ExprSyntaxError, Syntax, parse_expression
-from ..grammar import Grammar, read_text
+from ..grammar import MAX_PARAMETERS, Grammar, read_text
 from .common import Dialect, Notation, fail, line_where
 
 __all__ = ["DIALECT", "MAX_INCLUDES", "UNSUPPORTED", "read"]
@@ -28,20 +28,39 @@ def _rot(symbol, name, axis, sign, what):
     return Command(symbol, name, Op.ROTATE, "a", 1, what, axis, sign)
 
 
+_STATE = (
+    " Further parameters are the rules' (a state the productions carry, ABOP's growth rate `r` of `G(s,r)`): "
+    "the turtle reads `d` only, as cpfg's interpret.c does."
+)
+
 COMMANDS_CPFG = (
-    Command("F", "forward", Op.FORWARD, "d", 1, "Move forward by `d` (default: the step) drawing a segment."),
-    Command("f", "move", Op.MOVE, "d", 1, "Move forward by `d` without drawing."),
+    Command(
+        "F",
+        "forward",
+        Op.FORWARD,
+        "d, ...",
+        MAX_PARAMETERS,
+        "Move forward by `d` (default: the step) drawing a segment." + _STATE,
+    ),
+    Command("f", "move", Op.MOVE, "d, ...", MAX_PARAMETERS, "Move forward by `d` without drawing." + _STATE),
     Command(
         "G",
         "forward, no vertex",
         Op.FORWARD,
-        "d, r",
-        2,
-        "As `F(d)`, without recording a polygon vertex; `r`, the growth rate of ABOP's leaves (chapter 5: "
-        "`G(s,r) --> G(s*r,r)`), is for the rules: the turtle reads `d` only, as cpfg's does.",
+        "d, ...",
+        MAX_PARAMETERS,
+        "As `F`, without recording a polygon vertex." + _STATE,
         vertex=False,
     ),
-    Command("g", "move, no vertex", Op.MOVE, "d", 1, "As `f`, without recording a polygon vertex.", vertex=False),
+    Command(
+        "g",
+        "move, no vertex",
+        Op.MOVE,
+        "d, ...",
+        MAX_PARAMETERS,
+        "As `f`, without recording a polygon vertex." + _STATE,
+        vertex=False,
+    ),
     _rot("+", "turn left", Axis.U, +1, "Turn left by `a` degrees around U (default: the angle increment)."),
     _rot("-", "turn right", Axis.U, -1, "Turn right around U."),
     _rot("&", "pitch down", Axis.L, -1, "Pitch down around L."),
