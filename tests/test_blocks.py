@@ -5,6 +5,7 @@ from __future__ import annotations
 import inspect
 import re
 
+import numpy as np
 import pytest
 
 import lsys3d
@@ -167,3 +168,18 @@ def test_block_errors_point_at_the_file():
     with pytest.raises(GrammarError) as info:
         lsys3d.Grammar.from_text("Lsystem: 1\nStart: {a = 1; b = a + ;}\nAxiom: A\n", source="p.l")
     assert str(info.value).startswith("p.l:2:") and "Start: block" in str(info.value)
+
+
+def test_cpfgs_beta_and_binomial_random_numbers_have_their_distributions():
+    """bran(a, b) by Cheng's algorithm BA (cpfg's utility.c brand), biran(n, p) as n trials; seeded."""
+    g = lsys3d.Grammar(axiom="A" * 4000, rules=["A --> B(bran(5, 16), biran(10, 0.3), fabs(-2))"], dialect="cpfg")
+    params = lsys3d.derive(g, 1).params.reshape(-1, 3)
+    beta, binomial = params[:, 0], params[:, 1]
+    assert ((beta > 0) & (beta < 1)).all() and abs(beta.mean() - 5 / 21) < 0.01
+    assert abs(beta.var() - 5 * 16 / (21**2 * 22)) < 0.001
+    assert set(np.unique(binomial)) <= set(range(11)) and abs(binomial.mean() - 3.0) < 0.1
+    assert (params[:, 2] == 2).all()
+    assert (lsys3d.derive(g, 1).params == params.ravel()).all()  # the same numbers again
+    for bad, fragment in [("bran(0, 1)", "bran: the shapes"), ("biran(2.5, 0.5)", "biran: n must be")]:
+        with pytest.raises(lsys3d.DerivationError, match=fragment):
+            lsys3d.derive(lsys3d.Grammar(axiom="A", rules=[f"A --> B({bad})"], dialect="cpfg"), 1)

@@ -160,8 +160,8 @@ def test_the_fresh_sample_is_counted_honestly():
     """Issue 41's fresh sample: 36 files; README.md gives the rate before and after (the goal, 90%, is not met)."""
     outcomes = [_outcome(name) for name in FRESH]
     assert len(FRESH) == 36
-    # measured: 20 of 36 read and match (56%), 2 read with a warning, 14 are refused in one line
-    assert (outcomes.count("match"), outcomes.count("warns"), outcomes.count("refused")) == (20, 2, 14), outcomes
+    # measured: 20 of 36 read and match (56%), 3 read with a warning, 13 are refused in one line
+    assert (outcomes.count("match"), outcomes.count("warns"), outcomes.count("refused")) == (20, 3, 13), outcomes
 
 
 def shedding_model(steps: int = 320) -> tuple[int, int, int, int]:

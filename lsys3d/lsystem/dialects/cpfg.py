@@ -161,6 +161,7 @@ UNSUPPORTED = frozenset(
         "@J",
         "@Tp",
         # the rest of cpfg's blackbox.c: cylinder sides, tropisms, patches, objects, bounded circles, cuts
+        "_",  # interpret.c: the elasticity of the tropism the view file sets
         "@!",
         "@Ts",
         "@Ti",
