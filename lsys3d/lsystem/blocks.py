@@ -19,7 +19,9 @@ small tokenizer and recursive-descent parser; each expression is parsed by
 What is not C that cpfg knows is refused in one line: arrays, user functions, strings outside
 ``printf``, pointers.  The random functions draw from :attr:`lsys3d.streams.Stream.BLOCK_RANDOM`, keyed
 by the seed (``srand``'s argument once it has run, else the grammar's seed), the block, the step and
-the number of draws before: the same file gives the same numbers in any process.
+the number of draws before: the same file gives the same numbers in any process.  The globals only
+``Start`` sets are computed once, when the grammar is read (with the grammar's seed), and become
+constants of its rules and axiom; the others are computed for each derivation (with its seed).
 """
 
 from __future__ import annotations

@@ -88,7 +88,9 @@ class Grammar:
     ``decomposition`` rules rewrite it after each step (up to
     ``decomposition_depth`` times).  ``modules`` declares names longer than one
     character (``["Leaf", "Apex"]``); ``consider`` is the complement of
-    ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``.
+    ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``; ``blocks`` are cpfg's C-like
+    blocks (``{"start": "{n = 0;}", "start_each": "{n++;}"}``, :mod:`lsys3d.lsystem.blocks`), whose
+    globals the rules read: those only ``start`` sets as constants, the others at each step.
 
     Examples
     --------
