@@ -598,7 +598,9 @@ def test_the_web_tools_ls_form_is_recognised_by_its_settings_lines():
     assert str(lsys3d.derive(g, 1)) == "F[+&(12.85)F]F[-F]F"
     # derivation length: wins over n, and 1 is the default
     assert Grammar.from_text("n=7\nderivation length: 2\naxiom: F\n", source="a.ls").iterations == 2
-    assert Grammar.from_text("delta=30\naxiom: F\n", source="a.ls").iterations == 1
+    assert Grammar.from_text("stemsize=1\naxiom: F\n", source="a.ls").iterations == 1
+    # settings the older ABOP-like form writes too keep it (dialect abop), as before
+    assert Grammar.from_text("delta=30\nn=2\naxiom: F\n", source="a.ls").dialect == "abop"
     # 'name: value' settings, as L-System Explorer also reads them
     colon = Grammar.from_text("Lsystem: 1\nstemsize: 0.3\ndelta: 45\naxiom: F\n", source="c.ls")
     assert (colon.dialect, colon.turtle["width"], colon.angle) == ("cpfg", 0.3, 45.0)
@@ -612,10 +614,10 @@ def test_the_web_form_reads_blocks_and_refuses_what_it_cannot():
     assert str(lsys3d.derive(g)) == "FFA"
     for bad, fragment in [
         ("a1 = [0, 1]\naxiom: A\n", "holds a JavaScript value"),
-        ("delta=30\naxiom: A\nwhat is this\n", "unknown line 'what is this'"),
-        ("delta=30\nlsystem: 1\naxiom: A\nlsystem: 2\n", "sub-L-systems"),
-        ('delta=30\n#include "more.ls"\naxiom: A\n', "the preprocessor's #include is not supported here"),
-        ("delta=30\nStart: n = 1;\naxiom: A\n", "expects a block of statements in braces"),
+        ("delta=30; stemsize=1\naxiom: A\nwhat is this\n", "unknown line 'what is this'"),
+        ("delta=30; stemsize=1\nlsystem: 1\naxiom: A\nlsystem: 2\n", "sub-L-systems"),
+        ('delta=30; stemsize=1\n#include "more.ls"\naxiom: A\n', "the preprocessor's #include is not supported"),
+        ("delta=30; stemsize=1\nStart: n = 1;\naxiom: A\n", "expects a block of statements in braces"),
     ]:
         with pytest.raises(GrammarError) as info:
             Grammar.from_text(bad, source="bad.ls")

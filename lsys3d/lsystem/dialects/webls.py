@@ -15,14 +15,14 @@ example L-System Explorer, github.com/Lowclouds/lsystem, whose quick reference d
     ignore: +-F                        (consider: too)
     Start: {i = 0;}                    cpfg's blocks (StartEach:, EndEach:, End:), see lsys3d.lsystem.blocks
 
-The settings are variables the rules may read (``&(delta/2)``); ``delta`` is the angle, ``stemsize`` the
-branch diameter, ``step`` the step length, ``n`` the derivation length when no ``derivation length:``
-line gives it; ``view`` (the camera) is read and left.  A setting that is no number (a JavaScript array
-or object, a function) is refused in one line.  The modules are cpfg's (the tools copy its turtle), so
-the grammar's dialect is ``cpfg``.
+The settings are variables the rules may read (``&(delta/2)``); ``delta`` (or ``angle``) is the angle,
+``stemsize`` the branch diameter, ``step`` the step length, ``n`` (or ``iterations``) the derivation length
+when no ``derivation length:`` line gives it; ``view`` (the camera) is read and left.  A setting that is
+no number (a JavaScript array or object, a function) is refused in one line.  The modules are cpfg's
+(the tools copy its turtle), so the grammar's dialect is ``cpfg``.
 
-:func:`recognise` tells this form by content: a settings line written with ``;`` or alone (``delta=30``,
-``stemsize = 0.1``), or a ``/* ... */`` comment, next to an ``axiom:`` line.
+:func:`recognise` tells this form by content: settings written with ``;`` or that the older ABOP-like
+form does not write (``stemsize = 0.1``), or a ``/* ... */`` comment, next to an ``axiom:`` line.
 """
 
 from __future__ import annotations
@@ -37,7 +37,10 @@ from .common import fail, line_where
 __all__ = ["read", "recognise"]
 
 _SETTING = re.compile(r"([A-Za-z_]\w*)\s*=(?!=)\s*(.*)\Z", re.DOTALL)
-_ONE_SETTING_LINE = re.compile(r"^\s*[A-Za-z_]\w*\s*=(?!=)(?!\s*[-+\d.]+\s*,\s*\w+\s*=).*$", re.MULTILINE)
+# a setting alone on its line, but for those the older ABOP-like form writes too (n=, delta=, angle=, iterations=)
+_ONE_SETTING_LINE = re.compile(
+    r"^\s*(?!(?:n|delta|angle|iterations)\s*=)[A-Za-z_]\w*\s*=(?!=)(?!\s*[-+\d.]+\s*,\s*\w+\s*=).*$", re.MULTILINE
+)
 _SEMICOLONS = re.compile(r"^\s*[A-Za-z_]\w*\s*=(?!=)[^;\n]*;", re.MULTILINE)
 _COLON_SETTING = re.compile(r"^\s*(?:stemsize|delta|step|lsystem)\s*:", re.MULTILINE | re.IGNORECASE)
 _AXIOM = re.compile(r"^\s*axiom\s*:", re.MULTILINE | re.IGNORECASE)
@@ -53,8 +56,10 @@ FORMS = "the web tools' ABOP-like form (n=..; delta=..; stemsize=.., axiom:, p1:
 
 
 def recognise(text: str) -> bool:
-    """Whether ``text`` is in this form: an ``axiom:`` line and settings lines (``name = value``, several with
-    ';', not the older form's ``n=30,delta=22.5``) or ``/* */`` comments."""
+    """Whether ``text`` is in this form: an ``axiom:`` line and settings the older ABOP-like form does not
+    write (several on a line with ';', ``stemsize = 0.1``, ``stemsize: 0.1``, a variable of the file's
+    own) or ``/* */`` comments; a file whose settings are only ``n=``, ``delta=``, ``angle=`` lines (or
+    ``n=30,delta=22.5``) is the older form's, read in ``dialect = "abop"`` as before."""
     if not _AXIOM.search(text):
         return False
     return bool(
@@ -164,10 +169,15 @@ def read(text: str, source: str = "<string>", **overrides) -> Grammar:
         raise fail("no 'axiom:' line", source, 1, 1)
     if dlength is not None:
         fields["iterations"] = dlength
-    elif "n" in values:
-        fields["iterations"] = _whole(variables["n"], values, source, 1, 1, "n")
-    if "delta" in values:
-        fields["angle"] = values["delta"]
+    else:  # n, or iterations as the older ABOP-like form also writes it
+        for key in ("n", "iterations"):
+            if key in values:
+                fields["iterations"] = _whole(variables[key], values, source, 1, 1, key)
+                break
+    for key in ("delta", "angle"):  # angle=25.7: the older form's other name of delta
+        if key in values:
+            fields["angle"] = values[key]
+            break
     turtle = {}
     if "stemsize" in values:
         turtle["width"] = values["stemsize"]
