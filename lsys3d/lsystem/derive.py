@@ -299,14 +299,25 @@ def generations(
         current = between(current, 0)
     yield current
     decompose = _Plan(grammar, grammar.decomposition_productions) if grammar.decomposition_productions else None
+    # cpfg's StartEach/EndEach blocks: the globals each step reads (lsystem.blocks), none without them
+    steps = _block_values(grammar, n, seed)[0]
     fixed = False
     for g in range(1, n + 1):
         if not fixed:
             previous = current
             current = previous if plan.cut < 0 else _cut(previous, plan.cut, trace)
+            variables = steps[g - 1] if steps else None
             if plan.pools_by_code:
                 current = _step(
-                    plan, current, (_PRODUCTION, g), int(seed), max_modules, g, step_number=g - 1, trace=trace
+                    plan,
+                    current,
+                    (_PRODUCTION, g),
+                    int(seed),
+                    max_modules,
+                    g,
+                    step_number=g - 1,
+                    trace=trace,
+                    variables=variables,
                 )[0]
             if decompose is not None:
                 current = _passes(
@@ -318,13 +329,18 @@ def generations(
                     seed,
                     max_modules,
                     step_number=g - 1,
+                    variables=variables,
                     trace=trace,
                 )
             log.debug("generation %d: %d modules", g, len(current))
             if between is not None:
                 current = between(current, g)
             # without chance, a string that rewrites to itself stays itself: the rest is this string
-            fixed = not (plan.stochastic or (decompose is not None and decompose.stochastic)) and current == previous
+            # (unless the globals the rules read change from step to step)
+            fixed = (
+                not (plan.stochastic or (decompose is not None and decompose.stochastic) or steps)
+                and current == previous
+            )
             del previous
         yield current
 
@@ -362,6 +378,7 @@ def interpretation(
             raise DerivationError("the string uses symbols this grammar does not know")
         n = grammar.iterations if iterations is None else iterations
         last = max(int(n) - 1, 0) if isinstance(n, (int, np.integer)) else 0
+        final = _block_values(grammar, int(n), seed)[1] if grammar.program is not None else None
         modules = _passes(
             plan,
             modules,
@@ -371,6 +388,7 @@ def interpretation(
             seed,
             max_modules,
             step_number=last,
+            variables=final,
             trace=trace,
         )
         if plan.cut >= 0:
@@ -414,6 +432,16 @@ def persisting_index(prod: Production) -> int:
 _PHASE = {_PRODUCTION: "generation", _DECOMPOSITION: "decomposition of generation", _HOMOMORPHISM: "homomorphism"}
 
 
+def _block_values(grammar: Grammar, n: int, seed) -> tuple[list[dict], dict | None]:
+    """The globals of cpfg's blocks that change during the derivation: per step, and after the end."""
+    program = grammar.program
+    if program is None or not program.step_names:
+        return [], None
+    steps, final = program.steps(n, int(seed))
+    keep = program.step_names
+    return [{k: v for k, v in s.items() if k in keep} for s in steps], {k: v for k, v in final.items() if k in keep}
+
+
 def _passes(
     plan: _Plan,
     ms: ModuleString,
@@ -424,6 +452,7 @@ def _passes(
     max_modules,
     *,
     step_number: int,
+    variables: dict | None = None,
     trace: Trace | None = None,
 ) -> ModuleString:
     """Rewrite ``ms`` with ``plan`` up to ``depth`` times, each time only the modules the previous time produced."""
@@ -438,6 +467,7 @@ def _passes(
             generation,
             eligible,
             step_number=step_number,
+            variables=variables,
             trace=trace,
         )
         if produced is None:  # nothing matched
@@ -770,8 +800,8 @@ def _narrow(sel, env, draws, ok):
 
 
 def _subset(env: dict, index) -> dict:
-    """The values of ``env`` for some of its modules (the derivation step, a scalar, for all)."""
-    return {k: v if k == STEP else v[index] for k, v in env.items()}
+    """The values of ``env`` for some of its modules (scalars, the step and cpfg's globals, for all)."""
+    return {k: v if isinstance(v, float) else v[index] for k, v in env.items()}
 
 
 def _step(
@@ -784,13 +814,15 @@ def _step(
     eligible: np.ndarray | None = None,
     *,
     step_number: int = 0,
+    variables: dict | None = None,
     trace: Trace | None = None,
 ) -> tuple[ModuleString, np.ndarray | None]:
     """One parallel rewrite of ``ms`` with ``plan``'s rules: the new string and which of its modules were produced.
 
     ``keys`` name the step for the random numbers (kind, generation[, pass]); ``eligible`` restricts
     the modules that may be rewritten; ``step_number`` is what L-Py's ``getIterationNb()`` gives (0 at the
-    first derivation step).  The mask of produced modules is None when nothing matched.
+    first derivation step); ``variables`` are the globals of cpfg's blocks at this step (scalars).  The
+    mask of produced modules is None when nothing matched.
     """
     m = len(ms)
     sym = ms.symbols
@@ -812,7 +844,7 @@ def _step(
             if not len(sel):
                 continue
             prod0 = pool.alternatives[0]
-            env: dict[str, np.ndarray | float] = {STEP: float(step_number)}
+            env: dict[str, np.ndarray | float] = {STEP: float(step_number), **(variables or {})}
             if pool.left or pool.right:
                 keep = np.ones(len(sel), np.bool_)
                 values: list[np.ndarray] = []

@@ -36,6 +36,7 @@ from types import MappingProxyType
 from ..errors import GrammarError, clip
 from ..external import FileRefused, read_file
 from . import dialects
+from .blocks import Program, parse_blocks
 from .locations import _KEYS, _RULE_LISTS, _api_where, _key_line, _loc, _locate_strings, _toml_error, table_key_line
 from .modules import ModuleString
 from .rules import (
@@ -88,7 +89,9 @@ class Grammar:
     ``decomposition`` rules rewrite it after each step (up to
     ``decomposition_depth`` times).  ``modules`` declares names longer than one
     character (``["Leaf", "Apex"]``); ``consider`` is the complement of
-    ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``.
+    ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``; ``blocks`` are cpfg's C-like
+    blocks (``{"start": "{n = 0;}", "start_each": "{n++;}"}``, :mod:`lsys3d.lsystem.blocks`), whose
+    globals the rules read: those only ``start`` sets as constants, the others at each step.
 
     Examples
     --------
@@ -126,6 +129,7 @@ class Grammar:
     consider: str = ""
     modules: tuple[str, ...] = ()
     functions: tuple[str, ...] = ()
+    blocks: Mapping[str, str] = field(default_factory=dict)
     # parsed, filled in by __post_init__
     productions: tuple[Production, ...] = field(init=False, repr=False)
     homomorphism_productions: tuple[Production, ...] = field(init=False, repr=False)
@@ -135,6 +139,7 @@ class Grammar:
     ignored: frozenset[str] = field(init=False, repr=False)
     _axiom_parsed: tuple = field(init=False, repr=False, compare=False)
     considered: frozenset[str] | None = field(init=False, repr=False)
+    program: Program | None = field(init=False, repr=False, compare=False)
     _where: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
@@ -142,7 +147,7 @@ class Grammar:
         for key in _RULE_LISTS:
             if isinstance(getattr(self, key), str):
                 raise GrammarError(f"'{key}' must be a list of rule strings, not one string", self.source)
-        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "environment", "growth"):
+        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "environment", "blocks", "growth"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         for key in (*_RULE_LISTS, "modules", "functions"):
@@ -165,6 +170,7 @@ class Grammar:
         set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
         set_(self, "leaves", MappingProxyType(dict(self.leaves)))
         set_(self, "environment", MappingProxyType(dict(self.environment)))
+        set_(self, "blocks", MappingProxyType(dict(self.blocks)))
         set_(self, "growth", MappingProxyType(dict(self.growth)))
         self._check_scalars()
         notation = dialect.notation
@@ -178,7 +184,10 @@ class Grammar:
                 _check_defines(dict(self.defines), self.source, self._where.get("defines"), notation, functions)
             ),
         )
-        context = _RuleContext(self.source, self.defines, scanner, notation, functions, dialect)
+        program, constants = self._program()
+        set_(self, "program", program)
+        context = _RuleContext(self.source, {**self.defines, **constants}, scanner, notation, functions, dialect)
+        context.globals = program.step_names if program is not None else frozenset()
         where_axiom = self._where.get("axiom") or _api_where("axiom")
         if not self.axiom.strip():
             raise GrammarError("the axiom is empty", *_loc(self.source, where_axiom, 0))
@@ -208,6 +217,14 @@ class Grammar:
         set_(self, "alphabet", context.alphabet.table())
         set_(self, "axiom_modules", _evaluate_axiom(axiom, context.alphabet, self.source, where_axiom))
 
+    def _program(self) -> tuple[Program | None, dict[str, float]]:
+        """cpfg's blocks parsed, and the globals that stay constant after ``Start`` (constants of the rules)."""
+        if not self.blocks:
+            return None, {}
+        program = parse_blocks(self.blocks, self.defines, self.source, self._where.get("blocks"))
+        values, _ = program.run_start(self.seed)
+        return program, {k: v for k, v in values.items() if k not in program.step_names}
+
     def _dialect(self):
         if not isinstance(self.dialect, str):
             raise self._key_error("dialect", f"must be a string, not {type(self.dialect).__name__}")
@@ -235,7 +252,7 @@ class Grammar:
                 i += 1
                 continue
             symbol = scanner.name(text, i, len(text))
-            if symbol in "()," and len(symbol) == 1:
+            if len(symbol) == 1 and (symbol in "()" or (symbol == "," and "," in context.notation.reserved)):
                 raise GrammarError(f"'{key}' holds {symbol!r}, which cannot be a symbol", *_loc(self.source, where, i))
             try:
                 context.alphabet.code(symbol)
@@ -329,6 +346,7 @@ class Grammar:
             ("surfaces", dict),
             ("leaves", dict),
             ("environment", dict),
+            ("blocks", dict),
             ("growth", dict),
         )
         for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + list(tables):
@@ -380,6 +398,7 @@ class Grammar:
                 "consider",
                 "modules",
                 "functions",
+                "blocks",
             )
         }
         fields.update(changes)

@@ -38,6 +38,7 @@ _KEYS = {
     "surfaces",
     "leaves",
     "environment",
+    "blocks",
     "growth",
 }
 

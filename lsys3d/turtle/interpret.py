@@ -327,12 +327,15 @@ def interpret_answering(
     if dropped:
         log.warning("turtle: dropped %d leaf polygon(s) with fewer than 3 distinct vertices", dropped)
 
+    width_start, width_end = seg.width_start[:n_seg], seg.width_end[:n_seg]
+    if options.min_width > 0:  # Lparser's min_thickness: no segment thinner than this
+        width_start, width_end = np.maximum(width_start, options.min_width), np.maximum(width_end, options.min_width)
     # capacities are exact unless drawing symbols stood inside polygons or polygons were dropped
     skeleton = Skeleton(
         start=seg.start[:n_seg],
         end=seg.end[:n_seg],
-        width_start=seg.width_start[:n_seg],
-        width_end=seg.width_end[:n_seg],
+        width_start=width_start,
+        width_end=width_end,
         heading=seg.heading[:n_seg],
         left=seg.left[:n_seg],
         up=seg.up[:n_seg],

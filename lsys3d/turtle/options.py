@@ -56,6 +56,9 @@ class TurtleOptions(Options):
     heading: float = option(90.0, help="initial heading in the XY plane, degrees (90: up along +Y, 0: along +X)")
     step: float = option(1.0, low=0, low_open=True, help="initial step length")
     width: float = option(0.1, low=0, help="initial branch diameter")
+    min_width: float = option(
+        0.0, low=0, help="smallest branch diameter: a thinner segment is drawn this wide (Lparser's min_thickness)"
+    )
     width_scale: float = option(0.7, low=0, low_open=True, help="factor of `!` without argument")
     length_scale: float = option(0.9, low=0, low_open=True, help='factor of `"` without argument')
     width_unit: float = option(
