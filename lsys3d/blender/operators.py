@@ -140,6 +140,9 @@ class LSYS3D_Define(bpy.types.PropertyGroup):
         return None if self.value == self.grammar_value else self.value
 
 
+_RECIPE_FIELDS = ("preset", "grammar_file", "iterations", "seed", "leaves", "union", "sides", "lod", "rig", "textures")
+
+
 class _RecipeProperties:
     """The recipe's properties, shared by the add and regrow operators."""
 
@@ -195,7 +198,7 @@ class _RecipeProperties:
         self.defines_of = key
 
     def set_from(self, recipe: Recipe) -> None:
-        for key in ("iterations", "seed", "leaves", "union", "sides", "lod", "rig", "textures"):
+        for key in _RECIPE_FIELDS[2:]:
             setattr(self, key, getattr(recipe, key))
         if recipe.preset in list_presets():
             self.preset = recipe.preset
@@ -299,11 +302,11 @@ class LSYS3D_OT_regrow(_RecipeProperties, bpy.types.Operator):
     def execute(self, context):
         plant = _plant(context)
         try:
-            if not self.defines_of:  # run without invoke (a script): the plant's own recipe, then these values
-                stored = Recipe.from_json(plant[RECIPE_KEY])
-                seed, iterations = self.seed, self.iterations
-                self.set_from(stored)
-                self.seed, self.iterations = seed, iterations
+            if not self.defines_of:  # run without invoke (a script): the plant's recipe, then the values given
+                given = {k: getattr(self, k) for k in _RECIPE_FIELDS if self.properties.is_property_set(k)}
+                self.set_from(Recipe.from_json(plant[RECIPE_KEY]))
+                for key, value in given.items():
+                    setattr(self, key, value)
             self.sync_defines()
             collection = plant.users_collection[0] if plant.users_collection else context.collection
             _grow_into(self.recipe(), collection, plant=plant)

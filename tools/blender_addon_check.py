@@ -1,0 +1,138 @@
+"""Drive the lsys3d add-on inside Blender and print what it made: the Blender side of tests/test_blender_addon.py.
+
+Run by the Python that has ``bpy`` (``.venv-bpy``, with lsys3d's dependencies installed by ``make validators``)::
+
+    .venv-bpy/bin/python tools/blender_addon_check.py SCRATCH_FOLDER
+
+It registers the add-on from this checkout, grows plants with ``bpy.ops.lsys3d.add_plant``, saves and reopens
+the file and regrows, asks for a bad grammar, and prints one line ``LSYS3D-ADDON {json}``: the counts read
+back from Blender's own data (the evaluated depsgraph for the instances).
+"""
+
+import importlib.util
+import json
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+
+def _assets():
+    """``lsys3d.assets`` is the repository's ``assets/`` folder (pyproject's package-dir): map it as the
+    editable install does, for a Python that runs lsys3d from the checkout."""
+    try:
+        importlib.import_module("lsys3d.assets")
+    except ModuleNotFoundError:
+        spec = importlib.util.spec_from_file_location(
+            "lsys3d.assets", REPO / "assets" / "__init__.py", submodule_search_locations=[str(REPO / "assets")]
+        )
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["lsys3d.assets"] = module
+        spec.loader.exec_module(module)
+
+
+import bpy  # noqa: E402
+import numpy as np  # noqa: E402
+
+_assets()
+import lsys3d  # noqa: E402
+import lsys3d.blender  # noqa: E402
+from lsys3d.blender import operators  # noqa: E402
+from lsys3d.blender.recipe import RECIPE_KEY  # noqa: E402
+
+
+def counts(plant) -> dict:
+    """The plant's bark, its leaves (instances realised by the depsgraph, and meshes) and what else it has."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    leaves = {"vertices": 0, "faces": 0, "instances": 0}
+    parts = {child.name: child.get("lsys3d_part") for child in plant.children_recursive}
+    for inst in depsgraph.object_instances:
+        owner = inst.parent.original if inst.is_instance else inst.object.original
+        part = owner.get("lsys3d_part")
+        if part not in ("leaves", "leaf_polygons") or owner.parent != plant:
+            continue
+        if inst.is_instance or inst.object.type == "MESH" and inst.object.data.attributes.get("lsys3d_transform") is None:
+            mesh = inst.object.data
+            leaves["vertices"] += len(mesh.vertices)
+            leaves["faces"] += len(mesh.polygons)
+            leaves["instances"] += int(inst.is_instance)
+    data = plant.data
+    positions = np.zeros(3 * len(data.vertices), np.float32)
+    data.vertices.foreach_get("co", positions)
+    out = {
+        "name": plant.name,
+        "vertices": len(data.vertices),
+        "faces": len(data.polygons),
+        "leaves": leaves,
+        "parts": sorted(set(parts.values())),
+        "uv": [layer.name for layer in data.uv_layers],
+        "custom_normals": bool(data.has_custom_normals),
+        "materials": [m.name for m in data.materials],
+        "attributes": sorted(a.name for a in data.attributes if not a.name.startswith(".")),
+        "vertex_groups": len(plant.vertex_groups),
+        "z_extent": [float(positions[2::3].min()), float(positions[2::3].max())] if len(positions) else [0, 0],
+        "position_sum": float(np.abs(positions.astype(np.float64)).sum()),
+        "recipe": json.loads(plant[RECIPE_KEY]),
+    }
+    arms = [c for c in plant.children if c.type == "ARMATURE"]
+    if arms:
+        out["bones"] = len(arms[0].data.bones)
+    return out
+
+
+def _error(call) -> str:
+    try:
+        result = call()
+    except RuntimeError as exc:  # bpy.ops raises the operator's error reports
+        return str(exc)
+    return f"no error: {result}"
+
+
+def main(scratch: Path) -> None:
+    lsys3d.blender.register()
+    report = {}
+    t0 = time.perf_counter()
+    assert bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0) == {"FINISHED"}
+    report["add_seconds"] = time.perf_counter() - t0
+    report["timings"] = operators.timings()
+    tree3d = bpy.context.active_object
+    report["tree3d"] = counts(tree3d)
+    report["z_up_cursor"] = list(tree3d.location)
+
+    bpy.ops.lsys3d.add_plant(preset="koch-stochastic", seed=0)
+    report["stochastic_0"] = counts(bpy.context.active_object)
+    bpy.ops.lsys3d.add_plant(preset="koch-stochastic", seed=1)
+    report["stochastic_1"] = counts(bpy.context.active_object)
+
+    bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, rig=True, iterations=4)
+    report["rigged"] = counts(bpy.context.active_object)
+
+    bad = scratch / "bad.toml"
+    bad.write_text('axiom = "F"\niterations = 2\nrules = ["F -> F[+F]F]"]\n')
+    report["bad_grammar"] = _error(lambda: bpy.ops.lsys3d.add_plant(grammar_file=str(bad)))
+    report["missing_grammar"] = _error(lambda: bpy.ops.lsys3d.add_plant(grammar_file=str(scratch / "none.toml")))
+
+    glb = scratch / "tree3d.glb"
+    bpy.context.view_layer.objects.active = tree3d
+    assert bpy.ops.lsys3d.export(filepath=str(glb)) == {"FINISHED"}
+    report["exported"] = glb.stat().st_size
+
+    blend = scratch / "plants.blend"
+    bpy.ops.wm.save_mainfile(filepath=str(blend))
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    plant = bpy.data.objects[report["tree3d"]["name"]]
+    report["reopened"] = counts(plant)
+    bpy.context.view_layer.objects.active = plant
+    t0 = time.perf_counter()
+    assert bpy.ops.lsys3d.regrow() == {"FINISHED"}
+    report["regrow_seconds"] = time.perf_counter() - t0
+    report["regrown"] = counts(plant)
+    assert bpy.ops.lsys3d.regrow(seed=5) == {"FINISHED"}
+    report["regrown_seed_5"] = counts(plant)
+    print("LSYS3D-ADDON " + json.dumps(report), flush=True)
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[-1]))
