@@ -53,7 +53,9 @@ def counts(plant) -> dict:
         part = owner.get("lsys3d_part")
         if part not in ("leaves", "leaf_polygons") or owner.parent != plant:
             continue
-        if inst.is_instance or inst.object.type == "MESH" and inst.object.data.attributes.get("lsys3d_transform") is None:
+        if inst.is_instance or (
+            inst.object.type == "MESH" and inst.object.data.attributes.get("lsys3d_transform") is None
+        ):
             mesh = inst.object.data
             leaves["vertices"] += len(mesh.vertices)
             leaves["faces"] += len(mesh.polygons)
