@@ -2,10 +2,11 @@
 
 What the plant becomes, all of it parented to the bark's object (the *plant*):
 
-- the bark: a mesh with the tree's welded vertices, its faces, custom split normals from the corner
-  normals, the ``UVMap`` layer from the corner uv, the bark colours as the ``Col`` colour attribute, the
-  hierarchy and wind attributes as mesh attributes of the same names (``branch_id``...), one material slot
-  per material the faces use;
+- the bark: a mesh with the tree's welded vertices, its faces, custom normals from the corner normals (the
+  ``custom_normal`` float attribute of Blender 4.5+, exactly the tree's; encoded split normals before), the
+  ``UVMap`` layer from the corner uv, the bark colours as the ``Col`` colour attribute, the hierarchy and wind
+  attributes as mesh attributes of the same names (``branch_id``...), one material slot per material the
+  faces use;
 - the leaves: instances of one leaf model, placed by a geometry nodes modifier (:func:`instancer_group`) on
   a points mesh whose ``lsys3d_transform`` attribute holds each instance's matrix (and the per-instance
   attributes beside it); the ``{ . }`` polygons as a mesh of their own.  A rigged tree's leaves are the merged
@@ -48,6 +49,9 @@ INSTANCE_GROUP = "lsys3d instances"
 PART_KEY = "lsys3d_part"
 """Custom property naming what an object of a plant is: ``bark``, ``leaves``, ``leaf_model``, ``rig``..."""
 
+FREE_NORMALS = bpy.app.version >= (4, 5, 0)
+"""Whether Blender stores custom normals as a float ``custom_normal`` corner attribute ("free" normals)."""
+
 _Y_TO_Z_4 = np.eye(4)
 _Y_TO_Z_4[:3, :3] = Y_TO_Z
 
@@ -77,7 +81,11 @@ def mesh_data(name: str, mesh: Mesh, slots: list[bpy.types.Material] | None = No
         uv = data.uv_layers.new(name="UVMap")
         uv.data.foreach_set("uv", np.ascontiguousarray(mesh.uv, np.float32).ravel())
         normals = _points(mesh.normals.reshape(-1, 3))
-        data.normals_split_custom_set(normals)
+        if FREE_NORMALS:  # the corner normals as they are, a float attribute set at once (Blender 4.5+)
+            free = data.attributes.new("custom_normal", "FLOAT_VECTOR", "CORNER")
+            free.data.foreach_set("vector", normals.ravel())
+        else:  # encoded by Blender: it reads the normals as a sequence, 0.25 s for tree3d's 113,460 corners
+            data.normals_split_custom_set(normals)
     if mesh.colors is not None:
         colors = data.color_attributes.new("Col", "FLOAT_COLOR", "POINT")
         rgba = np.ones((nv, 4), np.float32)
@@ -88,7 +96,6 @@ def mesh_data(name: str, mesh: Mesh, slots: list[bpy.types.Material] | None = No
         data.materials.append(material)
     if slot_of is not None and mesh.face_material is not None and nf:
         data.polygons.foreach_set("material_index", np.asarray(slot_of(mesh.face_material), np.int32))
-    data.validate(clean_customdata=False)
     return data
 
 

@@ -1,0 +1,62 @@
+"""Regrow latency of the Blender add-on against the CLI's in-process time, for tree3d (issue 36's goal: at most +20%).
+
+Run with the Python that has ``bpy`` (``.venv-bpy``), from the repository root::
+
+    PYTHONPATH=. .venv-bpy/bin/python benchmarks/bench_blender_regrow.py
+
+In one process, warm (kernels compiled, one growth first), best of ``REPEATS``:
+
+- ``cli``: what ``lsys3d generate tree3d`` does in process: :func:`lsys3d.generate` and the glTF export;
+- ``generate``: :func:`lsys3d.generate` alone;
+- ``add``: what a change in the redo panel runs, ``bpy.ops.lsys3d.add_plant`` (Blender undoes the last run
+  first: that undo is not counted);
+- ``regrow``: the sidebar's Regrow (``bpy.ops.lsys3d.regrow``) of the selected plant, in place.
+
+Prints each best time and its ratios to ``cli`` and ``generate``.
+"""
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+import blender_addon_check  # noqa: F401  (the checkout's lsys3d and its assets, as the test runs them)
+import bpy
+
+import lsys3d
+import lsys3d.blender
+
+REPEATS = 5
+
+
+def main() -> None:
+    lsys3d.blender.register()
+    grammar = lsys3d.load("tree3d")
+    times = {"cli": [], "generate": [], "add": [], "regrow": []}
+
+    def timed(key, fn):
+        t0 = time.perf_counter()
+        fn()
+        times[key].append(time.perf_counter() - t0)
+
+    with tempfile.TemporaryDirectory() as scratch:
+        path = Path(scratch) / "tree3d.glb"
+        lsys3d.export(lsys3d.generate(grammar), path)  # warm: kernels loaded, caches filled
+        bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0)
+        plant = bpy.context.active_object
+        for _ in range(REPEATS):  # interleaved, so that a busy moment of the machine falls on all of them
+            timed("cli", lambda: lsys3d.export(lsys3d.generate(grammar), path))
+            timed("generate", lambda: lsys3d.generate(grammar))
+            timed("add", lambda: bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0))
+            bpy.context.view_layer.objects.active = plant
+            timed("regrow", lambda: bpy.ops.lsys3d.regrow())
+    best = {k: min(v) for k, v in times.items()}
+    cli = best["cli"]
+    print(f"tree3d, best of {REPEATS}: cli (generate + .glb) {cli:.3f} s, generate alone {best['generate']:.3f} s")
+    for key, what in (("add", "add_plant (a redo panel change)"), ("regrow", "sidebar regrow")):
+        print(f"{what}: {best[key]:.3f} s = {best[key] / cli:.2f} x cli, {best[key] / best['generate']:.2f} x generate")
+
+
+if __name__ == "__main__":
+    main()
