@@ -92,6 +92,19 @@ def test_rig_is_an_armature_with_a_group_per_bone(addon):
     assert rigged["leaves"]["instances"] == 0 and rigged["leaves"]["faces"] > 0
 
 
+def test_textures_are_packed_image_nodes(addon):
+    """fern's leaf texture: an Image Texture node of the tree's own PNG bytes, packed in the .blend file."""
+    from lsys3d import load_preset
+    from lsys3d.look.materials import material_table
+
+    texture = material_table(load_preset("fern")).leaf.texture
+    images = addon["textured"]["images"]
+    assert [texture.width, texture.height] in [size for _, size, _ in images]
+    assert all(packed for _, _, packed in images)
+    assert addon["textured_reopened"]["images"] == images
+    assert addon["untextured"]["images"] == []
+
+
 def test_a_bad_grammar_is_reported_with_file_line_col(addon):
     message = addon["bad_grammar"]
     assert re.match(r"Error: \S*bad\.toml:3:\d+: unbalanced", message), message

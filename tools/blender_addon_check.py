@@ -84,6 +84,18 @@ def counts(plant) -> dict:
     return out
 
 
+def textures(plant) -> dict:
+    """The images of the plant's materials (bark and leaf models): name, size and whether packed."""
+    images = []
+    for obj in [plant, *plant.children_recursive]:
+        for material in obj.data.materials if obj.type == "MESH" else ():
+            for node in material.node_tree.nodes:
+                if node.type == "TEX_IMAGE" and node.image is not None:
+                    image = node.image
+                    images.append([image.name, list(image.size), image.packed_file is not None])
+    return {"name": plant.name, "images": sorted(images)}
+
+
 def _error(call) -> str:
     try:
         result = call()
@@ -111,6 +123,11 @@ def main(scratch: Path) -> None:
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, rig=True, iterations=4)
     report["rigged"] = counts(bpy.context.active_object)
 
+    bpy.ops.lsys3d.add_plant(preset="fern", seed=0)
+    report["textured"] = textures(bpy.context.active_object)
+    bpy.ops.lsys3d.add_plant(preset="fern", seed=0, textures=False)
+    report["untextured"] = textures(bpy.context.active_object)
+
     bad = scratch / "bad.toml"
     bad.write_text('axiom = "F"\niterations = 2\nrules = ["F -> F[+F]F]"]\n')
     report["bad_grammar"] = _error(lambda: bpy.ops.lsys3d.add_plant(grammar_file=str(bad)))
@@ -126,6 +143,7 @@ def main(scratch: Path) -> None:
     bpy.ops.wm.open_mainfile(filepath=str(blend))
     plant = bpy.data.objects[report["tree3d"]["name"]]
     report["reopened"] = counts(plant)
+    report["textured_reopened"] = textures(bpy.data.objects[report["textured"]["name"]])
     bpy.context.view_layer.objects.active = plant
     t0 = time.perf_counter()
     assert bpy.ops.lsys3d.regrow() == {"FINISHED"}

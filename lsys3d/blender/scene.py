@@ -127,11 +127,8 @@ def _image(picture) -> bpy.types.Image:
         if existing.get("lsys3d_digest") == _digest(picture):
             return existing
     image = bpy.data.images.new(picture.name, picture.width, picture.height, alpha=picture.alpha)
-    image.source = "FILE"
-    image.filepath_raw = "//" + picture.name
-    image.file_format = "PNG" if picture.mime == "image/png" else "JPEG"
-    image.pack(data=picture.data, data_len=len(picture.data))
-    image.reload()
+    image.pack(data=picture.data, data_len=len(picture.data))  # the file's bytes, kept in the .blend
+    image.source = "FILE"  # read from the packed bytes (a file path would be looked for on disk)
     image["lsys3d_digest"] = _digest(picture)
     return image
 
