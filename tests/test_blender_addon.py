@@ -163,3 +163,20 @@ def test_the_extension_zip_installs_in_blender(tmp_path):
     assert report["install"] == ["FINISHED"] and report["enabled"] and report["operator"]
     assert report["lsys3d"].startswith(str(tmp_path / "blender")), report["lsys3d"]
     assert re.match(r"Error: \S*bad\.toml:2:\d+: unbalanced", report["error"]), report["error"]
+
+
+def test_the_docs_python_example_runs_in_blender(addon):
+    assert addon["doc_examples"] >= 1 and addon["doc_export"]
+
+
+def test_lod_level_is_lighter(addon):
+    assert addon["lod_2"]["recipe"]["lod"] == 2
+    assert 0 < addon["lod_2"]["faces"] < addon["tree3d"]["faces"]
+
+
+def test_a_slow_union_shows_the_soup_first_then_the_union(addon, cli_stats):
+    soup, settled = addon["soup"], addon["settled"]
+    assert (soup["vertices"], soup["faces"]) == (cli_stats["sweep"]["vertices"], cli_stats["sweep"]["faces"])
+    assert soup["recipe"]["union"] is False
+    assert (settled["vertices"], settled["faces"]) == (cli_stats["bark"]["vertices"], cli_stats["bark"]["faces"])
+    assert settled["recipe"]["union"] is True and settled["name"] == soup["name"]

@@ -104,9 +104,30 @@ def _error(call) -> str:
     return f"no error: {result}"
 
 
+def doc_examples(scratch: Path) -> int:
+    """Run docs/blender.md's ``py`` blocks in order, in one namespace, in ``scratch``; how many ran."""
+    import os
+    import re
+
+    text = (REPO / "docs" / "blender.md").read_text(encoding="utf-8")
+    namespace = {"__name__": "__doc_example__"}
+    here = os.getcwd()
+    os.chdir(scratch)
+    try:
+        found = list(re.finditer(r"```py\n(.*?)```", text, re.DOTALL))
+        for m in found:
+            line = text.count("\n", 0, m.start()) + 2
+            exec(compile("\n" * (line - 1) + m.group(1), "docs/blender.md", "exec"), namespace)
+    finally:
+        os.chdir(here)
+    return len(found)
+
+
 def main(scratch: Path) -> None:
-    lsys3d.blender.register()
-    report = {}
+    report = {"doc_examples": doc_examples(scratch), "doc_export": (scratch / "tree3d.glb").is_file()}
+    bpy.ops.wm.read_factory_settings(use_empty=True)  # the add-on's classes stay registered
+    if not hasattr(bpy.types, "LSYS3D_OT_add_plant"):
+        lsys3d.blender.register()
     t0 = time.perf_counter()
     assert bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0) == {"FINISHED"}
     report["add_seconds"] = time.perf_counter() - t0
@@ -122,6 +143,19 @@ def main(scratch: Path) -> None:
 
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, rig=True, iterations=4)
     report["rigged"] = counts(bpy.context.active_object)
+
+    bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, lod=2)
+    report["lod_2"] = counts(bpy.context.active_object)
+
+    # a slow union: the redo panel's change shows the soup, and the timer (run here by hand: a background
+    # Blender runs no timers) replaces it by the unioned plant
+    operators._state.update(timers=True, union_seconds=10.0)
+    bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0)
+    soup = bpy.context.active_object
+    report["soup"] = counts(soup)
+    operators._state["settle"]()
+    report["settled"] = counts(soup)
+    operators._state.update(timers=False)
 
     bpy.ops.lsys3d.add_plant(preset="fern", seed=0)
     report["textured"] = textures(bpy.context.active_object)

@@ -40,8 +40,9 @@ SOUP_SECONDS = 0.5
 SETTLE_SECONDS = 0.6
 """How long the redo panel's values must stay still before the soup is replaced by the unioned plant."""
 
-_state = {"union_seconds": 0.0, "pending": 0, "last": None}
-"""The last union's time, the pending full growth's ticket, and the last grown ``(recipe JSON, tree)``."""
+_state = {"union_seconds": 0.0, "pending": 0, "last": None, "timers": not bpy.app.background, "settle": None}
+"""The last union's time, the pending full growth's ticket, the last grown ``(recipe JSON, tree)``, whether
+timers run (not in a background Blender, which has no event loop) and the last timer's function."""
 
 
 def timings() -> dict:
@@ -247,7 +248,7 @@ class LSYS3D_OT_add_plant(_RecipeProperties, bpy.types.Operator):
         try:
             self.sync_defines()
             recipe = self.recipe()
-            soup = recipe.union and _state["union_seconds"] > SOUP_SECONDS and not bpy.app.background
+            soup = recipe.union and _state["union_seconds"] > SOUP_SECONDS and _state["timers"]
             shown = recipe.replace(union=False) if soup else recipe
             obj = _grow_into(shown, context.collection, location=context.scene.cursor.location.copy())
         except Exception as exc:
@@ -255,9 +256,8 @@ class LSYS3D_OT_add_plant(_RecipeProperties, bpy.types.Operator):
         _select(context, obj)
         _state["pending"] += 1
         if soup:  # the unioned plant once the values stay still
-            bpy.app.timers.register(
-                _settle(obj.name, recipe.to_json(), _state["pending"]), first_interval=SETTLE_SECONDS
-            )
+            _state["settle"] = _settle(obj.name, recipe.to_json(), _state["pending"])
+            bpy.app.timers.register(_state["settle"], first_interval=SETTLE_SECONDS)
         return {"FINISHED"}
 
 
