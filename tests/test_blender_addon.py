@@ -82,6 +82,8 @@ def test_the_recipe_survives_save_and_reopen_and_regrows_the_same(addon):
     assert {k: reopened[k] for k in keys} == {k: first[k] for k in keys}
     assert {k: regrown[k] for k in keys} == {k: first[k] for k in keys}
     assert addon["regrown_seed_5"]["recipe"]["seed"] == 5  # the panel's other seed is kept in the recipe
+    # plants of one look share their materials, and a regrow reuses them (no bark.001 left behind)
+    assert addon["stochastic_1"]["materials"] == addon["regrown_seed_5"]["materials"] == ["bark"]
 
 
 def test_rig_is_an_armature_with_a_group_per_bone(addon):

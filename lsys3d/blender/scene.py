@@ -219,17 +219,33 @@ def material(m: Material, textures: bool = True, vertex_colors: bool = False) ->
     return mat
 
 
+MATERIAL_KEY = "lsys3d_material"
+"""Custom property of a material the add-on made: what it was made from (:func:`material_key`)."""
+
+
+def material_key(m: Material, textures: bool, vertex_colors: bool) -> str:
+    """A digest of everything :func:`material` reads: equal keys, the same Blender material."""
+    images = [_digest(i) for i in m.images] if textures else []
+    return hashlib.sha1(repr((m, images, textures, vertex_colors)).encode()).hexdigest()
+
+
 class _Materials:
-    """The Blender materials of one tree, made once each: ``of(material)``."""
+    """The Blender materials of one tree: ``of(material)`` reuses the file's material made from the same
+    settings (by growing another plant, or this one before a regrow), so regrowing leaves no copies behind
+    and plants of one grammar share their materials, as an artist's own would be shared."""
 
     def __init__(self, textures: bool):
         self.textures = textures
         self.made: dict = {}
 
     def of(self, m: Material, vertex_colors: bool = False) -> bpy.types.Material:
-        key = (m, vertex_colors)
+        key = material_key(m, self.textures, vertex_colors)
         if key not in self.made:
-            self.made[key] = material(m, self.textures, vertex_colors)
+            found = next((x for x in bpy.data.materials if x.get(MATERIAL_KEY) == key), None)
+            if found is None:
+                found = material(m, self.textures, vertex_colors)
+                found[MATERIAL_KEY] = key
+            self.made[key] = found
         return self.made[key]
 
     def slots(self, index: np.ndarray | None, material_of, vertex_colors: bool = False):
