@@ -182,3 +182,12 @@ def test_a_slow_union_shows_the_soup_first_then_the_union(addon, cli_stats):
     assert soup["recipe"]["union"] is False
     assert (settled["vertices"], settled["faces"]) == (cli_stats["bark"]["vertices"], cli_stats["bark"]["faces"])
     assert settled["recipe"]["union"] is True and settled["name"] == soup["name"]
+
+
+def test_wind_attributes_are_mesh_and_point_attributes(addon):
+    from lsys3d.look.attributes import KEYS
+
+    assert set(KEYS) <= set(addon["attributes"]["attributes"])
+    assert set(KEYS) <= set(addon["leaf_point_attributes"])  # per leaf instance, beside its matrix
+    assert "lsys3d_transform" in addon["leaf_point_attributes"]
+    assert not set(KEYS) & set(addon["tree3d"]["attributes"])  # off by default

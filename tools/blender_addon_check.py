@@ -144,6 +144,12 @@ def main(scratch: Path) -> None:
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, rig=True, iterations=4)
     report["rigged"] = counts(bpy.context.active_object)
 
+    bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, iterations=4, attributes=True)
+    with_attributes = bpy.context.active_object
+    report["attributes"] = counts(with_attributes)
+    leaves = next(c for c in with_attributes.children if c.get("lsys3d_part") == "leaves")
+    report["leaf_point_attributes"] = sorted(a.name for a in leaves.data.attributes if not a.name.startswith("."))
+
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, lod=2)
     report["lod_2"] = counts(bpy.context.active_object)
 

@@ -141,7 +141,19 @@ class LSYS3D_Define(bpy.types.PropertyGroup):
         return None if self.value == self.grammar_value else self.value
 
 
-_RECIPE_FIELDS = ("preset", "grammar_file", "iterations", "seed", "leaves", "union", "sides", "lod", "rig", "textures")
+_RECIPE_FIELDS = (
+    "preset",
+    "grammar_file",
+    "iterations",
+    "seed",
+    "leaves",
+    "union",
+    "sides",
+    "lod",
+    "rig",
+    "textures",
+    "attributes",
+)
 
 
 class _RecipeProperties:
@@ -159,6 +171,11 @@ class _RecipeProperties:
     lod: IntProperty(name="LOD", min=0, max=LOD_LEVELS - 1, default=0, description="Level of detail (0: full)")
     rig: BoolProperty(name="Rig", default=False, description="An armature along the branches, with weights")
     textures: BoolProperty(name="Textures", default=True, description="The grammar's textures as image nodes")
+    attributes: BoolProperty(
+        name="Wind attributes",
+        default=False,
+        description="Hierarchy and wind attributes (branch_id, branch_t, phase, pivot...) on vertices and leaves",
+    )
     defines: CollectionProperty(type=LSYS3D_Define)
     defines_of: StringProperty(options={"HIDDEN", "SKIP_SAVE"})
 
@@ -178,6 +195,7 @@ class _RecipeProperties:
             lod=self.lod,
             rig=self.rig,
             textures=self.textures,
+            attributes=self.attributes,
         )
 
     def sync_defines(self) -> None:
@@ -225,6 +243,7 @@ class _RecipeProperties:
         row.prop(self, "union", toggle=True)
         row.prop(self, "rig", toggle=True)
         row.prop(self, "textures", toggle=True)
+        col.prop(self, "attributes")
         col.prop(self, "sides")
         col.prop(self, "lod")
         if len(self.defines):

@@ -56,6 +56,9 @@ class Recipe:
         An armature along the branches, bark and leaves weighted to it.
     textures : bool
         The grammar's textures as image nodes (off: plain colours).
+    attributes : bool
+        The hierarchy and wind attributes (:mod:`lsys3d.look.attributes`, the ``full`` layout: every one on
+        every vertex and leaf) as mesh and point attributes.
     """
 
     preset: str = "tree3d"
@@ -69,6 +72,7 @@ class Recipe:
     lod: int = 0
     rig: bool = False
     textures: bool = True
+    attributes: bool = False
 
     def __post_init__(self):
         if self.iterations < 0:
@@ -91,6 +95,8 @@ class Recipe:
             flat["sides"] = self.sides
         if self.lod:
             flat["lod"] = (self.lod,)
+        if self.attributes:
+            flat["attributes"] = "full"
         return GenerateOptions.from_flat(**flat)
 
     def to_json(self) -> str:
