@@ -191,3 +191,12 @@ def test_wind_attributes_are_mesh_and_point_attributes(addon):
     assert set(KEYS) <= set(addon["leaf_point_attributes"])  # per leaf instance, beside its matrix
     assert "lsys3d_transform" in addon["leaf_point_attributes"]
     assert not set(KEYS) & set(addon["tree3d"]["attributes"])  # off by default
+
+
+def test_wind_animation_is_the_armatures_action(addon):
+    """2 s at 24 fps: frames 1 to 49; the bark sways at a quarter of the loop and is back at its end."""
+    wind = addon["wind"]
+    assert wind["frames"] == [1, 49] and wind["fps"] == 24
+    assert wind["moved_quarter"] > 1e-3
+    assert wind["moved_end"] < 1e-4
+    assert addon["wind_without_rig"].startswith("Error: ") and "rig" in addon["wind_without_rig"]

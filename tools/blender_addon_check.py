@@ -84,6 +84,31 @@ def counts(plant) -> dict:
     return out
 
 
+def wind(plant) -> dict:
+    """The wind action's frames, and how far the bark moves from its rest at a quarter of the loop and at its end."""
+    armature = next(c for c in plant.children if c.type == "ARMATURE")
+    scene = bpy.context.scene
+
+    def bark_at(frame):
+        scene.frame_set(frame)
+        mesh = plant.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh()
+        out = np.zeros(3 * len(mesh.vertices), np.float32)
+        mesh.vertices.foreach_get("co", out)
+        return out.reshape(-1, 3)
+
+    start, end = scene.frame_start, scene.frame_end
+    rest = bark_at(start)
+    quarter = bark_at(start + (end - start) // 4)
+    last = bark_at(end)
+    return {
+        "action": armature.animation_data.action.name,
+        "frames": [start, end],
+        "fps": scene.render.fps,
+        "moved_quarter": float(np.abs(quarter - rest).max()),
+        "moved_end": float(np.abs(last - rest).max()),
+    }
+
+
 def textures(plant) -> dict:
     """The images of the plant's materials (bark and leaf models): name, size and whether packed."""
     images = []
@@ -143,6 +168,9 @@ def main(scratch: Path) -> None:
 
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, rig=True, iterations=4)
     report["rigged"] = counts(bpy.context.active_object)
+    bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, rig=True, iterations=4, wind=2.0)
+    report["wind"] = wind(bpy.context.active_object)
+    report["wind_without_rig"] = _error(lambda: bpy.ops.lsys3d.add_plant(preset="tree3d", iterations=3, wind=2.0))
 
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, iterations=4, attributes=True)
     with_attributes = bpy.context.active_object

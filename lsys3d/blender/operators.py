@@ -153,6 +153,7 @@ _RECIPE_FIELDS = (
     "rig",
     "textures",
     "attributes",
+    "wind",
 )
 
 
@@ -176,6 +177,13 @@ class _RecipeProperties:
         default=False,
         description="Hierarchy and wind attributes (branch_id, branch_t, phase, pivot...) on vertices and leaves",
     )
+    wind: FloatProperty(
+        name="Wind seconds",
+        min=0.0,
+        max=60.0,
+        default=0.0,
+        description="A looping sample wind animation keyed on the rig, this long (0: none; needs Rig)",
+    )
     defines: CollectionProperty(type=LSYS3D_Define)
     defines_of: StringProperty(options={"HIDDEN", "SKIP_SAVE"})
 
@@ -196,6 +204,7 @@ class _RecipeProperties:
             rig=self.rig,
             textures=self.textures,
             attributes=self.attributes,
+            wind=self.wind,
         )
 
     def sync_defines(self) -> None:
@@ -244,6 +253,9 @@ class _RecipeProperties:
         row.prop(self, "rig", toggle=True)
         row.prop(self, "textures", toggle=True)
         col.prop(self, "attributes")
+        sub = col.row()
+        sub.active = self.rig
+        sub.prop(self, "wind")
         col.prop(self, "sides")
         col.prop(self, "lod")
         if len(self.defines):

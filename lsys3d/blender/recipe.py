@@ -56,6 +56,8 @@ class Recipe:
         An armature along the branches, bark and leaves weighted to it.
     textures : bool
         The grammar's textures as image nodes (off: plain colours).
+    wind : float
+        Seconds of the looping sample wind animation keyed on the rig (0: none; needs ``rig``).
     attributes : bool
         The hierarchy and wind attributes (:mod:`lsys3d.look.attributes`, the ``full`` layout: every one on
         every vertex and leaf) as mesh and point attributes.
@@ -73,6 +75,7 @@ class Recipe:
     rig: bool = False
     textures: bool = True
     attributes: bool = False
+    wind: float = 0.0
 
     def __post_init__(self):
         if self.iterations < 0:
@@ -97,6 +100,8 @@ class Recipe:
             flat["lod"] = (self.lod,)
         if self.attributes:
             flat["attributes"] = "full"
+        if self.wind:
+            flat["wind_animation"] = self.wind
         return GenerateOptions.from_flat(**flat)
 
     def to_json(self) -> str:

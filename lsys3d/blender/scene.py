@@ -13,7 +13,8 @@ What the plant becomes, all of it parented to the bark's object (the *plant*):
   mesh instead, weighted to the bones, as the USD writer does (instances cannot be skinned);
 - organs: one instancer per prototype and material, like the leaves;
 - the rig: an armature (one bone per joint, named as the joints), vertex groups of the same names holding the
-  skin weights, and an Armature modifier on each skinned mesh.
+  skin weights, and an Armature modifier on each skinned mesh; the wind animation, when grown, as the
+  armature's action (quaternion keys of the pose bones).
 
 lsys3d's frame is metres and Y up; Blender's is Z up: every point, normal and transform is turned +90
 degrees about X (:data:`Y_TO_Z`, the turn USD's ``up_axis="Z"`` makes), and Blender's unit is the metre.
@@ -28,6 +29,7 @@ import hashlib
 
 import bpy
 import numpy as np
+from mathutils import Matrix, Quaternion
 
 from ..exchange.common import POINT_ATTRIBUTES, ExportOptions, file_frame
 from ..look.materials import Material
@@ -395,6 +397,54 @@ def _weights(obj: bpy.types.Object, mesh: Mesh, rig, armature: bpy.types.Object)
     modifier.object = armature
 
 
+def _wind(armature: bpy.types.Object, animation) -> bpy.types.Action:
+    """The wind animation as quaternion keys of the pose bones, one key per sample, looping.
+
+    lsys3d's joints are unrotated at rest and each sample turns a joint by ``R`` relative to its parent; a
+    Blender bone's pose rotation is in the bone's own rest frame ``B`` (along it, head to tail), so the key is
+    ``B^T R' B`` with ``R'`` the turn in Blender's Z-up frame: the bones then move the skin exactly as the
+    joints do in the glTF and USD files.
+    """
+    scene = bpy.context.scene
+    scene.render.fps = animation.fps
+    frames = np.rint(np.asarray(animation.times) * animation.fps).astype(np.float64) + 1.0
+    scene.frame_start, scene.frame_end = 1, int(frames[-1])
+    action = bpy.data.actions.new(f"{armature.name}_wind")
+    armature.animation_data_create().action = action
+    fcurves = _fcurves(action, armature)
+    turn = Matrix(Y_TO_Z.tolist())
+    for j, bone in enumerate(armature.pose.bones):
+        bone.rotation_mode = "QUATERNION"
+        rest = bone.bone.matrix_local.to_3x3()
+        keys = np.empty((len(frames), 4))
+        for k, (x, y, z, w) in enumerate(animation.rotations[:, j].tolist()):
+            r = turn @ Quaternion((w, x, y, z)).to_matrix() @ turn.transposed()
+            keys[k] = (rest.transposed() @ r @ rest).to_quaternion()
+        path = bone.path_from_id("rotation_quaternion")
+        for i in range(4):
+            curve = (
+                fcurves.new(path, index=i, action_group=bone.name) if _LEGACY_ACTIONS else fcurves.new(path, index=i)
+            )
+            curve.keyframe_points.add(len(frames))
+            curve.keyframe_points.foreach_set("co", np.column_stack([frames, keys[:, i]]).ravel().astype(np.float32))
+            curve.update()
+    return action
+
+
+_LEGACY_ACTIONS = "slots" not in bpy.types.Action.bl_rna.properties
+
+
+def _fcurves(action, obj):
+    """Where an action's F-curves are made: the action itself before Blender 4.4, else its slot's channelbag."""
+    if _LEGACY_ACTIONS:
+        return action.fcurves
+    from bpy_extras.anim_utils import action_ensure_channelbag_for_slot  # Blender 4.4+
+
+    slot = action.slots.new(id_type="OBJECT", name=obj.name)
+    obj.animation_data.action_slot = slot
+    return action_ensure_channelbag_for_slot(action, slot).fcurves
+
+
 # ---------------------------------------------------------------- the plant
 
 
@@ -430,6 +480,8 @@ def build(
         armature = _armature(f"{name}_rig", tree.rig, plant, collection)
         if "skin_joints" in bark.attributes:
             _weights(plant, bark, tree.rig, armature)
+        if tree.animation is not None:
+            _wind(armature, tree.animation)
     if leaves:
         _leaves(tree, name, plant, collection, made, armature)
         _organs(tree, name, plant, collection, made)
