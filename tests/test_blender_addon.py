@@ -200,3 +200,11 @@ def test_wind_animation_is_the_armatures_action(addon):
     assert wind["moved_quarter"] > 1e-3
     assert wind["moved_end"] < 1e-4
     assert addon["wind_without_rig"].startswith("Error: ") and "rig" in addon["wind_without_rig"]
+
+
+def test_wind_moves_the_bark_as_the_gltf_file_does(addon):
+    """The same tree written by lsys3d's glTF writer and read by Blender's importer (its skin and its
+    animation) has, at a quarter of the loop, the box the add-on's armature gives the bark."""
+    w = addon["wind_gltf"]
+    assert w["ours"] != pytest.approx(w["rest"], abs=1e-3)  # it has moved
+    assert w["ours"] == pytest.approx(w["gltf"], abs=1e-4)

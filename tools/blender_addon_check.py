@@ -109,6 +109,37 @@ def wind(plant) -> dict:
     }
 
 
+def _bbox_at(obj, frame):
+    bpy.context.scene.frame_set(frame)
+    mesh = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh()
+    points = np.zeros(3 * len(mesh.vertices), np.float32)
+    mesh.vertices.foreach_get("co", points)
+    points = points.reshape(-1, 3) @ np.asarray(obj.matrix_world)[:3, :3].T + np.asarray(obj.matrix_world)[:3, 3]
+    return np.concatenate([points.min(0), points.max(0)])
+
+
+def wind_as_gltf(plant, scratch: Path) -> dict:
+    """The plant's bark at a quarter of the wind loop, against the same tree written by lsys3d's glTF writer
+    and read by Blender's glTF importer (its own skinning and animation): their boxes, side by side."""
+    tree = operators._state["last"][1]
+    path = scratch / "wind.glb"
+    lsys3d.export(tree, path)
+    scene = bpy.context.scene
+    frame = scene.frame_start + (scene.frame_end - scene.frame_start) // 4
+    ours = _bbox_at(plant, frame)
+    before = set(bpy.data.objects)
+    bpy.ops.import_scene.gltf(filepath=str(path))
+    imported = [o for o in set(bpy.data.objects) - before if o.type == "MESH" and len(o.data.vertices)]
+    bark = max(imported, key=lambda o: len(o.data.polygons) if "bark" in o.name.lower() else -1)
+    scene.frame_start, scene.frame_end = 1, round(tree.animation.times[-1] * tree.animation.fps) + 1
+    theirs = _bbox_at(bark, frame - 1)  # the importer keys time 0 on frame 0; the add-on on frame 1, the scene's first
+    rest = _bbox_at(plant, scene.frame_start)
+    report = {"ours": ours.tolist(), "gltf": theirs.tolist(), "rest": rest.tolist(), "bark": bark.name}
+    for obj in set(bpy.data.objects) - before:
+        bpy.data.objects.remove(obj)
+    return report
+
+
 def textures(plant) -> dict:
     """The images of the plant's materials (bark and leaf models): name, size and whether packed."""
     images = []
@@ -170,6 +201,7 @@ def main(scratch: Path) -> None:
     report["rigged"] = counts(bpy.context.active_object)
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, rig=True, iterations=4, wind=2.0)
     report["wind"] = wind(bpy.context.active_object)
+    report["wind_gltf"] = wind_as_gltf(bpy.context.active_object, scratch)
     report["wind_without_rig"] = _error(lambda: bpy.ops.lsys3d.add_plant(preset="tree3d", iterations=3, wind=2.0))
 
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, iterations=4, attributes=True)

@@ -397,7 +397,7 @@ def _weights(obj: bpy.types.Object, mesh: Mesh, rig, armature: bpy.types.Object)
     modifier.object = armature
 
 
-def _wind(armature: bpy.types.Object, animation) -> bpy.types.Action:
+def _wind(armature: bpy.types.Object, names, animation) -> bpy.types.Action:
     """The wind animation as quaternion keys of the pose bones, one key per sample, looping.
 
     lsys3d's joints are unrotated at rest and each sample turns a joint by ``R`` relative to its parent; a
@@ -413,7 +413,8 @@ def _wind(armature: bpy.types.Object, animation) -> bpy.types.Action:
     armature.animation_data_create().action = action
     fcurves = _fcurves(action, armature)
     turn = Matrix(Y_TO_Z.tolist())
-    for j, bone in enumerate(armature.pose.bones):
+    for j, name in enumerate(names):  # by name: Blender keeps the pose bones in an order of its own
+        bone = armature.pose.bones[name]
         bone.rotation_mode = "QUATERNION"
         rest = bone.bone.matrix_local.to_3x3()
         keys = np.empty((len(frames), 4))
@@ -481,7 +482,7 @@ def build(
         if "skin_joints" in bark.attributes:
             _weights(plant, bark, tree.rig, armature)
         if tree.animation is not None:
-            _wind(armature, tree.animation)
+            _wind(armature, tree.rig.names, tree.animation)
     if leaves:
         _leaves(tree, name, plant, collection, made, armature)
         _organs(tree, name, plant, collection, made)
