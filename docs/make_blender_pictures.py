@@ -1,6 +1,6 @@
 """The pictures of docs/blender.md, made by Blender itself with the add-on (run by the Python with ``bpy``).
 
-    PYTHONPATH=. .venv-bpy/bin/python docs/make_blender_pictures.py
+    PYTHONPATH=. .venv-bpy/bin/python docs/make_blender_pictures.py [add_plant seeds rig]
 
 Each picture is a fresh scene: the add-on's ``bpy.ops.lsys3d.add_plant`` (or ``regrow``) makes the plants,
 exactly as an artist's click would, and Cycles renders them on the CPU with the lighting of ``lsys3d
@@ -56,23 +56,29 @@ def render(name: str, view: str = "iso", margin: float = 0.08) -> None:
 def main() -> None:
     OUT.mkdir(exist_ok=True)
     lsys3d.blender.register()
+    wanted = set(sys.argv[1:]) or {"add_plant", "seeds", "rig"}
     # 1. Add > Mesh > L-system plant, the defaults: tree3d, its leaves instanced by geometry nodes
-    fresh()
-    bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0)
-    render("add_plant")
+    if "add_plant" in wanted:
+        fresh()
+        bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0)
+        render("add_plant")
     # 2. A species with its textures (image nodes), three seeds side by side, as the sidebar's New seed gives
-    fresh()
-    for i, seed in enumerate((0, 1, 2)):
-        bpy.context.scene.cursor.location = (i * 4.5, 0.0, 0.0)
-        bpy.ops.lsys3d.add_plant(preset="hazel", seed=seed)
-    render("seeds", view="front", margin=0.04)
+    if "seeds" in wanted:
+        fresh()
+        for i, seed in enumerate((0, 1, 2)):
+            bpy.context.scene.cursor.location = (i * 4.5, 0.0, 0.0)
+            bpy.ops.lsys3d.add_plant(preset="hazel", seed=seed)
+        render("seeds", view="front", margin=0.04)
+    if "rig" not in wanted:
+        return
     # 3. The rig: an armature with the skin as vertex groups; two bones turned in pose mode bend the tree
     fresh()
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, rig=True)
     armature = next(o for o in bpy.data.objects if o.type == "ARMATURE")
-    for bone in armature.pose.bones[1:3]:
+    trunk = [b for b in armature.pose.bones if b.name.startswith("b0_")]  # branch 0: the trunk
+    for bone in trunk[1:3]:
         bone.rotation_mode = "XYZ"
-        bone.rotation_euler = (0.0, 0.0, math.radians(25.0))
+        bone.rotation_euler = (0.0, 0.0, math.radians(15.0))
     bpy.context.view_layer.update()
     render("rig", view="front")
 

@@ -60,6 +60,10 @@ def test_add_plant_counts_equal_the_cli_stats(addon, cli_stats):
     assert plant["parts"] == ["leaves", "leaves_model"]
 
 
+def test_the_menus_click_grows_tree3d(addon):
+    assert addon["default_preset"] == "tree3d"
+
+
 def test_add_plant_is_shaded_and_z_up(addon, cli_stats):
     plant = addon["tree3d"]
     assert plant["uv"] == ["UVMap"] and plant["custom_normals"] and plant["materials"] == ["bark"]

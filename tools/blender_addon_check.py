@@ -181,6 +181,8 @@ def doc_examples(scratch: Path) -> int:
 
 def main(scratch: Path) -> None:
     report = {"doc_examples": doc_examples(scratch), "doc_export": (scratch / "tree3d.glb").is_file()}
+    bpy.ops.lsys3d.add_plant()  # the menu's click: every property at its default
+    report["default_preset"] = json.loads(bpy.context.active_object[RECIPE_KEY])["preset"]
     bpy.ops.wm.read_factory_settings(use_empty=True)  # the add-on's classes stay registered
     if not hasattr(bpy.types, "LSYS3D_OT_add_plant"):
         lsys3d.blender.register()

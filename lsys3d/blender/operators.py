@@ -34,6 +34,9 @@ __all__ = ["CLASSES", "menu_add", "timings"]
 
 log = logging.getLogger("lsys3d")
 
+FIRST_PRESET = "tree3d"
+"""The preset Add > Mesh > L-system plant grows unless another is chosen."""
+
 SOUP_SECONDS = 0.5
 """A union slower than this makes the redo panel show the tube soup first."""
 
@@ -52,8 +55,9 @@ def timings() -> dict:
 
 def _preset_items(self, context):
     # kept referenced: Blender's enum callbacks must not return strings Python may free
-    if "items" not in _state:
-        _state["items"] = [(name, name, preset_info(name).description) for name in list_presets()]
+    if "items" not in _state:  # the first item is the default: the textbook tree, quick to grow
+        names = sorted(list_presets(), key=lambda name: name != FIRST_PRESET)
+        _state["items"] = [(name, name, preset_info(name).description) for name in names]
     return _state["items"]
 
 
