@@ -111,6 +111,12 @@ def test_textures_are_packed_image_nodes(addon):
     assert addon["untextured"]["images"] == []
 
 
+def test_the_armature_deforms_the_bark_by_lsys3ds_weights(addon):
+    """Two trunk bones posed: every bark vertex where lsys3d's skin (joints and weights) puts it."""
+    assert addon["skinning"]["max_moved"] > 0.1
+    assert addon["skinning"]["max_error"] < 1e-4
+
+
 def test_a_bad_grammar_is_reported_with_file_line_col(addon):
     message = addon["bad_grammar"]
     assert re.match(r"Error: \S*bad\.toml:3:\d+: unbalanced", message), message

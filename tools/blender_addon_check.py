@@ -41,6 +41,7 @@ import lsys3d  # noqa: E402
 import lsys3d.blender  # noqa: E402
 from lsys3d.blender import operators  # noqa: E402
 from lsys3d.blender.recipe import RECIPE_KEY  # noqa: E402
+from lsys3d.blender.scene import Y_TO_Z  # noqa: E402
 
 
 def counts(plant) -> dict:
@@ -82,6 +83,33 @@ def counts(plant) -> dict:
     if arms:
         out["bones"] = len(arms[0].data.bones)
     return out
+
+
+def skinning(plant) -> dict:
+    """Pose two trunk bones; the bark Blender deforms against lsys3d's skin (joints and weights per vertex)
+    blended by hand with the bones' deform matrices: the vertex groups hold the weights lsys3d computed."""
+    tree = operators._state["last"][1]
+    armature = next(c for c in plant.children if c.type == "ARMATURE")
+    for name in [n for n in tree.rig.names if n.startswith("b0_")][1:3]:
+        bone = armature.pose.bones[name]
+        bone.rotation_mode = "XYZ"
+        bone.rotation_euler = (0.3, 0.0, 0.2)
+    bpy.context.view_layer.update()
+    mesh = plant.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh()
+    posed = np.zeros(3 * len(mesh.vertices), np.float32)
+    mesh.vertices.foreach_get("co", posed)
+    deform = np.array([np.asarray(b.matrix @ b.bone.matrix_local.inverted()) for b in
+                       (armature.pose.bones[n] for n in tree.rig.names)])  # fmt: skip
+    rest = np.asarray(tree.bark.vertices) @ Y_TO_Z.T
+    joints = np.asarray(tree.bark.attributes["skin_joints"], np.int64)
+    weights = np.asarray(tree.bark.attributes["skin_weights"], np.float64)
+    weights = weights / weights.sum(1, keepdims=True)
+    moved = np.einsum("vkij,vj->vki", deform[joints][:, :, :3, :3], rest) + deform[joints][:, :, :3, 3]
+    expected = (moved * weights[:, :, None]).sum(1)
+    return {
+        "max_error": float(np.abs(posed.reshape(-1, 3) - expected).max()),
+        "max_moved": float(np.abs(expected - rest).max()),
+    }
 
 
 def wind(plant) -> dict:
@@ -201,6 +229,7 @@ def main(scratch: Path) -> None:
 
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, rig=True, iterations=4)
     report["rigged"] = counts(bpy.context.active_object)
+    report["skinning"] = skinning(bpy.context.active_object)
     bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0, rig=True, iterations=4, wind=2.0)
     report["wind"] = wind(bpy.context.active_object)
     report["wind_gltf"] = wind_as_gltf(bpy.context.active_object, scratch)
