@@ -117,6 +117,18 @@ def test_the_armature_deforms_the_bark_by_lsys3ds_weights(addon):
     assert addon["skinning"]["max_error"] < 1e-4
 
 
+def test_organs_are_instances(addon):
+    """Two L-Py spheres (``@O``): two instances of one sphere model, as many vertices and faces as lsys3d's
+    merged organs."""
+    import lsys3d
+
+    grammar = lsys3d.Grammar.from_text(
+        'axiom = "_(0.05)F(1)[+F(1)@O(0.2)][-F(1)@O(0.3)]"\ndialect = "lpy"\niterations = 0\n'
+    )
+    merged = lsys3d.generate(grammar).organs.merged[0]
+    assert addon["organs"] == {"instances": 2, "vertices": len(merged.vertices), "faces": len(merged.faces)}
+
+
 def test_a_bad_grammar_is_reported_with_file_line_col(addon):
     message = addon["bad_grammar"]
     assert re.match(r"Error: \S*bad\.toml:3:\d+: unbalanced", message), message

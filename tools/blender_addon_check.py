@@ -85,6 +85,18 @@ def counts(plant) -> dict:
     return out
 
 
+def organ_counts(plant) -> dict:
+    """The organ instances the depsgraph realises under the plant, and their vertices and faces."""
+    out = {"instances": 0, "vertices": 0, "faces": 0}
+    for inst in bpy.context.evaluated_depsgraph_get().object_instances:
+        owner = inst.parent.original if inst.is_instance else None
+        if owner is not None and owner.get("lsys3d_part") == "organs" and owner.parent == plant:
+            out["instances"] += 1
+            out["vertices"] += len(inst.object.data.vertices)
+            out["faces"] += len(inst.object.data.polygons)
+    return out
+
+
 def skinning(plant) -> dict:
     """Pose two trunk bones; the bark Blender deforms against lsys3d's skin (joints and weights per vertex)
     blended by hand with the bones' deform matrices: the vertex groups hold the weights lsys3d computed."""
@@ -253,6 +265,11 @@ def main(scratch: Path) -> None:
     operators._state["settle"]()
     report["settled"] = counts(soup)
     operators._state.update(timers=False)
+
+    organs = scratch / "organs.toml"
+    organs.write_text('axiom = "_(0.05)F(1)[+F(1)@O(0.2)][-F(1)@O(0.3)]"\ndialect = "lpy"\niterations = 0\n')
+    bpy.ops.lsys3d.add_plant(grammar_file=str(organs))
+    report["organs"] = organ_counts(bpy.context.active_object)
 
     bpy.ops.lsys3d.add_plant(preset="fern", seed=0)
     report["textured"] = textures(bpy.context.active_object)
