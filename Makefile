@@ -7,6 +7,8 @@
 # For developers:
 #   make lint      ruff check and ruff format --check (make format fixes what it can)
 #   make bench     every benchmark in benchmarks/ (prints ratios against baselines measured in the same run)
+# The Blender add-on as an extension zip (docs/blender.md):
+#   make blender-extension   build/lsys3d-blender-<version>.zip, for BLENDER_PLATFORMS (default: all four)
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin

@@ -1,8 +1,9 @@
 """Regrow latency of the Blender add-on against the CLI's in-process time, for tree3d (issue 36's goal: at most +20%).
 
-Run with the Python that has ``bpy`` (``.venv-bpy``), from the repository root::
+It runs in the Python that has ``bpy``: started by another (``make bench``), it runs itself again with
+``LSYS3D_BPY_PYTHON`` or ``.venv-bpy/bin/python`` (and says so and stops when there is none)::
 
-    PYTHONPATH=. .venv-bpy/bin/python benchmarks/bench_blender_regrow.py
+    .venv/bin/python benchmarks/bench_blender_regrow.py
 
 In one process, warm (kernels compiled, one growth first), best of ``REPEATS``:
 
@@ -15,22 +16,36 @@ In one process, warm (kernels compiled, one growth first), best of ``REPEATS``:
 Prints each best time and its ratios to ``cli`` and ``generate``.
 """
 
+import importlib.util
+import os
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
-import blender_addon_check  # noqa: F401  (the checkout's lsys3d and its assets, as the test runs them)
-import bpy
-
-import lsys3d
-import lsys3d.blender
-
+REPO = Path(__file__).resolve().parents[1]
 REPEATS = 5
 
 
+def in_blender() -> None:
+    """Run this file with the Python that has ``bpy``, from the checkout."""
+    python = Path(os.environ.get("LSYS3D_BPY_PYTHON") or REPO / ".venv-bpy" / "bin" / "python")
+    if not python.exists():
+        print("bench_blender_regrow: no Python with bpy (make validators, or set LSYS3D_BPY_PYTHON): not run")
+        return
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    sys.exit(subprocess.run([str(python), __file__], env=env, cwd=REPO).returncode)
+
+
 def main() -> None:
+    sys.path.insert(0, str(REPO / "tools"))
+    import blender_addon_check  # noqa: F401  (the checkout's lsys3d and its assets, as the add-on's test runs them)
+    import bpy
+
+    import lsys3d
+    import lsys3d.blender
+
     lsys3d.blender.register()
     grammar = lsys3d.load("tree3d")
     times = {"cli": [], "generate": [], "add": [], "regrow": []}
@@ -59,4 +74,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    if importlib.util.find_spec("bpy") is None:
+        in_blender()
+    else:
+        main()
