@@ -16,6 +16,7 @@ In one process, warm (kernels compiled, one growth first), best of ``REPEATS``:
 Prints each best time and its ratios to ``cli`` and ``generate``.
 """
 
+import argparse
 import importlib.util
 import os
 import subprocess
@@ -35,10 +36,15 @@ def in_blender() -> None:
         print("bench_blender_regrow: no Python with bpy (make validators, or set LSYS3D_BPY_PYTHON): not run")
         return
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    sys.exit(subprocess.run([str(python), __file__], env=env, cwd=REPO).returncode)
+    sys.exit(subprocess.run([str(python), __file__, *sys.argv[1:]], env=env, cwd=REPO).returncode)
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--preset", default="tree3d")
+    parser.add_argument("--iterations", type=int, default=0, help="0: the grammar's own")
+    parser.add_argument("--repeat", type=int, default=REPEATS)
+    args = parser.parse_args()
     sys.path.insert(0, str(REPO / "tools"))
     import blender_addon_check  # noqa: F401  (the checkout's lsys3d and its assets, as the add-on's test runs them)
     import bpy
@@ -47,7 +53,9 @@ def main() -> None:
     import lsys3d.blender
 
     lsys3d.blender.register()
-    grammar = lsys3d.load("tree3d")
+    grammar = lsys3d.load(args.preset)
+    n = args.iterations or None
+    plant = {"preset": args.preset, "seed": 0, "iterations": args.iterations}
     times = {"cli": [], "generate": [], "add": [], "regrow": []}
 
     def timed(key, fn):
@@ -56,19 +64,22 @@ def main() -> None:
         times[key].append(time.perf_counter() - t0)
 
     with tempfile.TemporaryDirectory() as scratch:
-        path = Path(scratch) / "tree3d.glb"
-        lsys3d.export(lsys3d.generate(grammar), path)  # warm: kernels loaded, caches filled
-        bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0)
-        plant = bpy.context.active_object
-        for _ in range(REPEATS):  # interleaved, so that a busy moment of the machine falls on all of them
-            timed("cli", lambda: lsys3d.export(lsys3d.generate(grammar), path))
-            timed("generate", lambda: lsys3d.generate(grammar))
-            timed("add", lambda: bpy.ops.lsys3d.add_plant(preset="tree3d", seed=0))
-            bpy.context.view_layer.objects.active = plant
+        path = Path(scratch) / "plant.glb"
+        lsys3d.export(lsys3d.generate(grammar, n, 0), path)  # warm: kernels loaded, caches filled
+        bpy.ops.lsys3d.add_plant(**plant)
+        grown = bpy.context.active_object
+        for _ in range(args.repeat):  # interleaved, so that a busy moment of the machine falls on all of them
+            timed("cli", lambda: lsys3d.export(lsys3d.generate(grammar, n, 0), path))
+            timed("generate", lambda: lsys3d.generate(grammar, n, 0))
+            timed("add", lambda: bpy.ops.lsys3d.add_plant(**plant))
+            bpy.context.view_layer.objects.active = grown
             timed("regrow", lambda: bpy.ops.lsys3d.regrow())
     best = {k: min(v) for k, v in times.items()}
     cli = best["cli"]
-    print(f"tree3d, best of {REPEATS}: cli (generate + .glb) {cli:.3f} s, generate alone {best['generate']:.3f} s")
+    print(
+        f"{args.preset}, best of {args.repeat}: cli (generate + .glb) {cli:.3f} s, "
+        f"generate alone {best['generate']:.3f} s"
+    )
     for key, what in (("add", "add_plant (a redo panel change)"), ("regrow", "sidebar regrow")):
         print(f"{what}: {best[key]:.3f} s = {best[key] / cli:.2f} x cli, {best[key] / best['generate']:.2f} x generate")
 
