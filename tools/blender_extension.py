@@ -68,7 +68,6 @@ name = "lsys3d L-system plants"
 tagline = "Grow 3D plants from L-systems, regrown live from the redo panel"
 maintainer = "lsys3d"
 type = "add-on"
-website = "https://pypi.org/project/lsys3d/"
 tags = ["Add Mesh", "Modeling"]
 
 blender_version_min = "4.2.0"
