@@ -13,7 +13,7 @@ import tomllib
 import zipfile
 
 import pytest
-from validators import REPO, bpy_python, in_ci, require
+from validators import REPO, bpy_lsys3d_env, bpy_python, in_ci, require
 
 MARK = "LSYS3D-ADDON "
 
@@ -29,6 +29,7 @@ def addon(tmp_path_factory) -> dict:
         text=True,
         timeout=900,
         cwd=REPO,
+        env=bpy_lsys3d_env(python),
     )
     if "No module named 'numba'" in proc.stderr or "No module named 'trimesh'" in proc.stderr:
         require(False, "lsys3d's dependencies are not installed in .venv-bpy: make validators")
