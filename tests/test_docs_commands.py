@@ -112,6 +112,7 @@ COPIED = {
     "plant.v": "tests/corpus/cpfg/real/05-compound-homo.v",
     "docs/looks": "docs/looks",
     "tests/golden/koch.json": "tests/golden/koch.json",
+    "my_scene.obj": "assets/presets/scenes/wall.obj",
 }
 """Files of the repository the docs name, copied to the folder (never run in the repository itself);
 ``tests/golden/`` holds koch.json alone: checking every preset's golden file is tests/test_golden.py's work."""

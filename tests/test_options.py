@@ -29,6 +29,7 @@ from lsys3d.pipeline import GenerateOptions, Limits
 from lsys3d.render.preview import PreviewOptions
 from lsys3d.turtle import FormOptions, TurtleOptions, TurtleOverrides
 from lsys3d.turtle.diagnostics import Checks
+from lsys3d.turtle.environment import EnvironmentOptions
 
 CLASSES = [
     Limits,
@@ -47,6 +48,7 @@ CLASSES = [
     ForestOptions,
     WindOptions,
     GrowthOptions,
+    EnvironmentOptions,
 ]
 
 
@@ -79,6 +81,7 @@ def test_generate_options_nest_one_class_per_stage():
         "growth",
         "checks",
         "lod",
+        "environment",  # the turtle's scene (read before the turtle runs), last: recorded settings keep their order
     ]
     assert flat_fields(GenerateOptions)["strict"] == ("checks", "strict")
     flat = flat_fields(GenerateOptions)
@@ -155,6 +158,7 @@ def test_cli_flags_come_from_the_fields():
         GrowthOptions,
         Checks,
         LodOptions,
+        EnvironmentOptions,
     ):
         for f in dataclasses.fields(cls):
             spec = spec_of(f)
