@@ -467,18 +467,20 @@ def _grow(grammar, iterations, seed, options, progress=None):
 def cmd_preview(args) -> int:
     from .lsystem.presets import load
     from .pipeline import run_stage
-    from .render.preview import PreviewOptions, check_preview, preview
+    from .render.preview import PreviewOptions, PreviewSession
 
     options = from_arguments(PreviewOptions, args)
-    check_preview(args.output, options)  # no Blender, no minutes of work
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
-    with progress:
+    # Blender is found (no Blender: no minutes of work) and started now: it loads while the tree grows
+    with PreviewSession(args.output, options) as session, progress:
         tree = _grow(load(args.grammar), args.iterations, args.seed, _generate_options(args), progress)
-        path = run_stage("render", preview, tree, args.output, options, progress=progress)
+        path = run_stage("render", session.render, tree, progress=progress)
     if not args.quiet:
         width, height = options.size
-        _print(f"wrote {path}: {width}x{height}, {options.view} view ({time.perf_counter() - t0:.1f} s)")
+        _print(
+            f"wrote {path}: {width}x{height}, {options.view} view, {options.quality} ({time.perf_counter() - t0:.1f} s)"
+        )
     return 0
 
 
