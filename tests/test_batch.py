@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 import re
 import signal
@@ -440,7 +441,9 @@ def test_dask_makes_the_same_files_and_lines_and_carries_the_prediction(cluster,
         shutil.rmtree(out, ignore_errors=True)
 
 
-def test_dask_retries_a_job_whose_worker_was_killed(cluster, tmp_path):
+def test_dask_retries_a_job_whose_worker_was_killed(cluster, tmp_path, caplog):
+    """A real worker process of a LocalCluster killed in the middle of a job: the scheduler runs the job
+    again, the manifest counts 2 attempts (the others 1), and one warning line names the job."""
     from distributed import Client
 
     jobs = write_project(
@@ -474,11 +477,20 @@ def test_dask_retries_a_job_whose_worker_was_killed(cluster, tmp_path):
     thread = threading.Thread(target=killer)
     thread.start()
     try:
-        result = batch(jobs, tmp_path / "out", scheduler=cluster.scheduler_address)
+        with caplog.at_level(logging.WARNING, logger="lsys3d"):
+            result = batch(jobs, tmp_path / "out", scheduler=cluster.scheduler_address)
     finally:
         thread.join()
     assert killed and result.failed == [] and result.done == ["tree3d_s0", "abop-1.24a_s0", "abop-1.24a_s1"]
-    line = read_manifests(tmp_path / "out")["tree3d_s0"]
+    lines = read_manifests(tmp_path / "out")
+    assert {job_id: lines[job_id]["run"]["attempts"] for job_id in lines} == {
+        "tree3d_s0": 2,
+        "abop-1.24a_s0": 1,
+        "abop-1.24a_s1": 1,
+    }
+    lost = [r.getMessage() for r in caplog.records if r.name == "lsys3d" and "died" in r.getMessage()]
+    assert lost == ["tree3d_s0: its Dask worker died running it; the scheduler started it again"]
+    line = lines["tree3d_s0"]
     path = tmp_path / "out" / line["files"][0]["path"]
     assert sha256(path) == line["files"][0]["sha256"]
     assert validators.usd_problems(path) == []

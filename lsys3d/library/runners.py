@@ -13,7 +13,10 @@ it writes the job's files itself and sends back only the line.
   that does not stop within :data:`STOP_SECONDS` is killed.
 * :func:`run_dask` submits every job to a Dask scheduler; the scheduler
   retries a job whose worker died (``distributed.scheduler.allowed-failures``,
-  3 by default).  When the workers declare a ``memory`` resource
+  3 by default).  The times a job was started are the scheduler's count of
+  the workers that died running it, plus one: the line's ``attempts``, as
+  the local runner counts them, and a warning names each job whose worker
+  was lost.  When the workers declare a ``memory`` resource
   (``dask worker --resources memory=16e9``), each job asks for its predicted
   bytes of it, so a worker runs no more jobs at once than fit.
 """
@@ -293,6 +296,24 @@ def _shut_down(pool: list[_Worker]) -> None:
 # ---------------------------------------------------------------- Dask
 
 
+def _workers_lost(client, key) -> int:
+    """How many workers died while running the task ``key``: the scheduler's ``suspicious`` count of it.
+
+    The function runs on the scheduler, defined here so that it travels by value (the scheduler need not
+    have lsys3d installed).  0 when the scheduler cannot tell.
+    """
+
+    def suspicious(dask_scheduler, key):
+        task = dask_scheduler.tasks.get(key)
+        return int(task.suspicious) if task is not None else 0
+
+    try:
+        return int(client.run_on_scheduler(suspicious, key=key))
+    except Exception as exc:  # an older or stricter scheduler: the job's line is still right but for attempts
+        log.debug("cannot ask the Dask scheduler how often %s was started: %s", key, exc)
+        return 0
+
+
 def run_dask(
     jobs: Sequence[Job],
     outdir: str | os.PathLike,
@@ -306,7 +327,9 @@ def run_dask(
     files on the worker (``outdir`` must be the same path there) and returns
     the line.  The workers need lsys3d installed.  A job whose worker died
     is retried by the scheduler; after its allowed failures the job fails
-    with the scheduler's message.  When workers declare a ``memory``
+    with the scheduler's message.  The line's ``run.attempts`` is how many
+    times the job was started (1, plus one per worker lost while running
+    it), and a lost worker is logged as one warning naming the job.  When workers declare a ``memory``
     resource, each job carries its predicted bytes as a resource annotation
     (at most the largest worker's, so that every job can run somewhere).
     """
@@ -337,12 +360,20 @@ def run_dask(
             futures[future] = job
         for future in as_completed(list(futures), loop=client.loop):
             job = futures.pop(future)
+            lost = _workers_lost(client, future.key)  # asked while the future holds the task on the scheduler
             try:
                 line = future.result()
             except KilledWorker as exc:
                 line = lost_line(job, f"its workers died running it ({exc})")
             except Exception as exc:  # the task could not run: name why, go on with the others
                 line = lost_line(job, f"Dask could not run it: {type(exc).__name__}: {exc}")
+            if lost:
+                log.warning(
+                    "%s: its Dask worker died running it%s; the scheduler started it again",
+                    job.id,
+                    "" if lost == 1 else f" ({lost} times)",
+                )
+            line.setdefault("run", {})["attempts"] = 1 + lost
             yield job, line
     finally:
         if futures:
