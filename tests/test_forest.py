@@ -301,14 +301,15 @@ def test_a_stand_with_room_is_placed_as_without_overlap():
 
 
 def test_the_readme_forest_command_places_500_trees(tmp_path):
-    """The README's commands: a library of its jobs file (tree3d, sides 6: crown radius 6.3 m, so 5.1-7.6 m
-    scaled; two of its fifty seeds, which grow the same tree), then `lsys3d forest library/ -o forest.usdc
-    --area 100x100 --count 500 --seed 3`: 500 instances, the same bytes on a second run."""
+    """The README's commands: a library of its jobs file (tree3d, sides 6, angle jitter 8: crowns of 6-7 m;
+    two of its fifty seeds), then `lsys3d forest library/ -o forest.usdc --area 100x100 --count 500 --seed 3`:
+    500 instances, the same bytes on a second run."""
     import subprocess
     import sys
 
     (tmp_path / "jobs.toml").write_text(
-        '[[jobs]]\ngrammar = "tree3d"\nseeds = "0-1"\nformats = ["glb", "usdc"]\noptions = { sides = 6 }\n'
+        '[[jobs]]\ngrammar = "tree3d"\nseeds = "0-1"\nformats = ["glb", "usdc"]\n'
+        "options = { sides = 6, angle_jitter = 8 }\n"
     )
     lsys3d.batch(tmp_path / "jobs.toml", tmp_path / "library", workers=1)
     command = [sys.executable, "-m", "lsys3d", "forest", "library/", "-o", "forest.usdc"]
@@ -320,9 +321,12 @@ def test_the_readme_forest_command_places_500_trees(tmp_path):
     instancer = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Forest/Trees"))
     positions = np.array(instancer.GetPositionsAttr().Get())[:, [0, 2]]
     assert len(positions) == 500
-    radius = json.loads((tmp_path / "library" / "manifest.jsonl").read_text().splitlines()[0])["crown_radius"]
+    lines = [json.loads(t) for t in (tmp_path / "library" / "manifest.jsonl").read_text().splitlines()]
+    radius_of = {line["id"]: line["crown_radius"] for line in lines}
+    names = [str(t.name) for t in instancer.GetPrototypesRel().GetTargets()]
+    radius = np.array([radius_of[next(i for i in radius_of if i in name)] for name in names])
     scales = np.array(instancer.GetScalesAttr().Get())[:, 0]
-    r = radius * scales
+    r = radius[np.array(instancer.GetProtoIndicesAttr().Get())] * scales
     d = np.sqrt(((positions[:, None] - positions[None]) ** 2).sum(-1))
     off = ~np.eye(500, dtype=bool)
     assert (d - 0.2 * (r[:, None] + r[None]))[off].min() >= -1e-3  # at most 80% overlap (float32 positions)
