@@ -266,6 +266,8 @@ def test_draft_is_the_default_and_final_is_the_cycles_look(tree, tmp_path):
         assert np.median(lit) > 50, f"{quality}: the tree is nearly black"
         pictures[quality] = image
     assert not np.array_equal(pictures["draft"], pictures["final"])
+    again = preview(tree, tmp_path / "again.png", PreviewOptions(**base))  # the same picture, the same bytes
+    assert again.read_bytes() == (tmp_path / "draft.png").read_bytes()
 
 
 def test_a_session_starts_blender_before_the_tree_and_stops_it_unused(tree, tmp_path):

@@ -301,6 +301,9 @@ def render(job, fresh=False):
         scene.world.color = tuple(_linear(c) for c in job["background"])
         render.image_settings.color_mode = "RGB"
         render.image_settings.compression = 15  # a draft: written fast rather than small
+        for name in dir(render):  # no metadata (the date, the render time): the same picture, the same bytes
+            if name.startswith("use_stamp") and isinstance(getattr(render, name), bool):
+                setattr(render, name, False)
         render.filepath = job["png"]
         bpy.ops.render.render(write_still=True)
         return
