@@ -55,15 +55,15 @@ def _grammar_args(p: argparse.ArgumentParser, optional: bool = False, mesh: bool
 
     ``mesh=False`` (``derive``) adds only the derivation's limit.
     """
+    from .lsystem.dialects import suffixes_text
     from .lsystem.presets import DEFAULT_PRESET
     from .pipeline import GenerateOptions
 
+    what = f"a grammar file ({suffixes_text()}) or the name of a bundled preset ('lsys3d presets')"
     if optional:
-        p.add_argument(
-            "grammar", nargs="?", default=DEFAULT_PRESET, help=f"grammar file or preset (default: {DEFAULT_PRESET})"
-        )
+        p.add_argument("grammar", nargs="?", default=DEFAULT_PRESET, help=f"{what} (default: {DEFAULT_PRESET})")
     else:
-        p.add_argument("grammar", help="a grammar file (.toml) or the name of a bundled preset")
+        p.add_argument("grammar", help=what)
     p.add_argument(
         "-n", "--iterations", type=_at_least(0), default=None, help="number of generations (default: the grammar's)"
     )
@@ -283,6 +283,12 @@ def _preview_arguments(p: argparse.ArgumentParser) -> None:
 
 def _derive_arguments(p: argparse.ArgumentParser) -> None:
     _grammar_args(p, mesh=False)
+    p.add_argument(
+        "--interpretation",
+        action="store_true",
+        help="print the string the turtle reads instead: the derived string cut at the cut symbol and rewritten "
+        "by the grammar's homomorphism (interpretation) rules, as 'generate' draws it",
+    )
     p.set_defaults(func=cmd_derive)
 
 
@@ -357,7 +363,7 @@ def _presets_arguments(p: argparse.ArgumentParser) -> None:
 _SUBCOMMANDS = {
     "generate": ("grow a plant and write it as a mesh asset (.glb, .usdc, ...)", _generate_arguments),
     "preview": ("grow a plant and render a shaded picture of it (.png) with Blender", _preview_arguments),
-    "derive": ("print the derived module string", _derive_arguments),
+    "derive": ("print the derived module string (--interpretation: the string the turtle reads)", _derive_arguments),
     "stats": ("print counts and extents of the drawn plant", _stats_arguments),
     "check": ("regrow the assets of golden files and compare their counts", _check_arguments),
     "batch": ("grow every job of a jobs file into a folder, with a manifest and library.usda", _batch_arguments),
@@ -378,6 +384,12 @@ def cmd_derive(args) -> int:
     grammar = load(args.grammar)
     options = from_arguments(GenerateOptions, args)
     result = derive(grammar, args.iterations, args.seed, max_modules=options.limits.max_modules)
+    if args.interpretation:
+        from .lsystem.derive import interpretation
+
+        result = interpretation(
+            grammar, result, args.seed, max_modules=options.limits.max_modules, iterations=args.iterations
+        )
     out = sys.stdout
     for piece in result.iter_text():  # never the whole text at once: it can be gigabytes
         out.write(piece)
@@ -494,7 +506,9 @@ def cmd_stats(args) -> int:
         from pathlib import Path
 
         from .exchange.atomic import check_target
+        from .golden.golden import make_folder
 
+        make_folder(args.golden)
         check_target(Path(args.golden), no_clobber=False)
     n = grammar.iterations if args.iterations is None else args.iterations
     seed = grammar.seed if args.seed is None else args.seed
@@ -528,23 +542,34 @@ def print_table(stats: dict) -> None:
 
 
 def cmd_check(args) -> int:
-    from .golden.golden import RTOL, check, format_differences
+    from .golden.golden import RTOL, check, format_changes, format_differences, summarize
 
-    failed = 0
+    failed = missing = errors = 0
     for path in args.golden:
         try:
             result = check(path, update=args.update, rtol=RTOL if args.rtol is None else args.rtol)
         except LSystemError as exc:  # one bad file does not stop the others
-            failed += 1
+            errors += 1
             _print(f"lsys3d: error: {_one_line(str(exc))}", file=sys.stderr)
             continue
         for warning in result.warnings:
             _print(f"{path}: warning: {warning}")
-        if result.updated:
-            what = ", ".join(d.key for d in result.differences) or "only the versions that produced it"
+        if result.created:
+            _print(f"recorded {path} ({result.recipe.describe()}): it was missing; a new golden file of the preset")
+        elif result.missing:
+            missing += 1
+            why = (
+                "its name is no bundled preset's, so --update cannot tell what to grow"
+                if args.update
+                else "'lsys3d check --update' records a file named after a bundled preset (koch.json)"
+            )
+            _print(f"MISSING {path}: no such golden file; {why}; 'lsys3d stats GRAMMAR --golden {path}' records any")
+        elif result.updated:
+            n = len(result.differences)
+            what = f"{n} key{'s' if n > 1 else ''} changed" if n else "only the versions that produced it changed"
             _print(f"updated {path} ({result.recipe.describe()}): {what}")
             if result.differences:
-                _print(format_differences(result.differences))
+                _print(format_changes(result.differences))
         elif result.ok:
             within = sum(not d.failed for d in result.differences)
             extra = f" ({within} within tolerance)" if within else ""
@@ -552,11 +577,17 @@ def cmd_check(args) -> int:
                 _print(f"ok      {path} ({result.recipe.describe()}){extra}")
         else:
             failed += 1
-            n = sum(d.failed for d in result.differences)
-            _print(f"FAILED  {path} ({result.recipe.describe()}): {n} difference{'s' if n > 1 else ''}")
+            _print(f"FAILED  {path} ({result.recipe.describe()}): {summarize(result.differences)}")
             _print(format_differences(result.differences))
-    if failed:
-        _print(f"{failed} of {len(args.golden)} golden files differ; 'lsys3d check --update' records the new counts")
+    if failed or missing or errors:
+        counts = (
+            (failed, "differ" if failed > 1 else "differs"),
+            (missing, "missing"),
+            (errors, "could not be checked"),
+        )
+        what = ", ".join(f"{n} {word}" for n, word in counts if n)
+        hint = "; 'lsys3d check --update' records the new counts" if failed and not args.update else ""
+        _print(f"{len(args.golden)} golden file{'s' if len(args.golden) > 1 else ''}: {what}{hint}")
         return EXIT_USER_ERROR
     return 0
 

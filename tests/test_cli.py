@@ -21,6 +21,29 @@ def test_derive_prints_the_canonical_string(capsys):
     assert capsys.readouterr().out == "F-F++F-F\n"
 
 
+def test_derive_interpretation_prints_the_string_the_turtle_reads(tmp_path, capsys):
+    path = tmp_path / "h.toml"
+    path.write_text('axiom = "A"\niterations = 2\nrules = ["A -> AB"]\nhomomorphism = ["B -> F+"]\n')
+    assert main(["derive", str(path)]) == 0
+    assert capsys.readouterr().out == "ABB\n"
+    assert main(["derive", str(path), "--interpretation"]) == 0
+    assert capsys.readouterr().out == "AF+F+\n"
+    assert main(["derive", str(path), "--interpretation", "-n", "1"]) == 0
+    assert capsys.readouterr().out == "AF+\n"
+
+
+@pytest.mark.parametrize("command", ["generate", "preview", "derive", "stats"])
+def test_grammar_help_names_every_suffix_read(command, capsys):
+    """The suffixes come from the dialect table: every one the readers take is named in the help."""
+    from lsys3d.lsystem.dialects import GRAMMAR_SUFFIXES, SUFFIXES
+
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert set(SUFFIXES) <= set(GRAMMAR_SUFFIXES) and ".toml" in GRAMMAR_SUFFIXES
+    assert f"a grammar file ({', '.join(GRAMMAR_SUFFIXES)}) or the name of a bundled preset" in text
+
+
 def test_derive_with_seed(capsys):
     main(["derive", "koch-stochastic", "-n", "3", "--seed", "4"])
     a = capsys.readouterr().out

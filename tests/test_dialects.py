@@ -331,6 +331,54 @@ endlsystem
         Grammar.from_text("Axiom: A\nB C\nA --> B\n", source="p.l")
 
 
+CPFG_PLANT = "Lsystem: 1\nderivation length: 2\naxiom: A\nA --> F[+A][-A]\nendlsystem\n"
+
+
+@pytest.mark.parametrize(
+    ("view", "why"),
+    [
+        (None, "no view file 'plant.v' beside it"),
+        ("box: 1 1 1\n", "its view file 'plant.v' gives no 'angle increment:' (nor 'angle factor:')"),
+        ("angle increment: 30\n", None),
+    ],
+)
+def test_cpfg_without_a_view_file_warns_naming_the_default_angle(tmp_path, caplog, view, why):
+    """cpfg's .l leaves the angle to its view file: without one the turns are by 90 degrees, and a warning says so."""
+    path = tmp_path / "plant.l"
+    path.write_text(CPFG_PLANT)
+    if view is not None:
+        (tmp_path / "plant.v").write_text(view)
+    with caplog.at_level(logging.WARNING, logger="lsys3d"):
+        g = Grammar.from_file(path)
+    warnings = [r.getMessage() for r in caplog.records]
+    if why is None:
+        assert g.angle == 30 and warnings == []
+        return
+    assert g.angle == 90 and len(warnings) == 1
+    assert warnings[0].startswith(f"warning: {path}: {why}, so turns use cpfg's default angle, 90 degrees")
+    assert "angle increment: DEGREES" in warnings[0]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="lsys3d"):
+        assert Grammar.from_file(path, angle=45).angle == 45  # an angle given: nothing to warn about
+    assert caplog.records == []
+
+
+def test_abop_like_ls_refusal_lists_the_forms_it_reads(tmp_path):
+    from lsys3d.lsystem.dialects.lparser import ABOP_LIKE_FORMS
+
+    path = tmp_path / "plant.ls"
+    path.write_text("axiom: F\nangle: 25.7\np1: F -> F[+F]F\n")
+    with pytest.raises(GrammarError) as info:
+        Grammar.from_file(path)
+    message = str(info.value)
+    assert (
+        message.startswith(f"{path}:2:1: unknown line 'angle: 25.7' (write it 'angle=25.7');") and "\n" not in message
+    )
+    assert all(form in message for form in ABOP_LIKE_FORMS)
+    path.write_text("axiom: F\nangle=25.7\np1: F -> F[+F]F\n")  # the spelling the message gives reads
+    assert Grammar.from_file(path).angle == 25.7
+
+
 def test_cpfg_preprocessor_blocks_include_and_view_file(tmp_path):
     (tmp_path / "sizes.h").write_text("#define LEN 2\n")
     (tmp_path / "plant.v").write_text("angle factor: 12\n")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -20,8 +21,10 @@ from lsys3d.errors import GoldenError
 from lsys3d.golden.golden import Recipe, check, compare, format_differences, read_golden, recipe_for, write_golden
 from lsys3d.lsystem.derive import derive
 from lsys3d.stats import report
-from lsys3d.testing import assert_matches_golden
+from lsys3d.testing import TABLE_ROWS, assert_matches_golden
 from lsys3d.turtle import interpret
+
+pytest_plugins = ["pytester"]
 
 GOLDEN = Path(__file__).parent / "golden"
 PRESETS = lsys3d.list_presets()
@@ -142,12 +145,13 @@ def test_check_passes_fails_and_updates(tmp_path, capsys):
     before = path.read_text()
     assert main(["check", str(path)]) == 1
     out = capsys.readouterr().out
-    assert f"FAILED  {path}" in out and "2 differences" in out
+    assert f"FAILED  {path}" in out and "): 2 counts differ\n" in out
     assert "bark.faces" in out and "-6 (" in out and "derive.modules" in out and "+1 (" in out
     assert path.read_text() == before  # a plain check never writes
     assert main(["check", "--update", str(path)]) == 0
     out = capsys.readouterr().out
-    assert f"updated {path}" in out and "bark.faces, derive.modules" in out
+    assert f"updated {path}" in out and "2 keys changed" in out
+    assert "  bark.faces: " in out and "  derive.modules: " in out
     assert check(path).ok and read_golden(path)[0].options == {"sweep": {"sides": 5}}
 
 
@@ -157,8 +161,9 @@ def test_check_reports_bad_files_and_goes_on(tmp_path, capsys):
     bad.write_text("{not json")
     assert main(["check", str(bad), str(tmp_path / "missing.json"), str(good)]) == 1
     captured = capsys.readouterr()
-    assert "not a golden file" in captured.err and "no such golden file" in captured.err
+    assert "not a golden file" in captured.err and f"MISSING {tmp_path / 'missing.json'}" in captured.out
     assert "Traceback" not in captured.err and f"ok      {good}" in captured.out
+    assert captured.out.splitlines()[-1] == "3 golden files: 1 missing, 1 could not be checked"
     _edit(good, lambda d: d["recipe"].update(options={"sweep": {"sidez": 3}}))
     with pytest.raises(GoldenError, match="unknown option 'sidez'"):
         check(good)
@@ -197,9 +202,59 @@ def test_stats_refuses_an_unwritable_golden_file_before_working(tmp_path, capsys
     import lsys3d.pipeline
 
     monkeypatch.setattr(lsys3d.pipeline, "generate", lambda *a, **k: pytest.fail("grew before checking the target"))
-    assert main(["stats", "koch", "--mesh", "--golden", str(tmp_path / "missing" / "k.json")]) == 1
+    (tmp_path / "a_file").write_text("")
+    assert main(["stats", "koch", "--mesh", "--golden", str(tmp_path / "a_file" / "k.json")]) == 1
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "does not exist" in err
+    assert err.count("\n") == 1 and "cannot create folder" in err and str(tmp_path / "a_file") in err
+
+
+def test_stats_creates_the_folder_of_a_golden_file(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["stats", "koch", "-n", "1", "--golden", "golden/new/koch.json"]) == 0
+    capsys.readouterr()
+    assert read_golden(tmp_path / "golden" / "new" / "koch.json")[0].iterations == 1
+    assert main(["check", "golden/new/koch.json"]) == 0
+
+
+def test_check_says_missing_and_update_records_a_presets_file(tmp_path, capsys):
+    koch, other = tmp_path / "golden" / "koch.json", tmp_path / "golden" / "mine.json"
+    assert main(["check", str(koch)]) == 1
+    out = capsys.readouterr().out
+    assert out.startswith(f"MISSING {koch}: no such golden file") and "check --update' records a file" in out
+    assert out.splitlines()[-1] == "1 golden file: 1 missing" and "differ" not in out
+    assert main(["check", "--update", str(koch), str(other)]) == 1
+    out = capsys.readouterr().out
+    grammar = lsys3d.load_preset("koch")
+    assert f"recorded {koch} (koch n={grammar.iterations} seed={grammar.seed}): it was missing" in out
+    assert f"MISSING {other}: no such golden file; its name is no bundled preset's" in out
+    assert "records the new counts" not in out  # --update was given: no advice to give it
+    recipe, _ = read_golden(koch)
+    assert (recipe.preset, recipe.iterations, recipe.mesh) == ("koch", grammar.iterations, True)
+    assert main(["check", str(koch)]) == 0
+    capsys.readouterr()
+    result = check(tmp_path / "algae.json", update=True)  # a symbol-only preset: recorded without the mesh
+    assert result.created and result.ok and not read_golden(tmp_path / "algae.json")[0].mesh
+
+
+def test_check_names_counts_and_values_apart_and_update_lists_changes(tmp_path, capsys):
+    path = _golden(tmp_path)
+
+    def tamper(data):
+        data["report"]["bark"]["faces"] += 6
+        data["report"]["derive"]["modules"] -= 1
+        data["report"]["bark"]["area"] *= 1.01
+        data["report"]["bbox"]["max"][0] += 0.5
+
+    _edit(path, tamper)
+    assert main(["check", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "2 counts differ, 2 values (bark.area, bbox.max) differ beyond tolerance" in out.splitlines()[0]
+    assert main(["check", "--update", str(path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].endswith("4 keys changed")
+    faces = next(line for line in out if line.startswith("  bark.faces:"))
+    _, recorded = read_golden(path)
+    assert faces.startswith(f"  bark.faces: {recorded['bark']['faces'] + 6:,} -> {recorded['bark']['faces']:,}  -6 (")
 
 
 def test_stats_table_has_dotted_keys(capsys):
@@ -220,7 +275,7 @@ def test_assert_matches_golden_records_compares_and_explains(tmp_path):
     with pytest.raises(AssertionError, match="recorded for koch n=1 seed=0, but this tree is koch n=2"):
         assert_matches_golden(lsys3d.generate("koch", iterations=2), path)
     _edit(path, lambda d: d["report"]["sweep"].update(faces=1))
-    with pytest.raises(AssertionError, match=r"1 of the counts differ[\s\S]*sweep\.faces"):
+    with pytest.raises(AssertionError, match=r"k.json: 1 count differs\n  key .*\n  sweep\.faces "):
         assert_matches_golden(tree, path)
 
 
@@ -259,6 +314,78 @@ def test_pytest_plugin_option_records_golden_files(tmp_path):
     assert read_golden(tmp_path / "golden" / "koch.json")[0].seed == 7
     third = _pytest(tmp_path)
     assert third.returncode == 0, third.stdout + third.stderr
+
+
+def _tamper_everything(path: Path) -> int:
+    """Every count and value of a golden file's report changed; returns how many keys changed."""
+
+    def bump(value):
+        if isinstance(value, bool):
+            return not value
+        if isinstance(value, (int, float)):
+            return value * 2 + 1
+        if isinstance(value, list):
+            return [bump(v) for v in value]
+        return value
+
+    data = json.loads(path.read_text())
+    for section, values in data["report"].items():
+        if section != "versions":
+            data["report"][section] = {key: bump(value) for key, value in values.items()}
+    path.write_text(json.dumps(data))
+    return sum(len(v) for k, v in data["report"].items() if k != "versions")
+
+
+def _failure_section(lines: list[str]) -> list[str]:
+    """The lines pytest prints for the one failure: from its ``___ test_name ___`` header to the summary."""
+    start = next(i for i, line in enumerate(lines) if line.startswith("_") and "test_koch_counts" in line)
+    end = next(i for i, line in enumerate(lines) if i > start and line.startswith("="))
+    return lines[start:end]
+
+
+def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pytester):
+    """The table first, no traceback through lsys3d's source nor a repr of the tree, at most 25 lines."""
+    pytester.makepyfile(test_trees=EXAMPLE_TEST)
+    pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden").assert_outcomes(passed=1)
+    changed = _tamper_everything(pytester.path / "golden" / "koch.json")
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    result.assert_outcomes(failed=1)
+    section = _failure_section(result.outlines)
+    assert len(section) <= 25, "\n".join(section)
+    first = section[1]
+    line = 1 + EXAMPLE_TEST.strip().splitlines().index(
+        '    assert_matches_golden(tree, Path(__file__).parent / "golden" / "koch.json")'
+    )
+    assert first.startswith(f"test_trees.py:{line}: ") and "golden/koch.json: " in first  # the test's own line
+    assert re.search(r"\d+ counts differ, \d+ values \(bark\.area, [^)]*\) differ beyond tolerance", first), first
+    assert section[2].split() == ["key", "golden", "now", "change"]
+    assert f"and {changed - TABLE_ROWS} more ({changed - TABLE_ROWS} of them failed)" in "\n".join(section)
+    assert section[-1] == "to record the new counts: pytest --lsys3d-update-golden (or LSYS3D_UPDATE_GOLDEN=1)"
+    text = result.stdout.str()
+    assert "def test_koch_counts" not in text and "assert_matches_golden(" not in text and "Tree(" not in text
+    assert "testing.py" not in text and "Traceback" not in text
+    summary = next(line for line in result.outlines if line.startswith("FAILED test_trees.py::test_koch_counts"))
+    assert summary.startswith("FAILED test_trees.py::test_koch_counts - /")  # with the message's start
+    # --tb=long still shows the whole traceback, for whoever asks
+    long = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--tb=long")
+    assert "def test_koch_counts" in long.stdout.str()
+
+
+def test_pytest_update_lists_what_it_changed(pytester):
+    pytester.makepyfile(test_trees=EXAMPLE_TEST)
+    first = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
+    first.assert_outcomes(passed=1)
+    path = pytester.path / "golden" / "koch.json"
+    first.stdout.fnmatch_lines(["*= lsys3d golden files updated =*", f"updated {path}: recorded (a new golden file*"])
+    _, recorded = read_golden(path)
+    _edit(path, lambda d: d["report"]["bark"].update(faces=d["report"]["bark"]["faces"] + 6))
+    again = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
+    again.assert_outcomes(passed=1)
+    faces = recorded["bark"]["faces"]
+    again.stdout.fnmatch_lines([f"updated {path}: 1 key", f"  bark.faces: {faces + 6:,} -> {faces:,}  -6 (*%)"])
+    assert read_golden(path)[1] == recorded
+    quiet = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
+    assert "lsys3d golden files updated" not in quiet.stdout.str()  # nothing changed, nothing listed
 
 
 # ---------------------------------------------------------------- determinism across processes
@@ -329,3 +456,20 @@ def test_a_recipe_without_mesh_keeps_the_turtle_settings(tmp_path, capsys):
     assert recipe.options == {"turtle": {"length_jitter": 0.3}} and not recipe.mesh
     assert recorded == printed and printed["interpret"]["total_length"] != 16.0  # the jitter changed the lengths
     assert check(golden).ok
+
+
+def test_docs_golden_counts_are_the_golden_files():
+    """docs/golden.md and the README quote tree3d's counts: those pinned in tests/golden/tree3d.json."""
+    repo = Path(__file__).parent.parent
+    recorded = read_golden(GOLDEN / "tree3d.json")[1]
+    quoted = re.search(r"\(bark\.faces  (\d+)\)", (repo / "docs" / "golden.md").read_text())
+    assert quoted and int(quoted.group(1)) == recorded["bark"]["faces"]
+    readme = " ".join((repo / "README.md").read_text().split())
+    quoted = re.search(r"tree3d's ([\d,]+) bark triangles hold (\d+) slivers .* and (\d+) of aspect over 100", readme)
+    quality = recorded["quality"]
+    assert quoted, "the README's sentence on tree3d's triangles changed"
+    assert [int(g.replace(",", "")) for g in quoted.groups()] == [
+        quality["triangles"],
+        quality["slivers"],
+        quality["over_100"],
+    ]

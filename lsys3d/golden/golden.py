@@ -46,10 +46,14 @@ __all__ = [
     "Recipe",
     "check",
     "compare",
+    "format_changes",
     "format_differences",
     "grow",
+    "make_folder",
+    "preset_recipe",
     "read_golden",
     "recipe_for",
+    "summarize",
     "write_golden",
 ]
 
@@ -140,21 +144,31 @@ class Difference:
             return text + (f" ({delta / e * 100:+.3g}%)" if e else "")
         return self.note or "changed"
 
+    @property
+    def is_count(self) -> bool:
+        """Whether the key holds a count or a flag (compared exactly), not a floating value (within a tolerance)."""
+        return _exact(self.expected) and _exact(self.actual)
+
 
 @dataclass
 class CheckResult:
-    """What :func:`check` found for one golden file."""
+    """What :func:`check` found for one golden file.
+
+    ``missing``: there was no such file (``recipe`` is None unless ``update`` recorded one: ``created``).
+    """
 
     path: Path
-    recipe: Recipe
+    recipe: Recipe | None
     differences: list[Difference]
     warnings: list[str]
     report: dict
     updated: bool = False
+    missing: bool = False
+    created: bool = False
 
     @property
     def ok(self) -> bool:
-        return not any(d.failed for d in self.differences)
+        return (not self.missing or self.created) and not any(d.failed for d in self.differences)
 
 
 def _is_number(x) -> bool:
@@ -328,8 +342,28 @@ def read_golden(path: str | os.PathLike) -> tuple[Recipe, dict]:
     return Recipe(**raw), recorded
 
 
+def make_folder(path: str | os.PathLike) -> None:
+    """Create the folder of a golden file when it does not exist yet (and its parents).
+
+    Raises
+    ------
+    GoldenError
+        ``path: cannot create folder 'x': reason``.
+    """
+    folder = Path(path).parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except (OSError, ValueError) as exc:  # ValueError: a NUL character
+        reason = os_reason(exc) if isinstance(exc, OSError) else "a file name cannot hold a NUL character"
+        raise GoldenError(f"{path}: cannot create folder {str(folder)!r}: {reason}") from None
+
+
 def write_golden(path: str | os.PathLike, recipe: Recipe, recorded: dict) -> Path:
-    """Write a golden file atomically (sorted keys, one value per line, so diffs review well)."""
+    """Write a golden file atomically (sorted keys, one value per line, so diffs review well).
+
+    Its folder is created when missing.
+    """
+    make_folder(path)
     data = {"lsys3d_golden": GOLDEN_FORMAT, "recipe": recipe.as_json(), "report": recorded}
     text = json.dumps(data, indent=1, sort_keys=True) + "\n"
     return write_bytes(path, [text.encode("utf-8")])
@@ -424,7 +458,10 @@ def check(path: str | os.PathLike, update: bool = False, rtol: float = RTOL) -> 
     -------
     CheckResult
         ``ok`` is False when any difference is outside its tolerance (and
-        ``update`` is not set).
+        ``update`` is not set), or the file is missing.  A missing file is
+        ``missing``; with ``update``, one named after a bundled preset
+        (``koch.json``) is recorded for that preset at its own iterations and
+        seed (:func:`preset_recipe`), and the result is ``created``.
 
     Raises
     ------
@@ -435,6 +472,8 @@ def check(path: str | os.PathLike, update: bool = False, rtol: float = RTOL) -> 
     path = Path(path)
     if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 <= rtol < math.inf:
         raise GoldenError(f"{path}: rtol must be a finite number >= 0, not {clip(repr(rtol))}")
+    if _is_missing(path):
+        return _missing(path, update)
     recipe, recorded = read_golden(path)
     _generate_options(recipe, str(path))  # a bad option fails before the work
     try:
@@ -457,6 +496,82 @@ def check(path: str | os.PathLike, update: bool = False, rtol: float = RTOL) -> 
     return result
 
 
+def _is_missing(path: Path) -> bool:
+    try:
+        return not path.exists() and not path.is_symlink()
+    except (OSError, ValueError):  # a name too long, a NUL character: read_golden says what
+        return False
+
+
+def preset_recipe(path: str | os.PathLike) -> Recipe | None:
+    """The recipe of a golden file named after a bundled preset (``tests/golden/koch.json``), or None.
+
+    The preset at its own iterations and seed, default options; symbol-only
+    grammars (whose turtle draws nothing) without the mesh, as in lsys3d's own
+    ``tests/golden``.
+    """
+    path = Path(path)
+    if path.suffix != ".json" or path.stem not in list_presets():
+        return None
+    grammar = load_preset(path.stem)
+    _, skeleton = draw(grammar, grammar.iterations, grammar.seed)
+    return Recipe(
+        iterations=int(grammar.iterations),
+        seed=int(grammar.seed),
+        preset=path.stem,
+        mesh=len(skeleton) > 0,
+        grammar_sha256=_sha256(grammar.text or ""),
+    )
+
+
+def _missing(path: Path, update: bool) -> CheckResult:
+    recipe = preset_recipe(path) if update else None
+    if recipe is None:
+        return CheckResult(path, None, [], [], {}, missing=True)
+    actual = grow(recipe)
+    write_golden(path, recipe, actual)
+    return CheckResult(path, recipe, [], [], actual, updated=True, missing=True, created=True)
+
+
+def summarize(differences: list[Difference]) -> str:
+    """What failed, in words: ``3 counts differ, 2 values (bark.area, bbox.max) differ beyond tolerance``.
+
+    Counts (integers, flags) are compared exactly, values (floats) within a
+    tolerance; keys the new report lacks are named apart.  Empty when nothing failed.
+
+    Examples
+    --------
+    >>> summarize([Difference("derive.modules", 10, 11, True), Difference("bark.area", 1.0, 1.5, True)])
+    '1 count differs, 1 value (bark.area) differs beyond tolerance'
+    """
+    failed = [d for d in differences if d.failed]
+    missing = [d.key for d in failed if d.actual is None]
+    counts = [d.key for d in failed if d.actual is not None and d.is_count]
+    values = [d.key for d in failed if d.actual is not None and not d.is_count]
+    parts = []
+    if counts:
+        parts.append(f"{len(counts)} count{'s differ' if len(counts) > 1 else ' differs'}")
+    if values:
+        named = ", ".join(values[:4]) + (", ..." if len(values) > 4 else "")
+        parts.append(f"{len(values)} value{'s' if len(values) > 1 else ''} ({named}) "
+                     f"{'differ' if len(values) > 1 else 'differs'} beyond tolerance")  # fmt: skip
+    if missing:
+        named = ", ".join(missing[:4]) + (", ..." if len(missing) > 4 else "")
+        parts.append(f"{len(missing)} key{'s' if len(missing) > 1 else ''} ({named}) missing from the new report")
+    return ", ".join(parts)
+
+
+def format_changes(differences: list[Difference]) -> str:
+    """What an update changed, one line per key: ``  bark.faces: 37,770 -> 37,820  +50 (+0.132%)``."""
+    lines = []
+    for d in differences:
+        change = d.change()
+        lines.append(
+            f"  {d.key}: {_show(d.expected)} -> {_show(d.actual)}" + ("" if change == "changed" else f"  {change}")
+        )
+    return "\n".join(lines)
+
+
 def _show(value) -> str:
     if value is None:
         return "-"
@@ -469,11 +584,22 @@ def _show(value) -> str:
     return json.dumps(value) if isinstance(value, str) else str(value)
 
 
-def format_differences(differences: list[Difference]) -> str:
-    """The differences as an aligned text table (key, golden, now, change), one line per key."""
+def format_differences(differences: list[Difference], limit: int | None = None) -> str:
+    """The differences as an aligned text table (key, golden, now, change), one line per key.
+
+    With ``limit``, at most that many rows, the failed ones first, and a last line saying how many more.
+    """
     rows = [("key", "golden", "now", "change")]
+    cut: list[Difference] = []
+    if limit is not None and len(differences) > limit:
+        ranked = sorted(differences, key=lambda d: not d.failed)  # stable: keys stay sorted within each group
+        differences, cut = ranked[:limit], ranked[limit:]
     for d in differences:
         mark = "" if d.failed else f"  ({d.note})" if d.note and d.change() != d.note else ""
         rows.append((d.key, _show(d.expected), _show(d.actual), d.change() + mark))
     widths = [max(len(r[i]) for r in rows) for i in range(3)]
-    return "\n".join(f"  {r[0]:<{widths[0]}}  {r[1]:>{widths[1]}}  {r[2]:>{widths[2]}}  {r[3]}".rstrip() for r in rows)
+    lines = [f"  {r[0]:<{widths[0]}}  {r[1]:>{widths[1]}}  {r[2]:>{widths[2]}}  {r[3]}".rstrip() for r in rows]
+    if cut:
+        failed = sum(d.failed for d in cut)
+        lines.append(f"  ... and {len(cut)} more" + (f" ({failed} of them failed)" if failed else " (none failed)"))
+    return "\n".join(lines)

@@ -41,7 +41,7 @@ from ..exchange import SUPPORTED_SUFFIXES, ExportOptions
 from ..exchange.gltf import check_options
 from ..exchange.library import USD_FORMATS
 from ..lsystem.derive import derive, predict_counts
-from ..lsystem.dialects import SUFFIXES
+from ..lsystem.dialects import GRAMMAR_SUFFIXES
 from ..lsystem.grammar import MAX_GRAMMAR_BYTES, Grammar
 from ..lsystem.presets import list_presets, load_preset, preset_text
 from ..options import flat_fields
@@ -336,7 +336,7 @@ class _Grammar:
 
 def _read_grammar(spec: str, folder: Path, loc: _Locator, entry: int) -> _Grammar:
     path = folder / spec
-    is_path = spec.endswith((".toml", *SUFFIXES)) or "/" in spec or os.sep in spec or path.exists()
+    is_path = spec.endswith(GRAMMAR_SUFFIXES) or "/" in spec or os.sep in spec or path.exists()
     if not is_path:
         if spec not in list_presets():
             raise loc.error(

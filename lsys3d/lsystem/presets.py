@@ -8,7 +8,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import GrammarError, clip
-from .dialects import SUFFIXES
+from .dialects import GRAMMAR_SUFFIXES
 from .grammar import GROUPS, Grammar
 
 __all__ = [
@@ -24,8 +24,6 @@ __all__ = [
 
 DEFAULT_PRESET = "oak"
 """The preset the CLI grows when it is given no grammar."""
-
-_GRAMMAR_SUFFIXES = {".toml", *SUFFIXES}
 
 
 def _folder():
@@ -94,6 +92,6 @@ def load(spec, **overrides) -> Grammar:
         return spec.replace(**overrides) if overrides else spec
     path = Path(spec)
     # lexists() is False for a name too long, and True for a symlink loop: from_file says what is wrong
-    if path.suffix in _GRAMMAR_SUFFIXES or "/" in str(spec) or os.sep in str(spec) or os.path.lexists(path):
+    if path.suffix in GRAMMAR_SUFFIXES or "/" in str(spec) or os.sep in str(spec) or os.path.lexists(path):
         return Grammar.from_file(path, **overrides)
     return load_preset(str(spec), **overrides)

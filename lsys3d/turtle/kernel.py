@@ -233,7 +233,7 @@ def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
     if norm <= 1e-12:
         if by_angle and hx * tx + hy * ty + hz * tz < 0.0:
             c, s = math.cos(e * math.pi), math.sin(e * math.pi)
-            return _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, _AXIS_U, c, s)
+            return _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, np.int64(_AXIS_U), c, s)
         return hx, hy, hz, lx, ly, lz, ux, uy, uz
     a = e * (math.atan2(norm, hx * tx + hy * ty + hz * tz) if by_angle else norm)
     kx, ky, kz = cx / norm, cy / norm, cz / norm
@@ -375,14 +375,16 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
     last = -1  # parent of the next segment
     anchor = -1  # last segment drawn in this state, for branch order
     depth = 0
-    n_seg = 0
-    n_pts = 0
+    n_seg = np.int64(0)
+    # counters typed int64 from the start: a literal 0 here makes numba compile _put and _add_vertex a second
+    # time for Literal[int](0) while it infers the loop's types
+    n_pts = np.int64(0)
     n_poly = 0
-    n_leaf = 0
-    n_organ = 0
+    n_leaf = np.int64(0)
+    n_organ = np.int64(0)
     dropped = 0
     poly_open = -1  # module that opened the polygon
-    poly_start = 0
+    poly_start = np.int64(0)
     poly_mat = 0
     poly_seg = -1
     # the polygons open around the current one: (opening module, first point, material, segment);
@@ -526,7 +528,9 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             else:
                 c, s = cos_angle, sin_angle
             s = s * program.sign[sym]
-            hx, hy, hz, lx, ly, lz, ux, uy, uz = _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, program.axis[sym], c, s)
+            hx, hy, hz, lx, ly, lz, ux, uy, uz = _rotate(
+                hx, hy, hz, lx, ly, lz, ux, uy, uz, np.int64(program.axis[sym]), c, s
+            )
         elif code == _TURN_AROUND:  # 180 degrees about the row's axis (U: '|'; H: Lparser's '%', Houdini's '*')
             axis = program.axis[sym]
             if axis == _AXIS_H:
@@ -543,7 +547,9 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
                     hx, hy, hz, lx, ly, lz, ux, uy, uz = _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, k + 1, c, s)
         elif code == _TROPISM:
             e = arg if has_arg else program.factor[sym]
-            hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, gx, gy, gz, e, False)
+            hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
+                hx, hy, hz, lx, ly, lz, ux, uy, uz, gx, gy, gz, e, np.bool_(False)
+            )
         elif code == _ELASTICITY:
             elasticity = arg if has_arg else 0.0
         elif code == _ANGLE_FACTOR:

@@ -21,13 +21,36 @@ import importlib
 from ...errors import GrammarError, clip
 from .common import Dialect, Notation
 
-__all__ = ["DIALECTS", "SUFFIXES", "Dialect", "Notation", "get", "reader_for", "table_markdown"]
+__all__ = [
+    "DIALECTS",
+    "GRAMMAR_SUFFIXES",
+    "SUFFIXES",
+    "Dialect",
+    "Notation",
+    "get",
+    "reader_for",
+    "suffixes_text",
+    "table_markdown",
+]
 
 DIALECTS = ("lsys3d", "abop", "lpy", "cpfg", "lparser", "houdini")
 """The names ``dialect = "..."`` accepts; ``lsys3d`` is the default."""
 
 SUFFIXES: dict[str, str] = {".lpy": "lpy", ".l": "cpfg", ".ls": "lparser"}
 """Native file suffixes and the dialect whose reader reads them."""
+
+GRAMMAR_SUFFIXES: tuple[str, ...] = (".toml", *SUFFIXES)
+"""Every suffix a grammar file may have: lsys3d's own TOML, then the native files of :data:`SUFFIXES`."""
+
+
+def suffixes_text() -> str:
+    """The grammar files' suffixes in words, for help texts and messages (one home: :data:`SUFFIXES`).
+
+    >>> suffixes_text()
+    '.toml, .lpy, .l, .ls'
+    """
+    return ", ".join(GRAMMAR_SUFFIXES)
+
 
 _LOADED: dict[str, Dialect] = {}
 

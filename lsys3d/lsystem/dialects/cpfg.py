@@ -10,6 +10,7 @@ trigonometric functions in degrees as cpfg's are.
 
 from __future__ import annotations
 
+import logging
 import re
 from pathlib import Path
 
@@ -22,6 +23,8 @@ from .common import Dialect, Notation, fail, line_where
 __all__ = ["DIALECT", "MAX_INCLUDES", "UNSUPPORTED", "read"]
 
 _SYNTAX = Syntax(degrees=True)
+
+log = logging.getLogger("lsys3d")
 
 
 def _rot(symbol, name, axis, sign, what):
@@ -338,9 +341,19 @@ class _Reader:
             fields.setdefault("homomorphism_depth", depth)
         fields.update(groups)
         fields["defines"] = dict(self.defines)
-        angle = _view_angle(path) if folder is not None else None
-        if angle is not None:
-            fields["angle"] = angle
+        if folder is not None and "angle" not in overrides:
+            angle, missing = _view_angle(path)
+            if angle is not None:
+                fields["angle"] = angle
+            else:  # cpfg's own default would turn by 90 degrees without a word: say so
+                log.warning(
+                    "warning: %s: %s, so turns use cpfg's default angle, %g degrees (write 'angle increment: "
+                    "DEGREES' in %s, as cpfg's view file does)",
+                    self.source,
+                    missing,
+                    DIALECT.angle,
+                    path.with_suffix(".v").name,
+                )
         fields.update(overrides)
         return Grammar(**fields, source=self.source, text=self.text, _where=where)
 
@@ -382,27 +395,33 @@ def _is_rule(code: str) -> bool:
     return "-->" in code or re.search(r"(?<!-)->", code) is not None
 
 
-def _view_angle(path: Path) -> float | None:
-    """The angle of the view file beside ``path`` (``plant.v``: ``angle increment: 30``, ``angle factor: 12``)."""
+def _view_angle(path: Path) -> tuple[float | None, str]:
+    """The angle of the view file beside ``path`` (``plant.v``: ``angle increment: 30``, ``angle factor: 12``).
+
+    Returns the angle, or None and why there is none (no view file, an unreadable one, no angle in it).
+    """
     view = path.with_suffix(".v")
+    if not view.is_file():
+        return None, f"no view file {view.name!r} beside it"
     try:
-        text = read_text(view) if view.is_file() else ""
-    except GrammarError:
-        return None
+        text = read_text(view)
+    except GrammarError as exc:
+        return None, f"its view file {view.name!r} cannot be read ({exc.reason})"
     m = re.search(r"^\s*angle increment\s*:\s*([-+0-9.eE]+)", text, re.MULTILINE)
     if m:
-        return float(m.group(1))
+        return float(m.group(1)), ""
     m = re.search(r"^\s*angle factor\s*:\s*([-+0-9.eE]+)", text, re.MULTILINE)
     if m and float(m.group(1)) != 0:
-        return 360.0 / float(m.group(1))
-    return None
+        return 360.0 / float(m.group(1)), ""
+    return None, f"its view file {view.name!r} gives no 'angle increment:' (nor 'angle factor:')"
 
 
 def read(text: str, source: str = "<string>", **overrides) -> Grammar:
     """Read a cpfg L-system file's text into a :class:`~lsys3d.lsystem.grammar.Grammar` (dialect ``cpfg``).
 
     ``#include`` reads files beside ``source`` (at most :data:`MAX_INCLUDES`); the angle comes from the
-    view file beside it (``plant.v``) when there is one.
+    view file beside it (``plant.v``); without one (or without an angle in it) a warning names cpfg's
+    default angle, 90 degrees, which the turns then use.
 
     >>> g = read("#define N 3\\nLsystem: 1\\nderivation length: N\\naxiom: A\\nA --> F[+A][-A]\\nendlsystem\\n", "p.l")
     >>> g.dialect, g.iterations, g.rules

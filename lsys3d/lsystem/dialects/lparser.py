@@ -27,7 +27,7 @@ from ..expr import ExprSyntaxError, parse_expression
 from ..grammar import Grammar
 from .common import Dialect, Notation, fail, line_where
 
-__all__ = ["DIALECT", "read"]
+__all__ = ["ABOP_LIKE_FORMS", "DIALECT", "read"]
 
 
 def _rot(symbol, name, axis, sign, what):
@@ -319,8 +319,7 @@ def _read_abop_like(text, source, **overrides) -> Grammar:
             where[("rules", len(rules))] = line_where(number, col)
             rules.append(code)
             continue
-        raise fail(f"unknown line {clip(code, 40)!r} (the ABOP-like .ls form: axiom:, p1: A -> B, #define, dlength:)",
-                   source, number, col)  # fmt: skip
+        raise fail(_unknown_abop_line(code), source, number, col)
     if "axiom" not in fields:
         raise fail("no 'axiom:' line", source, 1, 1)
     try:
@@ -336,6 +335,26 @@ def _read_abop_like(text, source, **overrides) -> Grammar:
     fields["rules"] = rules
     fields.update(overrides)
     return Grammar(**fields, source=source, text=text, _where=where)
+
+
+ABOP_LIKE_FORMS = (
+    "'axiom: X' (or 'premise:')",
+    "rules 'p1: A -> B' (or 'A -> B', 'A → B')",
+    "'n=5, delta=25.7' (also 'angle=25.7', 'iterations=5')",
+    "'dlength: 5' (or 'derivation length:')",
+    "'#define NAME VALUE' (or 'define: NAME VALUE')",
+    "'#ignore +-' (or 'ignore:')",
+    "a viewer's 'view=', 'stemsize=', 'leafsize=', 'width=', 'color=' (skipped)",
+    "comments after '//' or '#'",
+)
+"""The lines the ABOP-like ``.ls`` reader accepts, as its error for any other line lists them."""
+
+
+def _unknown_abop_line(code: str) -> str:
+    """The error for a line the ABOP-like form does not have: the line, a hint for a near miss, every form read."""
+    m = re.match(r"(angle|delta|n|iterations)\s*:\s*(\S+)", code, re.IGNORECASE)
+    hint = f" (write it '{m.group(1).lower()}={m.group(2)}')" if m else ""
+    return f"unknown line {clip(code, 40)!r}{hint}; the ABOP-like .ls form reads: " + "; ".join(ABOP_LIKE_FORMS)
 
 
 def _constants(defines: dict, source: str) -> dict:
