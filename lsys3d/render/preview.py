@@ -308,7 +308,9 @@ def base_focus(tree: Tree) -> dict:
     return {"target": target.tolist(), "direction": direction.tolist(), "size": 4.0 * d}
 
 
-def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None = None) -> Path:
+def preview(
+    tree: Tree, path: str | os.PathLike, options: PreviewOptions | None = None, at: float | None = None
+) -> Path:
     """Render a shaded picture of ``tree`` to the PNG file ``path``.
 
     The tree goes to Blender as a temporary ``.glb`` (so bark and leaves keep
@@ -327,6 +329,9 @@ def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None 
         Ctrl-C never leaves a half-written image.
     options : PreviewOptions, optional
         Size, view, samples, background, which Blender...
+    at : float, optional
+        Seconds into the tree's growth animation (:mod:`lsys3d.look.growth`) to picture, the camera fitted
+        to the grown tree (frames of one strip line up).
 
     Returns
     -------
@@ -351,14 +356,16 @@ def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None 
     """
     options = PreviewOptions() if options is None else options
     check_preview(path, options)
-    _check_tree(Path(path), tree)
+    _check_tree(Path(path), tree, at)
     with PreviewSession(path, options) as session:
-        return session.render(tree)
+        return session.render(tree, at)
 
 
-def _check_tree(path: Path, tree) -> None:
+def _check_tree(path: Path, tree, at: float | None = None) -> None:
     if not isinstance(tree, Tree):
         raise PreviewError(f"{path}: expected a lsys3d Tree, got {type(tree).__name__}")
+    if at is not None and tree.growth is None:
+        raise PreviewError(f"{path}: at={at}: the tree has no growth animation (growth_animation=SECONDS)")
     if len(tree.bark.faces) == 0 and (tree.leaves.merged is None or len(tree.leaves.merged.faces) == 0):
         raise PreviewError(f"{path}: the tree has no bark and no leaves to draw")
 
@@ -406,10 +413,10 @@ class PreviewSession:
             proc.communicate()
         self._folder.cleanup()
 
-    def render(self, tree: Tree) -> Path:
-        """Render ``tree`` to the session's PNG (once); see :func:`preview`."""
+    def render(self, tree: Tree, at: float | None = None) -> Path:
+        """Render ``tree`` to the session's PNG (once), ``at`` seconds into its growth; see :func:`preview`."""
         path, options = self.path, self.options
-        _check_tree(path, tree)
+        _check_tree(path, tree, at)
         if self._proc.stdin.closed:
             raise PreviewError(f"{path}: this preview session has rendered already")
         width, height = options.size
@@ -432,6 +439,7 @@ class PreviewSession:
                 "material": options.material,
                 "bark_material": tree.bark_material.name,
                 "pose": options.bends(),
+                "time": at,
             }
             if options.view == "junction":
                 job["focus"] = junction_focus(tree)
