@@ -13,10 +13,10 @@ it writes the job's files itself and sends back only the line.
   that does not stop within :data:`STOP_SECONDS` is killed.
 * :func:`run_dask` submits every job to a Dask scheduler; the scheduler
   retries a job whose worker died (``distributed.scheduler.allowed-failures``,
-  3 by default).  The times a job was started are the scheduler's count of
-  the workers that died running it, plus one: the line's ``attempts``, as
-  the local runner counts them, and a warning names each job whose worker
-  was lost.  When the workers declare a ``memory`` resource
+  3 by default).  Each start of a job's task adds a byte to a file of its
+  own in ``OUTDIR/.lsys3d-starts/`` (the workers share ``OUTDIR``): its size
+  is the line's ``attempts``, as the local runner counts them, and a warning
+  names each job whose worker was lost running it.  When the workers declare a ``memory`` resource
   (``dask worker --resources memory=16e9``), each job asks for its predicted
   bytes of it, so a worker runs no more jobs at once than fit.
 """
@@ -296,22 +296,25 @@ def _shut_down(pool: list[_Worker]) -> None:
 # ---------------------------------------------------------------- Dask
 
 
-def _workers_lost(client, key) -> int:
-    """How many workers died while running the task ``key``: the scheduler's ``suspicious`` count of it.
+STARTS = ".lsys3d-starts"
+"""The folder of ``OUTDIR`` where a Dask batch's tasks count their starts (one file per task, a byte a start)."""
 
-    The function runs on the scheduler, defined here so that it travels by value (the scheduler need not
-    have lsys3d installed).  0 when the scheduler cannot tell.
-    """
 
-    def suspicious(dask_scheduler, key):
-        task = dask_scheduler.tasks.get(key)
-        return int(task.suspicious) if task is not None else 0
+def _started(job: Job, outdir: str, marker: Path) -> dict:
+    """A Dask task: note this start of ``job`` (a byte appended to ``marker``), then run it."""
+    with open(marker, "ab") as f:
+        f.write(b"s")
+    return run_job(job, outdir)
 
+
+def _starts(marker: Path) -> int:
+    """How many times a task was started (at least 1), read from its marker file, which goes."""
     try:
-        return int(client.run_on_scheduler(suspicious, key=key))
-    except Exception as exc:  # an older or stricter scheduler: the job's line is still right but for attempts
-        log.debug("cannot ask the Dask scheduler how often %s was started: %s", key, exc)
-        return 0
+        found = marker.stat().st_size
+        marker.unlink()
+    except OSError:  # a worker that cannot write there: the job's line is right but for attempts
+        return 1
+    return max(found, 1)
 
 
 def run_dask(
@@ -352,15 +355,18 @@ def run_dask(
             log.info("the Dask workers declare no 'memory' resource: jobs run without a memory budget")
         token = uuid.uuid4().hex[:8]
         outdir = str(Path(outdir).resolve())
+        starts = Path(outdir) / STARTS
+        starts.mkdir(exist_ok=True)
         for job in jobs:
             extra = {}
             if largest:
                 extra["resources"] = {"memory": min(size_of(job).bytes, largest)}
-            future = client.submit(run_job, job, outdir, key=f"lsys3d-{job.id}-{token}", pure=False, **extra)
+            key = f"lsys3d-{job.id}-{token}"
+            future = client.submit(_started, job, outdir, starts / key, key=key, pure=False, **extra)
             futures[future] = job
         for future in as_completed(list(futures), loop=client.loop):
             job = futures.pop(future)
-            lost = _workers_lost(client, future.key)  # asked while the future holds the task on the scheduler
+            lost = _starts(starts / str(future.key)) - 1
             try:
                 line = future.result()
             except KilledWorker as exc:
@@ -380,3 +386,5 @@ def run_dask(
             with contextlib.suppress(Exception):
                 client.cancel(list(futures), force=True)
         client.close()
+        with contextlib.suppress(OSError):
+            (Path(outdir) / STARTS).rmdir()  # empty unless a job is still running somewhere
