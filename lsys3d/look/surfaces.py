@@ -224,10 +224,12 @@ def _parse(data: bytes, file_type: str, shown: str):
             raise AssetError(_too_many(shown, int(count)))
     try:
         scene = trimesh.load(io.BytesIO(data), file_type=file_type, process=False, force="scene")
-        meshes = [g for g in scene.geometry.values() if hasattr(g, "faces") and len(g.faces)]
+        meshes = {k: g for k, g in scene.geometry.items() if hasattr(g, "faces") and len(g.faces)}
         if not meshes:
             raise AssetError(f"{shown}: the model has no triangles")
-        triangles = sum(len(g.faces) for g in meshes)
+        # flattening copies each mesh once per node that places it: count the copies before making them
+        placed = scene.graph.geometry_nodes
+        triangles = sum(len(g.faces) * max(len(placed.get(k, ())), 1) for k, g in meshes.items())
         if triangles > MAX_MODEL_TRIANGLES:
             raise AssetError(_too_many(shown, triangles))
         mesh = scene.to_geometry() if hasattr(scene, "to_geometry") else scene.dump(concatenate=True)

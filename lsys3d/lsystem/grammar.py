@@ -26,15 +26,15 @@ one by the file's suffix) into the same :class:`Grammar`.
 
 from __future__ import annotations
 
-import errno
+import codecs
 import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from types import MappingProxyType
 
-from ..errors import GrammarError, clip, os_reason
+from ..errors import GrammarError, clip
+from ..external import FileRefused, read_file
 from . import dialects
 from .locations import _KEYS, _RULE_LISTS, _api_where, _key_line, _loc, _locate_strings, _toml_error, table_key_line
 from .modules import ModuleString
@@ -265,8 +265,15 @@ class Grammar:
             if not isinstance(getattr(self, key), str):
                 raise bad(key, f"must be a string, not {type(getattr(self, key)).__name__}")
         texts = [(k, getattr(self, k)) for k in ("name", "description", "axiom", "ignore", "consider")]
+        places = {k: k for k, _ in texts}
         for key in (*_RULE_LISTS, "modules", "functions"):
             texts += [(f"{key}[{i}]", r) for i, r in enumerate(getattr(self, key)) if isinstance(r, str)]
+            places.update({f"{key}[{i}]": (key, i) for i in range(len(getattr(self, key)))})
+        for key, text in texts:  # a NUL would pass through to the derived string and cut it short in C readers
+            nul = text.find("\0")
+            if nul >= 0:
+                where = self._where.get(places[key]) or _api_where(key)
+                raise GrammarError(f"'{key}' holds a NUL character", *_loc(self.source, where, nul))
         if self.group not in ("", *GROUPS):
             raise bad("group", f"must be one of {', '.join(map(repr, GROUPS))}, not {clip(repr(self.group))}")
         for key, text in texts:
@@ -396,29 +403,17 @@ class Grammar:
 
 
 def read_text(path) -> str:
-    """The text of a grammar file, read no further than :data:`MAX_GRAMMAR_BYTES` (errors as GrammarError)."""
-    path = Path(path)
+    """The text of a grammar file, read no further than :data:`MAX_GRAMMAR_BYTES` (errors as GrammarError).
+
+    Read by :func:`lsys3d.external.read_file` (a regular file only, opened without blocking, its size checked
+    before reading).  A UTF-8 byte order mark, which some editors write, is dropped.
+    """
     try:
-        if "\0" in str(path):
-            raise OSError(errno.EINVAL, "a file name cannot hold a NUL character")
-        size = path.stat().st_size
-        if size > MAX_GRAMMAR_BYTES:
-            raise GrammarError(
-                f"grammar file is {size} bytes, larger than {MAX_GRAMMAR_BYTES} "
-                "(lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES)",
-                str(path),
-            )
-        with path.open("rb") as f:  # a device or pipe has no size: read no more than the limit
-            raw = f.read(MAX_GRAMMAR_BYTES + 1)
-        if len(raw) > MAX_GRAMMAR_BYTES:
-            raise GrammarError(
-                f"grammar file is larger than {MAX_GRAMMAR_BYTES} bytes (lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES)",
-                str(path),
-            )
-    except FileNotFoundError:
-        raise GrammarError("no such grammar file", str(path)) from None
-    except OSError as exc:  # a folder, a symlink loop, a name too long, no permission...
-        raise GrammarError(f"cannot read grammar file: {os_reason(exc)}", str(path)) from None
+        raw = read_file(path, MAX_GRAMMAR_BYTES, "grammar file", "lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES")
+    except FileRefused as exc:
+        raise GrammarError(exc.reason, str(path)) from None
+    if raw.startswith(codecs.BOM_UTF8):
+        raw = raw[len(codecs.BOM_UTF8) :]
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -15,6 +15,7 @@ import re
 from pathlib import Path
 
 from ...errors import GrammarError, clip
+from ...external import FileRefused, inside
 from ...turtle.commands import Axis, Command, Op, Organ
 from ..expr import ExprSyntaxError, Syntax, parse_expression
 from ..grammar import Grammar, read_text
@@ -264,7 +265,9 @@ class _Reader:
                 line, f"more than {MAX_INCLUDES} #include files (lsys3d.lsystem.dialects.cpfg.MAX_INCLUDES)"
             )
         try:
-            text = read_text(folder / name)
+            text = read_text(inside(folder, name, "#include file"))
+        except FileRefused as exc:
+            raise self.error(line, f"#include {name!r}: {exc.reason}") from None
         except GrammarError as exc:
             raise self.error(line, f"#include {name!r}: {exc.reason}") from None
         self.preprocess(text, folder, line)
@@ -398,13 +401,16 @@ def _is_rule(code: str) -> bool:
 def _view_angle(path: Path) -> tuple[float | None, str]:
     """The angle of the view file beside ``path`` (``plant.v``: ``angle increment: 30``, ``angle factor: 12``).
 
-    Returns the angle, or None and why there is none (no view file, an unreadable one, no angle in it).
+    Returns the angle, or None and why there is none (no view file, an unreadable one, no angle in it).  A view
+    file that leads out of the grammar's folder (a symlink) is not read (:func:`lsys3d.external.inside`).
     """
     view = path.with_suffix(".v")
     if not view.is_file():
         return None, f"no view file {view.name!r} beside it"
     try:
-        text = read_text(view)
+        text = read_text(inside(path.parent, view.name, "view file"))
+    except FileRefused as exc:
+        return None, f"its view file {view.name!r} cannot be read ({exc.reason})"
     except GrammarError as exc:
         return None, f"its view file {view.name!r} cannot be read ({exc.reason})"
     m = re.search(r"^\s*angle increment\s*:\s*([-+0-9.eE]+)", text, re.MULTILINE)

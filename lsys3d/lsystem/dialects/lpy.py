@@ -215,7 +215,10 @@ INITIALISATION = "###### INITIALISATION ######"
 """L-Py's tag before the editor's settings (materials, scalars, curves) at the end of a file."""
 
 MAX_PATHS = 256
-"""Most ways through one rule's ifs (each becomes an lsys3d rule)."""
+"""Most ways through one rule's ifs that produce (each becomes an lsys3d rule)."""
+MAX_WALK = 100_000
+"""Most statements visited while following every way through one rule's ifs (the work, not only the
+rules made: ``if``/``else`` blocks one after another double the ways each, producing or not)."""
 
 _KEYWORD = re.compile(
     r"(?P<key>Axiom|axiom|derivation length|production|homomorphism|interpretation|decomposition|maximum depth"
@@ -347,6 +350,7 @@ class _Reader:
         self.functions: dict[str, Function] = {}
         self.function_texts: list[tuple[str, int]] = []
         self.unavailable: dict[str, str] = {}  # global name -> why lsys3d cannot compute it
+        self.walked = 0  # statements followed through the current rule's ifs (bounded by MAX_WALK)
         self.axiom: tuple[str, object] | None = None
         self.iterations: tuple[str, int] | None = None
         self.groups = {"rules": [], "homomorphism": [], "decomposition": []}
@@ -597,6 +601,7 @@ class _Reader:
         self.no_queries(line, header)
         statements = self.statements(body, 0, len(body))
         paths: list = []
+        self.walked = 0
         self.walk(statements, [], [], paths, line)
         for steps, successor in paths:
             text = Located().add(header, line.number, line.col)
@@ -704,6 +709,13 @@ class _Reader:
     def walk(self, statements, steps, pieces, paths, line, k: int = 0):
         """Every way through the statements: (steps, successor) for each path that produces."""
         while k < len(statements):
+            self.walked += 1
+            if self.walked > MAX_WALK:
+                raise self.error(
+                    line,
+                    f"the rule's 'if's have too many ways through (more than {MAX_WALK:,} statements to follow; "
+                    "lsys3d.lsystem.dialects.lpy.MAX_WALK)",
+                )
             s = statements[k]
             kind = s[0]
             if kind == "let":
@@ -712,6 +724,8 @@ class _Reader:
                 pieces = [*pieces, (s[1], s[2])]
             elif kind == "produce":
                 paths.append((steps, [*pieces, (s[1], s[2])]))
+                if len(paths) > MAX_PATHS:
+                    raise self.error(line, f"more than {MAX_PATHS} ways through the rule's 'if's")
                 return
             elif kind == "return":
                 break
