@@ -18,6 +18,10 @@ BPY_PYTHON ?= python3.11
 BPY_VENV := .venv-bpy
 BPY_STAMP := $(BPY_VENV)/.installed
 BPY_VERSION := 5.0.1
+# usd-core's ARKit profile (UsdUtils.ComplianceChecker, last shipped in usd-core 25.x) in its own environment.
+USDCHECK_VENV := .venv-usdchecker
+USDCHECK_STAMP := $(USDCHECK_VENV)/.installed
+USDCHECK_VERSION := 25.5
 
 .PHONY: demo preview gallery test lint format bench validators browser blender-extension clean
 
@@ -53,6 +57,11 @@ BLENDER_PLATFORMS ?= linux-x64 windows-x64 macos-arm64 macos-x64
 blender-extension: $(STAMP)
 	$(BIN)/python tools/blender_extension.py --platforms $(BLENDER_PLATFORMS)
 
+$(USDCHECK_STAMP):
+	$(BPY_PYTHON) -m venv $(USDCHECK_VENV)
+	$(USDCHECK_VENV)/bin/pip install --quiet usd-core==$(USDCHECK_VERSION) > $(USDCHECK_VENV)/install.log 2>&1 || { cat $(USDCHECK_VENV)/install.log; exit 1; }
+	touch $(USDCHECK_STAMP)
+
 # Debian's Chromium, driven headless by playwright-core (package.json) in the browser tests (three.js pages).
 # Installed with apt-get when missing and make runs as root; otherwise the command to run is printed.
 CHROMIUM ?= /usr/bin/chromium
@@ -62,7 +71,7 @@ browser: node_modules/.package-lock.json
 	    > .chromium-install.log 2>&1 || { cat .chromium-install.log; exit 1; }; \
 	  else echo "Chromium is missing: run 'sudo apt-get install chromium' (the browser tests skip locally, fail under CI)"; fi; }
 
-validators: node_modules/.package-lock.json $(BPY_STAMP) $(BPY_DEPS) browser
+validators: node_modules/.package-lock.json $(BPY_STAMP) $(BPY_DEPS) $(USDCHECK_STAMP) browser
 
 demo: $(STAMP)
 	$(BIN)/lsys3d generate
@@ -88,4 +97,4 @@ format: $(STAMP)
 	$(BIN)/ruff format .
 
 clean:
-	rm -rf $(VENV) $(BPY_VENV) node_modules build *.egg-info .pytest_cache
+	rm -rf $(VENV) $(BPY_VENV) $(USDCHECK_VENV) node_modules build *.egg-info .pytest_cache

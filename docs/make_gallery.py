@@ -63,7 +63,7 @@ def picture(name: str, render: bool) -> tuple[str | None, str]:
     target = PICTURES / f"{name}.png"
     if render:
         tree = lsys3d.generate(grammar)
-        preview(tree, target, PreviewOptions(size=(PIXELS, PIXELS), view=view, samples=SAMPLES))
+        preview(tree, target, PreviewOptions(size=(PIXELS, PIXELS), view=view, samples=SAMPLES, quality="final"))
     return target.name, f"{counts}; rendered by Blender (Cycles), {view} view"
 
 

@@ -68,7 +68,7 @@ def read_png(data: bytes) -> np.ndarray:
 
 def main() -> int:
     tree = lsys3d.generate("herb-growing", growth_animation=SECONDS)
-    options = PreviewOptions(size=SIZE, view="front", samples=16)
+    options = PreviewOptions(size=SIZE, view="front", samples=16, quality="final")
     frames = []
     with tempfile.TemporaryDirectory() as folder:
         for k, t in enumerate(TIMES):

@@ -176,7 +176,7 @@ def main(argv=None) -> int:
         grow, extra, caption = PICTURES[name]
         t0 = time.perf_counter()
         tree = grow()
-        options = PreviewOptions(size=(PIXELS, PIXELS), view="iso", **extra)
+        options = PreviewOptions(size=(PIXELS, PIXELS), view="iso", quality="final", **extra)
         preview(tree, LOOKS / f"{name}.png", options)
         print(f"{name}.png: {caption} ({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
     return 0

@@ -65,7 +65,7 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         tree = lsys3d.generate(grammar, seed=SEED, options=options)
         view = "iso" if isinstance(grammar, lsys3d.Grammar) else "front"
-        preview(tree, PICTURES / f"{name}.png", PreviewOptions(size=(PIXELS, PIXELS), view=view))
+        preview(tree, PICTURES / f"{name}.png", PreviewOptions(size=(PIXELS, PIXELS), view=view, quality="final"))
         print(f"{name}.png: {caption} ({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
     return 0
 

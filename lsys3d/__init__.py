@@ -24,6 +24,7 @@ from .errors import (
     LSystemError,
     OptionsError,
     PreviewError,
+    SeedWarning,
 )
 from .version import __version__
 
@@ -39,6 +40,7 @@ _HOMES = {
     "predict_length": "lsystem.derive",
     "ExportOptions": "exchange",
     "export": "exchange",
+    "export_variants": "exchange",
     "ForestOptions": "library.forest",
     "forest": "library.forest",
     "Grammar": "lsystem.grammar",
@@ -87,7 +89,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # what the names are, for type checkers and editors
-    from .exchange import ExportOptions, export
+    from .exchange import ExportOptions, export, export_variants
     from .library.batch import batch
     from .library.forest import ForestOptions, forest
     from .look.bark import BarkColorOptions
@@ -134,6 +136,7 @@ __all__ = [
     "PreviewError",
     "PreviewOptions",
     "Provenance",
+    "SeedWarning",
     "Skeleton",
     "SweepOptions",
     "Tree",
@@ -143,6 +146,7 @@ __all__ = [
     "batch",
     "derive",
     "export",
+    "export_variants",
     "forest",
     "generate",
     "generations",

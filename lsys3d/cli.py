@@ -19,7 +19,7 @@ import time
 import warnings
 from typing import TYPE_CHECKING
 
-from .errors import LSystemError, OptionsError, clip, printable
+from .errors import LSystemError, OptionsError, SeedWarning, clip, printable
 from .options import add_arguments, from_arguments
 from .version import __version__
 
@@ -420,7 +420,7 @@ def cmd_generate(args) -> int:
     from .exchange import check_output, export
     from .exchange.common import ExportOptions
     from .lsystem.presets import load
-    from .pipeline import generate, run_stage
+    from .pipeline import run_stage
 
     export_options = from_arguments(ExportOptions, args).replace(instance_leaves=args.instance_leaves)
     path = check_output(args.output, export_options)  # before minutes of work, not after
@@ -437,7 +437,7 @@ def cmd_generate(args) -> int:
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
     with progress:
-        tree = generate(load(args.grammar), args.iterations, args.seed, options=options, progress=progress)
+        tree = _grow(load(args.grammar), args.iterations, args.seed, options, progress)
         path = run_stage("export", export, tree, args.output, export_options, progress=progress)
     if not args.quiet and drawing:
         segments, leaves = len(tree.skeleton), tree.skeleton.n_leaves
@@ -460,20 +460,17 @@ def _generate_siblings(args, options, export_options) -> int:
     """``generate --variants N``: the grammar grown with seeds SEED .. SEED+N-1, written by export_variants."""
     from .exchange import check_output, export_variants, variant_paths
     from .lsystem.presets import load
-    from .pipeline import generate, run_stage, warn_if_identical
+    from .pipeline import grow, run_stage, warn_if_identical
 
     for target in variant_paths(args.output, args.variants):
         check_output(target, export_options)
     grammar = load(args.grammar)
-    warn_if_identical(grammar, options, args.variants)
+    warn_if_identical(grammar, options, args.variants, cli=True)
     first = grammar.seed if args.seed is None else args.seed
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
     with progress:
-        trees = [
-            generate(grammar, args.iterations, first + i, options=options, progress=progress)
-            for i in range(args.variants)
-        ]
+        trees = [grow(grammar, args.iterations, first + i, options, progress) for i in range(args.variants)]
         paths = run_stage("export", export_variants, trees, args.output, export_options, progress=progress)
     if not args.quiet:
         if len(paths) == 1:
@@ -492,23 +489,33 @@ def _generate_siblings(args, options, export_options) -> int:
     return 0
 
 
+def _grow(grammar, iterations, seed, options, progress=None):
+    """:func:`lsys3d.pipeline.grow`, after the warning ``generate`` gives of a seed that changes nothing, in the
+    command line's words (``--seed S`` other than the grammar's own)."""
+    from .pipeline import grow, warn_if_identical
+
+    if seed is not None and seed != grammar.seed:
+        warn_if_identical(grammar, options, 2, cli=True)
+    return grow(grammar, iterations, seed, options, progress)
+
+
 def cmd_preview(args) -> int:
     from .lsystem.presets import load
-    from .pipeline import generate, run_stage
-    from .render.preview import PreviewOptions, check_preview, preview
+    from .pipeline import run_stage
+    from .render.preview import PreviewOptions, PreviewSession
 
     options = from_arguments(PreviewOptions, args)
-    check_preview(args.output, options)  # no Blender, no minutes of work
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
-    with progress:
-        tree = generate(
-            load(args.grammar), args.iterations, args.seed, options=_generate_options(args), progress=progress
-        )
-        path = run_stage("render", preview, tree, args.output, options, progress=progress)
+    # Blender is found (no Blender: no minutes of work) and started now: it loads while the tree grows
+    with PreviewSession(args.output, options) as session, progress:
+        tree = _grow(load(args.grammar), args.iterations, args.seed, _generate_options(args), progress)
+        path = run_stage("render", session.render, tree, progress=progress)
     if not args.quiet:
         width, height = options.size
-        _print(f"wrote {path}: {width}x{height}, {options.view} view ({time.perf_counter() - t0:.1f} s)")
+        _print(
+            f"wrote {path}: {width}x{height}, {options.view} view, {options.quality} ({time.perf_counter() - t0:.1f} s)"
+        )
     return 0
 
 
@@ -529,9 +536,7 @@ def cmd_stats(args) -> int:
     n = grammar.iterations if args.iterations is None else args.iterations
     seed = grammar.seed if args.seed is None else args.seed
     if args.mesh:
-        from .pipeline import generate
-
-        tree = generate(grammar, n, seed, options=options)
+        tree = _grow(grammar, n, seed, options)
         result = report(tree.modules, tree.skeleton, tree)
     else:
         from .pipeline import draw
@@ -846,7 +851,11 @@ def _signals_interrupt():
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    """A Python warning (numpy's RuntimeWarning...) as one log line, not the three of ``warnings``' default."""
+    """A Python warning (numpy's RuntimeWarning...) as one log line, not the three of ``warnings``' default;
+    lsys3d's own (:class:`~lsys3d.errors.SeedWarning`) as its message alone."""
+    if issubclass(category, SeedWarning):
+        logging.getLogger("lsys3d").warning("%s", _one_line(str(message)))
+        return
     logging.getLogger("lsys3d").warning(
         "warning: %s (%s, %s:%d)", _one_line(str(message)), category.__name__, os.path.basename(filename), lineno
     )

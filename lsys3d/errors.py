@@ -22,6 +22,7 @@ __all__ = [
     "LimitError",
     "OptionsError",
     "PreviewError",
+    "SeedWarning",
 ]
 
 
@@ -175,3 +176,11 @@ class BatchError(LSystemError, ValueError):
 
 class ForestError(LSystemError):
     """A library that cannot be read or a forest that cannot be scattered (the message names the file)."""
+
+
+class SeedWarning(UserWarning):
+    """A seed that changes nothing: the plant grows the same from every seed (``warnings``; the CLI logs it).
+
+    :func:`lsys3d.pipeline.warn_if_identical` is its one home: ``generate(..., seed=s)`` and
+    ``lsys3d generate --variants N`` both warn through it.
+    """

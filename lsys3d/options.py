@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import difflib
 import math
 import re
 from argparse import SUPPRESS
@@ -46,6 +47,7 @@ __all__ = [
     "from_arguments",
     "option",
     "spec_of",
+    "unknown_name",
 ]
 
 _KEY = "lsys3d"
@@ -352,9 +354,23 @@ class Options:
         direct = {f.name for f in fields(self) if spec_of(f) is None}
         for key in values:
             if key not in flat and key not in direct:
-                known = ", ".join(sorted(flat | {k: () for k in direct}))
-                raise OptionsError(f"{type(self).__name__}: unknown option {clip(repr(key))} (known: {known})")
+                raise OptionsError(f"{type(self).__name__}: {unknown_name('option', key, [*flat, *direct])}")
         return _with_paths(self, {flat.get(k, (k,)): v for k, v in values.items()})
+
+
+def unknown_name(what: str, name, known) -> str:
+    """``unknown <what> 'name'``, with the closest of the ``known`` names when one is close: not the whole list.
+
+    >>> unknown_name("option", "angle_jiter", ["angle_jitter", "sides", "union"])
+    "unknown option 'angle_jiter'; did you mean 'angle_jitter'?"
+    >>> unknown_name("option", "colour", ["sides", "union"])
+    "unknown option 'colour' (2 known; see docs/architecture.md, 'Where each option lives')"
+    """
+    text = f"unknown {what} {clip(repr(name))}"
+    close = difflib.get_close_matches(str(name), sorted(set(known)), n=1, cutoff=0.6)
+    if close:
+        return f"{text}; did you mean {close[0]!r}?"
+    return f"{text} ({len(set(known))} known; see docs/architecture.md, 'Where each option lives')"
 
 
 def _merge(base: dict, changes: dict) -> dict:

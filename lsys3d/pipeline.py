@@ -13,6 +13,7 @@ import functools
 import logging
 import os
 import time
+import warnings
 from collections import Counter
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -21,7 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .arrays import release_memory
-from .errors import GeometryError, OptionsError
+from .errors import GeometryError, OptionsError, SeedWarning
 from .look import bark as bark_stage
 from .look import growth as growth_stage
 from .look.attributes import VERTEX_KEYS, AttributeOptions, with_attributes
@@ -55,10 +56,19 @@ from .mesh.mesh import Mesh
 from .mesh.sweep import DEFAULT_MAX_TRIANGLES, SweepOptions, Tubes, sweep
 from .mesh.union import jobs as union_jobs
 from .mesh.union.union import UnionOptions, concatenate, union, union_cleaning_junctions
-from .options import Options, option
+from .options import Options, flat_fields, option, unknown_name
 from .provenance import Provenance
 from .tree import StageCounts, Tree
-from .turtle import DEFAULT_MAX_SEGMENTS, FormOptions, TurtleOptions, TurtleOverrides, form, interpret, symbol_table
+from .turtle import (
+    DEFAULT_MAX_SEGMENTS,
+    GRAMMAR_KEYS,
+    FormOptions,
+    TurtleOptions,
+    TurtleOverrides,
+    form,
+    interpret,
+    symbol_table,
+)
 from .turtle.diagnostics import Checks, check
 from .turtle.environment import EnvironmentOptions, load_environment
 from .turtle.hierarchy import hierarchy
@@ -72,6 +82,7 @@ __all__ = [
     "Limits",
     "draw",
     "generate",
+    "grow",
     "run_stage",
     "seed_dependence",
     "warn_if_identical",
@@ -189,6 +200,28 @@ class GenerateOptions(Options):
                 "it needs the rig (--rig, or the one --growth-animation builds)"
             )
 
+    def with_flat(self, **values):
+        """A copy with fields changed by their flat names, the ``[turtle]`` settings among them.
+
+        A ``[turtle]`` key that is no other field's flat name (``angle_jitter``,
+        ``branch_drop``, ``tropism``...; not ``step``, the cleanup's) sets
+        that entry of ``turtle``, over the ones it has: the spelling of
+        ``--turtle KEY=VALUE``.
+
+        >>> GenerateOptions.from_flat(angle_jitter=8, sides=6).turtle["angle_jitter"]
+        8.0
+        """
+        turtle = {k: values.pop(k) for k in list(values) if k in TURTLE_FLAT_NAMES}
+        names = flat_fields(GenerateOptions)
+        for key in values:
+            if key not in names and key != "turtle":
+                known = [*names, *TURTLE_FLAT_NAMES, "turtle"]
+                raise OptionsError(f"GenerateOptions: {unknown_name('option', key, known)}")
+        options = super().with_flat(**values) if values else self
+        if turtle:
+            options = options.replace(turtle={**options.turtle, **turtle})
+        return options
+
     def plain(self) -> dict:
         """The options as plain data; ``form`` only when it is not the default (older records did not have it)."""
         data = super().plain()
@@ -208,6 +241,9 @@ class GenerateOptions(Options):
             return self.rig
         return replace(self.rig, enabled=True, max_joints=max(2, self.rig.max_joints * 3 // 4), max_depth=1_000_000)
 
+
+TURTLE_FLAT_NAMES = frozenset(GRAMMAR_KEYS) - set(flat_fields(GenerateOptions))
+"""The ``[turtle]`` settings :meth:`GenerateOptions.with_flat` and :func:`generate` take by their keys."""
 
 _JITTERS = ("angle_jitter", "length_jitter", "width_jitter", "branch_roll", "branch_drop")
 
@@ -242,22 +278,49 @@ def seed_dependence(grammar: Grammar, options: GenerateOptions | None = None) ->
     return tuple(found)
 
 
-def warn_if_identical(grammar: Grammar, options: GenerateOptions | None, count: int) -> bool:
-    """Warn (through the ``lsys3d`` logger) that ``count`` siblings would be identical; whether it did.
+# what the warnings suggest to make siblings differ, spelled for Python (generate's keywords) and the CLI
+_ADVICE = {
+    False: "angle_jitter=5, width_jitter=0.1, branch_roll=30, bark_displacement=0.2 or bark_color_variation=0.3",
+    True: "--turtle angle_jitter=5 --turtle width_jitter=0.1 --turtle branch_roll=30, --bark-displacement 0.2 or "
+    "--bark-color-variation 0.3",
+}
+
+
+def warn_if_identical(
+    grammar: Grammar, options: GenerateOptions | None, count: int, *, cli: bool = False, stacklevel: int = 2
+) -> bool:
+    """Warn (:class:`~lsys3d.errors.SeedWarning`) that ``count`` siblings would be identical; whether it did.
 
     Siblings differ only by their seed: when nothing depends on it
     (:func:`seed_dependence`) they are copies, and the warning names the
-    settings that would make them differ.
+    settings that would make them differ, spelled as :func:`generate`'s
+    keywords, or with ``cli`` as ``lsys3d generate``'s flags.  The one rule
+    behind both: ``generate(..., seed=s)`` with ``s`` other than the grammar's
+    own seed warns through it (``count`` 2: that plant and the grammar's own),
+    and so does ``lsys3d generate --seed S`` or ``--variants N``.  The message
+    does not name the seed, so a loop over seeds warns once (``warnings``'
+    default filter shows a message once per place).
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from lsys3d import load_preset
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     warn_if_identical(load_preset("tree3d"), None, 5), warn_if_identical(load_preset("oak"), None, 5)
+    (True, False)
+    >>> print(caught[0].message)  # doctest: +ELLIPSIS
+    tree3d grows the same plant from every seed (no stochastic rules, turtle jitter or bark noise): ...
     """
     if count < 2 or seed_dependence(grammar, options):
         return False
     name = grammar.name or grammar.source
-    log.warning(
-        "%s grows the same plant from every seed (no stochastic rules, turtle jitter or bark noise): its %d "
-        "variants are identical; vary them with e.g. --turtle angle_jitter=5 --turtle width_jitter=0.1 "
-        "--turtle branch_roll=30, --bark-displacement 0.2 or --bark-color-variation 0.3",
-        name,
-        count,
+    what = f"its {count} variants are identical" if count > 2 else "another seed gives the same plant"
+    warnings.warn(
+        f"{name} grows the same plant from every seed (no stochastic rules, turtle jitter or bark noise): "
+        f"{what}; vary them with e.g. {_ADVICE[cli]}",
+        SeedWarning,
+        stacklevel=stacklevel + 1,
     )
     return True
 
@@ -394,7 +457,10 @@ def generate(
     grammar : Grammar or str
         A grammar, a grammar file path, or the name of a bundled preset.
     iterations, seed : int, optional
-        Override the grammar's own.
+        Override the grammar's own.  A seed other than the grammar's own, for a
+        plant that nothing random shapes (:func:`seed_dependence`), warns
+        (:class:`~lsys3d.errors.SeedWarning`, :func:`warn_if_identical`): it
+        would grow the same plant.
     options : GenerateOptions, optional
         Defaults to ``GenerateOptions()``.
     progress : callable, optional
@@ -402,7 +468,12 @@ def generate(
         ``progress("union", "progress", fraction)`` while the union works (fraction from 0 to 1).
     **overrides
         Single options by their flat names, over ``options``: ``sides=5``,
-        ``union=False``, ``max_modules=10**6``... (:meth:`GenerateOptions.from_flat`).
+        ``union=False``, ``max_modules=10**6``... (:meth:`GenerateOptions.from_flat`),
+        and the ``[turtle]`` settings by their keys, as ``--turtle KEY=VALUE``
+        spells them: ``angle_jitter=8``, ``branch_drop=0.05`` (the same as
+        ``turtle={"angle_jitter": 8}``; the turtle's ``step`` only that way, as
+        ``step`` is the cleanup's).  A misspelt name is an
+        :class:`~lsys3d.errors.OptionsError` that names the closest one.
 
     Returns
     -------
@@ -413,12 +484,34 @@ def generate(
     >>> tree = generate("abop-1.24a", iterations=2, sides=5)
     >>> tree.bark.is_watertight, tree.provenance.iterations, tree.name
     (True, 2, 'abop-1.24a')
+    >>> generate("abop-1.24a", iterations=2, angle_jitter=8).provenance.options["turtle"]
+    {'angle_jitter': 8.0}
     """
     options = options or GenerateOptions()
     if overrides:
         options = options.with_flat(**overrides)
     if not isinstance(grammar, Grammar):
         grammar = load(grammar)
+    if seed is not None and seed != grammar.seed:
+        warn_if_identical(grammar, options, 2)
+    return grow(grammar, iterations, seed, options, progress)
+
+
+def grow(
+    grammar: Grammar,
+    iterations: int | None = None,
+    seed: int | None = None,
+    options: GenerateOptions | None = None,
+    progress: Callable[[str, str, float], None] | None = None,
+) -> Tree:
+    """The stages in order, from a grammar to a :class:`Tree`: :func:`generate` without its conveniences.
+
+    ``generate`` takes a preset's name or a path, single options by name, and
+    warns of a seed that changes nothing; it then calls this, the one sequence
+    of the stages.  The batch's workers and the CLI (which warns in its own
+    words) call it directly.
+    """
+    options = options or GenerateOptions()
     n = grammar.iterations if iterations is None else iterations
     seed = grammar.seed if seed is None else seed
 

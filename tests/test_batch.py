@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 import re
 import signal
@@ -167,7 +168,7 @@ formats = ["glb"]
 [[jobs]]
 grammar = "abop-1.24a"
 seeds = "0-1"
-options = { iterations = 1, sides = 4 }
+options = { iterations = 1, sides = 4, angle_jitter = 5 }   # seeds that matter: no SeedWarning line
 
 [[jobs]]
 grammar = "grammars/broken.toml"
@@ -309,7 +310,7 @@ def test_a_stop_signal_wrapped_by_a_compiled_call_stops_the_worker(tmp_path, mon
         except SystemExit as exc:
             raise SystemError("returned a result with an exception set") from exc
 
-    monkeypatch.setattr(pipeline, "generate", interrupted)
+    monkeypatch.setattr(pipeline, "grow", interrupted)  # what a worker calls
     job = plan(write_project(tmp_path), tmp_path / "out").jobs[0]
     with pytest.raises(SystemExit) as stop:
         run_job(job, tmp_path / "out")
@@ -318,7 +319,7 @@ def test_a_stop_signal_wrapped_by_a_compiled_call_stops_the_worker(tmp_path, mon
     def broken(*args, **kw):
         raise SystemError("a bug of ours")
 
-    monkeypatch.setattr(pipeline, "generate", broken)
+    monkeypatch.setattr(pipeline, "grow", broken)
     line = run_job(job, tmp_path / "out")
     assert line["status"] == "failed" and "internal error: SystemError" in line["error"]
 
@@ -440,7 +441,9 @@ def test_dask_makes_the_same_files_and_lines_and_carries_the_prediction(cluster,
         shutil.rmtree(out, ignore_errors=True)
 
 
-def test_dask_retries_a_job_whose_worker_was_killed(cluster, tmp_path):
+def test_dask_retries_a_job_whose_worker_was_killed(cluster, tmp_path, caplog):
+    """A real worker process of a LocalCluster killed in the middle of a job: the scheduler runs the job
+    again, the manifest counts 2 attempts (the others 1), and one warning line names the job."""
     from distributed import Client
 
     jobs = write_project(
@@ -474,11 +477,20 @@ def test_dask_retries_a_job_whose_worker_was_killed(cluster, tmp_path):
     thread = threading.Thread(target=killer)
     thread.start()
     try:
-        result = batch(jobs, tmp_path / "out", scheduler=cluster.scheduler_address)
+        with caplog.at_level(logging.WARNING, logger="lsys3d"):
+            result = batch(jobs, tmp_path / "out", scheduler=cluster.scheduler_address)
     finally:
         thread.join()
     assert killed and result.failed == [] and result.done == ["tree3d_s0", "abop-1.24a_s0", "abop-1.24a_s1"]
-    line = read_manifests(tmp_path / "out")["tree3d_s0"]
+    lines = read_manifests(tmp_path / "out")
+    assert {job_id: lines[job_id]["run"]["attempts"] for job_id in lines} == {
+        "tree3d_s0": 2,
+        "abop-1.24a_s0": 1,
+        "abop-1.24a_s1": 1,
+    }
+    lost = [r.getMessage() for r in caplog.records if r.name == "lsys3d" and "died" in r.getMessage()]
+    assert lost == ["tree3d_s0: its Dask worker died running it; the scheduler started it again"]
+    line = lines["tree3d_s0"]
     path = tmp_path / "out" / line["files"][0]["path"]
     assert sha256(path) == line["files"][0]["sha256"]
     assert validators.usd_problems(path) == []
@@ -492,3 +504,27 @@ def test_an_unreachable_scheduler_is_one_error(tmp_path, monkeypatch):
     project = write_project(tmp_path)
     with pytest.raises(BatchError, match="cannot reach the Dask scheduler"):
         batch(project, tmp_path / "out", scheduler="tcp://127.0.0.1:9")
+
+
+def test_a_batch_of_seeds_that_change_nothing_warns_once(tmp_path):
+    """seeds = "0-2" of a grammar nothing random shapes: three copies of one plant, and one SeedWarning saying
+    so (the rule of generate and the CLI's --variants); with a jitter, none."""
+    import warnings
+
+    from lsys3d.errors import SeedWarning
+
+    entry = '[[jobs]]\ngrammar = "abop-1.24a"\nseeds = "0-2"\nformats = ["glb"]\noptions = { iterations = 1%s }\n'
+    for extra, expected in (("", 1), (", angle_jitter = 5", 0)):
+        folder = tmp_path / str(expected)
+        folder.mkdir()
+        jobs = write_project(folder, entry % extra)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = batch(jobs, folder / "out", workers=1, library=False)
+        assert result.ok
+        seeds = [str(w.message) for w in caught if issubclass(w.category, SeedWarning)]
+        assert len(seeds) == expected, seeds
+        if expected:
+            assert "abop-1.24a grows the same plant from every seed" in seeds[0] and "3 variants" in seeds[0]
+            counts = [line["counts"] for line in read_manifests(folder / "out").values()]
+            assert len(counts) == 3 and counts[0] == counts[1] == counts[2]  # what it warns of

@@ -85,12 +85,7 @@ SUBSTITUTIONS = {
 }
 """Documented text -> (what runs instead, why): the only edits made to the docs' commands."""
 
-KNOWN_FAILURES = {
-    "--area 100x80 --count 500 --seed 3 --scale 0.8,1.2 --yaw 0,360 --spacing 1": (
-        "issue 37 item 2: the forest places crowns apart, and 500 do not fit on 100 x 80 m (another branch lets "
-        "crowns meet)"
-    ),
-}
+KNOWN_FAILURES: dict[str, str] = {}
 """Documented text -> why a command holding it fails today.  Strict: such a command that runs fails the
 test, so the entry goes the day the command works."""
 

@@ -65,6 +65,32 @@ def test_species_usdz_pass_the_usd_validators_with_textures_packed(name, tmp_pat
     assert bool(pictures) == ("procedural" in preset_text(name))  # a textured species carries its pictures
 
 
+@pytest.mark.parametrize("name", species())
+def test_species_usdz_pass_the_arkit_profile(name, tmp_path):
+    """AR Quick Look's USD: usd-core's ComplianceChecker(arkit=True) finds nothing (leaves merged in a .usdz:
+    the profile has no PointInstancer), and usd-core 26's validators agree."""
+    path = export(grown(name), tmp_path / f"{name}.usdz")
+    assert validators.arkit_problems(path) == []
+    stage = Usd.Stage.Open(str(path))
+    assert not [p for p in stage.Traverse() if p.IsA(UsdGeom.PointInstancer)]
+
+
+def test_usdz_leaves_merged_unless_asked_and_the_checker_sees_an_instancer(tmp_path):
+    """The merged leaves of a .usdz are the instanced leaves of a .usdc, placed; instance_leaves=True still
+    writes the instancer, which the ARKit profile refuses (so the checker is no rubber stamp)."""
+    tree = grown("oak")
+    packed = Usd.Stage.Open(str(export(tree, tmp_path / "oak.usdz")))
+    leaf = packed.GetPrimAtPath("/oak/Geom/leaf")
+    assert leaf.IsA(UsdGeom.Mesh)
+    instanced = Usd.Stage.Open(str(export(tree, tmp_path / "oak.usdc")))
+    assert instanced.GetPrimAtPath("/oak/Geom/leaf").IsA(UsdGeom.PointInstancer)
+    np.testing.assert_allclose(world_bounds(packed), world_bounds(instanced), atol=1e-3)
+    forced = export(tree, tmp_path / "forced.usdz", ExportOptions(instance_leaves=True))
+    assert validators.arkit_problems(forced) == [
+        "Prim </oak/Geom/leaf> has unsupported type 'PointInstancer'. (fails 'ARKitPrimTypeChecker')"
+    ]
+
+
 def test_usd_validators_tube_soup(tmp_path):
     tree = fx.make_tree(unioned=False, instanced=False)
     assert validators.usd_problems(export(tree, tmp_path / "soup.usdc")) == []

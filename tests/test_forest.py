@@ -259,6 +259,7 @@ def test_forest_command(library, tmp_path, capsys):
     assert provenance == {
         "area": [30.0, 20.0],
         "count": 12,
+        "crown_overlap": 0.8,
         "scale": [0.9, 1.1],
         "seed": 4,
         "spacing": 1.0,
@@ -270,3 +271,65 @@ def test_forest_command(library, tmp_path, capsys):
             main(["forest", str(library), *bad])
         assert info.value.code == 2
     assert main(["forest", str(library), "--scale", "1,0.5"]) == 1  # two values that disagree: the options' error
+
+
+# ---------------------------------------------------------------- dense stands: crowns that meet (issue 37)
+
+
+def test_crowns_overlap_where_the_stand_is_dense_and_no_further_than_allowed():
+    """Each trunk keeps spacing * (1 - o) * (r_i + r_j) from the others, o at most crown_overlap, and
+    instances overlap only when there is no room for them otherwise."""
+    radius = [4.0, 6.0]
+    options = ForestOptions(area=(60, 60), count=120, seed=2, crown_overlap=0.6)
+    s = scatter(radius, ["a", "b"], options)
+    assert len(s.variant) == 120
+    assert (pair_gaps(s, radius, 1.0 - 0.6) >= -1e-9).all()  # never closer than the largest overlap allows
+    assert (pair_gaps(s, radius, 1.0) < 0).sum() > 50  # crowns that meet
+    with pytest.raises(ForestError, match=r"overlapping by up to 0%; .* allow more overlap"):
+        scatter(radius, ["a", "b"], options.replace(crown_overlap=0.0))
+    with pytest.raises(ForestError, match=r"only [\d,]+ of 120 instances fit .* overlapping by up to 10%"):
+        scatter(radius, ["a", "b"], options.replace(crown_overlap=0.1))
+
+
+def test_a_stand_with_room_is_placed_as_without_overlap():
+    """The overlap is tried only after a position without it was not found: a forest that fits without it is
+    the same, position for position, whatever crown_overlap allows."""
+    options = ForestOptions(area=(80, 60), count=60, seed=4)
+    a = scatter([1.0, 2.5], ["a", "b"], options)
+    b = scatter([1.0, 2.5], ["a", "b"], options.replace(crown_overlap=0.0))
+    assert np.array_equal(a.position, b.position) and np.array_equal(a.variant, b.variant)
+
+
+def test_the_readme_forest_command_places_500_trees(tmp_path):
+    """The README's commands: a library of its jobs file (tree3d, sides 6, angle jitter 8: crowns of 6-7 m;
+    two of its fifty seeds), then `lsys3d forest library/ -o forest.usdc --area 100x100 --count 500 --seed 3`:
+    500 instances, the same bytes on a second run."""
+    import subprocess
+    import sys
+
+    (tmp_path / "jobs.toml").write_text(
+        '[[jobs]]\ngrammar = "tree3d"\nseeds = "0-1"\nformats = ["glb", "usdc"]\n'
+        "options = { sides = 6, angle_jitter = 8 }\n"
+    )
+    lsys3d.batch(tmp_path / "jobs.toml", tmp_path / "library", workers=1)
+    command = [sys.executable, "-m", "lsys3d", "forest", "library/", "-o", "forest.usdc"]
+    command += ["--area", "100x100", "--count", "500", "--seed", "3"]
+    first = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True)
+    assert first.returncode == 0, first.stderr
+    assert first.stdout.startswith("wrote forest.usdc: 500 instances on 100 x 100 m")
+    stage = Usd.Stage.Open(str(tmp_path / "forest.usdc"))
+    instancer = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Forest/Trees"))
+    positions = np.array(instancer.GetPositionsAttr().Get())[:, [0, 2]]
+    assert len(positions) == 500
+    lines = [json.loads(t) for t in (tmp_path / "library" / "manifest.jsonl").read_text().splitlines()]
+    radius_of = {line["id"]: line["crown_radius"] for line in lines}
+    names = [str(t.name) for t in instancer.GetPrototypesRel().GetTargets()]
+    radius = np.array([radius_of[next(i for i in radius_of if i in name)] for name in names])
+    scales = np.array(instancer.GetScalesAttr().Get())[:, 0]
+    r = radius[np.array(instancer.GetProtoIndicesAttr().Get())] * scales
+    d = np.sqrt(((positions[:, None] - positions[None]) ** 2).sum(-1))
+    off = ~np.eye(500, dtype=bool)
+    assert (d - 0.2 * (r[:, None] + r[None]))[off].min() >= -1e-3  # at most 80% overlap (float32 positions)
+    before = (tmp_path / "forest.usdc").read_bytes()
+    again = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True)
+    assert again.returncode == 0 and (tmp_path / "forest.usdc").read_bytes() == before

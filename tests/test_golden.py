@@ -201,7 +201,7 @@ def test_stats_writes_a_golden_file_for_a_grammar_file(tmp_path, capsys, monkeyp
 def test_stats_refuses_an_unwritable_golden_file_before_working(tmp_path, capsys, monkeypatch):
     import lsys3d.pipeline
 
-    monkeypatch.setattr(lsys3d.pipeline, "generate", lambda *a, **k: pytest.fail("grew before checking the target"))
+    monkeypatch.setattr(lsys3d.pipeline, "grow", lambda *a, **k: pytest.fail("grew before checking the target"))
     (tmp_path / "a_file").write_text("")
     assert main(["stats", "koch", "--mesh", "--golden", str(tmp_path / "a_file" / "k.json")]) == 1
     err = capsys.readouterr().err

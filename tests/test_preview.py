@@ -24,6 +24,7 @@ from lsys3d.render.preview import (
     ENV_BLENDER,
     SCRIPT,
     PreviewOptions,
+    PreviewSession,
     base_focus,
     blender_command,
     check_preview,
@@ -243,3 +244,52 @@ def test_base_view_looks_at_the_foot_of_the_thickest_stem():
     np.testing.assert_allclose(focus["target"], tree.skeleton.start[0] + [0, 0.9 * d, 0])
     assert np.linalg.norm(focus["direction"]) == pytest.approx(1.0) and focus["direction"][2] > 0.9
     assert PreviewOptions(view="base").view == "base"  # a choice of the option
+
+
+# ---------------------------------------------------------------- draft and final (issue 37)
+
+
+def test_draft_is_the_default_and_final_is_the_cycles_look(tree, tmp_path):
+    """Both qualities picture the tree upright in its colours; the default is the Workbench draft, and
+    ``quality="final"`` still renders the Cycles look (another picture of the same tree)."""
+    assert PreviewOptions().quality == "draft"
+    base = {"size": (96, 96), "blender": bpy_python(), "background": BACKGROUND}
+    pictures = {}
+    for quality in ("draft", "final"):
+        extra = {"samples": 2, "denoise": False} if quality == "final" else {}
+        image = read_png(preview(tree, tmp_path / f"{quality}.png", PreviewOptions(**base, quality=quality, **extra)))
+        mask = object_mask(image)
+        assert 0.02 < mask.mean() < 0.9, (quality, mask.mean())
+        r, g, b = image[mask].astype(int).T
+        assert ((g > r + 20) & (g > b + 20)).mean() > 0.2, f"{quality}: the leaves are not green"
+        lit = image[mask].max(axis=1)
+        assert np.median(lit) > 50, f"{quality}: the tree is nearly black"
+        pictures[quality] = image
+    assert not np.array_equal(pictures["draft"], pictures["final"])
+    again = preview(tree, tmp_path / "again.png", PreviewOptions(**base))  # the same picture, the same bytes
+    assert again.read_bytes() == (tmp_path / "draft.png").read_bytes()
+
+
+def test_a_session_starts_blender_before_the_tree_and_stops_it_unused(tree, tmp_path):
+    """PreviewSession runs Blender at once (it loads while the tree grows); closed without a render it stops
+    Blender and leaves nothing behind; it renders once."""
+    options = PreviewOptions(size=(48, 48), blender=bpy_python(), background=BACKGROUND)
+    with PreviewSession(tmp_path / "unused.png", options) as session:
+        assert session._proc.poll() is None  # started, waiting for its job
+    assert session._proc.returncode is not None and not (tmp_path / "unused.png").exists()
+    with PreviewSession(tmp_path / "used.png", options) as session:
+        assert object_mask(read_png(session.render(tree))).any()
+        with pytest.raises(PreviewError, match="rendered already"):
+            session.render(tree)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["used.png"]
+
+
+def test_cli_preview_quality_flag(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "lsys3d", "preview", "--help"], capture_output=True, text=True, check=True
+    )
+    assert "--quality {draft,final}" in proc.stdout
+    proc = subprocess.run(
+        [sys.executable, "-m", "lsys3d", "preview", "--quality", "best"], capture_output=True, text=True
+    )
+    assert proc.returncode == 2 and "invalid choice: 'best'" in proc.stderr

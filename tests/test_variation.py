@@ -483,3 +483,116 @@ def test_generate_options_reject_unknown_turtle_keys():
         GenerateOptions(turtle={"wobble": 1})
     with pytest.raises(lsys3d.OptionsError, match=r"BarkColorOptions.variation: must be in \[0, 1\], not 2"):
         GenerateOptions.from_flat(bark_color_variation=2.0)
+
+
+# ------------------------------------------------------------------ variation from Python (issue 37)
+
+
+def _grown_bytes(tree, path):
+    export(tree, path)
+    return path.read_bytes()
+
+
+def test_a_loop_over_seeds_of_a_seedless_plant_warns_once():
+    """generate(tree3d, seed=s) for s in 0..4 grows one plant five times: it says so, once, through warnings."""
+    import warnings
+
+    from lsys3d.errors import SeedWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        trees = [lsys3d.generate("tree3d", iterations=2, seed=s, union=False) for s in range(5)]
+    seeds = [w for w in caught if issubclass(w.category, SeedWarning)]
+    assert len(seeds) == 1, [str(w.message) for w in caught]
+    message = str(seeds[0].message)
+    assert message.startswith("tree3d grows the same plant from every seed")
+    assert "angle_jitter=5" in message and "--turtle" not in message  # generate's own spelling
+    assert seeds[0].filename == __file__  # it points at the caller's line, not into lsys3d
+    assert len({t.bark.vertices.tobytes() for t in trees}) == 1  # what it warns of: five copies
+
+
+def test_no_seed_warning_when_the_seed_matters_or_is_the_grammars_own(recwarn):
+    from lsys3d.errors import SeedWarning
+
+    lsys3d.generate("tree3d", iterations=2, union=False)  # no seed given
+    lsys3d.generate("tree3d", iterations=2, seed=load_preset("tree3d").seed, union=False)  # its own
+    lsys3d.generate("tree3d", iterations=2, seed=3, union=False, angle_jitter=8)  # jitter: the seed matters
+    lsys3d.generate("koch-stochastic", iterations=2, seed=3, union=False)  # stochastic rules
+    assert not [w for w in recwarn if issubclass(w.category, SeedWarning)]
+
+
+def test_turtle_settings_by_their_keys_from_generate(tmp_path):
+    """generate("tree3d", angle_jitter=8): the turtle's settings as --turtle spells them; the seed then varies it."""
+    a = lsys3d.generate("tree3d", iterations=2, seed=1, union=False, angle_jitter=8, branch_drop=0.05)
+    b = lsys3d.generate("tree3d", iterations=2, seed=2, union=False, angle_jitter=8, branch_drop=0.05)
+    assert a.provenance.options["turtle"] == {"angle_jitter": 8.0, "branch_drop": 0.05}
+    assert not np.array_equal(a.skeleton.end, b.skeleton.end)
+    same = lsys3d.generate("tree3d", iterations=2, seed=1, union=False, turtle={"angle_jitter": 8, "branch_drop": 0.05})
+    assert _grown_bytes(a, tmp_path / "a.glb") == _grown_bytes(same, tmp_path / "same.glb")
+    # a key overrides the same key of turtle=, the others stay
+    options = GenerateOptions.from_flat(turtle={"angle_jitter": 2, "width_jitter": 0.1}, angle_jitter=8)
+    assert dict(options.turtle) == {"angle_jitter": 8.0, "width_jitter": 0.1}
+    assert GenerateOptions.from_flat(step=2.0).cleanup.step == 2.0  # step stays the cleanup's (a flat name already)
+
+
+@pytest.mark.parametrize(
+    ("name", "closest"),
+    [
+        ("angle_jiter", "angle_jitter"),
+        ("angle-jitter", "angle_jitter"),
+        ("sidez", "sides"),
+        ("brnch_drop", "branch_drop"),
+    ],
+)
+def test_a_misspelt_option_names_the_closest_one(name, closest):
+    with pytest.raises(lsys3d.OptionsError) as info:
+        lsys3d.generate("tree3d", iterations=1, **{name: 8})
+    message = str(info.value)
+    assert message == f"GenerateOptions: unknown option {name!r}; did you mean {closest!r}?"
+
+
+def test_an_unknown_option_does_not_list_every_name():
+    with pytest.raises(lsys3d.OptionsError) as info:
+        lsys3d.generate("tree3d", iterations=1, xyzzy=3)
+    message = str(info.value)
+    assert message.startswith("GenerateOptions: unknown option 'xyzzy' (") and len(message) < 120, message
+    assert "docs/architecture.md" in message
+
+
+def test_export_variants_is_public(tmp_path):
+    from lsys3d import exchange
+
+    assert lsys3d.export_variants is exchange.export_variants and "export_variants" in lsys3d.__all__
+    trees = [lsys3d.generate("abop-1.24a", iterations=1, seed=s, sides=4, angle_jitter=5) for s in (1, 2)]
+    paths = lsys3d.export_variants(trees, tmp_path / "pair.glb")
+    assert [p.name for p in paths] == ["pair_0.glb", "pair_1.glb"]
+
+
+def test_jobs_take_turtle_settings_by_their_keys():
+    from lsys3d.library.jobs import options_from_names
+
+    _, options, _ = options_from_names({"angle_jitter": 8, "sides": 5})
+    assert dict(options.turtle) == {"angle_jitter": 8.0} and options.sweep.sides == 5
+
+
+@pytest.mark.parametrize(
+    ("extra", "what"),
+    [
+        (["--seed", "7"], "another seed gives the same plant"),
+        (["--seed", "7", "--variants", "3"], "its 3 variants are identical"),
+    ],
+)
+def test_cli_warns_of_a_seed_that_changes_nothing_in_its_own_words(extra, what, tmp_path):
+    import subprocess
+    import sys
+
+    out = subprocess.run(
+        [sys.executable, "-m", "lsys3d", "generate", "abop-1.24a", "-n", "1", *extra, "-o", str(tmp_path / "t.glb")],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    lines = out.stderr.splitlines()
+    assert len(lines) == 1, out.stderr
+    assert lines[0].startswith("lsys3d: abop-1.24a grows the same plant from every seed") and what in lines[0]
+    assert "--turtle angle_jitter=5" in lines[0]

@@ -4,6 +4,10 @@
   package pinned in ``package.json`` (install with ``npm ci``).
 * usd-core's ``UsdValidation`` validators and ``UsdGeom.Mesh.ValidateTopology``
   (in process: usd-core is a dependency of lsys3d).
+* usd-core's ARKit profile (``UsdUtils.ComplianceChecker(arkit=True)``, which
+  usd-core 26 no longer ships): ``tools/usd_arkit_check.py`` run by the Python
+  of ``.venv-usdchecker`` (usd-core 25.5; ``make validators``), or the
+  interpreter named by ``LSYS3D_USDCHECK_PYTHON``.
 * Blender: ``tools/blender_import.py`` run by the Python of a separate
   environment holding ``bpy`` (``.venv-bpy`` at the repository root, or the
   interpreter named by ``LSYS3D_BPY_PYTHON``), in a child process so that a
@@ -28,6 +32,7 @@ REPO = Path(__file__).resolve().parents[1]
 GLTF_SCRIPT = REPO / "tools" / "gltf_validate.mjs"
 BLENDER_SCRIPT = REPO / "tools" / "blender_import.py"
 BLENDER_MARK = "LSYS3D-BLENDER "
+ARKIT_SCRIPT = REPO / "tools" / "usd_arkit_check.py"
 
 
 def in_ci() -> bool:
@@ -108,6 +113,27 @@ def usd_problems(path: Path) -> list[str]:
             if not ok:
                 problems.append(f"ValidateTopology: {prim.GetPath()}: {why}")
     return problems
+
+
+def arkit_problems(path: Path) -> list[str]:
+    """What usd-core's ARKit compliance profile finds in ``path`` (errors and failed checks; empty: it passes).
+
+    Run in a child process by the Python of ``.venv-usdchecker`` (usd-core 25.5, the last with
+    ``UsdUtils.ComplianceChecker``). The one rule that cannot run from that wheel (shader input types, no
+    shader definitions in it) is checked by usd-core 26's ``ShaderSdrCompliance`` in :func:`usd_problems`.
+    """
+    named = os.environ.get("LSYS3D_USDCHECK_PYTHON")
+    python = Path(named) if named else REPO / ".venv-usdchecker" / "bin" / "python"
+    require(
+        python.exists(),
+        "usd-core's ARKit checker is not installed: python3.11 -m venv .venv-usdchecker && "
+        ".venv-usdchecker/bin/pip install usd-core==25.5 (make validators; or set LSYS3D_USDCHECK_PYTHON)",
+    )
+    proc = subprocess.run([str(python), str(ARKIT_SCRIPT), str(path)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    report = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert report["skipped"] in ([], ["ShaderPropertyTypeConformanceChecker"]), report
+    return [*report["errors"], *report["failed_checks"]]
 
 
 # ---------------------------------------------------------------- Blender

@@ -57,7 +57,8 @@ class ExportOptions(Options):
     ``instance_leaves`` writes leaves as instances of one leaf model (USD
     ``PointInstancer``, glTF ``EXT_mesh_gpu_instancing``) instead of one merged
     mesh; ``None`` (default) picks the format's natural choice: instanced for
-    USD, merged for glTF (readable by every viewer).
+    USD, merged for glTF (readable by every viewer) and for ``.usdz`` (ARKit's
+    profile of USD, which AR Quick Look reads, has no ``PointInstancer``).
     """
 
     units: str = option("m", choices=tuple(UNITS), help="length unit of a USD file")

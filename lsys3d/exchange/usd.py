@@ -74,6 +74,7 @@ __all__ = [
     "VARIANT_SET",
     "build_stage",
     "build_variant_stage",
+    "package_options",
     "texture_folder",
     "usdz_chunks",
     "write_usd",
@@ -629,15 +630,28 @@ def write_usd(tree: Tree, path: Path, options: ExportOptions) -> Path:
 def write_usd_variants(trees: Sequence[Tree], names: Sequence[str], path: Path, options: ExportOptions) -> Path:
     """Write the trees as the variants of one stage (:func:`build_variant_stage`), any USD suffix."""
     textures = _textures_for(path)
-    stage = build_variant_stage(trees, names, options, str(path), textures)
     if path.suffix.lower() == ".usdz":
-        return _write_package(stage, path, options, textures)
-    return _write_layer(stage, path, options, textures)
+        options = package_options(options)
+        return _write_package(build_variant_stage(trees, names, options, str(path), textures), path, options, textures)
+    return _write_layer(build_variant_stage(trees, names, options, str(path), textures), path, options, textures)
+
+
+def package_options(options: ExportOptions) -> ExportOptions:
+    """The options of a ``.usdz``: leaves and organs merged into meshes unless ``instance_leaves`` says otherwise.
+
+    A ``.usdz`` is what AR Quick Look and RealityKit open, and ARKit's profile
+    of USD has no ``PointInstancer`` (usd-core's ``ComplianceChecker(arkit=True)``:
+    "unsupported type 'PointInstancer'"); the merged leaves draw the same.
+    ``instance_leaves=True`` still writes instancers, for a ``.usdz`` not meant for AR.
+    """
+    return options.replace(instance_leaves=False) if options.instance_leaves is None else options
 
 
 def write_usdz(tree: Tree, path: Path, options: ExportOptions) -> Path:
-    """Write ``tree`` as a ``.usdz`` package holding one ``.usdc`` layer and its images (no external files)."""
+    """Write ``tree`` as a ``.usdz`` package holding one ``.usdc`` layer and its images (no external files);
+    leaves and organs merged, as ARKit's profile wants (:func:`package_options`)."""
     textures = _textures_for(path)
+    options = package_options(options)
     return _write_package(build_stage(tree, options, str(path), textures), path, options, textures)
 
 

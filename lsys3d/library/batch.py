@@ -53,6 +53,7 @@ from ..exchange.atomic import check_target
 from ..exchange.library import USD_FORMATS, LibraryVariant, write_library
 from ..external import FileRefused, inside, load_json, read_lines
 from ..golden.golden import recipe_for
+from ..pipeline import warn_if_identical
 from .jobs import Job, JobSize, predict_size, read_jobs, shard
 from .runners import available_memory, run_dask, run_local
 from .worker import run_job, sha256_of
@@ -463,6 +464,7 @@ def batch(
     remove_temporaries(to_run, outdir)  # left by a run that was killed
     writer = _ManifestWriter(the.manifest)
     runnable = [job for job in to_run if job.grammar_error is None]
+    _warn_if_identical(the.jobs)
     results = _runner(runnable, outdir, scheduler, workers, memory, the.size_of, report)
     interrupted = False
     try:
@@ -519,6 +521,24 @@ def _prepare(outdir: Path, jobs: Sequence[Job], shard_of: tuple[int, int] | None
         check_target(manifest, no_clobber=False)
     except LSystemError as exc:
         raise BatchError(str(exc).split(": ", 1)[-1], str(manifest)) from None
+
+
+def _warn_if_identical(jobs: Sequence[Job]) -> None:
+    """Warn, once per entry, of jobs that differ only by seeds that change nothing (:func:`warn_if_identical`):
+    ``seeds = "0-49"`` of a grammar nothing random shapes is fifty copies of one plant."""
+    groups: dict[tuple, list[Job]] = {}
+    for job in jobs:
+        if job.grammar_error is None:
+            key = (job.grammar_source, job.grammar_text, job.iterations, job.options, job.name)
+            groups.setdefault(key, []).append(job)
+    for group in groups.values():
+        seeds = {job.seed for job in group}
+        if len(seeds) > 1:
+            try:
+                grammar = group[0].grammar()
+            except LSystemError:  # the job fails with its own message
+                continue
+            warn_if_identical(grammar, group[0].options, len(seeds), stacklevel=3)
 
 
 def _record(job, line, size, recipes, writer, result, counts, report) -> None:

@@ -7,16 +7,23 @@
 :func:`scatter` draws, for each instance, a species (all equally likely), one
 of its seeds, a yaw and a scale, then places the instances one after the
 other (largest crown first) by dart throwing: a position is accepted when the
-trunk stands at least ``spacing * (r_i + r_j)`` from every other trunk, ``r``
-being each instance's crown radius times its scale -- Poisson-disk spacing
-with a radius per instance.  Everything comes from the seed, so a forest is
-the same in every run.  :func:`forest` writes it: a ``UsdGeomPointInstancer``
+trunk stands at least ``spacing * (1 - o) * (r_i + r_j)`` from every other
+trunk, ``r`` being each instance's crown radius times its scale -- Poisson-disk
+spacing with a radius per instance.  ``o``, how far two crowns may overlap (a
+fraction of the sum of their radii), is as small as lets the instance find
+room: 0 (crowns touch at most) for its first :data:`ATTEMPTS` positions, then
+raised in :data:`OVERLAP_STEPS` equal steps, :data:`STEP_ATTEMPTS` positions
+each, up to ``crown_overlap``.  So crowns meet where the stand is dense and
+keep apart where there is room, as in a real stand, and a forest that fits
+without overlap is placed exactly as with ``crown_overlap=0``.  Everything
+comes from the seed, so a forest is the same in every run.  :func:`forest` writes it: a ``UsdGeomPointInstancer``
 whose prototypes reference the assets' USD files, or one ``.glb`` holding each
 asset once with ``EXT_mesh_gpu_instancing`` (:mod:`lsys3d.exchange.forest`).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import time
@@ -34,23 +41,33 @@ from ..options import Options, option
 
 __all__ = ["MAX_INSTANCES", "ForestOptions", "Scatter", "forest", "scatter"]
 
+log = logging.getLogger("lsys3d")
+
 MAX_INSTANCES = 1_000_000
 """Most instances of one forest: about 800 bytes and 40 microseconds each while scattered and written (1,000,000
 took 0.93 GB and 38 s as .usdc, 0.80 GB and 17 s as .glb; 2,000,000 1.6 GB and 155 s on a busy machine), so the
 most ends within a minute and 1 GB.  It was 10,000,000, which ran out of memory at 4.7 GB."""
 
 ATTEMPTS = 400
-"""Random positions tried for each instance before the forest is declared full."""
+"""Random positions tried for each instance with crowns that do not overlap."""
+
+OVERLAP_STEPS = 8
+"""Steps in which the crowns' overlap is raised, up to ``crown_overlap``, for an instance that found no room."""
+
+STEP_ATTEMPTS = 50
+"""Random positions tried at each step of overlap before the next (and, after the last, the forest is full)."""
 
 
 @dataclass(frozen=True)
 class ForestOptions(Options):
     """How :func:`forest` scatters a library's assets; every default, range and help is in its field.
 
-    Trunks stand at least ``spacing * (r_i + r_j)`` apart (``r``: crown radius
-    times scale): 1 lets crowns touch, 0.5 lets them overlap by half, 0 places
-    instances anywhere.  The area is centred on the origin, along X and along
-    the horizontal axis that is not up.
+    Trunks stand at least ``spacing * (1 - o) * (r_i + r_j)`` apart (``r``:
+    crown radius times scale; ``o``: the crowns' overlap, 0 where there is
+    room, raised up to ``crown_overlap`` for an instance that finds none, see
+    :mod:`lsys3d.library.forest`): ``spacing`` 1 lets crowns touch, 0.5 lets
+    them overlap by half, 0 places instances anywhere.  The area is centred on
+    the origin, along X and along the horizontal axis that is not up.
     """
 
     area: tuple[float, float] = option(
@@ -66,6 +83,15 @@ class ForestOptions(Options):
     )
     spacing: float = option(
         1.0, low=0, high=100, metavar="F", help="trunks at least F times the sum of two crown radii apart"
+    )
+    crown_overlap: float = option(
+        0.8,
+        low=0,
+        high=1,
+        high_open=True,
+        metavar="F",
+        help="crowns may overlap by up to F of the sum of their radii where the stand is too dense for them to "
+        "keep apart (each instance overlaps as little as it can; 0: crowns never overlap)",
     )
     species: tuple[str, ...] = option(
         (), kind="strings", cli=False, help="scatter only these species (default: every species of the library)"
@@ -84,6 +110,7 @@ class ForestOptions(Options):
         return {
             "area": list(self.area),
             "count": self.count,
+            "crown_overlap": self.crown_overlap,
             "scale": list(self.scale),
             "seed": self.seed,
             "spacing": self.spacing,
@@ -138,12 +165,14 @@ def _uniform(seed, i, j):
 
 
 @numba.njit(cache=True, nogil=True)
-def _place(order, radius, spacing, width, depth, seed, attempts, cell):
-    """Dart throwing with a grid of ``cell``-sized buckets; returns positions and how many were placed.
+def _place(order, radius, spacing, width, depth, seed, attempts, cell, overlap, steps, step_attempts):
+    """Dart throwing with a grid of ``cell``-sized buckets; returns positions, each one's overlap, how many fit.
 
-    An instance that finds no free position in ``attempts`` tries is left
-    out, and the others still get their chance, so that the count tells how
-    full the area is.
+    Each instance tries ``attempts`` positions with crowns that do not
+    overlap, then ``step_attempts`` at each of ``steps`` overlaps up to
+    ``overlap``.  An instance that finds no free position is left out, and
+    the others still get their chance, so that the count tells how full the
+    area is.
     """
     n = order.shape[0]
     nx = max(1, math.ceil(width / cell))
@@ -151,11 +180,17 @@ def _place(order, radius, spacing, width, depth, seed, attempts, cell):
     head = np.full(nx * nz, -1, np.int64)
     nxt = np.full(n, -1, np.int64)
     position = np.zeros((n, 2))
+    used = np.zeros(n)
     placed = 0
+    total = attempts + (steps * step_attempts if overlap > 0 else 0)
     for k in range(n):
         i = order[k]
         ok = False
-        for attempt in range(attempts):
+        for attempt in range(total):
+            o = 0.0
+            if attempt >= attempts:
+                o = overlap * ((attempt - attempts) // step_attempts + 1) / steps
+            factor = spacing * (1.0 - o)
             x = _uniform(seed, i, 2 * attempt) * width
             z = _uniform(seed, i, 2 * attempt + 1) * depth
             cx = min(int(x / cell), nx - 1)
@@ -165,7 +200,7 @@ def _place(order, radius, spacing, width, depth, seed, attempts, cell):
                 for gz in range(max(cz - 1, 0), min(cz + 2, nz)):
                     j = head[gx * nz + gz]
                     while j >= 0:
-                        d = spacing * (radius[i] + radius[j])
+                        d = factor * (radius[i] + radius[j])
                         dx = position[j, 0] - x
                         dz = position[j, 1] - z
                         if dx * dx + dz * dz < d * d:
@@ -179,12 +214,13 @@ def _place(order, radius, spacing, width, depth, seed, attempts, cell):
             if ok:
                 position[i, 0] = x
                 position[i, 1] = z
+                used[i] = o
                 g = cx * nz + cz
                 nxt[i] = head[g]
                 head[g] = i
                 placed += 1
                 break
-    return position, placed
+    return position, used, placed
 
 
 def scatter(crown_radius, species, options: ForestOptions) -> Scatter:
@@ -233,15 +269,35 @@ def scatter(crown_radius, species, options: ForestOptions) -> Scatter:
     reach = 2.0 * options.spacing * float(radius.max())
     cell = max(reach, math.sqrt(width * depth / n), 1e-9 * max(width, depth))
     order = np.argsort(-radius, kind="stable")
-    position, placed = _place(order, radius, float(options.spacing), width, depth, options.seed, ATTEMPTS, cell)
+    position, used, placed = _place(
+        order,
+        radius,
+        float(options.spacing),
+        width,
+        depth,
+        options.seed,
+        ATTEMPTS,
+        cell,
+        float(options.crown_overlap),
+        OVERLAP_STEPS,
+        STEP_ATTEMPTS,
+    )
     if placed < n:
         lo, hi = float(radius.min()), float(radius.max())
         raise ForestError(
             f"forest: only {placed:,} of {n:,} instances fit on {width:g} x {depth:g} m with crown radii "
-            f"{lo:.3g}-{hi:.3g} m and spacing {options.spacing:g}; lower the count, enlarge the area, or lower "
-            "the spacing"
+            f"{lo:.3g}-{hi:.3g} m, spacing {options.spacing:g} and crowns overlapping by up to "
+            f"{options.crown_overlap:.0%}; lower the count, enlarge the area, lower the spacing or allow more "
+            "overlap (crown_overlap, --crown-overlap)"
         )
     position -= (width / 2, depth / 2)
+    if used.max() > 0:
+        log.info(
+            "forest: %d of %d instances with overlapping crowns (by up to %.0f%%)",
+            int((used > 0).sum()),
+            n,
+            100 * used.max(),
+        )
     return Scatter(variant=variant, position=position, yaw=yaw, scale=scale)
 
 
@@ -311,7 +367,5 @@ def forest(library: str | os.PathLike, output: str | os.PathLike, options: Fores
         if missing is not None:
             raise ForestError(f"{lib.path}: asset {missing[0]}'s file {str(missing[1])!r} is missing")
         path = write_forest_usd(output, prototypes, placed, provenance, lib.options, options)
-    import logging
-
-    logging.getLogger("lsys3d").info("forest %d instances in %.3f s", len(placed.variant), time.perf_counter() - t0)
+    log.info("forest %d instances in %.3f s", len(placed.variant), time.perf_counter() - t0)
     return path

@@ -46,7 +46,7 @@ from ..lsystem.dialects import GRAMMAR_SUFFIXES
 from ..lsystem.grammar import Grammar, read_text
 from ..lsystem.presets import list_presets, load_preset, preset_text
 from ..options import flat_fields
-from ..pipeline import GenerateOptions
+from ..pipeline import TURTLE_FLAT_NAMES, GenerateOptions
 from ..turtle import TurtleOptions
 
 __all__ = [
@@ -253,7 +253,7 @@ def options_from_names(names: dict) -> tuple[int | None, GenerateOptions, Export
     flag's name is the flat name of an options field (:mod:`lsys3d.options`),
     so every range, check and default is the field's own; ``no-X = true`` is
     ``X = false``.  ``instance-leaves`` / ``merge-leaves`` choose the leaves'
-    form; ``turtle`` takes a table of ``[turtle]`` settings.
+    form; ``turtle`` takes a table of ``[turtle]`` settings, which may also be given alone (``angle_jitter = 8``).
 
     Raises
     ------
@@ -266,7 +266,7 @@ def options_from_names(names: dict) -> tuple[int | None, GenerateOptions, Export
     >>> n, options.sweep.sides, options.union.enabled, export.up_axis
     (3, 6, False, 'Z')
     """
-    generate_names = set(flat_fields(GenerateOptions)) | {"turtle"}
+    generate_names = set(flat_fields(GenerateOptions)) | {"turtle"} | TURTLE_FLAT_NAMES
     export_names = set(flat_fields(ExportOptions)) - NOT_JOB_OPTIONS - {"instance_leaves"}
     known = sorted(
         {n.replace("_", "-") for n in generate_names | export_names}

@@ -13,7 +13,10 @@ it writes the job's files itself and sends back only the line.
   that does not stop within :data:`STOP_SECONDS` is killed.
 * :func:`run_dask` submits every job to a Dask scheduler; the scheduler
   retries a job whose worker died (``distributed.scheduler.allowed-failures``,
-  3 by default).  When the workers declare a ``memory`` resource
+  3 by default).  Each start of a job's task adds a byte to a file of its
+  own in ``OUTDIR/.lsys3d-starts/`` (the workers share ``OUTDIR``): its size
+  is the line's ``attempts``, as the local runner counts them, and a warning
+  names each job whose worker was lost running it.  When the workers declare a ``memory`` resource
   (``dask worker --resources memory=16e9``), each job asks for its predicted
   bytes of it, so a worker runs no more jobs at once than fit.
 """
@@ -295,6 +298,27 @@ def _shut_down(pool: list[_Worker]) -> None:
 # ---------------------------------------------------------------- Dask
 
 
+STARTS = ".lsys3d-starts"
+"""The folder of ``OUTDIR`` where a Dask batch's tasks count their starts (one file per task, a byte a start)."""
+
+
+def _started(job: Job, outdir: str, marker: Path) -> dict:
+    """A Dask task: note this start of ``job`` (a byte appended to ``marker``), then run it."""
+    with open(marker, "ab") as f:
+        f.write(b"s")
+    return run_job(job, outdir)
+
+
+def _starts(marker: Path) -> int:
+    """How many times a task was started (at least 1), read from its marker file, which goes."""
+    try:
+        found = marker.stat().st_size
+        marker.unlink()
+    except OSError:  # a worker that cannot write there: the job's line is right but for attempts
+        return 1
+    return max(found, 1)
+
+
 def _connect(Client, address: str):
     """A Dask client of the scheduler at ``address``, or a BatchError that lets the process exit.
 
@@ -325,7 +349,9 @@ def run_dask(
     files on the worker (``outdir`` must be the same path there) and returns
     the line.  The workers need lsys3d installed.  A job whose worker died
     is retried by the scheduler; after its allowed failures the job fails
-    with the scheduler's message.  When workers declare a ``memory``
+    with the scheduler's message.  The line's ``run.attempts`` is how many
+    times the job was started (1, plus one per worker lost while running
+    it), and a lost worker is logged as one warning naming the job.  When workers declare a ``memory``
     resource, each job carries its predicted bytes as a resource annotation
     (at most the largest worker's, so that every job can run somewhere).
     """
@@ -352,23 +378,36 @@ def run_dask(
             log.info("the Dask workers declare no 'memory' resource: jobs run without a memory budget")
         token = uuid.uuid4().hex[:8]
         outdir = str(Path(outdir).resolve())
+        starts = Path(outdir) / STARTS
+        starts.mkdir(exist_ok=True)
         for job in jobs:
             extra = {}
             if largest:
                 extra["resources"] = {"memory": min(size_of(job).bytes, largest)}
-            future = client.submit(run_job, job, outdir, key=f"lsys3d-{job.id}-{token}", pure=False, **extra)
+            key = f"lsys3d-{job.id}-{token}"
+            future = client.submit(_started, job, outdir, starts / key, key=key, pure=False, **extra)
             futures[future] = job
         for future in as_completed(list(futures), loop=client.loop):
             job = futures.pop(future)
+            lost = _starts(starts / str(future.key)) - 1
             try:
                 line = future.result()
             except KilledWorker as exc:
                 line = lost_line(job, f"its workers died running it ({exc})")
             except Exception as exc:  # the task could not run: name why, go on with the others
                 line = lost_line(job, f"Dask could not run it: {type(exc).__name__}: {exc}")
+            if lost:
+                log.warning(
+                    "%s: its Dask worker died running it%s; the scheduler started it again",
+                    job.id,
+                    "" if lost == 1 else f" ({lost} times)",
+                )
+            line.setdefault("run", {})["attempts"] = 1 + lost
             yield job, line
     finally:
         if futures:
             with contextlib.suppress(Exception):
                 client.cancel(list(futures), force=True)
         client.close()
+        with contextlib.suppress(OSError):
+            (Path(outdir) / STARTS).rmdir()  # empty unless a job is still running somewhere

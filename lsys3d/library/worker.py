@@ -125,7 +125,7 @@ def run_job(job: Job, outdir: str | os.PathLike) -> dict:
         options = job.options
         if not options.union.workers:  # the batch runs a tree per core: each union in its own process
             options = options.with_flat(workers=1)
-        tree = pipeline.generate(job.grammar(), job.iterations, job.seed, options=options)
+        tree = pipeline.grow(job.grammar(), job.iterations, job.seed, options)
         counts = report(tree.modules, tree.skeleton, tree)
         files = []
         try:

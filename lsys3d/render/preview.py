@@ -1,11 +1,17 @@
 """Pictures: render a shaded preview of a :class:`~lsys3d.tree.Tree` to a PNG with Blender.
 
-The renderer is Blender (Cycles on the CPU, so no display and no GPU are
-needed), run in a child process: lsys3d writes the tree to a temporary
-``.glb`` with :func:`lsys3d.exchange.export`, and Blender's Python runs
-:mod:`lsys3d.render.preview_blender` on it.  That script imports only ``bpy`` and the
-standard library, so any Blender works: a ``blender`` executable, or a Python
-that can ``import bpy`` (the ``bpy`` wheel, which needs Python 3.11).
+The renderer is Blender, run in a child process: lsys3d writes the tree to a
+temporary ``.glb`` with :func:`lsys3d.exchange.export`, and Blender's Python
+runs :mod:`lsys3d.render.preview_blender` on it.  That script imports only
+``bpy`` and the standard library, so any Blender works: a ``blender``
+executable, or a Python that can ``import bpy`` (the ``bpy`` wheel, which needs
+Python 3.11).  ``quality="draft"`` (the default) renders with Blender's
+Workbench engine (rasterised, studio light, the textures' colours: about a
+second for 800x800, through a software OpenGL when there is no GPU);
+``quality="final"`` with Cycles on the CPU (path traced, sun and sky,
+denoised: tens of seconds).  :class:`PreviewSession` starts Blender before the
+tree is ready, so that Blender loads while lsys3d grows the plant (the CLI
+does this).
 
 Which Blender, in this order:
 
@@ -47,8 +53,10 @@ __all__ = [
     "ENV_BLENDER",
     "INSTALL_HINT",
     "MATERIALS",
+    "QUALITIES",
     "VIEWS",
     "PreviewOptions",
+    "PreviewSession",
     "base_focus",
     "blender_command",
     "check_preview",
@@ -68,6 +76,9 @@ MATERIALS = ("asset", "checker")
 """``asset``: the tree's own materials; ``checker``: glossy bark with a UV checker on it (8 x 8 squares per
 texture tile), to look at the mesh the way a technical director does: creases, stretch and seams show."""
 
+QUALITIES = ("draft", "final")
+"""``draft``: Blender's Workbench engine, fast; ``final``: Cycles path tracing with ``samples`` per pixel."""
+
 ENV_BLENDER = "LSYS3D_BLENDER"
 INSTALL_HINT = (
     "install Blender and put `blender` on PATH, or make a Blender Python: "
@@ -84,14 +95,21 @@ class PreviewOptions(Options):
     """How :func:`preview` renders a tree; every default, range and help is in its field.
 
     The camera of ``view`` (see :data:`VIEWS`) is fitted to the tree's
-    vertices; Cycles renders ``samples`` per pixel and the denoiser cleans up
-    the rest.  ``blender`` None searches (see the module's documentation).
+    vertices; ``quality`` picks the engine: ``draft`` Blender's Workbench,
+    ``final`` Cycles, which renders ``samples`` per pixel and the denoiser
+    cleans up the rest.  ``blender`` None searches (see the module's
+    documentation).
     """
 
     size: tuple[int, int] = option((800, 800), low=1, high=16384, metavar="WxH", help="image size in pixels")
     view: str = option("front", choices=VIEWS, help="where the camera stands")
     material: str = option("asset", choices=MATERIALS, help="the tree's materials, or glossy bark with a UV checker")
-    samples: int = option(16, low=1, high=65536, help="Cycles samples per pixel (denoised)")
+    quality: str = option(
+        "draft",
+        choices=QUALITIES,
+        help="draft: Blender's Workbench, a few seconds; final: Cycles path tracing with --samples, sun and sky",
+    )
+    samples: int = option(16, low=1, high=65536, help="Cycles samples per pixel with --quality final (denoised)")
     denoise: bool = option(True, help="run Blender's OpenImageDenoise on the render", cli=False)
     background: tuple[float, float, float] = option(
         (0.96, 0.96, 0.95), low=0, high=1, help="sRGB colour of the background", cli=False
@@ -297,8 +315,10 @@ def preview(
 
     The tree goes to Blender as a temporary ``.glb`` (so bark and leaves keep
     their exported materials), stands upright on the ground, and is framed
-    by a camera fitted to it for ``options.view``, lit by a sun and a sky
-    over a light background.
+    by a camera fitted to it for ``options.view``, over a light background:
+    drawn by Blender's Workbench with a studio light (``quality="draft"``, the
+    default), or lit by a sun and a sky and path traced by Cycles
+    (``quality="final"``).
 
     Parameters
     ----------
@@ -335,16 +355,73 @@ def preview(
     PosixPath('tree.png')
     """
     options = PreviewOptions() if options is None else options
-    path, blender = check_preview(path, options)
+    check_preview(path, options)
+    _check_tree(Path(path), tree, at)
+    with PreviewSession(path, options) as session:
+        return session.render(tree, at)
+
+
+def _check_tree(path: Path, tree, at: float | None = None) -> None:
     if not isinstance(tree, Tree):
         raise PreviewError(f"{path}: expected a lsys3d Tree, got {type(tree).__name__}")
     if at is not None and tree.growth is None:
         raise PreviewError(f"{path}: at={at}: the tree has no growth animation (growth_animation=SECONDS)")
     if len(tree.bark.faces) == 0 and (tree.leaves.merged is None or len(tree.leaves.merged.faces) == 0):
         raise PreviewError(f"{path}: the tree has no bark and no leaves to draw")
-    width, height = options.size
-    t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="lsys3d-preview-") as folder:
+
+
+class PreviewSession:
+    """A Blender started before the tree is ready: it loads (``import bpy``, about 2 s) while lsys3d grows it.
+
+    ``with PreviewSession(path, options) as session: tree = ...; session.render(tree)`` is
+    :func:`preview` with the Blender start-up hidden behind the growth; the CLI's ``preview`` does
+    this.  The target and Blender are checked (:func:`check_preview`) when the session starts.
+    Blender waits for its one job on its standard input; a session closed without a render stops it.
+    """
+
+    def __init__(self, path: str | os.PathLike, options: PreviewOptions | None = None):
+        self.options = PreviewOptions() if options is None else options
+        self.path, self.blender = check_preview(path, self.options)
+        self._folder = tempfile.TemporaryDirectory(prefix="lsys3d-preview-")
+        command = _command(self.blender, "-")
+        log.info("render: %s", " ".join(command))
+        try:
+            self._proc = subprocess.Popen(
+                command,
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                cwd=self._folder.name,
+            )
+        except OSError as exc:
+            self._folder.cleanup()
+            raise PreviewError(
+                f"{self.path}: cannot run {self.blender}: {exc.strerror or exc}; {INSTALL_HINT}"
+            ) from None
+
+    def __enter__(self) -> PreviewSession:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop Blender if it still waits (no render was asked for), and remove the temporary folder."""
+        proc = self._proc
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        self._folder.cleanup()
+
+    def render(self, tree: Tree, at: float | None = None) -> Path:
+        """Render ``tree`` to the session's PNG (once), ``at`` seconds into its growth; see :func:`preview`."""
+        path, options = self.path, self.options
+        _check_tree(path, tree, at)
+        if self._proc.stdin.closed:
+            raise PreviewError(f"{path}: this preview session has rendered already")
+        width, height = options.size
+        t0 = time.perf_counter()
+        folder = self._folder.name
         glb = export(tree, Path(folder) / "tree.glb")
         with atomic_path(path, options.no_clobber) as tmp:
             job = {
@@ -353,6 +430,7 @@ def preview(
                 "width": width,
                 "height": height,
                 "view": options.view,
+                "quality": options.quality,
                 "samples": options.samples,
                 "denoise": options.denoise,
                 "background": list(options.background),
@@ -367,15 +445,26 @@ def preview(
                 job["focus"] = junction_focus(tree)
             elif options.view == "base":
                 job["focus"] = base_focus(tree)
-            command = _command(blender, json.dumps(job))
-            log.info("render: %s", " ".join(command[:-1]))
+            proc = self._proc
             try:
-                proc = subprocess.run(command, capture_output=True, cwd=folder, timeout=options.timeout)
+                if proc.poll() is not None:  # Blender stopped before it was given the job: its output says why
+                    raise BrokenPipeError
+                stdout, stderr = proc.communicate((json.dumps(job) + "\n").encode(), timeout=options.timeout)
             except subprocess.TimeoutExpired:
-                raise PreviewError(f"{path}: Blender ({blender}) took more than {options.timeout:g} s") from None
-            except OSError as exc:
-                raise PreviewError(f"{path}: cannot run {blender}: {exc.strerror or exc}; {INSTALL_HINT}") from None
-            if proc.returncode != 0 or not tmp.exists() or tmp.stat().st_size == 0:
-                raise _failure(path, blender, proc)
-    log.info("render: %dx%d %s view in %.1f s", width, height, options.view, time.perf_counter() - t0)
-    return path
+                proc.kill()
+                proc.communicate()
+                raise PreviewError(f"{path}: Blender ({self.blender}) took more than {options.timeout:g} s") from None
+            except BrokenPipeError:  # Blender stopped before it read the job: its error output says why
+                stdout, stderr = proc.communicate()
+            done = subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
+            if done.returncode != 0 or not tmp.exists() or tmp.stat().st_size == 0:
+                raise _failure(path, self.blender, done)
+        log.info(
+            "render: %dx%d %s view, %s, in %.1f s",
+            width,
+            height,
+            options.view,
+            options.quality,
+            time.perf_counter() - t0,
+        )
+        return path

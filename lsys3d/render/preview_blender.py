@@ -7,9 +7,12 @@ which Blender's Python need not have).
 
     blender --background --factory-startup --python-exit-code 1 --python preview_blender.py -- JSON
 
-or, with the ``bpy`` module, as ``python preview_blender.py -- JSON``.  ``JSON``
-is one object: ``glb`` (the scene), ``png`` (the image to write), ``width``,
-``height``, ``view`` (``front``, ``side`` or ``iso``), ``samples``, ``denoise``,
+or, with the ``bpy`` module, as ``python preview_blender.py -- JSON``.  ``JSON`` ``-``
+reads the job as one line of standard input once ``bpy`` is loaded (so that
+Blender starts while lsys3d still grows the tree; end of input without a job:
+nothing to do).  The job is one object: ``glb`` (the scene), ``png`` (the image to write), ``width``,
+``height``, ``view`` (``front``, ``side`` or ``iso``), ``quality`` (``draft``: the
+Workbench engine; ``final``: Cycles), ``samples``, ``denoise``,
 ``background`` (sRGB, 3 floats in [0, 1]), ``margin`` (fraction of the frame
 left around the object), ``threads`` (0: all cores), ``material`` (``asset``,
 or ``checker``: the material named ``bark_material`` becomes glossy with a UV
@@ -21,8 +24,11 @@ pictured with the camera fitted to the grown tree, the animation's last frame).
 
 The scene: the glTF import (Blender turns glTF's Y up into its Z up, so the
 tree stands on the XY plane), a perspective camera fitted to every mesh vertex
-for the chosen view, and a sun and a sky that light the object.  Cycles
-renders on the CPU (it needs no display and no GPU) with a transparent film,
+for the chosen view.  ``draft``: the Workbench engine rasterises it with a
+studio light and the colours of the materials' textures (through EGL and a
+software OpenGL when there is no GPU), antialiased by FXAA.  ``final``: a sun
+and a sky light the object and Cycles
+renders on the CPU (it needs no display and no GPU); either with a transparent film,
 into a scratch RGBA file beside the ``.glb``; the image is then laid over the
 flat ``background`` colour and written as 8-bit RGB.  Colour management is
 Blender's "Standard" view, so colours come out as the materials give them.
@@ -223,10 +229,53 @@ def _growth_action(bpy, scene):
     return actions[0].frame_range[1]
 
 
-def render(job):
+def _workbench(bpy, scene):
+    """The draft look: Workbench, studio light, the textures' colours (a material without one: its own colour)."""
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.display.render_aa = "FXAA"  # one sample, smoothed: the multi-sample modes take 2-4 times as long
+    shading = scene.display.shading
+    shading.light = "STUDIO"
+    shading.color_type = "TEXTURE"
+    shading.show_backface_culling = False
+    for material in bpy.data.materials:  # Workbench shows an untextured material in its viewport colour
+        tree = material.node_tree
+        shader = tree and next((n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"), None)
+        if shader is not None:
+            material.diffuse_color = tuple(shader.inputs["Base Color"].default_value)
+
+
+def _cycles(bpy, scene, job):
+    """The final look: Cycles on the CPU, ``samples`` per pixel, denoised; a sun and a sky."""
+    scene.render.engine = "CYCLES"
+    cycles = scene.cycles
+    cycles.device = "CPU"
+    cycles.samples = job["samples"]
+    cycles.use_adaptive_sampling = True
+    cycles.max_bounces = 4
+    cycles.diffuse_bounces = 2
+    cycles.glossy_bounces = 1
+    cycles.transmission_bounces = 2
+    cycles.transparent_max_bounces = 4
+    cycles.seed = 0  # the same noise on every run
+    # OpenImageDenoise is in Blender's builds for x86-64 and arm64; without it, render the noise
+    cycles.use_denoising = bool(job["denoise"]) and getattr(bpy.app.build_options, "openimagedenoise", True)
+    if cycles.use_denoising:
+        cycles.denoiser = "OPENIMAGEDENOISE"
+    _world(bpy, scene)
+    _sun(bpy, scene)
+
+
+def _linear(srgb):
+    """An sRGB value in [0, 1] as the linear value Blender's colours hold."""
+    return srgb / 12.92 if srgb <= 0.04045 else ((srgb + 0.055) / 1.055) ** 2.4
+
+
+def render(job, fresh=False):
+    """Render the job; ``fresh``: Blender's factory settings are loaded already (a started session)."""
     import bpy
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if not fresh:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     bpy.ops.import_scene.gltf(filepath=job["glb"])
     if not any(o.type == "MESH" for o in scene.objects):
@@ -237,7 +286,6 @@ def render(job):
         scene.frame_set(round(_growth_action(bpy, scene)))  # the camera frames the grown tree
 
     render = scene.render
-    render.engine = "CYCLES"
     render.resolution_x, render.resolution_y = job["width"], job["height"]
     render.resolution_percentage = 100
     render.film_transparent = True
@@ -254,32 +302,31 @@ def render(job):
     scene.view_settings.view_transform = "Standard"
     scene.view_settings.look = "None"
 
-    cycles = scene.cycles
-    cycles.device = "CPU"
-    cycles.samples = job["samples"]
-    cycles.use_adaptive_sampling = True
-    cycles.max_bounces = 4
-    cycles.diffuse_bounces = 2
-    cycles.glossy_bounces = 1
-    cycles.transmission_bounces = 2
-    cycles.transparent_max_bounces = 4
-    cycles.seed = 0  # the same noise on every run
-    # OpenImageDenoise is in Blender's builds for x86-64 and arm64; without it, render the noise
-    cycles.use_denoising = bool(job["denoise"]) and getattr(bpy.app.build_options, "openimagedenoise", True)
-    if cycles.use_denoising:
-        cycles.denoiser = "OPENIMAGEDENOISE"
-
-    _world(bpy, scene)
-    _sun(bpy, scene)
     if job.get("material") == "checker":
         _checker(bpy, job.get("bark_material", "bark"))
     if job.get("focus"):
         _focus_camera(bpy, scene, job["focus"])
     else:
         _camera(bpy, scene, job["view"], job["margin"])
-
     if job.get("time") is not None:
         scene.frame_set(round(job["time"] * scene.render.fps / scene.render.fps_base))
+    if job.get("quality", "final") == "final" or job.get("material") == "checker":  # Workbench shows no checker
+        _cycles(bpy, scene, job)
+    else:
+        # Workbench draws the world's colour behind the tree, exactly and without noise: no second pass
+        _workbench(bpy, scene)
+        render.film_transparent = False
+        scene.world = bpy.data.worlds.new("preview")
+        scene.world.color = tuple(_linear(c) for c in job["background"])
+        render.image_settings.color_mode = "RGB"
+        render.image_settings.compression = 15  # a draft: written fast rather than small
+        for name in dir(render):  # no metadata (the date, the render time): the same picture, the same bytes
+            if name.startswith("use_stamp") and isinstance(getattr(render, name), bool):
+                setattr(render, name, False)
+        render.filepath = job["png"]
+        bpy.ops.render.render(write_still=True)
+        return
+
     rendered = os.path.join(os.path.dirname(job["glb"]), "rendered.png")  # lsys3d's temporary folder
     render.filepath = rendered
     bpy.ops.render.render(write_still=True)
@@ -289,8 +336,16 @@ def render(job):
 def main(argv):
     if "--" not in argv:
         raise SystemExit("usage: preview_blender.py -- JSON")
-    job = json.loads(argv[argv.index("--") + 1])
-    render(job)
+    text = argv[argv.index("--") + 1]
+    fresh = text == "-"
+    if fresh:  # the job comes once Blender is loaded: lsys3d grows the tree meanwhile
+        import bpy  # the slow part of the start
+
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        text = sys.stdin.readline()
+        if not text.strip():
+            return
+    render(json.loads(text), fresh)
 
 
 if __name__ == "__main__":
