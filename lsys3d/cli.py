@@ -355,6 +355,35 @@ def _forest_arguments(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=cmd_forest)
 
 
+def _edit_arguments(p: argparse.ArgumentParser) -> None:
+    from .lsystem.presets import DEFAULT_PRESET
+    from .pipeline import GenerateOptions
+
+    p.add_argument(
+        "grammar",
+        nargs="?",
+        default=DEFAULT_PRESET,
+        help=f"the grammar file to edit (.toml, .lpy, .l, .ls; made on the first save when missing), or a preset's "
+        f"name, opened read-only (default: {DEFAULT_PRESET})",
+    )
+    p.add_argument(
+        "--port", type=_at_least(0), default=8737, help="the port to listen on; 0: any free one (default 8737)"
+    )
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="the address to listen on (default 127.0.0.1, this machine only); any other needs a token, made "
+        "unless --token gives one",
+    )
+    p.add_argument("--token", default=None, help="the token every API call must carry (default: none on 127.0.0.1)")
+    p.add_argument("--no-browser", action="store_true", help="do not open the page in the default browser")
+    p.add_argument(
+        "--jobs", type=_at_least(1), default=2, metavar="N", help="worker processes growing trees at once (default 2)"
+    )
+    add_arguments(p, GenerateOptions, only={"max_modules", "max_segments", "max_triangles"})
+    p.set_defaults(func=cmd_edit)
+
+
 def _presets_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="a JSON list of {name, group, description}")
     p.set_defaults(func=cmd_presets)
@@ -371,6 +400,7 @@ _SUBCOMMANDS = {
         "scatter a library's assets over an area: USD PointInstancer or one .glb with instancing",
         _forest_arguments,
     ),
+    "edit": ("edit a grammar in the browser: the tree redrawn as you type, sliders, export and save", _edit_arguments),
     "presets": ("list the bundled presets: species, figures and curves", _presets_arguments),
 }
 """Each subcommand's help line and the function that adds its arguments, in the order ``--help`` lists them."""
@@ -698,6 +728,69 @@ def cmd_forest(args) -> int:
         _print(
             f"wrote {path}: {options.count:,} instances on {width:g} x {depth:g} m ({time.perf_counter() - t0:.1f} s)"
         )
+    return 0
+
+
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+
+def cmd_edit(args) -> int:
+    import secrets
+    import socket
+    import webbrowser
+
+    from .pipeline import GenerateOptions
+
+    try:
+        import uvicorn
+
+        from .edit.server import EditSettings, make_app
+    except ImportError as exc:
+        raise LSystemError(
+            f"lsys3d edit needs the 'edit' extra ({exc.name} is missing): pip install 'lsys3d[edit]'"
+        ) from None
+    local = args.host in LOOPBACK
+    token = args.token or (None if local else secrets.token_urlsafe(18))
+    limits = from_arguments(GenerateOptions, args).limits
+    hosts = ("127.0.0.1", "localhost", "[::1]") if local else None
+    settings = EditSettings(args.grammar, limits=limits, workers=args.jobs, token=token, hosts=hosts)
+    family = socket.AF_INET6 if ":" in args.host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((args.host, args.port))
+    except OSError as exc:
+        sock.close()
+        raise LSystemError(f"lsys3d edit: cannot listen on {args.host}:{args.port}: {exc.strerror or exc}") from None
+    port = sock.getsockname()[1]
+    shown_host = f"[{args.host}]" if ":" in args.host else args.host
+    url = f"http://{shown_host}:{port}/" + (f"?token={token}" if token else "")
+    terminal = sys.stderr.isatty() and not args.quiet
+
+    def announce(text: str) -> None:
+        if terminal:
+            sys.stderr.write(f"\rlsys3d: {text}\x1b[K" if text else "\r\x1b[K")
+            sys.stderr.flush()
+
+    # asyncio's child watcher warns when a worker it killed was reaped first; nothing the user can act on
+    logging.getLogger("asyncio").setLevel(logging.ERROR)
+    app = make_app(settings, announce=announce)
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
+
+    def open_page() -> None:  # once the server listens
+        while not server.started and not server.should_exit:
+            time.sleep(0.05)
+        if not server.started:
+            return
+        if not args.quiet:
+            announce("")
+            _print(f"lsys3d edit: {url} (Ctrl-C to stop)")
+            sys.stdout.flush()
+        if not args.no_browser:
+            webbrowser.open(url)
+
+    threading.Thread(target=open_page, daemon=True).start()
+    server.run(sockets=[sock])
     return 0
 
 

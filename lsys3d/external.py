@@ -19,13 +19,16 @@ which parse them as data: nothing a file holds is ever run.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import os
 import stat
+from collections.abc import Iterator
 from pathlib import Path
 
 from .errors import AssetError, clip, os_reason
 
-__all__ = ["grammar_folder", "read_file", "resolve"]
+__all__ = ["confined_to", "grammar_folder", "read_file", "resolve"]
 
 
 def grammar_folder(grammar) -> Path:
@@ -59,6 +62,36 @@ def resolve(folder: Path, name, what: str) -> Path:
     return path if path.is_absolute() else folder / path
 
 
+_CONFINED: contextvars.ContextVar[Path | None] = contextvars.ContextVar("lsys3d_confined_to", default=None)
+
+
+@contextlib.contextmanager
+def confined_to(folder: str | os.PathLike) -> Iterator[Path]:
+    """Within the block, :func:`read_file` reads only files inside ``folder`` (symlinks resolved).
+
+    The editor's server (``lsys3d edit``) grows grammars sent over HTTP: the files they name must stay in the
+    folder of the grammar being edited.  A context variable, so that other threads are not affected.
+    """
+    root = Path(folder).resolve()
+    token = _CONFINED.set(root)
+    try:
+        yield root
+    finally:
+        _CONFINED.reset(token)
+
+
+def _check_confined(path: Path, what: str, shown: str) -> None:
+    root = _CONFINED.get()
+    if root is None:
+        return
+    try:
+        inside = Path(path).resolve().is_relative_to(root)
+    except (OSError, RuntimeError):  # a symlink loop
+        inside = False
+    if not inside:
+        raise AssetError(f"{shown}: the {what} is outside the grammar's folder {clip(str(root), 100)}")
+
+
 def read_file(path: Path, limit: int, what: str, limit_name: str) -> bytes:
     """The bytes of the regular file ``path``, at most ``limit`` of them.
 
@@ -78,6 +111,7 @@ def read_file(path: Path, limit: int, what: str, limit_name: str) -> bytes:
         ``path: what`` -- no such file, not a regular file, too large, unreadable.
     """
     shown = clip(str(path), 100)
+    _check_confined(path, what, shown)
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
     try:
         fd = os.open(path, flags)  # non-blocking: opening a pipe with no writer must not hang

@@ -18,10 +18,14 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
+import numpy as np
+
 from .arrays import release_memory
 from .errors import GeometryError, OptionsError
 from .look import bark as bark_stage
+from .look import growth as growth_stage
 from .look.attributes import VERTEX_KEYS, AttributeOptions, with_attributes
+from .look.growth import GrowthOptions
 from .look.leaves import LeafOptions
 from .look.leaves import leaves as build_leaves
 from .look.lod import (
@@ -41,6 +45,7 @@ from .look.rig import SKIN_KEYS, RigOptions, bind, build_rig
 from .look.surfaces import surface_table, with_cards
 from .look.wind import WindOptions, sway
 from .lsystem import dialects
+from .lsystem.ages import derive_with_ages, growth_table, interpretation_ages
 from .lsystem.derive import DEFAULT_MAX_MODULES, derive, interpretation
 from .lsystem.grammar import Grammar
 from .lsystem.modules import ModuleString
@@ -57,6 +62,7 @@ from .turtle import DEFAULT_MAX_SEGMENTS, FormOptions, TurtleOptions, TurtleOver
 from .turtle.diagnostics import Checks, check
 from .turtle.hierarchy import hierarchy
 from .turtle.skeleton import Skeleton
+from .turtle.timing import timed
 
 __all__ = [
     "STAGES",
@@ -85,6 +91,7 @@ STAGES = (
     "organs",
     "rig",
     "wind",
+    "growth",
     "lod",
 )
 """The stages :func:`generate` reports to its ``progress`` callback, in order."""
@@ -139,7 +146,10 @@ class GenerateOptions(Options):
     rig : RigOptions
         Joints along the branches and the skin that binds bark and leaves to them (off by default).
     wind : WindOptions
-        A sample wind animation keyed on the rig's joints (off by default; needs the rig).
+        A sample wind animation keyed on the rig's joints (off by default; needs the rig, or the growth).
+    growth : GrowthOptions
+        The growth animation (the plant growing from its seed, keyed on the rig's joints; builds the rig it
+        needs when ``rig`` is off) and the birth attribute (off by default).
     checks : Checks
         Whether the grammar's warnings (:mod:`lsys3d.turtle.diagnostics`) are errors (``strict``).
     lod : LodOptions
@@ -162,6 +172,7 @@ class GenerateOptions(Options):
     organs: OrganOptions = option(factory=OrganOptions, help="organs")
     rig: RigOptions = option(factory=RigOptions, help="the rig")
     wind: WindOptions = option(factory=WindOptions, help="the wind animation")
+    growth: GrowthOptions = option(factory=GrowthOptions, help="the growth animation")
     checks: Checks = option(factory=Checks, help="the grammar's warnings")
     lod: LodOptions = option(factory=LodOptions, help="levels of detail")
 
@@ -169,10 +180,10 @@ class GenerateOptions(Options):
         if not isinstance(self.turtle, TurtleOverrides):
             object.__setattr__(self, "turtle", TurtleOverrides(self.turtle))
         super().__post_init__()
-        if self.wind.enabled and not self.rig.enabled:
+        if self.wind.enabled and not self.rig.enabled and not self.growth.enabled:
             raise OptionsError(
                 "WindOptions.seconds (--wind-animation): the wind animation moves the rig's joints: "
-                "it needs the rig (--rig)"
+                "it needs the rig (--rig, or the one --growth-animation builds)"
             )
 
     def plain(self) -> dict:
@@ -180,7 +191,17 @@ class GenerateOptions(Options):
         data = super().plain()
         if self.form == FormOptions():
             del data["form"]
+        if self.growth == GrowthOptions():
+            del data["growth"]
         return data
+
+    @property
+    def rigging(self) -> RigOptions:
+        """The rig the tree gets: ``rig``, or the growth's when only the growth animation asks for one (joints on
+        branches of every depth, a quarter of the budget kept for the leaves' joints)."""
+        if self.rig.enabled or not self.growth.enabled:
+            return self.rig
+        return replace(self.rig, enabled=True, max_joints=max(2, self.rig.max_joints * 3 // 4), max_depth=1_000_000)
 
 
 _JITTERS = ("angle_jitter", "length_jitter", "width_jitter", "branch_roll", "branch_drop")
@@ -279,13 +300,35 @@ def draw(
     """
     options = options or GenerateOptions()
     limits = options.limits
-    modules = run_stage("derive", derive, grammar, iterations, seed, max_modules=limits.max_modules, progress=progress)
+    timing = growth_table(grammar) if options.growth.timed else None  # the plant's development: ages
+    ages = None
+    if timing is None:
+        modules = run_stage(
+            "derive", derive, grammar, iterations, seed, max_modules=limits.max_modules, progress=progress
+        )
+    else:
+        modules, ages = run_stage(
+            "derive",
+            derive_with_ages,
+            grammar,
+            iterations,
+            seed,
+            table=timing,
+            max_modules=limits.max_modules,
+            progress=progress,
+        )
     turtle = TurtleOptions.from_grammar(grammar, options.turtle)
     shape = FormOptions.from_grammar(grammar, options.form)
     commands = dialects.get(grammar.dialect).commands
 
     def turtle_stage():
-        shown = interpretation(grammar, modules, seed, max_modules=limits.max_modules, iterations=iterations)
+        nonlocal ages
+        if timing is None:
+            shown = interpretation(grammar, modules, seed, max_modules=limits.max_modules, iterations=iterations)
+        else:
+            shown, ages = interpretation_ages(
+                grammar, modules, ages, seed, table=timing, max_modules=limits.max_modules, iterations=iterations
+            )
         skeleton = interpret(shown, turtle, seed=seed, max_segments=limits.max_segments, commands=commands)
         return shown, skeleton
 
@@ -294,6 +337,8 @@ def draw(
     check(grammar, shown, skeleton, table, options.checks)
     if shape.active:
         skeleton = run_stage("form", form, skeleton, shape, seed, max_segments=limits.max_segments, progress=progress)
+    if timing is not None:
+        skeleton = timed(skeleton, shown, ages, timing)
     return modules, skeleton
 
 
@@ -357,12 +402,25 @@ def generate(
             "iterations draw no segment and no leaf (segments are drawn by F, or the [turtle] table's draw symbols)"
         )
     wanted = options.attributes.keys
-    # the rig binds by branch and t, so it needs those two whatever the attributes' layout
-    keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if options.rig.enabled else ())))
+    rigging = options.rigging
+    # the rig and the birth attribute find a vertex's place by branch and t: they need those two
+    needs_place = rigging.enabled or options.growth.birth
+    keys = tuple(dict.fromkeys(wanted + (VERTEX_KEYS if needs_place else ())))
     branches = hierarchy(skeleton, seed) if keys or table else None
-    rig = build_rig(branches, skeleton, options.rig) if options.rig.enabled else None
+    rig = build_rig(branches, skeleton, rigging) if rigging.enabled else None
     leaf_model = surfaces.leaf.mesh if surfaces.leaf is not None else None
-    look = _Look(table, leaf_model, branches, keys, wanted, rig, surfaces)
+    timing = growth_table(grammar) if options.growth.timed else None
+    look = _Look(
+        table,
+        leaf_model,
+        branches,
+        keys,
+        wanted,
+        rig,
+        surfaces,
+        timing if options.growth.birth else None,
+        leaf_joints=(timing, options.rig.max_joints) if options.growth.enabled else None,
+    )
     counts = None
 
     def tubes_made(tubes: Tubes) -> None:
@@ -388,6 +446,12 @@ def generate(
 
     first = _level(skeleton, 0, grown, seed, look, stage, tubes_made, union_progress)
     bark, leaves, organs = first.bark, first.leaves, first.organs
+    development = None
+    if options.growth.enabled:
+        rig, look = first.rig, replace(look, rig=first.rig, joint_map=first.joint_map)
+        development = stage(
+            "growth", growth_stage.grow, rig, branches, skeleton, options.growth, timing.function, first.windows
+        )
     animation = None
     if rig is not None and options.wind.enabled:
         animation = stage("wind", sway, rig, branches, options.wind)
@@ -409,6 +473,7 @@ def generate(
         organs=organs,
         materials=table,
         animation=animation,
+        growth=development,
         lods=lods,
     )
 
@@ -473,6 +538,9 @@ class _Look:
     wanted: tuple  # the attributes the user asked for
     rig: object  # Rig or None
     surfaces: object  # the grammar's SurfaceTable (organs' models)
+    birth: object = None  # the GrowthTable when the vertices carry their birth (lsys3d.look.growth.with_birth)
+    joint_map: object = None  # the leaf joints of the growth (lsys3d.look.growth.leaf_joints), or None
+    leaf_joints: object = None  # (GrowthTable, joint budget): level 0 makes the leaf joints of the growth
 
 
 @dataclass(frozen=True)
@@ -482,6 +550,9 @@ class _Grown:
     bark: Mesh
     leaves: object  # Leaves
     organs: object  # Organs, or None at a level of detail above 0
+    rig: object = None  # level 0 with the growth: the rig with the leaves' joints
+    joint_map: object = None  # and the leaf joint of each joint (lsys3d.look.growth.leaf_joints)
+    windows: object = None  # and the leaf joints' growth windows
 
 
 def bulge(options: GenerateOptions) -> float:
@@ -569,13 +640,51 @@ def _level(
             seed,
         )
         organs = None
+    kept = look.wanted
+    if look.birth is not None:  # the birth attribute (leaves and organs unfold after their twig)
+        delay = look.birth.leaf_delay
+        bark = growth_stage.with_birth(bark, skeleton, branches, 0.0)
+        leaves = _leaves_birth(leaves, skeleton, branches, delay)
+        if organs is not None:
+            organs = replace(
+                organs, merged=tuple(growth_stage.with_birth(m, skeleton, branches, delay) for m in organs.merged)
+            )
+        kept = (*kept, growth_stage.BIRTH)
     if look.rig is not None:
         bark, leaves = stage("rig", bind, bark, leaves, look.rig, branches)
         if organs is not None:
             organs = bind_organs(organs, look.rig, branches)
-        if keys != look.wanted:  # the rig's own use of them: not the user's attributes
-            bark, leaves, organs = _keep(bark, leaves, organs, look.wanted + SKIN_KEYS)
+        joint_map = look.joint_map
+        if level == 0 and look.leaf_joints is not None:
+            timing, budget = look.leaf_joints
+            meshes = [leaves.merged, *(organs.merged if organs is not None else ())]
+            rig, joint_map, windows = growth_stage.leaf_joints(
+                look.rig, branches, skeleton, meshes, timing.leaf_delay, timing.leaf_duration, budget
+            )
+        if joint_map is not None:
+            leaves = replace(leaves, merged=growth_stage.rebind(leaves.merged, joint_map))
+            if organs is not None:
+                organs = replace(organs, merged=tuple(growth_stage.rebind(m, joint_map) for m in organs.merged))
+        kept = (*kept, *SKIN_KEYS)
+    if keys != look.wanted:  # the rig's and the birth's own use of them: not the user's attributes
+        bark, leaves, organs = _keep(bark, leaves, organs, kept)
+    if level == 0 and look.leaf_joints is not None:
+        return _Grown(bark, leaves, organs, rig, joint_map, windows)
     return _Grown(bark, leaves, organs)
+
+
+def _leaves_birth(leaves, skeleton: Skeleton, branches, delay: float):
+    """``leaves`` with the birth attribute on their merged meshes and on their instances."""
+    merged = growth_stage.with_birth(leaves.merged, skeleton, branches, delay)
+    polygons = growth_stage.with_birth(leaves.polygons, skeleton, branches, delay)
+    instance = dict(leaves.instance_attributes)
+    if (
+        "branch_id" in instance
+        and skeleton.leaf_birth is not None
+        and len(skeleton.leaf_birth) == len(instance["branch_id"])
+    ):
+        instance[growth_stage.BIRTH] = (skeleton.leaf_birth / growth_stage.plant_span(skeleton)).astype(np.float32)
+    return replace(leaves, merged=merged, polygons=polygons, instance_attributes=instance)
 
 
 def _levels(skeleton: Skeleton, options: GenerateOptions, seed: int, first: Lod, look: _Look) -> tuple[Lod, ...]:

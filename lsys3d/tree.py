@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 
+from .look.growth import Growth
 from .look.leaves import Leaves
 from .look.materials import BARK, LEAF, Material, MaterialTable
 from .look.organs import Organs
@@ -80,6 +81,8 @@ class Tree:
         prototypes and instances, and each prototype's organs merged.
     animation : Animation or None
         The sample wind animation of the rig's joints (:mod:`lsys3d.look.wind`), when asked for.
+    growth : Growth or None
+        The growth animation of the rig's joints (:mod:`lsys3d.look.growth`), when asked for.
     lods : tuple of lsys3d.look.lod.Lod
         Its levels of detail when asked for (``lod=(0, 1, 2, 3)``), level 0
         being ``bark`` and ``leaves`` themselves; empty otherwise.
@@ -97,6 +100,7 @@ class Tree:
     rig: Rig | None = None
     organs: Organs = field(default_factory=Organs)
     animation: Animation | None = None
+    growth: Growth | None = None
     lods: tuple = ()
 
     @property
@@ -131,7 +135,24 @@ class Tree:
             out["lods"] = [{"level": lod.level, "triangles": lod.triangles} for lod in self.lods]
         return out
 
+    def _repr_html_(self) -> str:
+        """The editor's 3D viewer showing the tree, for Jupyter: offline, three.js and the .glb inlined
+        (:func:`lsys3d.edit.notebook.viewer_html`)."""
+        return _notebook().viewer_html(self)
+
+    def show(self, height: int = 480):
+        """Show the tree in the editor's 3D viewer: inline in a notebook, else in the default browser
+        (:func:`lsys3d.edit.notebook.show`; returns the HTML file written then, or None)."""
+        return _notebook().show(self, height)
+
     def at_level(self, index: int) -> Tree:
         """The tree with the bark and leaves of ``lods[index]`` and no levels: what a writer writes per level."""
         lod = self.lods[index]
         return replace(self, bark=lod.bark, leaves=lod.leaves, lods=())
+
+
+def _notebook():
+    """:mod:`lsys3d.edit.notebook`, loaded when a tree is shown: the viewer comes after the writers."""
+    from .edit import notebook
+
+    return notebook

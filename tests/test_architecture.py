@@ -30,6 +30,7 @@ STAGES = (
     "lsys3d.render",
     "lsys3d.golden",
     "lsys3d.library",
+    "lsys3d.edit",  # the editor: a server over the whole pipeline and its writers
     {"lsys3d", "lsys3d.cli", "lsys3d.__main__", "lsys3d.testing"},  # the entry points (testing: the pytest plugin)
 )
 
@@ -279,7 +280,7 @@ def test_no_module_is_too_long():
     assert TOO_LONG - set(long) == set(), "split already: remove it from TOO_LONG"
 
 
-HEAVY = ("numpy", "numba", "pxr", "dask", "distributed", "trimesh", "manifold3d")
+HEAVY = ("numpy", "numba", "pxr", "dask", "distributed", "trimesh", "manifold3d", "starlette", "uvicorn")
 
 
 @pytest.mark.parametrize(

@@ -22,7 +22,9 @@ SMOKE = {
     "bench_botany.py": ["--quick", "--presets", "grass", "foxglove", "--check"],
     "bench_batch.py": ["--seeds", "1", "--skip-dask"],  # the Dask cluster itself: test_batch.py
     "bench_derive.py": ["--quick"],
+    "bench_edit.py": ["--preset", "koch", "--edits", "1"],
     "bench_export.py": ["--quick"],
+    "bench_growth.py": ["--preset", "abop-1.24a", "--repeat", "1", "--seconds", "1"],
     "bench_memory.py": ["--cases", "tree3d:3", "tree3d:3:no-union"],
     "bench_mesh.py": ["--sizes", "200", "--repeat", "1", "--naive-cap", "200"],
     "bench_quality.py": ["--presets", "koch", "--repeat", "1"],

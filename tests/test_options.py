@@ -15,6 +15,7 @@ from lsys3d.exchange import ExportOptions
 from lsys3d.library.forest import ForestOptions
 from lsys3d.look.attributes import AttributeOptions
 from lsys3d.look.bark import BarkColorOptions
+from lsys3d.look.growth import GrowthOptions
 from lsys3d.look.leaves import LeafOptions
 from lsys3d.look.lod import LodOptions
 from lsys3d.look.organs import OrganOptions
@@ -45,6 +46,7 @@ CLASSES = [
     PreviewOptions,
     ForestOptions,
     WindOptions,
+    GrowthOptions,
 ]
 
 
@@ -74,6 +76,7 @@ def test_generate_options_nest_one_class_per_stage():
         "organs",
         "rig",
         "wind",
+        "growth",
         "checks",
         "lod",
     ]
@@ -149,6 +152,7 @@ def test_cli_flags_come_from_the_fields():
         RigOptions,
         OrganOptions,
         WindOptions,
+        GrowthOptions,
         Checks,
         LodOptions,
     ):

@@ -24,6 +24,13 @@ def test_wheel_ships_the_presets(tmp_path):
     # every module of the source tree is in the wheel (an import test alone can be fooled by the editable install)
     source = {f"lsys3d/{p.relative_to(ROOT / 'lsys3d').as_posix()}" for p in (ROOT / "lsys3d").rglob("*.py")}
     assert source <= shipped, sorted(source - shipped)
+    # the editor's page and three.js with its licence (package data: lsys3d edit and the notebook viewer need them)
+    static = {
+        f"lsys3d/{p.relative_to(ROOT / 'lsys3d').as_posix()}" for p in (ROOT / "lsys3d" / "edit" / "static").rglob("*")
+    }
+    static = {name for name in static if not (ROOT / name).is_dir()}
+    assert "lsys3d/edit/static/vendor/three/LICENSE" in static
+    assert static <= shipped, sorted(static - shipped)
     target = tmp_path / "site"
     subprocess.run(
         [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],

@@ -44,7 +44,9 @@ import numpy as np
 from ..errors import ExportError
 from ..images import Image
 from ..look.attributes import branch_table, gltf_attributes
+from ..look.growth import BIRTH
 from ..look.materials import Material
+from ..lsystem.ages import FUNCTION_NAMES
 from ..tree import Tree
 from ..version import __version__
 from .atomic import atomic_path, check_target, write_bytes, write_chunks
@@ -130,6 +132,25 @@ class _Buffer:
         self.accessors.append(acc)
         return len(self.accessors) - 1
 
+    def packed(self, arrays: list[np.ndarray], bounds: bool = False) -> list[int]:
+        """Accessors of float32 ``arrays`` of one width, all in one buffer view (animation keys: few rows each)."""
+        if not arrays:
+            return []
+        view = self._view(np.concatenate([a.reshape(-1) for a in arrays]), None)
+        out, offset = [], 0
+        for a in arrays:
+            width = 1 if a.ndim == 1 else a.shape[1]
+            acc = {"bufferView": view, "componentType": FLOAT, "count": int(a.shape[0]), "type": _TYPES[width]}
+            if offset:
+                acc["byteOffset"] = offset
+            if bounds:
+                low, high = _bounds(a.reshape(len(a), width))
+                acc["min"], acc["max"] = low.tolist(), high.tolist()
+            self.accessors.append(acc)
+            out.append(len(self.accessors) - 1)
+            offset += a.nbytes
+        return out
+
     def padded_chunks(self) -> list[memoryview]:
         pad = -self.size % 4
         return self.chunks + ([memoryview(b"\0" * pad)] if pad else [])
@@ -210,6 +231,8 @@ def _vertex_attributes(buf: _Buffer, arrays: MeshArrays, joints: int | None = No
         attributes["COLOR_0"] = buf.accessor(arrays.split_colors)
     for name, values in gltf_attributes(arrays.split_attributes).items():  # hierarchy and wind
         attributes[name] = buf.accessor(values)
+    if BIRTH in arrays.split_attributes:  # the birth (lsys3d.look.growth), for shader-driven growth
+        attributes["_BIRTH"] = buf.accessor(np.ascontiguousarray(arrays.split_attributes[BIRTH], np.float32))
     if joints is not None and "skin_joints" in arrays.split_attributes:
         weights = quantized_weights(arrays.split_attributes["skin_weights"])
         # a weight that rounds to 0 names joint 0, as glTF asks (ACCESSOR_JOINTS_USED_ZERO_WEIGHT otherwise)
@@ -377,6 +400,9 @@ class _Gather:
             }
             for name, values in extra.items():
                 attributes[name] = buf.accessor(np.ascontiguousarray(values[sel]), target=None)
+            if BIRTH in instance_attributes:
+                birth = np.asarray(instance_attributes[BIRTH], np.float32)[sel]
+                attributes["_BIRTH"] = buf.accessor(np.ascontiguousarray(birth), target=None)
             primitives = self.gather_primitives(model, [(self.gather_material(m), None)])
             self.gather_mesh_node(
                 base if n == 0 else f"{base}_{i}", primitives, {INSTANCING: {"attributes": attributes}}
@@ -525,6 +551,41 @@ class _Gather:
         )
 
     # animations
+    def gather_growth(self) -> None:
+        """The growth: a scale channel per growing joint, its two keys (smooth: a cubic Hermite spline with flat
+        tangents, exactly 3x^2 - 2x^3; linear: linear) or its frames (logistic) in one pair of buffer views."""
+        growth = self.tree.growth
+        if self.rig is None or growth is None or not growth.keyed.any():
+            return
+        joints = np.flatnonzero(growth.keyed)
+        inputs, outputs, kinds = [], [], []
+        frames = growth.times
+        for j in joints.tolist():
+            name = FUNCTION_NAMES[growth.function[j]]
+            b, e = float(growth.begin[j]), float(growth.end[j])
+            if name == "logistic":
+                # the keys as the file stores them (float32), each once: two times apart in float64 may not be
+                times = np.unique(np.concatenate([[b, e], frames[(frames > b) & (frames < e)]]).astype(np.float32))
+                values = np.repeat(growth.scales(times.astype(np.float64))[:, j : j + 1], 3, axis=1)
+                kinds.append("LINEAR")
+            elif name == "smooth":  # (in-tangent, value, out-tangent) per key; flat tangents
+                times = np.array([b, e])
+                values = np.zeros((6, 3))
+                values[4] = 1.0
+                kinds.append("CUBICSPLINE")
+            else:
+                times, values = np.array([b, e]), np.array([[0.0] * 3, [1.0] * 3])
+                kinds.append("LINEAR")
+            inputs.append(times.astype(np.float32))
+            outputs.append(values.astype(np.float32))
+        time_accessors = self.buf.packed(inputs, bounds=True)
+        value_accessors = self.buf.packed(outputs)
+        samplers, channels = [], []
+        for k, j in enumerate(joints.tolist()):
+            samplers.append({"input": time_accessors[k], "interpolation": kinds[k], "output": value_accessors[k]})
+            channels.append({"sampler": k, "target": {"node": self.joint_base + j, "path": "scale"}})
+        self.animations.append({"name": "growth", "channels": channels, "samplers": samplers})
+
     def gather_animations(self) -> None:
         """The wind: a rotation channel per joint but the root."""
         rig, anim = self.rig, self.tree.animation
@@ -580,6 +641,7 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
     gathered = _Gather(tree, options, where)
     gathered.gather_nodes()  # meshes, their materials and textures, as the parts are reached
     gathered.gather_skin()
+    gathered.gather_growth()
     gathered.gather_animations()
     return gathered.document(), gathered.buf
 

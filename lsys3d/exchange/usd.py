@@ -48,6 +48,7 @@ from pxr import Gf, Kind, Sdf, Tf, Usd, UsdGeom, UsdShade, UsdSkel, Vt
 
 from ..errors import ExportError, os_reason
 from ..look.attributes import ATTRIBUTES, branch_table
+from ..look.growth import BIRTH
 from ..look.materials import Material
 from ..look.rig import INFLUENCES
 from ..tree import Tree
@@ -240,7 +241,11 @@ def _mesh(stage: Usd.Stage, path: str, arrays: MeshArrays, material: UsdShade.Ma
 
 
 def _attribute_primvars(primvars: UsdGeom.PrimvarsAPI, values: dict) -> None:
-    """The hierarchy and wind attributes as ``vertex`` primvars (one value per point, or per instance)."""
+    """The hierarchy and wind attributes, and the birth, as ``vertex`` primvars (one value per point, or per
+    instance)."""
+    if BIRTH in values:  # lsys3d.look.growth: for shader-driven growth
+        birth = Vt.FloatArray.FromNumpy(np.ascontiguousarray(values[BIRTH], np.float32))
+        primvars.CreatePrimvar(BIRTH, Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.vertex).Set(birth)
     for a in ATTRIBUTES:
         if a.key not in values:
             continue
@@ -523,28 +528,49 @@ def _rig(stage: Usd.Stage, path: str, tree: Tree, frame: np.ndarray, where: str)
     skeleton.CreateJointNamesAttr(Vt.TokenArray(list(rig.names)))
     skeleton.CreateBindTransformsAttr(translations(world))
     skeleton.CreateRestTransformsAttr(translations(local))
-    if tree.animation is not None:
-        _wind(stage, f"{path}/Wind", skeleton, names, local, tree.animation, frame)
+    if tree.animation is not None or tree.growth is not None:
+        _wind(stage, f"{path}/Wind", skeleton, names, local, tree.animation, frame, tree.growth)
     return skeleton
 
 
-def _wind(stage, path: str, skeleton, joints, local: np.ndarray, anim, frame: np.ndarray) -> None:
-    """The wind animation as a ``UsdSkel.Animation`` bound to ``skeleton``: rotations sampled at each frame."""
+def _wind(stage, path: str, skeleton, joints, local: np.ndarray, anim, frame: np.ndarray, growth=None) -> None:
+    """The wind and the growth as one ``UsdSkel.Animation`` bound to ``skeleton`` (the one track set a skeleton
+    plays): the wind's rotations and the growth's scales sampled at each frame, the wind looping over the growth
+    when the growth is longer; time codes are the frames of the wind (or of the growth without wind)."""
     animation = UsdSkel.Animation.Define(stage, path)
     animation.CreateJointsAttr(Vt.TokenArray(joints))
     animation.CreateTranslationsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)))
-    animation.CreateScalesAttr(Vt.Vec3hArray.FromNumpy(np.ones((len(joints), 3), np.float16)))
-    rotation = frame / np.cbrt(np.linalg.det(frame))  # turns the axes of the rotations into the file's frame
-    quaternions = anim.rotations.astype(np.float64)
-    quaternions[..., :3] = quaternions[..., :3] @ rotation.T
+    fps = anim.fps if anim is not None else growth.fps
+    last = 0.0
+    if growth is None:
+        animation.CreateScalesAttr(Vt.Vec3hArray.FromNumpy(np.ones((len(joints), 3), np.float16)))
+    else:
+        scales = growth.scales()
+        attribute = animation.CreateScalesAttr()
+        for k, t in enumerate(growth.times.tolist()):
+            rows = np.repeat(scales[k][:, None], 3, axis=1).astype(np.float16)
+            attribute.Set(Vt.Vec3hArray.FromNumpy(np.ascontiguousarray(rows)), t * fps)
+        last = growth.times[-1] * fps
     attribute = animation.CreateRotationsAttr()
-    for k in range(len(anim)):  # Gf.Quatf is stored imaginary-first: (x, y, z, w) rows are its memory layout
-        attribute.Set(Vt.QuatfArray.FromNumpy(np.ascontiguousarray(quaternions[k], np.float32)), float(k))
+    if anim is None:
+        identity = np.zeros((len(joints), 4), np.float32)
+        identity[:, 3] = 1.0
+        attribute.Set(Vt.QuatfArray.FromNumpy(identity))
+    else:
+        rotation = frame / np.cbrt(np.linalg.det(frame))  # turns the axes of the rotations into the file's frame
+        quaternions = anim.rotations.astype(np.float64)
+        quaternions[..., :3] = quaternions[..., :3] @ rotation.T
+        loop = len(anim) - 1
+        total = max(loop, int(np.ceil(last)))
+        for code in range(total + 1):  # Gf.Quatf is stored imaginary-first: (x, y, z, w) rows are its memory layout
+            k = code % loop if loop and code > loop else min(code, loop)
+            attribute.Set(Vt.QuatfArray.FromNumpy(np.ascontiguousarray(quaternions[k], np.float32)), float(code))
+        last = max(last, float(total))
     UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
-    stage.SetTimeCodesPerSecond(anim.fps)
-    stage.SetFramesPerSecond(anim.fps)
+    stage.SetTimeCodesPerSecond(fps)
+    stage.SetFramesPerSecond(fps)
     stage.SetStartTimeCode(0)
-    stage.SetEndTimeCode(len(anim) - 1)
+    stage.SetEndTimeCode(last)
 
 
 def _bind(mesh: UsdGeom.Mesh, arrays: MeshArrays, skeleton: UsdSkel.Skeleton | None) -> None:

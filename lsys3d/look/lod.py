@@ -224,6 +224,8 @@ def prune(skeleton: Skeleton, fraction: float) -> Skeleton:
     old_parent = skeleton.parent[kept]
     new_parent = np.where(old_parent >= 0, index[np.maximum(old_parent, 0)], -1)
     fields = {name: getattr(skeleton, name)[kept] for name in _SEGMENT_FIELDS}
+    if skeleton.birth is not None:  # the plant's development (lsys3d.turtle.timing)
+        fields.update(birth=skeleton.birth[kept], mature=skeleton.mature[kept])
     return replace(skeleton, parent=new_parent, **fields)
 
 

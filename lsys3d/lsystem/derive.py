@@ -41,7 +41,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter, deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numba
@@ -59,6 +59,7 @@ __all__ = [
     "DEFAULT_MAX_MODULES",
     "MAX_ITERATIONS",
     "PARAMETER_COST",
+    "Trace",
     "derive",
     "generations",
     "interpretation",
@@ -262,8 +263,12 @@ def generations(
     *,
     start: ModuleString | None = None,
     max_modules: int = DEFAULT_MAX_MODULES,
+    trace: Trace | None = None,
 ) -> Iterator[ModuleString]:
     """Yield the axiom (or ``start``) and then every generation up to ``iterations``, one at a time.
+
+    ``trace``, when given, is called at every change of the string with where each new module came from
+    (:data:`Trace`; :mod:`lsys3d.lsystem.ages` follows the modules' ages with it).
 
     >>> from lsys3d import Grammar
     >>> [str(s) for s in generations(Grammar(axiom="D", rules=["D = DGD"]), 2)]
@@ -286,9 +291,11 @@ def generations(
     for g in range(1, n + 1):
         if not fixed:
             previous = current
-            current = previous if plan.cut < 0 else _cut(previous, plan.cut)
+            current = previous if plan.cut < 0 else _cut(previous, plan.cut, trace)
             if plan.pools_by_code:
-                current = _step(plan, current, (_PRODUCTION, g), int(seed), max_modules, g, step_number=g - 1)[0]
+                current = _step(
+                    plan, current, (_PRODUCTION, g), int(seed), max_modules, g, step_number=g - 1, trace=trace
+                )[0]
             if decompose is not None:
                 current = _passes(
                     decompose,
@@ -299,6 +306,7 @@ def generations(
                     seed,
                     max_modules,
                     step_number=g - 1,
+                    trace=trace,
                 )
             log.debug("generation %d: %d modules", g, len(current))
             # without chance, a string that rewrites to itself stays itself: the rest is this string
@@ -314,6 +322,7 @@ def interpretation(
     *,
     max_modules: int = DEFAULT_MAX_MODULES,
     iterations: int | None = None,
+    trace: Trace | None = None,
 ) -> ModuleString:
     """The string the turtle reads: ``modules`` cut and rewritten by the homomorphism rules (if any).
 
@@ -333,32 +342,89 @@ def interpretation(
     seed = grammar.seed if seed is None else seed
     plan = _Plan(grammar, grammar.homomorphism_productions)
     if plan.cut >= 0:
-        modules = _cut(modules, plan.cut)
+        modules = _cut(modules, plan.cut, trace)
     if plan.pools_by_code:
         if modules.alphabet != plan.alphabet and modules.alphabet[128:] != plan.alphabet[128:]:
             raise DerivationError("the string uses symbols this grammar does not know")
         n = grammar.iterations if iterations is None else iterations
         last = max(int(n) - 1, 0) if isinstance(n, (int, np.integer)) else 0
         modules = _passes(
-            plan, modules, grammar.homomorphism_depth, _HOMOMORPHISM, 0, seed, max_modules, step_number=last
+            plan,
+            modules,
+            grammar.homomorphism_depth,
+            _HOMOMORPHISM,
+            0,
+            seed,
+            max_modules,
+            step_number=last,
+            trace=trace,
         )
         if plan.cut >= 0:
-            modules = _cut(modules, plan.cut)
+            modules = _cut(modules, plan.cut, trace)
     return modules
 
 
 _PRODUCTION, _DECOMPOSITION, _HOMOMORPHISM = 0, 1, 2
+PRODUCTION, CUT = _PRODUCTION, -1
+"""The kinds of change a :data:`Trace` is told of: a production step, the cut (decomposition and homomorphism
+passes are the other kinds, instantaneous rewrites)."""
+
+Trace = Callable[[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None], None]
+"""``trace(kind, symbols, new_symbols, rewritten, lengths, persisting)``: a change of the string whose
+modules had ``symbols`` into one whose modules have ``new_symbols``.  For a cut (``kind == CUT``),
+``rewritten`` is the mask of the modules kept and the other two are None.  Otherwise ``rewritten`` is the
+mask of the old string's modules a rule rewrote, ``lengths`` how many modules each old module became (1
+when copied), and ``persisting`` the mask of the new string's modules that continue their predecessor: in a
+successor, the first module at bracket depth 0 with the predecessor's own symbol (``F(l) -> F(l*r)``: the
+same internode, grown; ``A -> AB``: the apex stays, ``B`` is new)."""
+
+
+def persisting_index(prod: Production) -> int:
+    """The successor module that continues the predecessor (see :data:`Trace`), or -1.
+
+    >>> from lsys3d import Grammar
+    >>> [persisting_index(p) for p in Grammar(axiom="A", rules=["A -> [A]B", "B -> FB", "F -> G"]).productions]
+    [-1, 1, -1]
+    """
+    depth = 0
+    for j, module in enumerate(prod.successor):
+        if module.symbol == "[":
+            depth += 1
+        elif module.symbol == "]":
+            depth -= 1
+        elif depth == 0 and module.symbol == prod.predecessor.symbol:
+            return j
+    return -1
+
+
 _PHASE = {_PRODUCTION: "generation", _DECOMPOSITION: "decomposition of generation", _HOMOMORPHISM: "homomorphism"}
 
 
 def _passes(
-    plan: _Plan, ms: ModuleString, depth: int, kind: int, generation: int, seed, max_modules, *, step_number: int
+    plan: _Plan,
+    ms: ModuleString,
+    depth: int,
+    kind: int,
+    generation: int,
+    seed,
+    max_modules,
+    *,
+    step_number: int,
+    trace: Trace | None = None,
 ) -> ModuleString:
     """Rewrite ``ms`` with ``plan`` up to ``depth`` times, each time only the modules the previous time produced."""
     eligible = None
     for d in range(depth):
         out, produced = _step(
-            plan, ms, (kind, generation, d), int(seed), max_modules, generation, eligible, step_number=step_number
+            plan,
+            ms,
+            (kind, generation, d),
+            int(seed),
+            max_modules,
+            generation,
+            eligible,
+            step_number=step_number,
+            trace=trace,
         )
         if produced is None:  # nothing matched
             break
@@ -390,10 +456,12 @@ def _cut_mask(symbols, cut):
     return keep
 
 
-def _cut(ms: ModuleString, cut: int) -> ModuleString:
+def _cut(ms: ModuleString, cut: int, trace: Trace | None = None) -> ModuleString:
     if not (ms.symbols == cut).any():
         return ms
     keep = _cut_mask(ms.symbols, np.uint8(cut))
+    if trace is not None:
+        trace(CUT, ms.symbols, ms.symbols[keep], keep, None, None)
     return ModuleString(
         ms.symbols[keep], ms.arity[keep], ms.params[np.repeat(keep, ms.arity.astype(np.int64))], ms.alphabet
     )
@@ -702,6 +770,7 @@ def _step(
     eligible: np.ndarray | None = None,
     *,
     step_number: int = 0,
+    trace: Trace | None = None,
 ) -> tuple[ModuleString, np.ndarray | None]:
     """One parallel rewrite of ``ms`` with ``plan``'s rules: the new string and which of its modules were produced.
 
@@ -833,6 +902,13 @@ def _step(
         total_sum = new_params.sum()
     if not np.isfinite(total_sum) and not np.isfinite(new_params).all():
         raise _not_finite(chosen, ms, new_params, par_off, during)
+    if trace is not None:
+        persisting = np.zeros(total, np.bool_)
+        for prod, idx, _, _ in chosen:
+            j = persisting_index(prod)
+            if j >= 0:
+                persisting[mod_off[idx] + j] = True
+        trace(keys[0], sym, new_sym, matched, out_len, persisting)
     produced = np.zeros(total if keys[0] != _PRODUCTION else 0, np.bool_)
     if keys[0] != _PRODUCTION:  # the passes after this one rewrite only what this one produced
         rewritten = np.flatnonzero(matched)

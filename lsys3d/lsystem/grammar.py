@@ -113,6 +113,7 @@ class Grammar:
     materials: Mapping[str, object] = field(default_factory=dict)
     surfaces: Mapping[str, object] = field(default_factory=dict)
     leaves: Mapping[str, object] = field(default_factory=dict)
+    growth: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
     dialect: str = "lsys3d"
@@ -139,7 +140,7 @@ class Grammar:
         for key in _RULE_LISTS:
             if isinstance(getattr(self, key), str):
                 raise GrammarError(f"'{key}' must be a list of rule strings, not one string", self.source)
-        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves"):
+        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "growth"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         for key in (*_RULE_LISTS, "modules", "functions"):
@@ -161,6 +162,7 @@ class Grammar:
         set_(self, "materials", MappingProxyType(dict(self.materials)))
         set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
         set_(self, "leaves", MappingProxyType(dict(self.leaves)))
+        set_(self, "growth", MappingProxyType(dict(self.growth)))
         self._check_scalars()
         notation = dialect.notation
         names = self._declared_names(notation)
@@ -316,6 +318,7 @@ class Grammar:
             ("materials", dict),
             ("surfaces", dict),
             ("leaves", dict),
+            ("growth", dict),
         )
         for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + list(tables):
             if key in data and not isinstance(data[key], kind):
@@ -354,6 +357,7 @@ class Grammar:
                 "materials",
                 "surfaces",
                 "leaves",
+                "growth",
                 "source",
                 "text",
                 "dialect",

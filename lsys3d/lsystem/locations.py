@@ -37,6 +37,7 @@ _KEYS = {
     "materials",
     "surfaces",
     "leaves",
+    "growth",
 }
 
 

@@ -290,7 +290,9 @@ def base_focus(tree: Tree) -> dict:
     return {"target": target.tolist(), "direction": direction.tolist(), "size": 4.0 * d}
 
 
-def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None = None) -> Path:
+def preview(
+    tree: Tree, path: str | os.PathLike, options: PreviewOptions | None = None, at: float | None = None
+) -> Path:
     """Render a shaded picture of ``tree`` to the PNG file ``path``.
 
     The tree goes to Blender as a temporary ``.glb`` (so bark and leaves keep
@@ -307,6 +309,9 @@ def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None 
         Ctrl-C never leaves a half-written image.
     options : PreviewOptions, optional
         Size, view, samples, background, which Blender...
+    at : float, optional
+        Seconds into the tree's growth animation (:mod:`lsys3d.look.growth`) to picture, the camera fitted
+        to the grown tree (frames of one strip line up).
 
     Returns
     -------
@@ -333,6 +338,8 @@ def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None 
     path, blender = check_preview(path, options)
     if not isinstance(tree, Tree):
         raise PreviewError(f"{path}: expected a lsys3d Tree, got {type(tree).__name__}")
+    if at is not None and tree.growth is None:
+        raise PreviewError(f"{path}: at={at}: the tree has no growth animation (growth_animation=SECONDS)")
     if len(tree.bark.faces) == 0 and (tree.leaves.merged is None or len(tree.leaves.merged.faces) == 0):
         raise PreviewError(f"{path}: the tree has no bark and no leaves to draw")
     width, height = options.size
@@ -354,6 +361,7 @@ def preview(tree: Tree, path: str | os.PathLike, options: PreviewOptions | None 
                 "material": options.material,
                 "bark_material": tree.bark_material.name,
                 "pose": options.bends(),
+                "time": at,
             }
             if options.view == "junction":
                 job["focus"] = junction_focus(tree)

@@ -16,7 +16,8 @@ or ``checker``: the material named ``bark_material`` becomes glossy with a UV
 checker), for a close-up ``focus``: ``target``, ``direction`` (towards the
 camera) and ``size`` (the picture's width), in glTF's frame, and ``pose``
 (optional: joint name -> degrees, each pose bone of a rigged tree turned about
-its X axis before the camera is fitted).
+its X axis before the camera is fitted), and ``time`` (optional: seconds into the tree's ``growth`` animation,
+pictured with the camera fitted to the grown tree, the animation's last frame).
 
 The scene: the glTF import (Blender turns glTF's Y up into its Z up, so the
 tree stands on the XY plane), a perspective camera fitted to every mesh vertex
@@ -208,6 +209,20 @@ def _pose(bpy, bends):
     bpy.context.view_layer.update()
 
 
+def _growth_action(bpy, scene):
+    """Make the glTF ``growth`` animation the armature's action; its last frame (None without one)."""
+    actions = [a for a in bpy.data.actions if a.name.startswith("growth")]
+    armatures = [o for o in scene.objects if o.type == "ARMATURE"]
+    if not actions or not armatures:
+        raise RuntimeError("preview_blender: the tree has no growth animation (--growth-animation)")
+    for armature in armatures:
+        armature.animation_data_create().action = actions[0]
+        slots = getattr(actions[0], "slots", None)  # Blender 4.4+: the action's slot for this object
+        if slots:
+            armature.animation_data.action_slot = slots[0]
+    return actions[0].frame_range[1]
+
+
 def render(job):
     import bpy
 
@@ -218,6 +233,8 @@ def render(job):
         raise RuntimeError(f"preview_blender: {job['glb']}: Blender imported no mesh")
     if job.get("pose"):
         _pose(bpy, job["pose"])
+    if job.get("time") is not None:
+        scene.frame_set(round(_growth_action(bpy, scene)))  # the camera frames the grown tree
 
     render = scene.render
     render.engine = "CYCLES"
@@ -261,6 +278,8 @@ def render(job):
     else:
         _camera(bpy, scene, job["view"], job["margin"])
 
+    if job.get("time") is not None:
+        scene.frame_set(round(job["time"] * scene.render.fps / scene.render.fps_base))
     rendered = os.path.join(os.path.dirname(job["glb"]), "rendered.png")  # lsys3d's temporary folder
     render.filepath = rendered
     bpy.ops.render.render(write_still=True)

@@ -107,6 +107,18 @@ class Skeleton:
     organ_name : (o,) str
         The name of that module as written (``@O``, ``~l``, ``J``): a surface's or an
         instance's name, kept so that the mesh stages need not keep the string.
+
+    Times (only when the plant's development was asked for: :func:`lsys3d.turtle.timing.timed`; None
+    otherwise), in the plant's time of :mod:`lsys3d.lsystem.ages`:
+
+    birth, mature : (n,) float64
+        When each segment's module was born, and when it is full grown.
+    growth_function : (n,) int8
+        Each segment's growth function (an index into :data:`lsys3d.lsystem.ages.FUNCTION_NAMES`).
+    leaf_birth, leaf_mature : (k,) float64
+        When each leaf instance starts to unfold and when it is unfolded.
+    organ_birth, organ_mature : (o,) float64
+        The same for each organ.
     """
 
     start: np.ndarray
@@ -141,6 +153,13 @@ class Skeleton:
     organ_segment: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     organ_module: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     organ_name: np.ndarray = field(default_factory=lambda: np.zeros(0, "U1"))
+    birth: np.ndarray | None = None
+    mature: np.ndarray | None = None
+    leaf_birth: np.ndarray | None = None
+    leaf_mature: np.ndarray | None = None
+    organ_birth: np.ndarray | None = None
+    organ_mature: np.ndarray | None = None
+    growth_function: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.start.shape[0])
