@@ -91,3 +91,10 @@ def test_cover_thins_the_crowd_of_a_dense_fern():
     assert 100 < dropped.sum() < len(tubes) / 2 and not dropped[0]
     kept = tubes.select(~dropped)
     assert len(touching(pieces(kept), 0.01, 10**9)[0]) < 0.9 * len(a)
+
+
+def test_cover_is_in_the_provenance_only_when_on():
+    assert "cover" not in UnionOptions().plain()
+    assert UnionOptions(cover=0.25).plain()["cover"] == 0.25
+    assert UnionOptions.from_plain(UnionOptions(cover=0.25).plain()) == UnionOptions(cover=0.25)
+    assert UnionOptions.from_plain(UnionOptions().plain()) == UnionOptions()

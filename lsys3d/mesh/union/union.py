@@ -130,9 +130,14 @@ class UnionOptions(Options):
     )
 
     def plain(self) -> dict:
-        """The options as plain data, without ``workers`` (how the work runs, not what it makes)."""
+        """The options as plain data, without ``workers`` (how the work runs, not what it makes).
+
+        ``cover`` is there only when on, so files made without it keep the bytes they had before it existed.
+        """
         data = super().plain()
         del data["workers"]
+        if not self.cover:
+            del data["cover"]
         return data
 
 
