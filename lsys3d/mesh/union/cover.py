@@ -7,8 +7,10 @@ segments, each shorter than the tube is wide.  Most of them add almost nothing
 to the union, and they are what makes its boolean slow (every triangle
 handed to manifold costs time, and these overlap many others).
 
-:func:`covered_tubes` finds the tubes that lie within a distance ``d`` of one
-span of another tube that stays: then dropping the tube moves the union's
+:func:`covered_tubes` finds the tubes each of whose spans lies within a
+distance ``d`` of one span of another tube that stays (not always the same
+one: the tube lies within ``d`` of the union of its neighbours' spans): then
+dropping the tube moves the union's
 surface by at most ``d`` (inwards: the union can only lose what stuck out of
 its neighbours by at most ``d``).  ``d = cover * width`` of the dropped tube,
 ``cover`` from :class:`~lsys3d.mesh.union.union.UnionOptions` (0, the default,
@@ -16,11 +18,11 @@ leaves this step out).
 
 Why the bound holds
 -------------------
-A tube is the union of its spans, and each span (two rings and the wall
-between them) lies in the convex hull of the tube's points; the covering
-set ``C`` is convex (the cylinder on the axis of one span of the other tube,
+A tube is the union of its spans (its caps lie in its end rings' planes), and
+each span (two rings and the wall between them) lies in the convex hull of
+its two rings' points; the covering set ``C`` is convex (the cylinder on the axis of one span of the other tube,
 of the radius of the circle its rings contain).  The distance to a convex
-set is convex, so its largest value on the hull is at one of the tube's
+set is convex, so its largest value on the hull is at one of the two rings'
 points: testing the points is enough.  ``C`` lies inside the other tube's
 span except where the span's rings are tilted against its axis (a joint
 that turns): the cylinder's rim then passes the ring's plane by at most
@@ -50,7 +52,7 @@ COVER_PAIRS = 16
 
 
 def covered_tubes(tubes: Tubes, pcs: Pieces, a: np.ndarray, b: np.ndarray, cover: float) -> np.ndarray:
-    """``(t,) bool``: tubes within ``cover`` times their width of one span of an earlier tube that stays.
+    """``(t,) bool``: tubes whose every span is within ``cover`` times their width of a span of an earlier kept tube.
 
     Parameters
     ----------
@@ -92,6 +94,8 @@ def covered_tubes(tubes: Tubes, pcs: Pieces, a: np.ndarray, b: np.ndarray, cover
     dropped = _covered(
         tubes.points,
         tubes.point_offsets,
+        tubes.rings,
+        tubes.sides,
         ring_offsets,
         tubes.ring_center,
         tubes.ring_tangent,
@@ -109,27 +113,49 @@ def covered_tubes(tubes: Tubes, pcs: Pieces, a: np.ndarray, b: np.ndarray, cover
 
 @numba.njit(cache=True, nogil=True)
 def _covered(
-    points, point_offsets, ring_offsets, center, tangent, inscribed, radius, first, other, start, stop, cover
+    points,
+    point_offsets,
+    rings,
+    sides,
+    ring_offsets,
+    center,
+    tangent,
+    inscribed,
+    radius,
+    first,
+    other,
+    start,
+    stop,
+    cover,
 ):  # pragma: no cover - compiled
     n = len(point_offsets) - 1
     dropped = np.zeros(n, np.bool_)
     for t in range(n):
-        if first[t] == first[t + 1]:
+        if first[t] == first[t + 1] or rings[t] < 2:
             continue
         width = 0.0
         for k in range(ring_offsets[t], ring_offsets[t + 1]):
             width = max(width, 2.0 * radius[k])
         limit = cover * width
-        p0, p1 = point_offsets[t], point_offsets[t + 1]
-        for e in range(first[t], first[t + 1]):
-            if dropped[other[e]]:
-                continue
-            for k in range(start[e], stop[e]):
-                if _within(points, p0, p1, center, tangent, inscribed, k, limit):
-                    dropped[t] = True
+        side = sides[t]
+        every = True
+        # each span of the tube (its two rings' points) within the limit of one span of a kept earlier tube
+        for j in range(rings[t] - 1):
+            p0 = point_offsets[t] + j * side
+            found = False
+            for e in range(first[t], first[t + 1]):
+                if dropped[other[e]]:
+                    continue
+                for k in range(start[e], stop[e]):
+                    if _within(points, p0, p0 + 2 * side, center, tangent, inscribed, k, limit):
+                        found = True
+                        break
+                if found:
                     break
-            if dropped[t]:
+            if not found:
+                every = False
                 break
+        dropped[t] = every
     return dropped
 
 

@@ -17,7 +17,7 @@ everything):
    inside a straight span of another (a short thick twig buried in its
    parent), adds nothing and stays out.  With ``UnionOptions.cover`` (off by
    default; :mod:`lsys3d.mesh.union.cover`), so does every tube within that
-   fraction of its width of one span of an earlier tube that stays (the
+   fraction of its width of the spans of earlier tubes that stay (the
    nested short tubes of dense grammars), a bounded simplification.
 2. *Which pieces can touch.*  Each tube is cut into pieces (a span between two
    rings, or about a diameter of tiny spans) covered by capsules; boxes in a
@@ -118,8 +118,8 @@ class UnionOptions(Options):
         low=0,
         high=1,
         name="union_cover",
-        help="leave out of the boolean every tube within this fraction of its width of one span of an earlier tube "
-        "that stays (0: off; the union's surface moves by at most that much: docs/mesh.md, dense grammars)",
+        help="leave out of the boolean every tube within this fraction of its width of the spans of earlier tubes "
+        "that stay (0: off; the union's surface moves by at most that much: docs/mesh.md, dense grammars)",
     )
     max_pairs: int = option(
         DEFAULT_MAX_PAIRS,
