@@ -7,6 +7,8 @@
 # For developers:
 #   make lint      ruff check and ruff format --check (make format fixes what it can)
 #   make bench     every benchmark in benchmarks/ (prints ratios against baselines measured in the same run)
+# The Blender add-on as an extension zip (docs/blender.md):
+#   make blender-extension   build/lsys3d-blender-<version>.zip, for BLENDER_PLATFORMS (default: all four)
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -17,7 +19,7 @@ BPY_VENV := .venv-bpy
 BPY_STAMP := $(BPY_VENV)/.installed
 BPY_VERSION := 5.0.1
 
-.PHONY: demo preview gallery test lint format bench validators browser clean
+.PHONY: demo preview gallery test lint format bench validators browser blender-extension clean
 
 # pip's and the build backend's chatter (setuptools notes on editable installs) goes to a log,
 # shown only when the install fails, so a new user's first screen is the tree, not warnings.
@@ -37,6 +39,20 @@ $(BPY_STAMP):
 	$(BPY_VENV)/bin/python -c "import bpy" || { echo "bpy does not import: install the X11/GL libraries it links (see README)"; exit 1; }
 	touch $(BPY_STAMP)
 
+# lsys3d's own dependencies in Blender's Python (the add-on's tests run lsys3d there, from the checkout): the
+# list read from pyproject.toml, with the numpy bpy was built against kept (bpy needs numpy < 2).
+BPY_DEPS := $(BPY_VENV)/.lsys3d-deps
+$(BPY_DEPS): pyproject.toml $(BPY_STAMP)
+	$(BPY_VENV)/bin/python -c "import tomllib; print('\n'.join(tomllib.load(open('pyproject.toml', 'rb'))['project']['dependencies']))" > $(BPY_VENV)/lsys3d-requirements.txt
+	$(BPY_VENV)/bin/pip install --quiet -r $(BPY_VENV)/lsys3d-requirements.txt "numpy==$$($(BPY_VENV)/bin/python -c 'import numpy; print(numpy.__version__)')" >> $(BPY_VENV)/install.log 2>&1 || { cat $(BPY_VENV)/install.log; exit 1; }
+	touch $(BPY_DEPS)
+
+# The Blender 4.2+ extension: build/lsys3d-blender-<version>.zip with blender_manifest.toml, the add-on and the
+# wheels of lsys3d and its dependencies for each platform (BLENDER_PLATFORMS; Blender's own numpy is used).
+BLENDER_PLATFORMS ?= linux-x64 windows-x64 macos-arm64 macos-x64
+blender-extension: $(STAMP)
+	$(BIN)/python tools/blender_extension.py --platforms $(BLENDER_PLATFORMS)
+
 # Debian's Chromium, driven headless by playwright-core (package.json) in the browser tests (three.js pages).
 # Installed with apt-get when missing and make runs as root; otherwise the command to run is printed.
 CHROMIUM ?= /usr/bin/chromium
@@ -46,7 +62,7 @@ browser: node_modules/.package-lock.json
 	    > .chromium-install.log 2>&1 || { cat .chromium-install.log; exit 1; }; \
 	  else echo "Chromium is missing: run 'sudo apt-get install chromium' (the browser tests skip locally, fail under CI)"; fi; }
 
-validators: node_modules/.package-lock.json $(BPY_STAMP) browser
+validators: node_modules/.package-lock.json $(BPY_STAMP) $(BPY_DEPS) browser
 
 demo: $(STAMP)
 	$(BIN)/lsys3d generate

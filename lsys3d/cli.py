@@ -109,21 +109,10 @@ _tolerance.__name__ = "number"
 
 def _turtle_setting(text: str) -> tuple[str, object]:
     """``KEY=VALUE`` with a TOML value (``0.2``, ``"normal"``, ``[0, -1, 0]``); a bare word is a string."""
-    import tomllib
+    from .turtle.options import TurtleOverrides, parse_setting
 
-    from .turtle import GRAMMAR_KEYS, TurtleOverrides
-
-    key, sep, value = text.partition("=")
-    key = key.strip()
-    if not sep or key not in GRAMMAR_KEYS:
-        raise argparse.ArgumentTypeError(
-            f"expected KEY=VALUE with KEY one of {', '.join(sorted(GRAMMAR_KEYS))}, not {clip(repr(text))}"
-        )
     try:
-        parsed = tomllib.loads(f"v = {value.strip()}")["v"]
-    except tomllib.TOMLDecodeError:
-        parsed = value.strip()
-    try:
+        key, parsed = parse_setting(text)
         TurtleOverrides({key: parsed})
     except OptionsError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
@@ -401,7 +390,7 @@ _SUBCOMMANDS = {
         _forest_arguments,
     ),
     "edit": ("edit a grammar in the browser: the tree redrawn as you type, sliders, export and save", _edit_arguments),
-    "presets": ("list the bundled presets: species, figures and curves", _presets_arguments),
+    "presets": ("list the bundled presets: species, figures, curves and plants in a scene", _presets_arguments),
 }
 """Each subcommand's help line and the function that adds its arguments, in the order ``--help`` lists them."""
 
@@ -437,6 +426,10 @@ def cmd_generate(args) -> int:
     path = check_output(args.output, export_options)  # before minutes of work, not after
     drawing = path.suffix.lower() == ".svg"
     options = _generate_options(args)
+    if options.rig.enabled and path.suffix.lower() not in (".glb", ".gltf", ".usda", ".usdc", ".usd", ".usdz"):
+        raise OptionsError(
+            f"--rig: a {path.suffix.lower()} file holds no joints, skin or animation; write .glb, .gltf or USD"
+        )
     if drawing:  # a line drawing of the skeleton: the union's minutes would be thrown away
         options = options.with_flat(union=False)
     if args.variants > 1:
@@ -628,7 +621,7 @@ class _BatchProgress:
         self.shown = False
 
     def __call__(self, event) -> None:
-        if event.kind == "failed":
+        if event.kind == "failed" and event.total > 1:  # a batch of one job says it in its one error line
             self.clear()
             print(f"lsys3d: {event.job_id} failed: {_one_line(event.error or '')}", file=sys.stderr)
         if not self.enabled:
@@ -689,6 +682,10 @@ def cmd_batch(args) -> int:
         )
         if result.library:
             print(f"library {result.library}: {result.library_variants} assets")
+    if len(result.failed) == 1 and len(the.jobs) == 1:  # its failure, printed once
+        job_id = result.failed[0]
+        print(f"lsys3d: error: {job_id} failed: {_one_line(result.errors[job_id])}", file=sys.stderr)
+        return EXIT_USER_ERROR
     if result.failed:
         shown = ", ".join(result.failed[:10]) + (
             f" and {len(result.failed) - 10} more" if len(result.failed) > 10 else ""

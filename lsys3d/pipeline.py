@@ -46,7 +46,7 @@ from .look.surfaces import surface_table, with_cards
 from .look.wind import WindOptions, sway
 from .lsystem import dialects
 from .lsystem.ages import derive_with_ages, growth_table, interpretation_ages
-from .lsystem.derive import DEFAULT_MAX_MODULES, derive, interpretation
+from .lsystem.derive import DEFAULT_MAX_MODULES, interpretation
 from .lsystem.grammar import Grammar
 from .lsystem.modules import ModuleString
 from .lsystem.presets import load
@@ -60,7 +60,9 @@ from .provenance import Provenance
 from .tree import StageCounts, Tree
 from .turtle import DEFAULT_MAX_SEGMENTS, FormOptions, TurtleOptions, TurtleOverrides, form, interpret, symbol_table
 from .turtle.diagnostics import Checks, check
+from .turtle.environment import EnvironmentOptions, load_environment
 from .turtle.hierarchy import hierarchy
+from .turtle.query import asks_turtle, derive_answering
 from .turtle.skeleton import Skeleton
 from .turtle.timing import timed
 
@@ -175,6 +177,7 @@ class GenerateOptions(Options):
     growth: GrowthOptions = option(factory=GrowthOptions, help="the growth animation")
     checks: Checks = option(factory=Checks, help="the grammar's warnings")
     lod: LodOptions = option(factory=LodOptions, help="levels of detail")
+    environment: EnvironmentOptions = option(factory=EnvironmentOptions, help="the place the plant grows in")
 
     def __post_init__(self):
         if not isinstance(self.turtle, TurtleOverrides):
@@ -191,6 +194,8 @@ class GenerateOptions(Options):
         data = super().plain()
         if self.form == FormOptions():
             del data["form"]
+        if self.environment == EnvironmentOptions():
+            del data["environment"]
         if self.growth == GrowthOptions():
             del data["growth"]
         return data
@@ -302,9 +307,28 @@ def draw(
     limits = options.limits
     timing = growth_table(grammar) if options.growth.timed else None  # the plant's development: ages
     ages = None
+    turtle = TurtleOptions.from_grammar(grammar, options.turtle)
+    commands = dialects.get(grammar.dialect).commands
+    environment = load_environment(grammar, options.environment)
+    scene = environment.scene() if environment is not None else None
+    if timing is not None and (environment is not None or asks_turtle(grammar, commands)):
+        raise OptionsError(
+            "GrowthOptions: the timed growth animation does not follow query modules or an environment "
+            "(their answers change the string between the steps): grow such a plant without it"
+        )
     if timing is None:
         modules = run_stage(
-            "derive", derive, grammar, iterations, seed, max_modules=limits.max_modules, progress=progress
+            "derive",
+            derive_answering,
+            grammar,
+            iterations,
+            seed,
+            turtle=turtle,
+            commands=commands,
+            environment=environment,
+            max_modules=limits.max_modules,
+            max_segments=limits.max_segments,
+            progress=progress,
         )
     else:
         modules, ages = run_stage(
@@ -317,9 +341,7 @@ def draw(
             max_modules=limits.max_modules,
             progress=progress,
         )
-    turtle = TurtleOptions.from_grammar(grammar, options.turtle)
     shape = FormOptions.from_grammar(grammar, options.form)
-    commands = dialects.get(grammar.dialect).commands
 
     def turtle_stage():
         nonlocal ages
@@ -329,7 +351,7 @@ def draw(
             shown, ages = interpretation_ages(
                 grammar, modules, ages, seed, table=timing, max_modules=limits.max_modules, iterations=iterations
             )
-        skeleton = interpret(shown, turtle, seed=seed, max_segments=limits.max_segments, commands=commands)
+        skeleton = interpret(shown, turtle, seed=seed, max_segments=limits.max_segments, commands=commands, scene=scene)
         return shown, skeleton
 
     shown, skeleton = run_stage("interpret", turtle_stage, progress=progress)
@@ -340,6 +362,20 @@ def draw(
     if timing is not None:
         skeleton = timed(skeleton, shown, ages, timing)
     return modules, skeleton
+
+
+def _environment_light(grammar: Grammar, options: GenerateOptions, leaves: LeafOptions) -> LeafOptions:
+    """The leaves turn (``leaf_light``) to the environment's light direction unless ``[leaves]`` names a light."""
+    light = EnvironmentOptions.from_grammar(grammar, options.environment).light
+    if not any(light) or "light" in grammar.leaves or leaves.light != LeafOptions().light:
+        return leaves
+    return replace(leaves, light=tuple(float(x) for x in np.asarray(light) / np.linalg.norm(light)))
+
+
+def _scene(grammar: Grammar, options: GenerateOptions) -> tuple:
+    """The meshes of the place the plant grew in (read again: draw keeps nothing), for ``--scene``."""
+    environment = load_environment(grammar, options.environment)
+    return environment.meshes if environment is not None else ()
 
 
 def generate(
@@ -392,7 +428,7 @@ def generate(
     table = material_table(grammar)  # a bad [materials], [surfaces] or [leaves] table fails before the work
     surfaces = surface_table(grammar)
     table = with_cards(table, surfaces, grammar)
-    leaf_options = LeafOptions.from_grammar(grammar, options.leaves)
+    leaf_options = _environment_light(grammar, options, LeafOptions.from_grammar(grammar, options.leaves))
     grown = options if leaf_options is options.leaves else options.replace(leaves=leaf_options)
 
     modules, skeleton = draw(grammar, n, seed, options, progress=progress)
@@ -475,6 +511,7 @@ def generate(
         animation=animation,
         growth=development,
         lods=lods,
+        scene=_scene(grammar, options),
     )
 
 

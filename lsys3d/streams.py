@@ -57,6 +57,8 @@ class Stream(IntEnum):
     """Leaves: the relative change of each leaf's size (``leaf_size_variation``, :mod:`lsys3d.look.leaf_form`)."""
     LEAF_CLUSTER = 15
     """Leaves: each cluster's turn about its twig and its leaves' small turns (``leaves_per_cluster``)."""
+    BLOCK_RANDOM = 16
+    """Derivation: the random functions of cpfg's C blocks (``Start:``, ``StartEach:``...): lsystem.blocks."""
 
 
 def generator(seed: int, stream: Stream) -> np.random.Generator:

@@ -102,6 +102,7 @@ class Tree:
     animation: Animation | None = None
     growth: Growth | None = None
     lods: tuple = ()
+    scene: tuple = ()
 
     @property
     def bark_material(self) -> Material:

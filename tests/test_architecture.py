@@ -31,6 +31,7 @@ STAGES = (
     "lsys3d.golden",
     "lsys3d.library",
     "lsys3d.edit",  # the editor: a server over the whole pipeline and its writers
+    "lsys3d.blender",  # the Blender add-on: a plant grown into Blender's data (imports bpy; runs inside Blender)
     {"lsys3d", "lsys3d.cli", "lsys3d.__main__", "lsys3d.testing"},  # the entry points (testing: the pytest plugin)
 )
 

@@ -19,9 +19,11 @@ BENCHMARKS = Path(__file__).resolve().parent.parent / "benchmarks"
 
 SMOKE = {
     "bench_attributes.py": ["--preset", "koch", "--repeat", "1"],
+    "bench_blender_regrow.py": ["--iterations", "3", "--repeat", "1"],  # in .venv-bpy's Python (skips without)
     "bench_botany.py": ["--quick", "--presets", "grass", "foxglove", "--check"],
     "bench_batch.py": ["--seeds", "1", "--skip-dask"],  # the Dask cluster itself: test_batch.py
     "bench_derive.py": ["--quick"],
+    "bench_environment.py": ["--iterations", "20", "--repeat", "1"],
     "bench_edit.py": ["--preset", "koch", "--edits", "1"],
     "bench_export.py": ["--quick"],
     "bench_growth.py": ["--preset", "abop-1.24a", "--repeat", "1", "--seconds", "1"],

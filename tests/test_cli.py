@@ -10,6 +10,7 @@ import pytest
 
 import lsys3d
 from lsys3d.cli import main
+from lsys3d.lsystem.grammar import GROUPS
 
 
 def run(*args, **kw):
@@ -57,7 +58,7 @@ def test_presets_lists_one_line_each(capsys):
     assert any(line.startswith("  koch ") for line in lines)
     # a header per group, then one indented line per preset: its name and description
     assert all(len(line.split(None, 1)) == 2 for line in lines if line.startswith("  "))
-    assert sum(not line.startswith("  ") for line in lines) == 3
+    assert sum(not line.startswith("  ") for line in lines) == len(GROUPS)
 
 
 def test_python_dash_m_and_entry_point_agree():

@@ -139,15 +139,89 @@ def _outcome(name: str) -> str:
     return "warns" if "warns" in expected else "match"
 
 
+# issue 41's fresh sample: every L-system file of vlab's cpfg manual models and of L-System Explorer's
+# brackets/ and polygons/ examples (README.md), gathered after the rest
+FRESH = [n for n in REAL if n.startswith("cpfg/real/manual-") or n.startswith("webls/real/")]
+
+
 def test_the_gathered_files_are_counted_honestly():
     """Issue 14's goal is 90% of real files read and matching; this is where the corpus stands."""
-    outcomes = [_outcome(name) for name in REAL]
-    assert len(REAL) >= 40
+    first = [name for name in REAL if name not in FRESH]
+    outcomes = [_outcome(name) for name in first]
+    assert len(first) >= 40
     for dialect in ("lpy", "cpfg", "lparser"):
-        assert sum(name.startswith(dialect + "/real/") for name in REAL) >= 10, dialect
+        assert sum(name.startswith(dialect + "/real/") for name in first) >= 10, dialect
     # measured: see README.md; a regression (one more file refused) fails here
     assert outcomes.count("match") >= 51, outcomes.count("match")
-    assert outcomes.count("match") >= 0.9 * len(REAL)
+    assert outcomes.count("match") >= 0.9 * len(first)
+
+
+def test_the_fresh_sample_is_counted_honestly():
+    """Issue 41's fresh sample: 36 files; README.md gives the rate before and after (the goal, 90%, is not met)."""
+    outcomes = [_outcome(name) for name in FRESH]
+    assert len(FRESH) == 36
+    # measured: 20 of 36 read and match (56%), 4 read with a warning, 12 are refused in one line (Horneophyton's
+    # ?H, refused by the reader when the sample was gathered, reads since query modules came: with a warning)
+    assert (outcomes.count("match"), outcomes.count("warns"), outcomes.count("refused")) == (20, 4, 12), outcomes
+
+
+def shedding_model(steps: int = 320) -> tuple[int, int, int, int]:
+    """vlab's Shedding model (cpfg manual) simulated from its rules, for its expectation; not lsys3d's engine.
+
+    Start: age = 0, StartEach: age = age + 1; returns the derived string's length, the F the cut leaves
+    (segments), the K (one polygon each in the homomorphism) and the U (one @o organ each).
+    """
+    plastochron, colour, angle, turn, lifetime, max_age, stem, leaf = 5, 255, 0, 0.78, 120, 260, 4, 4
+
+    def cut(string):
+        out, i = [], 0
+        while i < len(string):
+            if string[i][0] != "%":
+                out.append(string[i])
+                i += 1
+                continue
+            depth = 0
+            while i < len(string) and not (string[i][0] == "]" and depth == 0):
+                depth += {"[": 1, "]": -1}.get(string[i][0], 0)
+                i += 1
+        return out
+
+    string = [("!", (stem,)), ("A", (0,))]
+    for age in range(1, steps + 1):
+        out = []
+        for symbol, p in cut(string):
+            if symbol == "A" and p[0] < plastochron and age < max_age:
+                out += [("F", ()), ("A", (p[0] + 1,))]
+            elif symbol == "A" and age < max_age:
+                leaf_branch = [("[", ()), ("X", (lifetime,)), ("-", (angle,)), ("!", (leaf,)), ("B", ()), ("]", ())]
+                out += [("F", ()), *leaf_branch, ("/", (180,)), ("A", (0,))]
+            elif symbol == "A":
+                out.append(("K", (0,)))
+            elif symbol == "K":
+                out.append(("K", (p[0] + 1,)))
+            elif symbol == "B":
+                out += [(",", (colour,)), ("F", ()), ("B", ())]
+            elif symbol == "X":
+                out += [("X", (p[0] - 1,))] if p[0] > 0 else [("U", ()), ("%", ())]
+            elif symbol == "," and p:
+                out.append((",", (p[0] - 1,)))
+            elif symbol in "+-" and p:
+                out.append((symbol, (p[0] + turn,)))
+            else:
+                out.append((symbol, p))
+        string = out
+    drawn = cut(string)
+    return (
+        len(string),
+        sum(m[0] == "F" for m in drawn),
+        sum(m[0] == "K" for m in drawn),
+        sum(m[0] == "U" for m in drawn),
+    )
+
+
+def test_the_shedding_simulation_gives_the_stored_expectation():
+    expected = EXPECTED["cpfg/real/manual-Shedding-fractal.l"][0]
+    assert shedding_model() == (expected["modules"], expected["segments"], expected["polygons"], expected["organs"])
 
 
 @pytest.mark.parametrize("name", REAL)
@@ -170,6 +244,10 @@ def test_each_gathered_file_reads_unmodified_and_matches(name, caplog):
     elif "string" in expected:
         assert str(derived) == expected["string"]
         segments = None
+    elif "between" in expected:  # a stochastic model: bounds that hold whatever the draws
+        for symbol, (low, high) in expected["between"].items():
+            assert low <= derived.count(symbol) <= high, symbol
+        segments = sum(derived.count(symbol) for symbol in expected["draws"])
     else:
         assert len(derived) == expected["modules"]
         for symbol, count in expected["counts"].items():
@@ -194,3 +272,15 @@ def test_each_gathered_file_reads_unmodified_and_matches(name, caplog):
         assert len(skeleton) == segments
     if "polygons" in expected:
         assert skeleton.n_polygons == expected["polygons"]
+    if "organs" in expected:
+        assert skeleton.n_organs == expected["organs"]
+
+
+def test_strict_turns_a_fresh_files_warning_into_an_error():
+    """GeneralizedCylinder reads with a warning (its generalized cylinders are not drawn); --strict refuses it."""
+    from lsys3d.pipeline import draw
+
+    grammar = lsys3d.Grammar.from_file(CORPUS / "cpfg/real/manual-GeneralizedCylinder-fractal.l")
+    with pytest.raises(GrammarError) as info:
+        draw(grammar, grammar.iterations, 0, lsys3d.GenerateOptions.from_flat(strict=True))
+    assert "does not draw" in str(info.value) and "--strict" in str(info.value) and "\n" not in str(info.value)

@@ -49,6 +49,9 @@ LPY = {
     "@o": Op.ORGAN, "Circle": Op.ORGAN, "@B": Op.ORGAN, "Box": Op.ORGAN, "~l": Op.ORGAN,
     "@Ts": Op.ELASTICITY, "Elasticity": Op.ELASTICITY, "@Tp": Op.TROPISM_VECTOR, "Tropism": Op.TROPISM_VECTOR,
     "nF": Op.FORWARD_STEPS,
+    # query modules (the helpcard's "Query" section): filled by the turtle between the steps
+    "?P": Op.QUERY, "?H": Op.QUERY, "?L": Op.QUERY, "?U": Op.QUERY, "?R": Op.QUERY, "GetPos": Op.QUERY,
+    "GetHead": Op.QUERY, "GetLeft": Op.QUERY, "GetUp": Op.QUERY, "GetRight": Op.QUERY,
 }  # fmt: skip
 # cpfg: "Interpreted symbols", appendix of the cpfg 3.0 tutorial (algorithmicbotany.org), and its
 # circles-and-spheres page (@c, @O)
@@ -58,7 +61,9 @@ CPFG = {
     "\\": (Op.ROTATE, H, -1), "/": (Op.ROTATE, H, +1), "|": Op.TURN_AROUND, "@v": Op.ROLL_HORIZONTAL,
     "[": Op.PUSH, "]": Op.POP, "{": Op.POLYGON_BEGIN, ".": Op.POLYGON_VERTEX, "}": Op.POLYGON_END,
     ";": Op.MATERIAL, ",": Op.MATERIAL, "#": Op.WIDTH_ADD, "!": Op.WIDTH_ADD, "@O": Op.ORGAN, "@c": Op.ORGAN,
-    "~l": Op.ORGAN, "$": Op.ROLL_HORIZONTAL,
+    "@o": Op.ORGAN, "~l": Op.ORGAN, "$": Op.ROLL_HORIZONTAL,
+    # query and communication modules (Mech and Prusinkiewicz 1996; the cpfg manual's environment section)
+    "?P": Op.QUERY, "?H": Op.QUERY, "?L": Op.QUERY, "?U": Op.QUERY, "?E": Op.QUERY,
 }  # fmt: skip
 # Lparser: lparser.txt (L. Lapre), the symbol table reproduced in the Lparser ports
 LPARSER = {
@@ -300,7 +305,7 @@ endlsystem
         ("Axiom: A\nproduction:\nA :\n    for i in range(3):\n        nproduce F\n", "plant.lpy:4:5: Python's 'for'"),
         ("Axiom: A\nproduction:\nA :\n    print(1)\n    x.y = 3\n", "plant.lpy:5:5: this Python statement"),
         ("v = [1, 2]\nAxiom: F(v)\n", "unknown name 'v': 'v' is Python that lsys3d does not run (line 1"),
-        ("Axiom: A\nproduction:\n?P(x,y,z) --> A\n", "query modules (?P, ?H...) need the turtle"),
+        ("Axiom: A\nproduction:\n?F(x,y,z) --> A\n", "?F, ?I and GetFrame queries (the whole frame) are not supported"),
         ("Axiom: A\ngroup 1:\n", "plant.lpy:2:1: 'group 1:' (rules that Python code switches on"),
         ("derivation length: 3\n", "plant.lpy:1:1: no 'Axiom:'"),
         ("Axiom: A\nwhile True:\n    pass\n", "plant.lpy:2:1: Python code ('while True:') is never run"),
@@ -411,7 +416,7 @@ endlsystem
         ("#define F(x) x\n", "macros with parameters are not supported"),
         ("Lsystem: 1\naxiom: A\nendlsystem\nLsystem: 2\n", "more than one Lsystem"),
         ("#ifdef X\naxiom: A\n", "#if or #ifdef without #endif"),
-        ("Lsystem: 1\nStart: {x = 1;}\naxiom: A\n", "cpfg's Start: block runs code"),
+        ("Lsystem: 1\nStart: {x[1] = 1;}\naxiom: A\n", "Start: block: arrays ('x[...]') are not supported"),
         ("Lsystem: 1\naxiom: A\nA == B\n", "expected a production"),
     ]:
         bad = tmp_path / "bad.l"
@@ -581,3 +586,92 @@ axiom = "{axiom}"
     assert tree.skeleton.organ_material.tolist() == ([4] if "@O" in axiom else [])
     again = Grammar.from_text(grammar_text(grammar))  # the provenance's TOML keeps the table
     assert again.materials == grammar.materials and again.dialect == dialect
+
+
+# ---------------------------------------------------------------- issue 41: web .ls forms, Lparser2's keys
+def test_the_web_tools_ls_form_is_recognised_by_its_settings_lines():
+    from lsys3d.lsystem.dialects import webls
+
+    text = (
+        "/* a bush,\n   ABOP figure 1.24a */\nn=3; delta=25.7; stemsize = 0.2\nstep = 2\n"
+        "axiom: F\np1: F -> F[+&(delta/2)F]F[-F]F\n"
+    )
+    assert webls.recognise(text)
+    g = Grammar.from_text(text, source="bush.ls")
+    assert (g.dialect, g.iterations, g.angle, g.turtle["width"], g.turtle["step"]) == ("cpfg", 3, 25.7, 0.2, 2.0)
+    assert g.rules == ("F -> F[+&(delta/2)F]F[-F]F",)  # the label goes, the variable stays for the rule
+    assert str(lsys3d.derive(g, 1)) == "F[+&(12.85)F]F[-F]F"
+    # derivation length: wins over n, and 1 is the default
+    assert Grammar.from_text("n=7\nderivation length: 2\naxiom: F\n", source="a.ls").iterations == 2
+    assert Grammar.from_text("stemsize=1\naxiom: F\n", source="a.ls").iterations == 1
+    # settings the older ABOP-like form writes too keep it (dialect abop), as before
+    assert Grammar.from_text("delta=30\nn=2\naxiom: F\n", source="a.ls").dialect == "abop"
+    # 'name: value' settings, as L-System Explorer also reads them
+    colon = Grammar.from_text("Lsystem: 1\nstemsize: 0.3\ndelta: 45\naxiom: F\n", source="c.ls")
+    assert (colon.dialect, colon.turtle["width"], colon.angle) == ("cpfg", 0.3, 45.0)
+    # the older ABOP-like form (n=..,delta=.. with a comma) keeps its reader
+    assert not webls.recognise("n=30,delta=22.5\naxiom: F\n")
+
+
+def test_the_web_form_reads_blocks_and_refuses_what_it_cannot():
+    text = "delta=30\nStart: {\n  k = 0;\n}\nStartEach: {k++;}\naxiom: A\np1: A : k < 3 --> FA\n"
+    g = Grammar.from_text(text + "derivation length: 5\n", source="k.ls")
+    assert str(lsys3d.derive(g)) == "FFA"
+    for bad, fragment in [
+        ("a1 = [0, 1]\naxiom: A\n", "holds a JavaScript value"),
+        ("delta=30; stemsize=1\naxiom: A\nwhat is this\n", "unknown line 'what is this'"),
+        ("delta=30; stemsize=1\nlsystem: 1\naxiom: A\nlsystem: 2\n", "sub-L-systems"),
+        ('delta=30; stemsize=1\n#include "more.ls"\naxiom: A\n', "the preprocessor's #include is not supported"),
+        ("delta=30; stemsize=1\nStart: n = 1;\naxiom: A\n", "expects a block of statements in braces"),
+    ]:
+        with pytest.raises(GrammarError) as info:
+            Grammar.from_text(bad, source="bad.ls")
+        assert fragment in str(info.value) and "\n" not in str(info.value), str(info.value)
+
+
+def test_lparser2_keys_read_as_lparser2c_does():
+    text = (
+        "recursion 2\nangle 20\nthickness 50\nmin_thickness 200\nswitch_yz 1\nshape 1\ntrace 0\nno_wait 1\n"
+        "color 2 0 128 255\naxiom c(2)FA\nrule A = F!!!!!!!!!!F\n"
+    )
+    g = Grammar.from_text(text, source="port.ls")
+    assert g.turtle["min_width"] == 200 / 1e4 and g.materials["2"] == {"base_color": "#0080ff"}
+    _, skeleton = lsys3d.pipeline.draw(g, g.iterations, 0)
+    # ten '!' take the width 0.5 to 0.5 * 0.7**10 = 0.014: under the floor, so drawn 0.02 wide
+    assert skeleton.width_start.min() == pytest.approx(0.02)
+    switched = Grammar.from_text(text.replace("switch_yz 1", "switch_yz 0"), source="port.ls")
+    assert str(lsys3d.derive(switched)) == str(lsys3d.derive(g))
+    for key, fragment in [("mutation 3", "random changes"), ("poly_limit 500", "a cap"), ("color 1 2", "four")]:
+        with pytest.raises(GrammarError, match=fragment) as info:
+            Grammar.from_text(text.replace("trace 0", key), source="port.ls")
+        assert "\n" not in str(info.value)
+    assert Grammar.from_text(text.replace("trace 0", "mutation 0"), source="port.ls").iterations == 2
+
+
+def test_the_min_width_floor_is_off_by_default():
+    g = Grammar(axiom="F!(0.001)F", rules=[])
+    _, skeleton = lsys3d.pipeline.draw(g, 0, 0)
+    assert skeleton.width_start.min() == pytest.approx(0.001)
+
+
+def test_an_lparser_polygon_goes_on_after_the_branch_it_was_opened_in(caplog):
+    """Lparser2.c: '[' and ']' save and restore the turtle, not the open polygon (poly_on, vcount, ver).
+
+    Lapré's spiral_plant.ls leaves: a=[+a{.].C.}, C=gC.  Each '{' opens a polygon after the branch its a
+    grew; the ']' that follows closes the branch around it and the polygon goes on taking vertices there,
+    until its '}'.  Lparser writes every polygon with three recorded vertices (vcount > 3): all 5 here.
+    Two of them hold one point twice (fewer than three distinct points, no area): lsys3d drops those
+    with a warning and keeps the other 3, each with its three vertices.
+    """
+    g = Grammar.from_text("recursion 5\nangle 20\nthickness 10\naxiom F[a]\nrule a = [+a{.].C.}\nrule C = gC\n",
+                          source="leaves.ls")  # fmt: skip
+    assert str(lsys3d.derive(g)).count("{") == 5
+    with caplog.at_level(logging.WARNING, logger="lsys3d"):
+        _, skeleton = lsys3d.pipeline.draw(g, g.iterations, 0)
+    assert skeleton.n_polygons == 3
+    assert np.diff(skeleton.polygon_offsets).tolist() == [3, 3, 3]
+    assert "dropped 2 leaf polygon(s)" in caplog.text
+    # the vertex after ']' is where ']' put the turtle back: the first point of the polygon's enclosing branch
+    first = skeleton.polygon_points[skeleton.polygon_offsets[:-1]]
+    second = skeleton.polygon_points[skeleton.polygon_offsets[:-1] + 1]
+    assert (np.linalg.norm(first - second, axis=1) > 0.1).all()

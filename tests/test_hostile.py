@@ -336,7 +336,7 @@ CASES = [
     ("toml-iterations-string", grow(F + 'iterations = "many"\n'), GrammarError, "'iterations' must be a whole"),
     ("toml-angle-infinite", grow(F + "angle = inf\n"), GrammarError, "'angle' must be a number"),
     ("file-not-utf8", grow(b'axiom = "\xff"\n'), GrammarError, "not UTF-8"),
-    ("file-too-large", api(big_file), GrammarError, "larger than 64 (lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES)"),
+    ("file-too-large", api(big_file), GrammarError, "more than 64 (lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES)"),
     ("file-missing", cli("derive", "{tmp}/nope.toml"), GrammarError, "no such grammar file"),
     ("preset-unknown", cli("derive", "no-such-preset"), GrammarError, "no bundled preset named"),
     # -- rule syntax
@@ -558,10 +558,10 @@ def test_raising_the_depth_beyond_pythons_stack_is_still_an_error(monkeypatch):
         lsys3d.derive(g, 1)
 
 
-def test_a_device_is_read_no_further_than_the_size_limit():
+def test_a_device_is_refused_before_it_is_read():
     if not Path("/dev/zero").exists():
         pytest.skip("no /dev/zero on this system")
-    with pytest.raises(GrammarError, match="larger than"):
+    with pytest.raises(GrammarError, match="not a regular file"):
         Grammar.from_file("/dev/zero")
 
 
@@ -970,7 +970,7 @@ ROUND_2 = [
     # -- grammar paths
     ("path-too-long", cli("derive", "{tmp}/" + "x" * 300 + ".toml"), GrammarError, "file name too long"),
     ("path-symlink-loop", cli("derive", "{tmp}/loop.toml", setup=symlink_loop), GrammarError, "symbolic links"),
-    ("path-folder", cli("derive", "{tmp}"), GrammarError, "cannot read grammar file: is a directory"),
+    ("path-folder", cli("derive", "{tmp}"), GrammarError, "the grammar file is a folder"),
     ("preset-escape-sequence", cli("derive", "\x1b]0;owned\x07tree"), GrammarError, "'\\x1b]0;owned\\x07tree'"),
     # -- sizes the mesh stages cannot compute with: the turtle names the module and the setting
     ("turtle-step-huge", cli("generate", "{tmp}/huge.toml", "-o", "{tmp}/t.glb", setup=steps_file), InterpretError,
@@ -1275,3 +1275,397 @@ def test_an_ignored_sighup_stays_ignored():
         assert signal.getsignal(signal.SIGTERM) is not None
     finally:
         signal.signal(signal.SIGHUP, previous)
+
+
+# ================================================================ round 3 (issue 38)
+# The new doors: native readers, models, batch manifests, forests, the rig/wind flags.  Root causes: one reader
+# for every file (lsys3d.external: regular files only, opened without blocking, bounded, depth-bounded JSON), one
+# rule for paths a file names (resolved, inside the folder the user named), the manifest as lsys3d's own record.
+def finishes(fn, seconds: float = 30.0):
+    """``fn()``'s result or exception, failing (not hanging) when it has not returned within ``seconds``."""
+    import threading
+
+    box: dict = {}
+
+    def run():
+        try:
+            box["value"] = fn()
+        except BaseException as exc:  # handed to the test
+            box["error"] = exc
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    thread.join(seconds)
+    assert not thread.is_alive(), f"still running after {seconds} s"
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs")
+def test_the_one_reader_refuses_special_files_without_blocking(tmp_path):
+    from lsys3d.external import FileRefused, open_regular, read_file
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    for path, fragment in [
+        (fifo, "not a regular file"),
+        ("/dev/zero", "not a regular file"),
+        (tmp_path, "is a folder"),
+        (tmp_path / "none", "no such thing file"),
+    ]:
+        with pytest.raises(FileRefused, match=fragment):
+            finishes(lambda p=path: read_file(p, 100, "thing", "LIMIT"))
+    (tmp_path / "big").write_bytes(b"x" * 101)
+    with pytest.raises(FileRefused, match=r"101 bytes, more than 100 \(LIMIT\)"):
+        read_file(tmp_path / "big", 100, "thing", "LIMIT")
+    (tmp_path / "link").symlink_to(tmp_path / "big")
+    with pytest.raises(FileRefused, match="is a symlink"):
+        open_regular(tmp_path / "link", 1000, "thing", "LIMIT", follow=False)
+    assert read_file(tmp_path / "link", 1000, "thing", "LIMIT") == b"x" * 101
+
+
+def test_json_nesting_is_checked_before_parsing():
+    from lsys3d.external import MAX_JSON_DEPTH, json_depth, load_json
+
+    assert json_depth('{"a": "[[[[", "b": ["\\"]]", [1]]}') == 3
+    assert json_depth('["\\\\", [[]]]') == 3  # an escaped backslash ends before the quote that closes the string
+    assert load_json("[" * MAX_JSON_DEPTH + "]" * MAX_JSON_DEPTH) == eval("[" * MAX_JSON_DEPTH + "]" * MAX_JSON_DEPTH)
+    with pytest.raises(ValueError, match="nested 100000 deep"):
+        load_json("[" * 100_000 + "]" * 100_000)
+
+
+def test_the_path_rule_follows_symlinks_and_stays_inside(tmp_path):
+    from lsys3d.external import FileRefused, inside
+
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "outside.usdc").write_text("x")
+    (tmp_path / "lib" / "in.usdc").symlink_to(tmp_path / "outside.usdc")
+    (tmp_path / "lib" / "loop").symlink_to(tmp_path / "lib" / "loop")
+    assert inside(tmp_path / "lib", "a/b.usdc", "asset") == (tmp_path / "lib" / "a" / "b.usdc").resolve()
+    for name in ("in.usdc", "../outside.usdc", str(tmp_path / "outside.usdc"), "a/../../outside.usdc"):
+        with pytest.raises(FileRefused, match="the asset is outside the folder"):
+            inside(tmp_path / "lib", name, "asset")
+    with pytest.raises(FileRefused):
+        inside(tmp_path / "lib", "loop", "asset")
+
+
+CPFG = 'Lsystem: 1\n#include "{name}"\nderivation length: 2\naxiom: F\nF --> FF\nendlsystem\n'
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs")
+def test_cpfg_includes_stay_in_the_grammars_folder_and_never_block(tmp_path):
+    folder, outside = tmp_path / "grammar", tmp_path / "elsewhere"
+    folder.mkdir()
+    outside.mkdir()
+    (outside / "secret.l").write_text("the secret first line\n")
+    (folder / "inc.l").symlink_to(outside / "secret.l")
+    os.mkfifo(folder / "fifo.l")
+    (folder / "ok.l").write_text("#define N 2\n")
+    for name, fragment in [("inc.l", "outside the folder"), ("fifo.l", "not a regular file")]:
+        (folder / "plant.l").write_text(CPFG.format(name=name))
+        with pytest.raises(GrammarError, match=fragment) as info:
+            finishes(lambda: Grammar.from_file(folder / "plant.l"))
+        assert str(info.value).startswith(f"{folder / 'plant.l'}:2:1: #include '{name}'")
+        assert "secret" not in str(info.value)
+    (folder / "plant.l").write_text(CPFG.format(name="ok.l"))
+    assert Grammar.from_file(folder / "plant.l").iterations == 2
+
+
+def test_a_utf8_bom_is_accepted_in_every_grammar_file(tmp_path):
+    bom = "\ufeff"
+    files = {
+        "bom.toml": 'axiom = "F"\nrules = ["F -> FF"]\n',
+        "bom.lpy": "Axiom: F\nderivation length: 2\nproduction:\nF --> FF\nendlsystem\n",
+        "bom.l": "Lsystem: 1\nderivation length: 2\naxiom: F\nF --> FF\nendlsystem\n",
+    }
+    for name, text in files.items():
+        (tmp_path / name).write_text(bom + text, encoding="utf-8")
+        grammar = Grammar.from_file(tmp_path / name)
+        assert grammar.axiom == "F" and len(grammar.rules) == 1, name
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "where"),
+    [
+        ("nul.toml", 'axiom = "F"\nrules = ["F -> F\\u0000F"]\n', "nul.toml:2:17:"),
+        ("nul.l", "Lsystem: 1\nderivation length: 1\naxiom: F\nF --> F\0F\nendlsystem\n", "nul.l:4:8:"),
+    ],
+)
+def test_a_nul_inside_a_rule_is_refused_where_it_stands(tmp_path, name, text, where):
+    (tmp_path / name).write_text(text)
+    with pytest.raises(GrammarError, match="holds a NUL character") as info:
+        Grammar.from_file(tmp_path / name)
+    assert str(info.value).startswith(f"{tmp_path / where}")
+    with pytest.raises(GrammarError, match="holds a NUL character"):
+        Grammar(axiom="F\0")
+
+
+def lpy_ifs(blocks: int, produce: str) -> str:
+    body = "".join(f"    if x > {i}:\n        y = {i}\n    else:\n        y = {i + 1}\n" for i in range(blocks))
+    return f"Axiom: A(1)\nderivation length: 2\nproduction:\nA(x):\n{body}{produce}endlsystem\n"
+
+
+@pytest.mark.parametrize(
+    ("produce", "fragment"),
+    [
+        ("    produce A(y)\n", "more than 256 ways through the rule's 'if's"),  # every way produces
+        ("    nproduce A(y)\n", "more than 256 ways"),
+        ("", "MAX_WALK"),  # no way produces: the work is bounded, not only the rules made
+    ],
+)
+def test_lpy_if_else_chains_are_bounded_in_work(produce, fragment):
+    """20 blocks one after the other: 2**20 ways (16 took over 120 s, 20 took 5.8 GB); refused in a moment."""
+    with pytest.raises(GrammarError, match=fragment) as info:
+        finishes(lambda: Grammar.from_text(lpy_ifs(20, produce), source="ifs.lpy"))
+    assert str(info.value).startswith("ifs.lpy:4:1: ")
+    assert len(Grammar.from_text(lpy_ifs(7, "    produce A(y)\n"), source="ifs.lpy").rules) == 128
+
+
+def instanced_glb(path: Path, nodes: int, subdivisions: int = 3) -> int:
+    """A .glb whose ``nodes`` nodes all place one icosphere; its triangles."""
+    import struct
+
+    import trimesh
+
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
+    glb = trimesh.Scene(mesh).export(file_type="glb")
+    (length,) = struct.unpack_from("<I", glb, 12)
+    doc = json.loads(glb[20 : 20 + length])
+    doc["nodes"] = [{"mesh": 0, "translation": [i * 0.01, 0, 0]} for i in range(nodes)]
+    doc["scenes"] = [{"nodes": list(range(nodes))}]
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    binary = glb[20 + length :]
+    head = b"glTF" + struct.pack("<II", 2, 20 + len(text) + len(binary)) + struct.pack("<I4s", len(text), b"JSON")
+    path.write_bytes(head + text + binary)
+    return len(mesh.faces)
+
+
+def test_a_model_whose_nodes_instance_one_mesh_is_counted_before_flattening(tmp_path):
+    """20,000 nodes placing one 1,280-triangle mesh (a 1 MB file): flattened it took 7.7 GB and 105 s."""
+    from lsys3d.errors import AssetError
+    from lsys3d.look.surfaces import load_model
+
+    triangles = instanced_glb(tmp_path / "bomb.glb", 20_000)
+    assert (tmp_path / "bomb.glb").stat().st_size < 2 << 20
+    with pytest.raises(AssetError, match=f"the model has {20_000 * triangles:,} triangles, more than 200,000"):
+        finishes(lambda: load_model(tmp_path / "bomb.glb"))
+    instanced_glb(tmp_path / "few.glb", 10, subdivisions=1)
+    assert len(load_model(tmp_path / "few.glb").faces) == 10 * 80  # each placement counted, and made
+
+
+def test_wind_keys_are_predicted_before_allocating(monkeypatch):
+    """At the documented maxima (60 s at 120 fps on a rig of 17,693 joints: 127 million keys) the animation took
+    5.2 GB before running out of memory; the keys are counted first and refused (MAX_WIND_KEYS: 16 million)."""
+    wind = importlib.import_module("lsys3d.look.wind")
+
+    tree = lsys3d.generate("abop-1.24a", iterations=2, rig=True, wind_animation=2, wind_fps=12)
+    keys = len(tree.animation) * len(tree.rig)
+    monkeypatch.setattr(wind, "MAX_WIND_KEYS", keys - 1)
+    with pytest.raises(LimitError, match=rf"25 keyframes for {len(tree.rig)} joints would be {keys} joint keys"):
+        lsys3d.generate("abop-1.24a", iterations=2, rig=True, wind_animation=2, wind_fps=12)
+
+
+def test_forest_ranges_fit_in_memory_or_are_refused():
+    from lsys3d.library.forest import MAX_INSTANCES, ForestOptions
+
+    assert MAX_INSTANCES == 1_000_000  # about 800 bytes an instance measured: 0.93 GB and 38 s at the most
+    with pytest.raises(OptionsError, match="count"):
+        ForestOptions(count=MAX_INSTANCES + 1)
+    with pytest.raises(OptionsError, match="seed"):
+        ForestOptions(seed=2**64)
+    assert ForestOptions(seed=2**64 - 1).seed == 2**64 - 1
+
+
+def test_a_huge_forest_seed_is_one_line(tmp_path, capsys):
+    with pytest.raises(SystemExit) as info:  # a usage error, as every flag out of its range
+        main(["forest", str(tmp_path), "--seed", "9" * 30])
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "seed" in err[0], err
+
+
+def test_a_library_naming_files_outside_it_is_refused(tmp_path):
+    from lsys3d.exchange.common import ExportOptions
+    from lsys3d.exchange.library import LibraryVariant, read_library, write_library
+    from lsys3d.library.forest import forest
+
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "secret").mkdir()
+    (tmp_path / "secret" / "tree.usdc").write_text("#usda 1.0\n")
+    (tmp_path / "lib" / "tree").mkdir()
+    (tmp_path / "lib" / "tree" / "linked.usdc").symlink_to(tmp_path / "secret" / "tree.usdc")
+    for usd, glb in [
+        (str(tmp_path / "secret" / "tree.usdc"), None),
+        ("../secret/tree.usdc", None),
+        ("tree/linked.usdc", None),
+        ("tree/t.usdc", str(tmp_path / "secret" / "tree.glb")),
+    ]:
+        variant = LibraryVariant("tree", 0, usd, glb, 1.0, (-1, 0, -1), (1, 2, 1))
+        write_library(tmp_path / "lib" / "library.usda", [variant], ExportOptions())
+        with pytest.raises(lsys3d.ForestError, match="is outside the folder"):
+            read_library(tmp_path / "lib")
+        for suffix in (".usdc", ".glb"):
+            with pytest.raises(lsys3d.ForestError, match="is outside the folder"):
+                forest(tmp_path / "lib", tmp_path / f"forest{suffix}")
+            assert not (tmp_path / f"forest{suffix}").exists()
+
+
+def small_jobs(folder: Path, name: str = "koch", formats: str = '["svg"]') -> Path:
+    path = folder / "jobs.toml"
+    path.write_text(f'[[jobs]]\ngrammar = "koch"\nname = "{name}"\nseeds = "0"\nformats = {formats}\n')
+    return path
+
+
+def done_line(the, job, files: list[dict]) -> str:
+    from lsys3d.library.batch import MANIFEST_FORMAT, _export_key
+
+    line = {
+        "export": _export_key(job),
+        "files": files,
+        "id": job.id,
+        "lsys3d_manifest": MANIFEST_FORMAT,
+        "recipe": the.recipes[job.id],
+        "run": {"finished": "2026-01-01T00:00:00.000000Z"},
+        "status": "done",
+    }
+    return json.dumps(line) + "\n"
+
+
+def test_a_manifest_line_naming_a_file_outside_outdir_never_counts_the_job_done(tmp_path):
+    from lsys3d.library.batch import plan
+    from lsys3d.library.worker import sha256_of
+
+    jobs, outdir = small_jobs(tmp_path), tmp_path / "out"
+    (outdir / "koch").mkdir(parents=True)
+    the = plan(jobs, outdir)
+    job = the.jobs[0]
+    mine = outdir / job.paths[0]
+    mine.write_text("<svg/>")
+    elsewhere = tmp_path / "koch_s0.svg"
+    elsewhere.write_text("<svg/>")
+    entry = {"bytes": 6, "sha256": sha256_of(mine)}
+    (outdir / "manifest.jsonl").write_text(done_line(the, job, [{**entry, "path": job.paths[0]}]))
+    assert plan(jobs, outdir).skipped == [job.id]  # the line as lsys3d writes it: done
+    mine.unlink()
+    (outdir / "koch" / "koch_s0.svg").symlink_to(elsewhere)  # the right name, but a symlink out of OUTDIR
+    for files in (
+        [{**entry, "path": str(elsewhere)}],
+        [{**entry, "path": "../koch_s0.svg"}],
+        [{**entry, "path": job.paths[0]}],
+    ):
+        (outdir / "manifest.jsonl").write_text(done_line(the, job, files))
+        assert plan(jobs, outdir).skipped == [], files
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs")
+def test_the_manifest_is_a_regular_file_of_outdir_never_a_symlink_pipe_or_device(tmp_path, capsys):
+    jobs, outdir = small_jobs(tmp_path), tmp_path / "out"
+    outdir.mkdir()
+    target = tmp_path / "elsewhere.jsonl"
+    target.write_text("")
+    manifest = outdir / "manifest.jsonl"
+    for make, fragment in [
+        (lambda: manifest.symlink_to(target), "the manifest is a symlink"),
+        (lambda: manifest.symlink_to("/dev/zero"), "the manifest is a symlink"),
+        (lambda: os.mkfifo(manifest), "the manifest is not a regular file"),
+    ]:
+        make()
+        assert finishes(lambda: main(["batch", str(jobs), "-o", str(outdir), "-q"])) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"lsys3d: error: {manifest}: ") and fragment in err[0], err
+        manifest.unlink()
+    assert target.read_text() == ""  # nothing appended through the link
+    assert not (outdir / "koch" / "koch_s0.svg").exists()
+
+
+def test_the_manifest_writer_refuses_a_symlink_made_after_the_plan(tmp_path):
+    from lsys3d.library.batch import _ManifestWriter
+
+    target = tmp_path / "elsewhere.jsonl"
+    target.write_text("")
+    (tmp_path / "manifest.jsonl").symlink_to(target)
+    with pytest.raises(lsys3d.BatchError, match="the manifest is a symlink"):
+        _ManifestWriter(tmp_path / "manifest.jsonl")
+    assert target.read_text() == ""
+
+
+def test_bad_manifest_lines_are_skipped_with_a_warning(tmp_path, caplog):
+    from lsys3d.library.batch import MAX_MANIFEST_LINE, read_manifests
+
+    good = json.dumps({"id": "a_s0", "lsys3d_manifest": 1, "status": "failed"})
+    lines = [
+        "[" * 200_000 + "]" * 200_000,
+        '{"id": ' + "[" * 100 + "]" * 100 + "}",
+        "x" * (MAX_MANIFEST_LINE + 10),
+        good,
+    ]
+    (tmp_path / "manifest.jsonl").write_text("\n".join(lines) + "\n")
+    with caplog.at_level("WARNING", logger="lsys3d"):
+        assert list(read_manifests(tmp_path)) == ["a_s0"]
+    assert [r.getMessage().split(":")[-1] for r in caplog.records] == [" not a manifest line, skipped"] * 3
+
+
+def test_jobs_turtle_option_as_a_list_of_key_value(tmp_path):
+    from lsys3d.library.jobs import read_jobs
+
+    path = tmp_path / "jobs.toml"
+    path.write_text(
+        '[[jobs]]\ngrammar = "koch"\nformats = ["svg"]\noptions = { turtle = ["width_jitter=0.2", "step = 2"] }\n'
+    )
+    (job,) = read_jobs(path)
+    assert dict(job.options.turtle) == {"step": 2, "width_jitter": 0.2}
+    for bad, fragment in [('["nope=1"]', "expected KEY=VALUE"), ("[3]", "expected KEY=VALUE"), ("3", "a table")]:
+        path.write_text(f'[[jobs]]\ngrammar = "koch"\nformats = ["svg"]\noptions = {{ turtle = {bad} }}\n')
+        with pytest.raises(lsys3d.BatchError, match=fragment) as info:
+            read_jobs(path)
+        assert str(info.value).startswith(f"{path}:4:")
+
+
+def test_a_job_failing_on_a_later_format_leaves_none_of_its_files(tmp_path):
+    from lsys3d.library.jobs import read_jobs
+    from lsys3d.library.worker import run_job
+
+    (job,) = read_jobs(small_jobs(tmp_path, formats='["svg", "obj"]'))
+    (tmp_path / "koch").mkdir()
+    (tmp_path / "koch" / "koch_s0.obj").mkdir()  # the second format cannot be written
+    line = run_job(job, tmp_path)
+    assert line["status"] == "failed" and "koch_s0.obj: is a folder" in line["error"]
+    assert sorted(p.name for p in (tmp_path / "koch").iterdir()) == ["koch_s0.obj"]
+
+
+@pytest.mark.parametrize("name", ["manifest.jsonl", "manifest-1-of-2.jsonl", "library.usda"])
+def test_a_job_named_like_the_batchs_own_files_is_refused_naming_that_path(tmp_path, capsys, name):
+    jobs, outdir = small_jobs(tmp_path, name=name), tmp_path / "out"
+    assert main(["batch", str(jobs), "-o", str(outdir), "-q"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"lsys3d: error: {outdir / name}: the job name"), err
+    assert not outdir.exists()
+
+
+def test_rig_with_a_format_that_holds_no_joints_is_refused(tmp_path, capsys):
+    for suffix in (".stl", ".obj", ".ply", ".svg"):
+        assert main(["generate", "koch", "-n", "1", "--rig", "-o", str(tmp_path / f"k{suffix}")]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"--rig: a {suffix} file holds no joints" in err[0], err
+        assert not (tmp_path / f"k{suffix}").exists()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="needs Dask")
+@pytest.mark.parametrize("address", ["foo://host:1", "inproc://x"])
+def test_a_scheduler_address_that_cannot_work_exits_with_one_line(tmp_path, address):
+    """The Client's constructor failed and left a half-made client whose __del__ waited forever at exit."""
+    small_jobs(tmp_path)
+    proc = run_lsys3d(["batch", "jobs.toml", "-o", "out", "--scheduler", address], tmp_path, cap=MESH_CAP, timeout=60)
+    assert proc.returncode == 1
+    one_error_line(proc, "cannot reach the Dask scheduler")
+
+
+def test_a_batch_of_one_failing_job_prints_its_failure_once(tmp_path, capsys):
+    (tmp_path / "broken.toml").write_text('axiom = "F"\nrules = ["F -> F("]\n')
+    jobs = tmp_path / "jobs.toml"
+    jobs.write_text('[[jobs]]\ngrammar = "broken.toml"\nseeds = "0"\nformats = ["svg"]\n')
+    assert main(["batch", str(jobs), "-o", str(tmp_path / "out"), "-q"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"lsys3d: error: broken_s0 failed: {tmp_path / 'broken.toml'}:2:17: unclosed '(' after 'F'"], err

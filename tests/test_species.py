@@ -257,7 +257,7 @@ def test_presets_lists_the_groups_species_first(capsys):
     assert main(["presets"]) == 0
     lines = capsys.readouterr().out.splitlines()
     headers = [line for line in lines if not line.startswith(" ")]
-    assert headers == ["species:", "figure:", "curve:"]
+    assert headers == ["species:", "figure:", "curve:", "scene:"]
     species = lines[1 : lines.index("figure:")]
     assert [line.split()[0] for line in species] == SPECIES
 

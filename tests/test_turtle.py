@@ -514,9 +514,10 @@ def test_skeleton_stats_empty():
 def test_command_table():
     symbols = [c.symbol for c in COMMANDS]
     assert len(symbols) == len(set(symbols))
-    assert set("Ff+-&^\\/|$[]!'\"{.}~") | {"@O", "@c", "@o"} == set(symbols)
-    # one row per behaviour; rotations say their axis and sign (the other ops are the dialects': test_dialects)
-    assert len({(c.op, c.axis, c.sign, c.organ) for c in COMMANDS}) == len(COMMANDS)
+    assert set("Ff+-&^\\/|$[]!'\"{.}~") | {"@O", "@c", "@o", "?P", "?H", "?L", "?U", "?E"} == set(symbols)
+    # one row per behaviour; rotations say their axis and sign, queries what they ask (the other ops are the
+    # dialects': test_dialects)
+    assert len({(c.op, c.axis, c.sign, c.organ, c.query) for c in COMMANDS}) == len(COMMANDS)
     assert {c.op for c in COMMANDS} <= set(Op) - {Op.NONE}
     assert all((c.axis != Axis.NONE) == (c.op == Op.ROTATE) and c.sign in (1, -1) for c in COMMANDS)
     table = symbol_table(ASCII_ALPHABET, draw="FG", move="fg", leaf="L")

@@ -122,6 +122,20 @@ def bpy_python() -> Path | None:
     return candidate if candidate.exists() else None
 
 
+def bpy_lsys3d_env(python: Path) -> dict:
+    """The environment for lsys3d run by ``python`` (Blender's): numba's kernel cache beside the code is
+    shared only when both environments hold the same numba, whose cache files are not safe to share across
+    versions (one process could read the other's code under the same file name); else a cache of its own."""
+    env = dict(os.environ)
+    import numba
+
+    site = list(python.parent.parent.glob("lib/python3*/site-packages/numba-*.dist-info"))
+    theirs = site[0].name[len("numba-") : -len(".dist-info")] if site else None
+    if theirs != numba.__version__:
+        env["NUMBA_CACHE_DIR"] = str(python.parent.parent / "numba-cache")
+    return env
+
+
 def blender_import(path: Path, timeout: float = 600) -> dict:
     """Import ``path`` into Blender in a child process; the report of ``tools/blender_import.py``."""
     python = bpy_python()

@@ -68,10 +68,40 @@ class ExportOptions(Options):
     skeleton_curves: bool = option(False, help="also write the branch skeleton as curves")
     no_clobber: bool = option(False, help="refuse to overwrite an existing file")
     hairline: bool = option(False, help="SVG: lines one pixel wide instead of as wide as branches")
+    scene: bool = option(
+        False, help="also write the scene the plant grew in ([environment], --environment) under a node 'scene'"
+    )
 
     @property
     def meters_per_unit(self) -> float:
         return UNITS[self.units]
+
+
+def scene_meshes(tree, options: ExportOptions, where: str) -> tuple:
+    """The scene meshes to write with ``tree`` (``options.scene``): ``(name, (n, 3) points in the file's frame,
+    (f, 3) faces)`` each, named uniquely; empty without ``--scene``.
+
+    Raises
+    ------
+    ExportError
+        ``--scene`` for a plant that grew in no scene.
+    """
+    if not options.scene:
+        return ()
+    if not tree.scene:
+        raise ExportError(f"{where}: --scene: the plant grew in no scene (give the grammar an [environment], or "
+                          "--environment FILE)")  # fmt: skip
+    frame = file_frame(options)
+    out, seen = [], set()
+    for k, m in enumerate(tree.scene):
+        name = re.sub(r"[^A-Za-z0-9_]", "_", f"{m.role}_{m.name}") or f"mesh_{k}"
+        if name[0].isdigit():
+            name = "_" + name
+        while name in seen:
+            name += f"_{k}"
+        seen.add(name)
+        out.append((name, np.asarray(m.vertices, np.float64) @ frame.T, np.asarray(m.faces, np.int64)))
+    return tuple(out)
 
 
 def file_frame(options: ExportOptions) -> np.ndarray:

@@ -57,6 +57,7 @@ from .common import (
     gather_mesh,
     material_groups,
     metadata_json,
+    scene_meshes,
     split_tangents,
     to_float32,
 )
@@ -600,6 +601,23 @@ class _Gather:
         if channels:
             self.animations.append({"name": "wind", "channels": channels, "samplers": samplers})
 
+    def gather_scene(self) -> None:
+        """The scene the plant grew in (``--scene``): a node ``scene`` under the asset's, a mesh per scene mesh."""
+        meshes = scene_meshes(self.tree, self.options, self.where)
+        if not meshes:
+            return
+        children = []
+        for name, points, faces in meshes:
+            position = self.buf.accessor(to_float32(points, f"scene {name}", self.where), bounds=True)
+            indices = self.buf.accessor(faces.reshape(-1).astype(np.uint32), target=ELEMENT_ARRAY_BUFFER)
+            self.meshes.append(
+                {"name": name, "primitives": [{"attributes": {"POSITION": position}, "indices": indices}]}
+            )
+            self.nodes.append({"name": name, "mesh": len(self.meshes) - 1})
+            children.append(len(self.nodes) - 1)
+        self.nodes.append({"name": "scene", "children": children})
+        self.nodes[0].setdefault("children", []).append(len(self.nodes) - 1)
+
     # the document
     def document(self) -> dict:
         """The glTF JSON of what was gathered, the tree's metadata in the asset's and the scene's extras."""
@@ -640,6 +658,7 @@ def build(tree: Tree, options: ExportOptions, where: str) -> tuple[dict, _Buffer
     check_options(options, where)
     gathered = _Gather(tree, options, where)
     gathered.gather_nodes()  # meshes, their materials and textures, as the parts are reached
+    gathered.gather_scene()
     gathered.gather_skin()
     gathered.gather_growth()
     gathered.gather_animations()

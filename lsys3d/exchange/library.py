@@ -35,6 +35,7 @@ from pathlib import Path
 from pxr import Gf, Kind, Sdf, Tf
 
 from ..errors import ExportError, ForestError
+from ..external import FileRefused, inside, open_regular
 from ..version import __version__
 from .atomic import atomic_path
 from .common import UNITS, ExportOptions
@@ -45,6 +46,8 @@ __all__ = ["LIBRARY_ROOT", "SPECIES_SET", "USD_FORMATS", "LibraryVariant", "read
 LIBRARY_ROOT = "Library"
 SPECIES_SET = "species"
 USD_FORMATS = ("usdc", "usda", "usd", "usdz")
+MAX_LIBRARY_BYTES = 1 << 30
+"""Largest ``library.usda`` read (a variant takes about 600 bytes: over a million assets)."""
 """Formats a library can hold as payloads (the first a job writes is the one used)."""
 
 
@@ -174,8 +177,12 @@ def read_library(path: str | os.PathLike) -> Library:
     path = Path(path)
     if path.is_dir():
         path = path / "library.usda"
-    if not path.is_file():
+    if not path.exists():
         raise ForestError(f"{path}: no such library (write one with 'lsys3d batch JOBS.toml -o FOLDER')")
+    try:  # a regular file of a bounded size (USD reads it itself: check it the way every file is read)
+        os.close(open_regular(path, MAX_LIBRARY_BYTES, "library", "lsys3d.exchange.library.MAX_LIBRARY_BYTES"))
+    except FileRefused as exc:
+        raise ForestError(str(exc)) from None
     try:
         layer = Sdf.Layer.FindOrOpen(str(path))
     except Tf.ErrorException as exc:
@@ -195,17 +202,23 @@ def read_library(path: str | os.PathLike) -> Library:
             if not isinstance(data, dict) or not payloads:
                 raise ForestError(f"{path}: variant {name}/{seed_name} has no lsys3d customData or no payload")
             try:
+                usd, glb = payloads[0].assetPath, data.get("glb")
+                for name_, what in ((usd, "USD file"), (glb, ".glb file")):  # the library's own files only
+                    if name_ is not None:
+                        inside(path.parent, str(name_), f"asset's {what}")
                 variants.append(
                     LibraryVariant(
                         species=str(data["species"]),
                         seed=int(data["seed"]),
-                        usd=payloads[0].assetPath,
-                        glb=data.get("glb"),
+                        usd=usd,
+                        glb=glb,
                         crown_radius=float(data["crown_radius"]),
                         bbox_min=tuple(float(x) for x in data["bbox_min"]),
                         bbox_max=tuple(float(x) for x in data["bbox_max"]),
                     )
                 )
+            except FileRefused as exc:
+                raise ForestError(f"{path}: variant {name}/{seed_name}: {exc}") from None
             except (KeyError, TypeError, ValueError) as exc:
                 raise ForestError(f"{path}: variant {name}/{seed_name}: bad lsys3d customData ({exc})") from None
     if not variants:

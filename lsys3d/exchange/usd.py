@@ -65,6 +65,7 @@ from .common import (
     gather_mesh,
     material_groups,
     metadata_json,
+    scene_meshes,
     to_float32,
 )
 
@@ -357,7 +358,24 @@ def build_stage(
     """
     stage, prim = _new_stage(options, tree.identifier, tree.rig is not None)
     _author_levels(stage, prim, tree, options, where, textures or TextureFiles("./textures/"))
+    _author_scene(stage, prim, tree, options, where)
     return stage
+
+
+def _author_scene(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportOptions, where: str) -> None:
+    """The scene the plant grew in (``--scene``): ``<root>/scene``, a Mesh prim per scene mesh."""
+    meshes = scene_meshes(tree, options, where)
+    if not meshes:
+        return
+    root = f"{prim.GetPath().pathString}/scene"
+    UsdGeom.Xform.Define(stage, root)
+    for name, points, faces in meshes:
+        mesh = UsdGeom.Mesh.Define(stage, f"{root}/{name}")
+        mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points.astype(np.float32)))
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32)))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.reshape(-1).astype(np.int32)))
+        mesh.CreateExtentAttr(_extent(points))
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
 
 
 def _author_levels(

@@ -21,7 +21,6 @@ the version that recorded them.
 from __future__ import annotations
 
 import dataclasses
-import errno
 import hashlib
 import json
 import math
@@ -31,6 +30,7 @@ from pathlib import Path
 
 from ..errors import GoldenError, LSystemError, OptionsError, clip, os_reason
 from ..exchange.atomic import write_bytes
+from ..external import FileRefused, load_json, read_file
 from ..lsystem import dialects
 from ..lsystem.grammar import Grammar
 from ..lsystem.presets import list_presets, load_preset
@@ -302,22 +302,16 @@ def read_golden(path: str | os.PathLike) -> tuple[Recipe, dict]:
     """
     path = Path(path)
     try:
-        if "\0" in str(path):
-            raise OSError(errno.EINVAL, "a file name cannot hold a NUL character")
-        with path.open("rb") as f:  # a device has no end: read no more than the limit
-            raw_bytes = f.read(MAX_GOLDEN_BYTES + 1)
-    except FileNotFoundError:
-        raise GoldenError(f"{path}: no such golden file") from None
-    except OSError as exc:
-        raise GoldenError(f"{path}: {os_reason(exc)}") from None
-    if len(raw_bytes) > MAX_GOLDEN_BYTES:
-        raise GoldenError(f"{path}: larger than {MAX_GOLDEN_BYTES:,} bytes (lsys3d.golden.golden.MAX_GOLDEN_BYTES)")
+        raw_bytes = read_file(path, MAX_GOLDEN_BYTES, "golden file", "lsys3d.golden.golden.MAX_GOLDEN_BYTES")
+    except FileRefused as exc:
+        raise GoldenError(str(exc)) from None
     try:
-        data = json.loads(raw_bytes.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        data = load_json(raw_bytes.decode("utf-8"))
+    except UnicodeDecodeError as exc:
         raise GoldenError(f"{path}: not a golden file: {exc}") from None
-    except RecursionError:  # the json module reads nested arrays and objects recursively
-        raise GoldenError(f"{path}: not a golden file: arrays or objects nested too deeply") from None
+    except ValueError as exc:  # bad JSON, or arrays and objects nested too deeply
+        reason = str(exc).replace("JSON nested", "arrays or objects nested too deeply:")
+        raise GoldenError(f"{path}: not a golden file: {reason}") from None
     if not isinstance(data, dict) or data.get("lsys3d_golden") != GOLDEN_FORMAT:
         raise GoldenError(f'{path}: not a golden file (no "lsys3d_golden": {GOLDEN_FORMAT})')
     raw, recorded = data.get("recipe"), data.get("report")

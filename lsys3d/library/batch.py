@@ -42,14 +42,16 @@ import logging
 import os
 import re
 import signal
+import stat
 import threading
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import BatchError, LSystemError
+from ..errors import BatchError, LSystemError, os_reason
 from ..exchange.atomic import check_target
 from ..exchange.library import USD_FORMATS, LibraryVariant, write_library
+from ..external import FileRefused, inside, load_json, read_lines
 from ..golden.golden import recipe_for
 from .jobs import Job, JobSize, predict_size, read_jobs, shard
 from .runners import available_memory, run_dask, run_local
@@ -75,6 +77,11 @@ log = logging.getLogger("lsys3d")
 MANIFEST = "manifest.jsonl"
 MANIFEST_FORMAT = 1
 LIBRARY = "library.usda"
+MAX_MANIFEST_BYTES = 1 << 32
+"""Largest manifest read (4 GiB: 100,000 jobs resumed a hundred times at 4 kB a line); read a line at a time."""
+MAX_MANIFEST_LINE = 1 << 20
+"""Longest manifest line parsed (lsys3d writes a few kB); a longer one is skipped with a warning."""
+_LIMIT_NAME = "lsys3d.library.batch.MAX_MANIFEST_BYTES"
 
 
 def manifest_name(shard_of: tuple[int, int] | None = None) -> str:
@@ -108,26 +115,28 @@ def read_manifests(outdir: str | os.PathLike, keep: Callable[[dict], dict] | Non
     for path in sorted(outdir.glob("manifest*.jsonl")):
         if not re.fullmatch(r"manifest(-\d+-of-\d+)?\.jsonl", path.name):
             continue
+        lines = read_lines(path, MAX_MANIFEST_BYTES, MAX_MANIFEST_LINE, "manifest", _LIMIT_NAME, follow=False)
         try:
-            with open(path, encoding="utf-8", errors="replace") as f:
-                for number, raw in enumerate(f, 1):
-                    if not raw.strip():
-                        continue
-                    try:
-                        line = json.loads(raw)
-                        if not isinstance(line, dict) or line.get("lsys3d_manifest") != MANIFEST_FORMAT:
-                            raise ValueError("not a manifest line")
-                    except ValueError:
-                        log.warning("%s:%d: not a manifest line, skipped", path, number)
-                        continue
-                    job_id = line.get("id")
-                    if not isinstance(job_id, str):
-                        continue
-                    order = (str((line.get("run") or {}).get("finished") or ""), path.name, number)
-                    if job_id not in latest or latest[job_id][0] <= order:
-                        latest[job_id] = (order, keep(line) if keep else line)
-        except OSError as exc:
-            raise BatchError(f"cannot read the manifest: {exc.strerror or exc}", str(path)) from None
+            for number, raw in lines:
+                if raw is not None and not raw.strip():
+                    continue
+                try:
+                    if raw is None:
+                        raise ValueError(f"longer than {MAX_MANIFEST_LINE:,} bytes")
+                    line = load_json(raw.decode("utf-8", errors="replace"))
+                    if not isinstance(line, dict) or line.get("lsys3d_manifest") != MANIFEST_FORMAT:
+                        raise ValueError("not a manifest line")
+                except ValueError:
+                    log.warning("%s:%d: not a manifest line, skipped", path, number)
+                    continue
+                job_id = line.get("id")
+                if not isinstance(job_id, str):
+                    continue
+                order = (str((line.get("run") or {}).get("finished") or ""), path.name, number)
+                if job_id not in latest or latest[job_id][0] <= order:
+                    latest[job_id] = (order, keep(line) if keep else line)
+        except FileRefused as exc:
+            raise BatchError(exc.reason, str(path)) from None
     return {job_id: line for job_id, (_, line) in latest.items()}
 
 
@@ -140,8 +149,13 @@ def _for_library(line: dict) -> dict:
     return {"counts": {"bbox": bbox}, "crown_radius": line.get("crown_radius"), **_for_resume(line)}
 
 
-def _is_done(line: dict | None, recipe: dict | None, export: dict, outdir: Path) -> bool:
-    """Whether a job's last line says its files are there, whole, and made from the same recipe."""
+def _is_done(line: dict | None, recipe: dict | None, export: dict, outdir: Path, job: Job) -> bool:
+    """Whether a job's last line says its files are there, whole, and made from the same recipe.
+
+    The line must list exactly the job's own files (``<name>/<name>_s<seed>.<format>``, inside ``outdir``
+    with every symlink followed), each a regular file with the recorded size and sha256: a line that names
+    any other file, however well its hash matches, never counts the job done.
+    """
     if not line or line.get("status") != "done" or recipe is None:
         return False
     if line.get("recipe") != recipe or line.get("export") != export:
@@ -149,14 +163,23 @@ def _is_done(line: dict | None, recipe: dict | None, export: dict, outdir: Path)
     files = line.get("files")
     if not isinstance(files, list) or not files:
         return False
-    for entry in files:
-        try:
-            path = outdir / entry["path"]
+    try:
+        if sorted(entry["path"] for entry in files) != sorted(_job_files(job)):
+            return False
+        for entry in files:
+            path = inside(outdir, entry["path"], "file")
             if path.stat().st_size != entry["bytes"] or sha256_of(path) != entry["sha256"]:
                 return False
-        except (OSError, KeyError, TypeError):
-            return False
+    except (OSError, LSystemError, KeyError, TypeError):
+        return False
     return True
+
+
+def _job_files(job: Job) -> list[str]:
+    """The paths a done job's line lists: its outputs, and the ``.bin`` beside a ``.gltf``."""
+    out = list(job.paths)
+    out += [p[: -len(".gltf")] + ".bin" for p in job.paths if p.endswith(".gltf")]
+    return out
 
 
 class _ManifestWriter:
@@ -164,16 +187,25 @@ class _ManifestWriter:
 
     def __init__(self, path: Path):
         self.path = path
-        try:
-            self.fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-            size = os.fstat(self.fd).st_size
-            if size:
-                with open(path, "rb") as f:
-                    f.seek(size - 1)
-                    if f.read(1) != b"\n":  # the last run died mid-line: start on a fresh one
-                        os.write(self.fd, b"\n")
+        flags = os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK | getattr(os, "O_NOFOLLOW", 0)
+        try:  # never through a symlink, never into a pipe or device: the manifest is lsys3d's own file
+            self.fd = os.open(path, flags | getattr(os, "O_CLOEXEC", 0), 0o644)
         except OSError as exc:
-            raise BatchError(f"cannot write the manifest: {exc.strerror or exc}", str(path)) from None
+            if path.is_symlink():
+                raise BatchError("the manifest is a symlink; lsys3d writes it only as a file", str(path)) from None
+            raise BatchError(f"cannot write the manifest: {os_reason(exc)}", str(path)) from None
+        try:
+            info = os.fstat(self.fd)
+            if not stat.S_ISREG(info.st_mode):
+                raise BatchError("the manifest is not a regular file", str(path))
+            if info.st_size and os.pread(self.fd, 1, info.st_size - 1) != b"\n":
+                os.write(self.fd, b"\n")  # the last run died mid-line: start on a fresh one
+        except OSError as exc:
+            os.close(self.fd)
+            raise BatchError(f"cannot write the manifest: {os_reason(exc)}", str(path)) from None
+        except BatchError:
+            os.close(self.fd)
+            raise
 
     def append(self, line: dict) -> None:
         data = (json.dumps(line, sort_keys=True, allow_nan=False) + "\n").encode("utf-8")
@@ -317,7 +349,7 @@ class Plan:
         self.to_run: list[Job] = []
         self.skipped: list[str] = []
         for job in jobs:
-            if _is_done(previous.get(job.id), self.recipes[job.id], _export_key(job), outdir):
+            if _is_done(previous.get(job.id), self.recipes[job.id], _export_key(job), outdir, job):
                 self.skipped.append(job.id)
             else:
                 self.to_run.append(job)
@@ -414,7 +446,7 @@ def batch(
     the = jobs if isinstance(jobs, Plan) else plan(jobs, outdir, shard_of)
     if the.outdir != outdir:
         raise BatchError(f"the plan was made for {str(the.outdir)!r}", str(outdir))
-    _prepare(outdir, the.jobs)
+    _prepare(outdir, the.jobs, the.shard_of)
     result = BatchResult(outdir=outdir, manifest=the.manifest, skipped=list(the.skipped))
     total = len(the.jobs)
     counts = {"done": 0, "failed": 0, "skipped": len(result.skipped)}
@@ -466,18 +498,27 @@ def batch(
     return result
 
 
-def _prepare(outdir: Path, jobs: Sequence[Job]) -> None:
+def _prepare(outdir: Path, jobs: Sequence[Job], shard_of: tuple[int, int] | None = None) -> None:
     """Make the output folder and the jobs' folders; fail now if they cannot be written."""
+    names = sorted({job.name for job in jobs})
+    for name in names:  # a job's folder must not take the place of the batch's own files
+        if name == LIBRARY or re.fullmatch(r"manifest(-\d+-of-\d+)?\.jsonl", name):
+            raise BatchError(
+                f"the job name {name!r} is the name of the batch's own {'library' if name == LIBRARY else 'manifest'}; "
+                'give its entry another name (name = "...")',
+                str(outdir / name),
+            )
     try:
         outdir.mkdir(parents=True, exist_ok=True)
-        for name in sorted({job.name for job in jobs}):
+        for name in names:
             (outdir / name).mkdir(exist_ok=True)
     except OSError as exc:
         raise BatchError(f"cannot make the output folder: {exc.strerror or exc}", str(outdir)) from None
+    manifest = outdir / manifest_name(shard_of)
     try:
-        check_target(outdir / MANIFEST, no_clobber=False)
+        check_target(manifest, no_clobber=False)
     except LSystemError as exc:
-        raise BatchError(str(exc).split(": ", 1)[-1], str(outdir)) from None
+        raise BatchError(str(exc).split(": ", 1)[-1], str(manifest)) from None
 
 
 def _record(job, line, size, recipes, writer, result, counts, report) -> None:

@@ -36,13 +36,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import BatchError, ExportError, LSystemError, OptionsError, clip
+from ..errors import BatchError, ExportError, GrammarError, LSystemError, OptionsError, clip
 from ..exchange import SUPPORTED_SUFFIXES, ExportOptions
 from ..exchange.gltf import check_options
 from ..exchange.library import USD_FORMATS
+from ..external import FileRefused, read_file
 from ..lsystem.derive import derive, predict_counts
 from ..lsystem.dialects import GRAMMAR_SUFFIXES
-from ..lsystem.grammar import MAX_GRAMMAR_BYTES, Grammar
+from ..lsystem.grammar import Grammar, read_text
 from ..lsystem.presets import list_presets, load_preset, preset_text
 from ..options import flat_fields
 from ..pipeline import GenerateOptions
@@ -350,20 +351,9 @@ def _read_grammar(spec: str, folder: Path, loc: _Locator, entry: int) -> _Gramma
         raise loc.error(f"grammar: no such grammar file {str(path)!r}", entry, "grammar")
     source = str(path)
     try:
-        with path.open("rb") as f:
-            raw = f.read(MAX_GRAMMAR_BYTES + 1)
-    except OSError as exc:
-        raise loc.error(f"grammar: cannot read {source!r}: {exc.strerror or exc}", entry, "grammar") from None
-    if len(raw) > MAX_GRAMMAR_BYTES:
-        message = (
-            f"{source}: grammar file is larger than {MAX_GRAMMAR_BYTES} bytes "
-            "(lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES)"
-        )
-        return _Grammar(source, "", path.stem, None, message)
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        return _Grammar(source, "", path.stem, None, f"{source}: grammar file is not UTF-8 text (byte {exc.start})")
+        text = read_text(path)
+    except GrammarError as exc:  # too large, not UTF-8, not a regular file: the job fails with the message
+        return _Grammar(source, "", path.stem, None, str(exc))
     try:
         grammar = Grammar.from_text(text, source=source)
     except LSystemError as exc:
@@ -406,14 +396,9 @@ def read_jobs(path: str | os.PathLike) -> list[Job]:
     path = Path(path)
     source = str(path)
     try:
-        with path.open("rb") as f:
-            raw = f.read(MAX_JOBS_FILE_BYTES + 1)
-    except FileNotFoundError:
-        raise BatchError("no such jobs file", source) from None
-    except OSError as exc:
-        raise BatchError(f"cannot read the jobs file: {exc.strerror or exc}", source) from None
-    if len(raw) > MAX_JOBS_FILE_BYTES:
-        raise BatchError(f"the jobs file is larger than {MAX_JOBS_FILE_BYTES} bytes", source)
+        raw = read_file(path, MAX_JOBS_FILE_BYTES, "jobs file", "lsys3d.library.jobs.MAX_JOBS_FILE_BYTES")
+    except FileRefused as exc:
+        raise BatchError(exc.reason, source) from None
     try:
         text = raw.decode("utf-8")
         data = tomllib.loads(text)

@@ -21,11 +21,13 @@ it writes the job's files itself and sends back only the line.
 from __future__ import annotations
 
 import contextlib
+import gc
 import logging
 import multiprocessing
 import os
 import signal
 import time
+import traceback
 import uuid
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
@@ -293,6 +295,23 @@ def _shut_down(pool: list[_Worker]) -> None:
 # ---------------------------------------------------------------- Dask
 
 
+def _connect(Client, address: str):
+    """A Dask client of the scheduler at ``address``, or a BatchError that lets the process exit.
+
+    A Client whose constructor fails is half made: its ``__del__`` closes it by waiting on its event loop, and
+    when that runs at the interpreter's exit the loop is gone and the process never ends.  So the failed
+    client's frames are cleared and it is collected here, while its loop still runs.
+    """
+    try:
+        return Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+    except Exception as exc:  # any failure to connect is the batch's one-line error
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        traceback.clear_frames(exc.__traceback__)
+        del exc
+    gc.collect()
+    raise BatchError(f"cannot reach the Dask scheduler: {reason}", address)
+
+
 def run_dask(
     jobs: Sequence[Job],
     outdir: str | os.PathLike,
@@ -316,10 +335,14 @@ def run_dask(
         raise BatchError(
             "running on a Dask cluster needs Dask: pip install 'lsys3d[dask]'", "lsys3d batch --scheduler"
         ) from None
-    try:
-        client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
+    try:  # check the address first: a Client that fails in its constructor leaves its event loop's thread running
+        from distributed.comm.addressing import parse_address
+        from distributed.comm.registry import get_backend
+
+        get_backend(parse_address(address)[0])
+    except (ImportError, TypeError, ValueError) as exc:
         raise BatchError(f"cannot reach the Dask scheduler: {exc}", address) from None
+    client = _connect(Client, address)
     futures: dict = {}
     try:
         workers = client.scheduler_info().get("workers", {})

@@ -22,12 +22,16 @@ import numpy as np
 from .. import pipeline
 from ..errors import BatchError, LSystemError
 from ..exchange import export
+from ..external import open_regular
 from ..stats import report
 from .jobs import Job
 
 __all__ = ["crown_radius", "lost_line", "run_job", "sha256_of"]
 
 log = logging.getLogger("lsys3d")
+
+MAX_ASSET_BYTES = 1 << 40
+"""Largest asset file hashed (it is read in pieces: the bound is on time, not memory)."""
 
 
 class _PeakMemory:
@@ -64,7 +68,8 @@ class _PeakMemory:
 def sha256_of(path: Path) -> str:
     """The sha256 of a file's bytes, as hex."""
     digest = hashlib.sha256()
-    with open(path, "rb") as f:
+    fd = open_regular(path, MAX_ASSET_BYTES, "asset", "lsys3d.library.worker.MAX_ASSET_BYTES")
+    with os.fdopen(fd, "rb") as f:  # a regular file only: a pipe put in its place must not hang a resume
         while chunk := f.read(1 << 20):
             digest.update(chunk)
     return digest.hexdigest()
@@ -112,6 +117,7 @@ def run_job(job: Job, outdir: str | os.PathLike) -> dict:
     meter = _PeakMemory()
     t0 = time.perf_counter()
     line: dict = {"id": job.id}
+    written: list[Path] = []
     try:
         if job.grammar_error:
             raise BatchError(job.grammar_error, job.grammar_source)
@@ -122,11 +128,20 @@ def run_job(job: Job, outdir: str | os.PathLike) -> dict:
         tree = pipeline.generate(job.grammar(), job.iterations, job.seed, options=options)
         counts = report(tree.modules, tree.skeleton, tree)
         files = []
-        for rel in job.paths:
-            export(tree, outdir / rel, job.export_options)
-            files.append(_file_entry(outdir, rel))
-            if rel.endswith(".gltf"):
-                files.append(_file_entry(outdir, rel[: -len(".gltf")] + ".bin"))
+        try:
+            for rel in job.paths:
+                written.append(outdir / rel)
+                if rel.endswith(".gltf"):
+                    written.append(outdir / (rel[: -len(".gltf")] + ".bin"))
+                export(tree, outdir / rel, job.export_options)
+                files.append(_file_entry(outdir, rel))
+                if rel.endswith(".gltf"):
+                    files.append(_file_entry(outdir, rel[: -len(".gltf")] + ".bin"))
+        except BaseException:  # a job is all its files or none: a failed format takes the others with it
+            for path in written:
+                with contextlib.suppress(OSError):
+                    path.unlink()
+            raise
         line.update(status="done", files=files, counts=counts, crown_radius=crown_radius(tree))
     except BatchError as exc:
         line.update(status="failed", error=_one_line(exc.reason))

@@ -43,7 +43,6 @@ unless ``[materials] leaf`` sets one.
 
 from __future__ import annotations
 
-import io
 import logging
 import math
 import re
@@ -55,7 +54,7 @@ from types import MappingProxyType
 import numpy as np
 
 from ..errors import AssetError, GrammarError, OptionsError, clip
-from ..external import grammar_folder, read_file, resolve
+from ..external import grammar_folder, load_scene, read_file, resolve
 from ..images import Image, read_image
 from ..lsystem.grammar import table_key_line
 from ..mesh.mesh import Mesh
@@ -216,27 +215,8 @@ def _smooth_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 def _parse(data: bytes, file_type: str, shown: str):
     """The model's triangles as one trimesh (scene graph transforms applied)."""
-    import trimesh
-
-    if file_type == "stl" and len(data) >= 84 and data[:5].lower() != b"solid":
-        (count,) = np.frombuffer(data[80:84], "<u4")
-        if count > MAX_MODEL_TRIANGLES:  # binary STL says its size up front: refuse before parsing
-            raise AssetError(_too_many(shown, int(count)))
-    try:
-        scene = trimesh.load(io.BytesIO(data), file_type=file_type, process=False, force="scene")
-        meshes = [g for g in scene.geometry.values() if hasattr(g, "faces") and len(g.faces)]
-        if not meshes:
-            raise AssetError(f"{shown}: the model has no triangles")
-        triangles = sum(len(g.faces) for g in meshes)
-        if triangles > MAX_MODEL_TRIANGLES:
-            raise AssetError(_too_many(shown, triangles))
-        mesh = scene.to_geometry() if hasattr(scene, "to_geometry") else scene.dump(concatenate=True)
-    except AssetError:
-        raise
-    except Exception as exc:  # trimesh's readers raise anything on a damaged file: one line, never a traceback
-        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise AssetError(f"{shown}: not a readable .{file_type} model ({clip(reason, 80)})") from None
-    return mesh
+    scene = load_scene(data, file_type, shown, MAX_MODEL_TRIANGLES, _too_many)
+    return scene.to_geometry() if hasattr(scene, "to_geometry") else scene.dump(concatenate=True)
 
 
 def _too_many(shown: str, count: int) -> str:

@@ -28,11 +28,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import LimitError
 from ..options import Options, option
 from ..turtle.hierarchy import Hierarchy
 from .rig import Rig
 
-__all__ = ["WIND", "Animation", "WindOptions", "sway"]
+__all__ = ["MAX_WIND_KEYS", "WIND", "Animation", "WindOptions", "sway"]
+
+MAX_WIND_KEYS = 16_000_000
+"""Most joint keyframes (keyframes times joints) of a wind animation: about 130 bytes each while it is made
+and written (``benchmarks``: 17,693 joints x 121 keyframes took 280 MB over the tree), so 2 GB at most.
+``--wind-animation 60 --wind-fps 120`` on a rig of 17,693 joints would be 127 million (17 GB)."""
 
 WIND = np.array([1.0, 0.0, 0.0])
 """The direction the sample wind blows (lsys3d's frame: +X, horizontal)."""
@@ -108,9 +114,14 @@ def sway(rig: Rig, h: Hierarchy, options: WindOptions) -> Animation:
     (25, True, True)
     """
     n = round(options.seconds * options.fps) + 1
+    joints = len(rig.names)
+    if n * joints > MAX_WIND_KEYS:  # predicted before anything is allocated
+        raise LimitError(
+            f"wind: {n:,} keyframes for {joints:,} joints would be {n * joints:,} joint keys, more than "
+            f"{MAX_WIND_KEYS:,} (lsys3d.look.wind.MAX_WIND_KEYS); lower --wind-animation, --wind-fps or --rig-joints"
+        )
     times = np.arange(n) / options.fps
     seconds = times[-1]
-    joints = len(rig.names)
     rotations = np.zeros((n, joints, 4), np.float32)
     rotations[:, :, 3] = 1.0
     moving = np.flatnonzero(rig.branch >= 0)

@@ -213,6 +213,7 @@ def derive(
     *,
     start: ModuleString | None = None,
     max_modules: int = DEFAULT_MAX_MODULES,
+    between: Callable[[ModuleString, int], ModuleString] | None = None,
 ) -> ModuleString:
     """Rewrite the axiom ``iterations`` times (default: the grammar's own).
 
@@ -227,6 +228,10 @@ def derive(
         Rewrite this string instead of the axiom (e.g. a result of an earlier call).
     max_modules : int
         Refuse (before allocating) to build a string longer than this.
+    between : callable, optional
+        ``between(string, step) -> string``, called on the string before each step and on the last
+        string (``step`` the number of steps made so far): an open L-system's environment, here the
+        turtle that fills query modules (:mod:`lsys3d.turtle.query`). The string it returns goes on.
 
     Raises
     ------
@@ -243,7 +248,9 @@ def derive(
     """
     n = _check_iterations(grammar, iterations)
     plan = _Plan(grammar)
-    if plan.predictable and start is None:  # fail at once, not after building the generations below the limit
+    if (
+        plan.predictable and start is None and between is None
+    ):  # fail at once, not after building the generations below the limit
         growth = _growth(plan, n, presence=plan.d0l)
         _check_size(growth.modules[n], growth.params[n], max_modules, grammar, n)
         if plan.d0l:  # builds no generation but the last
@@ -253,7 +260,7 @@ def derive(
             g = int(np.argmax(cost > max_modules))
             _check_size(growth.modules[g], growth.params[g], max_modules, grammar, g)
     # the last generation; a deque of one keeps no other alive
-    return deque(generations(grammar, n, seed, start=start, max_modules=max_modules), maxlen=1).pop()
+    return deque(generations(grammar, n, seed, start=start, max_modules=max_modules, between=between), maxlen=1).pop()
 
 
 def generations(
@@ -263,6 +270,7 @@ def generations(
     *,
     start: ModuleString | None = None,
     max_modules: int = DEFAULT_MAX_MODULES,
+    between: Callable[[ModuleString, int], ModuleString] | None = None,
     trace: Trace | None = None,
 ) -> Iterator[ModuleString]:
     """Yield the axiom (or ``start``) and then every generation up to ``iterations``, one at a time.
@@ -285,16 +293,31 @@ def generations(
     _check_size(len(current), len(current.params), max_modules, grammar, 0)
     if start is not None:
         _check_finite_start(current)
+    if between is not None and trace is not None:  # its cuts and fillings are no rewriting the trace could follow
+        raise DerivationError("generations: a trace cannot follow what 'between' changes in the string")
+    if between is not None:
+        current = between(current, 0)
     yield current
     decompose = _Plan(grammar, grammar.decomposition_productions) if grammar.decomposition_productions else None
+    # cpfg's StartEach/EndEach blocks: the globals each step reads (lsystem.blocks), none without them
+    steps = _block_values(grammar, n, seed)[0]
     fixed = False
     for g in range(1, n + 1):
         if not fixed:
             previous = current
             current = previous if plan.cut < 0 else _cut(previous, plan.cut, trace)
+            variables = steps[g - 1] if steps else None
             if plan.pools_by_code:
                 current = _step(
-                    plan, current, (_PRODUCTION, g), int(seed), max_modules, g, step_number=g - 1, trace=trace
+                    plan,
+                    current,
+                    (_PRODUCTION, g),
+                    int(seed),
+                    max_modules,
+                    g,
+                    step_number=g - 1,
+                    trace=trace,
+                    variables=variables,
                 )[0]
             if decompose is not None:
                 current = _passes(
@@ -306,11 +329,18 @@ def generations(
                     seed,
                     max_modules,
                     step_number=g - 1,
+                    variables=variables,
                     trace=trace,
                 )
             log.debug("generation %d: %d modules", g, len(current))
+            if between is not None:
+                current = between(current, g)
             # without chance, a string that rewrites to itself stays itself: the rest is this string
-            fixed = not (plan.stochastic or (decompose is not None and decompose.stochastic)) and current == previous
+            # (unless the globals the rules read change from step to step)
+            fixed = (
+                not (plan.stochastic or (decompose is not None and decompose.stochastic) or steps)
+                and current == previous
+            )
             del previous
         yield current
 
@@ -348,6 +378,7 @@ def interpretation(
             raise DerivationError("the string uses symbols this grammar does not know")
         n = grammar.iterations if iterations is None else iterations
         last = max(int(n) - 1, 0) if isinstance(n, (int, np.integer)) else 0
+        final = _block_values(grammar, int(n), seed)[1] if grammar.program is not None else None
         modules = _passes(
             plan,
             modules,
@@ -357,6 +388,7 @@ def interpretation(
             seed,
             max_modules,
             step_number=last,
+            variables=final,
             trace=trace,
         )
         if plan.cut >= 0:
@@ -400,6 +432,16 @@ def persisting_index(prod: Production) -> int:
 _PHASE = {_PRODUCTION: "generation", _DECOMPOSITION: "decomposition of generation", _HOMOMORPHISM: "homomorphism"}
 
 
+def _block_values(grammar: Grammar, n: int, seed) -> tuple[list[dict], dict | None]:
+    """The globals of cpfg's blocks that change during the derivation: per step, and after the end."""
+    program = grammar.program
+    if program is None or not program.step_names:
+        return [], None
+    steps, final = program.steps(n, int(seed))
+    keep = program.step_names
+    return [{k: v for k, v in s.items() if k in keep} for s in steps], {k: v for k, v in final.items() if k in keep}
+
+
 def _passes(
     plan: _Plan,
     ms: ModuleString,
@@ -410,6 +452,7 @@ def _passes(
     max_modules,
     *,
     step_number: int,
+    variables: dict | None = None,
     trace: Trace | None = None,
 ) -> ModuleString:
     """Rewrite ``ms`` with ``plan`` up to ``depth`` times, each time only the modules the previous time produced."""
@@ -424,6 +467,7 @@ def _passes(
             generation,
             eligible,
             step_number=step_number,
+            variables=variables,
             trace=trace,
         )
         if produced is None:  # nothing matched
@@ -756,8 +800,8 @@ def _narrow(sel, env, draws, ok):
 
 
 def _subset(env: dict, index) -> dict:
-    """The values of ``env`` for some of its modules (the derivation step, a scalar, for all)."""
-    return {k: v if k == STEP else v[index] for k, v in env.items()}
+    """The values of ``env`` for some of its modules (scalars, the step and cpfg's globals, for all)."""
+    return {k: v if isinstance(v, float) else v[index] for k, v in env.items()}
 
 
 def _step(
@@ -770,13 +814,15 @@ def _step(
     eligible: np.ndarray | None = None,
     *,
     step_number: int = 0,
+    variables: dict | None = None,
     trace: Trace | None = None,
 ) -> tuple[ModuleString, np.ndarray | None]:
     """One parallel rewrite of ``ms`` with ``plan``'s rules: the new string and which of its modules were produced.
 
     ``keys`` name the step for the random numbers (kind, generation[, pass]); ``eligible`` restricts
     the modules that may be rewritten; ``step_number`` is what L-Py's ``getIterationNb()`` gives (0 at the
-    first derivation step).  The mask of produced modules is None when nothing matched.
+    first derivation step); ``variables`` are the globals of cpfg's blocks at this step (scalars).  The
+    mask of produced modules is None when nothing matched.
     """
     m = len(ms)
     sym = ms.symbols
@@ -798,7 +844,7 @@ def _step(
             if not len(sel):
                 continue
             prod0 = pool.alternatives[0]
-            env: dict[str, np.ndarray | float] = {STEP: float(step_number)}
+            env: dict[str, np.ndarray | float] = {STEP: float(step_number), **(variables or {})}
             if pool.left or pool.right:
                 keep = np.ones(len(sel), np.bool_)
                 values: list[np.ndarray] = []

@@ -126,6 +126,7 @@ FUNCTIONS = {
     "floor": (1, np.floor),
     "ceil": (1, np.ceil),
     "abs": (1, np.abs),
+    "fabs": (1, np.abs),  # C's and cpfg's name
     "min": (2, np.minimum),
     "max": (2, np.maximum),
     "trunc": (1, np.trunc),
@@ -154,6 +155,8 @@ RANDOM_FUNCTIONS = {
     "gauss": 2,  # Python's random.gauss
     "normalvariate": 2,  # Python's random.normalvariate
     "nran": 2,  # cpfg: normal with mean and standard deviation
+    "bran": 2,  # cpfg: beta with shapes a, b (Cheng's algorithm BA, as cpfg's utility.c brand)
+    "biran": 2,  # cpfg: binomial, the successes of n trials of probability p (n at most MAX_TRIALS)
 }
 """The random functions and their arities: seeded by the grammar's seed (:func:`lsys3d.streams.hashed_uniform`)."""
 
@@ -331,9 +334,51 @@ def _draw(scope: _Scope, site: int, k: int) -> np.ndarray:
     return scope.random.draw(site * 64 + scope.salt, k)
 
 
+MAX_TRIALS = 1024
+"""Most trials of cpfg's ``biran(n, p)`` (one random number each) and rounds of ``bran``'s rejection."""
+
+
+def _beta(a, b, scope: _Scope, site: int):
+    """cpfg's ``bran(a, b)``: Cheng's algorithm BA (utility.c ``brand``), its rounds drawn all at once."""
+    _domain(~((a > 0) & (b > 0)), "bran: the shapes a and b must be > 0")
+    s = a + b
+    low = np.minimum(a, b)
+    with np.errstate(all="ignore"):
+        lam = np.where(low <= 1, low, np.sqrt((2 * a * b - s) / (s - 2)))
+    u_ = a + lam
+    out = np.full(np.broadcast(a, b, np.empty(scope.size)).shape, np.nan)
+    done = np.zeros(out.shape, np.bool_)
+    tiny = 2.0**-53  # erand48 is redrawn at 0: the smallest draw instead
+    for r in range(MAX_TRIALS // 2):
+        u1 = np.maximum(_draw(scope, site, 2 * r), tiny)
+        u2 = np.maximum(_draw(scope, site, 2 * r + 1), tiny)
+        v = np.log(u1 / (1 - u1)) / lam
+        ym = a * np.exp(v)
+        accept = ~done & (s * np.log(s / (b + ym)) + u_ * v - np.log(4.0) >= np.log(u1 * u1 * u2))
+        out[accept] = np.broadcast_to(ym / (b + ym), out.shape)[accept]
+        done |= accept
+        if done.all():
+            return out
+    _domain(~done, "bran: no draw accepted (lsys3d.lsystem.expr.MAX_TRIALS)")
+    return out
+
+
+def _binomial(n, p, scope: _Scope, site: int):
+    """cpfg's ``biran(n, p)``: the number of ``n`` trials below ``p`` (utility.c ``binrand``, O(n))."""
+    _domain(~((n >= 0) & (n <= MAX_TRIALS) & (n == np.floor(n))), f"biran: n must be a whole number 0..{MAX_TRIALS}")
+    count = np.zeros(np.broadcast(n, p, np.empty(scope.size)).shape)
+    for k in range(int(np.max(n)) if np.size(n) else 0):
+        count += (_draw(scope, site, k) < p) & (k < n)
+    return count
+
+
 def _random(node: Expr, scope: _Scope):
     name, site = node.value
     args = [np.asarray(_eval(a, scope), dtype=np.float64) for a in node.args]
+    if name == "bran":
+        return _beta(args[0], args[1], scope, site)
+    if name == "biran":
+        return _binomial(args[0], args[1], scope, site)
     u = _draw(scope, site, 0)
     if name == "ran":
         return u * args[0]

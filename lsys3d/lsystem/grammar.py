@@ -26,16 +26,17 @@ one by the file's suffix) into the same :class:`Grammar`.
 
 from __future__ import annotations
 
-import errno
+import codecs
 import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from types import MappingProxyType
 
-from ..errors import GrammarError, clip, os_reason
+from ..errors import GrammarError, clip
+from ..external import FileRefused, read_file
 from . import dialects
+from .blocks import Program, parse_blocks
 from .locations import _KEYS, _RULE_LISTS, _api_where, _key_line, _loc, _locate_strings, _toml_error, table_key_line
 from .modules import ModuleString
 from .rules import (
@@ -71,8 +72,9 @@ MAX_DEPTH = 1000
 
 _NAME = re.compile(r"[A-Za-z_@?~][A-Za-z_0-9@]*\Z")  # a declared module name (Leaf, @Gs, ?P)
 _SURROGATE = re.compile("[\ud800-\udfff]")
-GROUPS = ("species", "figure", "curve")
-"""What a grammar's ``group`` may say it is: a plant species, a textbook figure, or a curve (``lsys3d presets``)."""
+GROUPS = ("species", "figure", "curve", "scene")
+"""What a grammar's ``group`` may say it is: a plant species, a textbook figure, a curve, or a plant growing in
+a scene it ships with (``lsys3d presets``)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,7 +89,9 @@ class Grammar:
     ``decomposition`` rules rewrite it after each step (up to
     ``decomposition_depth`` times).  ``modules`` declares names longer than one
     character (``["Leaf", "Apex"]``); ``consider`` is the complement of
-    ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``.
+    ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``; ``blocks`` are cpfg's C-like
+    blocks (``{"start": "{n = 0;}", "start_each": "{n++;}"}``, :mod:`lsys3d.lsystem.blocks`), whose
+    globals the rules read: those only ``start`` sets as constants, the others at each step.
 
     Examples
     --------
@@ -113,6 +117,7 @@ class Grammar:
     materials: Mapping[str, object] = field(default_factory=dict)
     surfaces: Mapping[str, object] = field(default_factory=dict)
     leaves: Mapping[str, object] = field(default_factory=dict)
+    environment: Mapping[str, object] = field(default_factory=dict)
     growth: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
@@ -124,6 +129,7 @@ class Grammar:
     consider: str = ""
     modules: tuple[str, ...] = ()
     functions: tuple[str, ...] = ()
+    blocks: Mapping[str, str] = field(default_factory=dict)
     # parsed, filled in by __post_init__
     productions: tuple[Production, ...] = field(init=False, repr=False)
     homomorphism_productions: tuple[Production, ...] = field(init=False, repr=False)
@@ -133,6 +139,7 @@ class Grammar:
     ignored: frozenset[str] = field(init=False, repr=False)
     _axiom_parsed: tuple = field(init=False, repr=False, compare=False)
     considered: frozenset[str] | None = field(init=False, repr=False)
+    program: Program | None = field(init=False, repr=False, compare=False)
     _where: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
@@ -140,7 +147,7 @@ class Grammar:
         for key in _RULE_LISTS:
             if isinstance(getattr(self, key), str):
                 raise GrammarError(f"'{key}' must be a list of rule strings, not one string", self.source)
-        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "growth"):
+        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "environment", "blocks", "growth"):
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         for key in (*_RULE_LISTS, "modules", "functions"):
@@ -162,6 +169,8 @@ class Grammar:
         set_(self, "materials", MappingProxyType(dict(self.materials)))
         set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
         set_(self, "leaves", MappingProxyType(dict(self.leaves)))
+        set_(self, "environment", MappingProxyType(dict(self.environment)))
+        set_(self, "blocks", MappingProxyType(dict(self.blocks)))
         set_(self, "growth", MappingProxyType(dict(self.growth)))
         self._check_scalars()
         notation = dialect.notation
@@ -175,7 +184,10 @@ class Grammar:
                 _check_defines(dict(self.defines), self.source, self._where.get("defines"), notation, functions)
             ),
         )
-        context = _RuleContext(self.source, self.defines, scanner, notation, functions, dialect)
+        program, constants = self._program()
+        set_(self, "program", program)
+        context = _RuleContext(self.source, {**self.defines, **constants}, scanner, notation, functions, dialect)
+        context.globals = program.step_names if program is not None else frozenset()
         where_axiom = self._where.get("axiom") or _api_where("axiom")
         if not self.axiom.strip():
             raise GrammarError("the axiom is empty", *_loc(self.source, where_axiom, 0))
@@ -205,6 +217,14 @@ class Grammar:
         set_(self, "alphabet", context.alphabet.table())
         set_(self, "axiom_modules", _evaluate_axiom(axiom, context.alphabet, self.source, where_axiom))
 
+    def _program(self) -> tuple[Program | None, dict[str, float]]:
+        """cpfg's blocks parsed, and the globals that stay constant after ``Start`` (constants of the rules)."""
+        if not self.blocks:
+            return None, {}
+        program = parse_blocks(self.blocks, self.defines, self.source, self._where.get("blocks"))
+        values, _ = program.run_start(self.seed)
+        return program, {k: v for k, v in values.items() if k not in program.step_names}
+
     def _dialect(self):
         if not isinstance(self.dialect, str):
             raise self._key_error("dialect", f"must be a string, not {type(self.dialect).__name__}")
@@ -232,7 +252,7 @@ class Grammar:
                 i += 1
                 continue
             symbol = scanner.name(text, i, len(text))
-            if symbol in "()," and len(symbol) == 1:
+            if len(symbol) == 1 and (symbol in "()" or (symbol == "," and "," in context.notation.reserved)):
                 raise GrammarError(f"'{key}' holds {symbol!r}, which cannot be a symbol", *_loc(self.source, where, i))
             try:
                 context.alphabet.code(symbol)
@@ -265,8 +285,15 @@ class Grammar:
             if not isinstance(getattr(self, key), str):
                 raise bad(key, f"must be a string, not {type(getattr(self, key)).__name__}")
         texts = [(k, getattr(self, k)) for k in ("name", "description", "axiom", "ignore", "consider")]
+        places = {k: k for k, _ in texts}
         for key in (*_RULE_LISTS, "modules", "functions"):
             texts += [(f"{key}[{i}]", r) for i, r in enumerate(getattr(self, key)) if isinstance(r, str)]
+            places.update({f"{key}[{i}]": (key, i) for i in range(len(getattr(self, key)))})
+        for key, text in texts:  # a NUL would pass through to the derived string and cut it short in C readers
+            nul = text.find("\0")
+            if nul >= 0:
+                where = self._where.get(places[key]) or _api_where(key)
+                raise GrammarError(f"'{key}' holds a NUL character", *_loc(self.source, where, nul))
         if self.group not in ("", *GROUPS):
             raise bad("group", f"must be one of {', '.join(map(repr, GROUPS))}, not {clip(repr(self.group))}")
         for key, text in texts:
@@ -318,6 +345,8 @@ class Grammar:
             ("materials", dict),
             ("surfaces", dict),
             ("leaves", dict),
+            ("environment", dict),
+            ("blocks", dict),
             ("growth", dict),
         )
         for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + list(tables):
@@ -357,6 +386,7 @@ class Grammar:
                 "materials",
                 "surfaces",
                 "leaves",
+                "environment",
                 "growth",
                 "source",
                 "text",
@@ -368,6 +398,7 @@ class Grammar:
                 "consider",
                 "modules",
                 "functions",
+                "blocks",
             )
         }
         fields.update(changes)
@@ -396,29 +427,17 @@ class Grammar:
 
 
 def read_text(path) -> str:
-    """The text of a grammar file, read no further than :data:`MAX_GRAMMAR_BYTES` (errors as GrammarError)."""
-    path = Path(path)
+    """The text of a grammar file, read no further than :data:`MAX_GRAMMAR_BYTES` (errors as GrammarError).
+
+    Read by :func:`lsys3d.external.read_file` (a regular file only, opened without blocking, its size checked
+    before reading).  A UTF-8 byte order mark, which some editors write, is dropped.
+    """
     try:
-        if "\0" in str(path):
-            raise OSError(errno.EINVAL, "a file name cannot hold a NUL character")
-        size = path.stat().st_size
-        if size > MAX_GRAMMAR_BYTES:
-            raise GrammarError(
-                f"grammar file is {size} bytes, larger than {MAX_GRAMMAR_BYTES} "
-                "(lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES)",
-                str(path),
-            )
-        with path.open("rb") as f:  # a device or pipe has no size: read no more than the limit
-            raw = f.read(MAX_GRAMMAR_BYTES + 1)
-        if len(raw) > MAX_GRAMMAR_BYTES:
-            raise GrammarError(
-                f"grammar file is larger than {MAX_GRAMMAR_BYTES} bytes (lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES)",
-                str(path),
-            )
-    except FileNotFoundError:
-        raise GrammarError("no such grammar file", str(path)) from None
-    except OSError as exc:  # a folder, a symlink loop, a name too long, no permission...
-        raise GrammarError(f"cannot read grammar file: {os_reason(exc)}", str(path)) from None
+        raw = read_file(path, MAX_GRAMMAR_BYTES, "grammar file", "lsys3d.lsystem.grammar.MAX_GRAMMAR_BYTES")
+    except FileRefused as exc:
+        raise GrammarError(exc.reason, str(path)) from None
+    if raw.startswith(codecs.BOM_UTF8):
+        raw = raw[len(codecs.BOM_UTF8) :]
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -37,6 +37,8 @@ _KEYS = {
     "materials",
     "surfaces",
     "leaves",
+    "environment",
+    "blocks",
     "growth",
 }
 

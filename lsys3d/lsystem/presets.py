@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -15,6 +16,7 @@ __all__ = [
     "DEFAULT_PRESET",
     "GROUPS",
     "PresetInfo",
+    "bundled_folder",
     "list_presets",
     "load",
     "load_preset",
@@ -28,6 +30,15 @@ DEFAULT_PRESET = "oak"
 
 def _folder():
     return resources.files("lsys3d.assets") / "presets"
+
+
+def bundled_folder(grammar) -> Path | None:
+    """The presets' folder when ``grammar`` is a bundled preset (files it names are found there), else None."""
+    source = str(getattr(grammar, "source", "") or "")
+    m = re.fullmatch(r"presets/([A-Za-z0-9_.-]+)\.toml", source)
+    if not m or m.group(1) not in list_presets():
+        return None
+    return Path(str(_folder()))
 
 
 def list_presets() -> list[str]:

@@ -290,6 +290,7 @@ class _RuleContext:
         self.alphabet = _Alphabet()
         self.constants: list[tuple[str, float]] = []  # the values a rule's patterns match (A(0))
         self.current = ""  # the text being parsed (random functions are keyed by what precedes them)
+        self.globals: frozenset[str] = frozenset()  # cpfg's globals that change at each step (lsystem.blocks)
 
     def expression(self, text: str, names, where: Where, offset: int, what: str = "") -> Expr:
         # a random function is keyed by the text of its rule before it: the same place in the same rule
@@ -297,7 +298,12 @@ class _RuleContext:
         site = zlib.crc32(self.current[:offset].encode("utf-8", "surrogatepass"))
         try:
             return parse_expression(
-                text, names=names, defines=self.defines, syntax=self.syntax, functions=self.functions, site=site
+                text,
+                names=[*self.globals, *names],
+                defines=self.defines,
+                syntax=self.syntax,
+                functions=self.functions,
+                site=site,
             )
         except ExprSyntaxError as exc:
             message = f"{what}{exc}"
@@ -491,6 +497,14 @@ class _RuleContext:
                 name, op = m.group(1), m.group(2)
                 if _reserved(name):
                     raise _error(f"{name!r} is reserved and cannot be assigned", self.source, where, at + m.start(1))
+                if name in self.globals:
+                    raise _error(
+                        f"a rule assigns the global variable {name!r} that the StartEach/EndEach blocks change: cpfg "
+                        "runs such rules one module after another, which lsys3d's parallel derivation does not",
+                        self.source,
+                        where,
+                        at + m.start(1),
+                    )
                 body = statement[m.end() :]
                 offset = at + m.end()
                 if not body.strip():

@@ -22,12 +22,14 @@ import numpy as np
 __all__ = [
     "BUILT_IN_ORGANS",
     "COMMANDS",
+    "ENVIRONMENT_QUERY",
     "Axis",
     "Command",
     "Op",
     "Organ",
     "SymbolTable",
     "commands_markdown",
+    "queries",
     "symbol_table",
 ]
 
@@ -59,6 +61,7 @@ class Op(IntEnum):
     ELASTICITY = 21  # set the elasticity of the moves that follow (0 without an argument)
     FORWARD_STEPS = 22  # move a length drawing a segment per step of a given length (L-Py's nF)
     TROPISM_VECTOR = 23  # set the tropism vector T of the moves that follow (L-Py's @Tp)
+    QUERY = 24  # record the turtle's state here: a query module (?P, ?H...) or cpfg's ?E, filled between steps
 
 
 N_OPS = len(Op)
@@ -134,7 +137,12 @@ class Command:
         (cpfg's surfaces: ``~l``, ``~k``...).
     world : tuple of int
         For :data:`Op.TROPISM_VECTOR`: which of the module's parameters gives lsys3d's x, y and z
-        (the tool's world axes: PlantGL's Z-up world is ``(1, 2, 0)``).
+        (the tool's world axes: PlantGL's Z-up world is ``(1, 2, 0)``); for :data:`Op.QUERY`, which
+        parameter each of lsys3d's x, y and z is written to.
+    query : str
+        For :data:`Op.QUERY`: what the module's parameters are filled with after each derivation step
+        (:mod:`lsys3d.turtle.query`): ``P`` the position, ``H``, ``L``, ``U`` the frame's vectors, ``R``
+        the right vector (-L), ``E`` the environment's answer (:mod:`lsys3d.turtle.environment`).
     """
 
     symbol: str
@@ -152,12 +160,47 @@ class Command:
     organ: Organ = Organ.NONE
     prefix: bool = False
     world: tuple[int, int, int] = (0, 1, 2)
+    query: str = ""
 
     @property
     def accepts(self) -> int:
         """Most parameters a module of this command may carry (used and ignored)."""
         return self.max_args + len(self.ignored)
 
+
+def queries(letters: str = "PHLU", world: tuple[int, int, int] = (0, 1, 2)) -> tuple[Command, ...]:
+    """The query modules ``?P``, ``?H``... (L-Py's and cpfg's): one row each, in the tool's world axes."""
+    what = {"P": "position", "H": "heading", "L": "left vector", "U": "up vector", "R": "right vector (-L)"}
+    return tuple(
+        Command(
+            f"?{k}",
+            f"query {what[k].split()[0]}",
+            Op.QUERY,
+            "x, y, z",
+            3,
+            f"Query module: after each derivation step the turtle fills `x, y, z` with its {what[k]} here.",
+            world=world,
+            query=k,
+        )
+        for k in letters
+    )
+
+
+QUERY_COMMANDS = queries("PHLU")
+"""lsys3d's own query modules (the world axes of lsys3d, Y up)."""
+
+ENVIRONMENT_QUERY = Command(
+    "?E",
+    "environment",
+    Op.QUERY,
+    "b, d, l",
+    3,
+    "Environment query (cpfg's), filled after each derivation step: `b` 1 where the turtle is blocked (inside "
+    "an obstacle or outside the pruning volume) else 0, `d` the distance to the nearest support or obstacle, "
+    "`l` the light received (0 or 1). See docs/environment.md.",
+    query="E",
+)
+"""cpfg's ``?E``, answered by the environment (:mod:`lsys3d.turtle.environment`)."""
 
 COMMANDS: tuple[Command, ...] = (
     Command("F", "forward", Op.FORWARD, "l", 1, "Move forward by the step length (or `l`) drawing a segment."),
@@ -220,6 +263,8 @@ COMMANDS: tuple[Command, ...] = (
         "Place a circle of diameter `d` (default: the width) in the plane of H and L: an organ (`lsys3d.look.organs`).",
         organ=Organ.CIRCLE,
     ),
+    *QUERY_COMMANDS,
+    ENVIRONMENT_QUERY,
 )
 """The turtle's commands, in the order the documentation lists them."""
 

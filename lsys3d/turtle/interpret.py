@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -70,7 +71,7 @@ from .commands import COMMANDS, Command, Op, SymbolTable, symbol_table
 from .options import TurtleOptions
 from .skeleton import MAX_COORDINATE, Skeleton
 
-__all__ = ["DEFAULT_MAX_SEGMENTS", "interpret", "unit_jitter"]
+__all__ = ["DEFAULT_MAX_SEGMENTS", "Answers", "interpret", "interpret_answering", "unit_jitter"]
 
 log = logging.getLogger("lsys3d")
 
@@ -135,6 +136,29 @@ def _program(table: SymbolTable) -> kernel.Program:
     )
 
 
+NO_SCENE = kernel.Scene(np.zeros(3), np.ones(1), *(np.zeros((0, 0, 0)),) * 3, np.zeros(0))
+"""The kernel's scene when there is no environment."""
+
+
+@dataclass(frozen=True)
+class Answers:
+    """What one turtle pass tells derivation: the state at each query module and the cut segments.
+
+    Attributes
+    ----------
+    module : (q,) int64
+        The query modules' indices in the string.
+    state : (q, 12) float64
+        Position, H, L and U at each.
+    cut : (c,) int64
+        The drawing modules the environment cut (each with the rest of its branch).
+    """
+
+    module: np.ndarray
+    state: np.ndarray
+    cut: np.ndarray
+
+
 def interpret(
     modules: ModuleString,
     options: TurtleOptions | Grammar,
@@ -142,6 +166,7 @@ def interpret(
     *,
     max_segments: int = DEFAULT_MAX_SEGMENTS,
     commands: tuple[Command, ...] | None = None,
+    scene: kernel.Scene | None = None,
 ) -> Skeleton:
     """Draw a module string with the 3D turtle.
 
@@ -177,6 +202,9 @@ def interpret(
     LimitError
         More than ``max_segments`` segments (the message gives the count).
 
+    ``scene`` (:func:`lsys3d.turtle.environment.Environment.scene`) lets an environment steer and cut
+    the segments (``docs/environment.md``).
+
     Examples
     --------
     >>> from lsys3d import Grammar, derive
@@ -187,6 +215,19 @@ def interpret(
     >>> sk.end[1].round(6).tolist()
     [-1.0, 1.0, 0.0]
     """
+    return interpret_answering(modules, options, seed, max_segments=max_segments, commands=commands, scene=scene)[0]
+
+
+def interpret_answering(
+    modules: ModuleString,
+    options: TurtleOptions | Grammar,
+    seed: int | None = None,
+    *,
+    max_segments: int = DEFAULT_MAX_SEGMENTS,
+    commands: tuple[Command, ...] | None = None,
+    scene: kernel.Scene | None = None,
+) -> tuple[Skeleton, Answers]:
+    """:func:`interpret`, and what the pass tells derivation: query states and cut segments (:class:`Answers`)."""
     if isinstance(options, Grammar):
         if commands is None:
             commands = dialects.get(options.dialect).commands
@@ -271,20 +312,30 @@ def interpret(
         np.empty(n_organ, np.int64),
         np.empty(n_organ, np.int64),
     )
+    n_query = int(counts[Op.QUERY])
+    query = kernel.QueryArrays(
+        np.empty(n_query, np.int64),
+        np.empty((n_query, 12)),
+        np.empty(int(counts[Op.FORWARD]) if scene is not None else 0, np.int64),
+        np.zeros(2, np.int64),
+    )
     status, bad, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped = kernel.run(
-        program, arrays, config, variation, max_depth, seg, poly, leaf, organ
+        program, arrays, config, variation, max_depth, seg, poly, leaf, organ, query, scene or NO_SCENE
     )
     if status != kernel.OK:
         raise _module_error(modules, table, int(bad), kernel.MESSAGES[status])
     if dropped:
         log.warning("turtle: dropped %d leaf polygon(s) with fewer than 3 distinct vertices", dropped)
 
+    width_start, width_end = seg.width_start[:n_seg], seg.width_end[:n_seg]
+    if options.min_width > 0:  # Lparser's min_thickness: no segment thinner than this
+        width_start, width_end = np.maximum(width_start, options.min_width), np.maximum(width_end, options.min_width)
     # capacities are exact unless drawing symbols stood inside polygons or polygons were dropped
     skeleton = Skeleton(
         start=seg.start[:n_seg],
         end=seg.end[:n_seg],
-        width_start=seg.width_start[:n_seg],
-        width_end=seg.width_end[:n_seg],
+        width_start=width_start,
+        width_end=width_end,
         heading=seg.heading[:n_seg],
         left=seg.left[:n_seg],
         up=seg.up[:n_seg],
@@ -323,4 +374,5 @@ def interpret(
         n_organ,
         time.perf_counter() - t0,
     )
-    return skeleton
+    n_query, n_cut = (int(c) for c in query.count)
+    return skeleton, Answers(query.module[:n_query], query.state[:n_query], query.cut[:n_cut])

@@ -30,9 +30,12 @@ __all__ = [
     "OrganArrays",
     "PolygonArrays",
     "Program",
+    "QueryArrays",
+    "Scene",
     "SegmentArrays",
     "Variation",
     "dropped_modules",
+    "probe",
     "run",
     "survey",
 ]
@@ -70,6 +73,19 @@ LeafArrays = namedtuple("LeafArrays", ["position", "heading", "left", "up", "siz
 OrganArrays = namedtuple(
     "OrganArrays", ["kind", "position", "heading", "left", "up", "size", "material", "segment", "module"]
 )
+QueryArrays = namedtuple("QueryArrays", ["module", "state", "cut", "count"])
+"""Outputs for derivation's questions: each :data:`Op.QUERY` module's index and turtle state (position, H, L,
+U: ``(n, 12)``), the drawing modules the environment cut, and ``count = [queries, cuts]``."""
+Scene = namedtuple("Scene", ["origin", "cell", "obstacle", "volume", "support", "params"])
+"""The environment as the kernel sees it (:mod:`lsys3d.turtle.environment`): signed distance grids (positive
+outside the solid; ``(0, 0, 0)`` when the role is absent) sampled from ``origin`` every ``cell``, and
+``params`` (the ``SCENE_*`` indices)."""
+
+SCENE_DISTANCE, SCENE_ADHESION, SCENE_CLIMB, SCENE_HANG, SCENE_PHOTOTROPISM = 0, 1, 2, 3, 4
+SCENE_LIGHT, SCENE_LIGHT_POINT, SCENE_DEFLECT, SCENE_CLEARANCE, SCENE_SOLID_SUPPORT, SCENE_REACH = 5, 8, 9, 10, 11, 12
+SCENE_PARAMS = 13
+FAR_OUTSIDE = 1e9
+"""The signed distance of a point outside a grid: far outside every solid."""
 
 # numba sees the enums as plain integers
 _NONE = int(Op.NONE)
@@ -96,6 +112,7 @@ _TROPISM = int(Op.TROPISM)
 _ELASTICITY = int(Op.ELASTICITY)
 _FORWARD_STEPS = int(Op.FORWARD_STEPS)
 _TROPISM_VECTOR = int(Op.TROPISM_VECTOR)
+_QUERY = int(Op.QUERY)
 _AXIS_U = int(Axis.U)
 _AXIS_L = int(Axis.L)
 _AXIS_H = int(Axis.H)
@@ -263,6 +280,223 @@ def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
     return _orthonormal(hx, hy, hz, lx, ly, lz)
 
 
+@numba.njit(cache=True, inline="always")
+def _sample(grid, origin, cell, x, y, z):
+    """The grid's signed distance at a point: trilinear between its nodes, :data:`FAR_OUTSIDE` off the grid."""
+    nx, ny, nz = grid.shape
+    fx = (x - origin[0]) / cell
+    fy = (y - origin[1]) / cell
+    fz = (z - origin[2]) / cell
+    if not (0.0 <= fx <= nx - 1 and 0.0 <= fy <= ny - 1 and 0.0 <= fz <= nz - 1):
+        return FAR_OUTSIDE
+    i = min(int(fx), nx - 2)
+    j = min(int(fy), ny - 2)
+    k = min(int(fz), nz - 2)
+    a, b, c = fx - i, fy - j, fz - k
+    c00 = grid[i, j, k] * (1 - a) + grid[i + 1, j, k] * a
+    c10 = grid[i, j + 1, k] * (1 - a) + grid[i + 1, j + 1, k] * a
+    c01 = grid[i, j, k + 1] * (1 - a) + grid[i + 1, j, k + 1] * a
+    c11 = grid[i, j + 1, k + 1] * (1 - a) + grid[i + 1, j + 1, k + 1] * a
+    return (c00 * (1 - b) + c10 * b) * (1 - c) + (c01 * (1 - b) + c11 * b) * c
+
+
+@numba.njit(cache=True, inline="always")
+def _sample_gradient(grid, origin, cell, x, y, z):
+    """The grid's trilinear distance at a point and its gradient (the interpolant's own, from the same eight
+    nodes); :data:`FAR_OUTSIDE` and a zero gradient off the grid."""
+    nx, ny, nz = grid.shape
+    fx = (x - origin[0]) / cell
+    fy = (y - origin[1]) / cell
+    fz = (z - origin[2]) / cell
+    if not (0.0 <= fx <= nx - 1 and 0.0 <= fy <= ny - 1 and 0.0 <= fz <= nz - 1):
+        return FAR_OUTSIDE, 0.0, 0.0, 0.0
+    i = min(int(fx), nx - 2)
+    j = min(int(fy), ny - 2)
+    k = min(int(fz), nz - 2)
+    a, b, c = fx - i, fy - j, fz - k
+    g000, g100 = grid[i, j, k], grid[i + 1, j, k]
+    g010, g110 = grid[i, j + 1, k], grid[i + 1, j + 1, k]
+    g001, g101 = grid[i, j, k + 1], grid[i + 1, j, k + 1]
+    g011, g111 = grid[i, j + 1, k + 1], grid[i + 1, j + 1, k + 1]
+    c00 = g000 + (g100 - g000) * a
+    c10 = g010 + (g110 - g010) * a
+    c01 = g001 + (g101 - g001) * a
+    c11 = g011 + (g111 - g011) * a
+    c0 = c00 + (c10 - c00) * b
+    c1 = c01 + (c11 - c01) * b
+    d = c0 + (c1 - c0) * c
+    dx0 = (g100 - g000) + ((g110 - g010) - (g100 - g000)) * b
+    dx1 = (g101 - g001) + ((g111 - g011) - (g101 - g001)) * b
+    gx = (dx0 + (dx1 - dx0) * c) / cell
+    gy = ((c10 - c00) + ((c11 - c01) - (c10 - c00)) * c) / cell
+    gz = (c1 - c0) / cell
+    return d, gx, gy, gz
+
+
+@numba.njit(cache=True)
+def _normal(grid, origin, cell, x, y, z):
+    """The unit gradient of the grid's distance at a point (the outward normal of the nearest surface)."""
+    _, gx, gy, gz = _sample_gradient(grid, origin, cell, x, y, z)
+    n = math.sqrt(gx * gx + gy * gy + gz * gz)
+    if not (0.0 < n < 1e6):  # flat or off the grid
+        return 0.0, 0.0, 0.0
+    return gx / n, gy / n, gz / n
+
+
+@numba.njit(cache=True)
+def _aim(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz):
+    """Turn the frame by the smallest rotation that takes H to the unit vector N."""
+    cx = hy * nz - hz * ny
+    cy = hz * nx - hx * nz
+    cz = hx * ny - hy * nx
+    s = math.sqrt(cx * cx + cy * cy + cz * cz)
+    c = hx * nx + hy * ny + hz * nz
+    if s <= 1e-12:
+        if c > 0.0:
+            return hx, hy, hz, lx, ly, lz, ux, uy, uz
+        return _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, np.int64(_AXIS_U), -1.0, 0.0)
+    kx, ky, kz = cx / s, cy / s, cz / s
+    d = (kx * lx + ky * ly + kz * lz) * (1.0 - c)
+    nlx = lx * c + (ky * lz - kz * ly) * s + kx * d
+    nly = ly * c + (kz * lx - kx * lz) * s + ky * d
+    nlz = lz * c + (kx * ly - ky * lx) * s + kz * d
+    return _orthonormal(nx, ny, nz, nlx, nly, nlz)
+
+
+@numba.njit(cache=True, inline="always")
+def _blocked(scene, x, y, z):
+    """How far inside a solid the point is (> 0: inside an obstacle or a solid support, or outside the volume)."""
+    o, cell, prm = scene.origin, scene.cell[0], scene.params
+    worst = -FAR_OUTSIDE
+    clearance = prm[SCENE_CLEARANCE]
+    if scene.obstacle.shape[0] > 0:
+        worst = max(worst, clearance - _sample(scene.obstacle, o, cell, x, y, z))
+    if scene.support.shape[0] > 0 and prm[SCENE_SOLID_SUPPORT] > 0.0:
+        worst = max(worst, clearance - _sample(scene.support, o, cell, x, y, z))
+    if scene.volume.shape[0] > 0:
+        worst = max(worst, _sample(scene.volume, o, cell, x, y, z))
+    return worst
+
+
+@numba.njit(cache=True, inline="always")
+def _worst_along(scene, px, py, pz, hx, hy, hz, length):
+    """The deepest :func:`_blocked` along a segment, sampled every half cell and at its end, and that point."""
+    n = min(64, 1 + int(2.0 * length / scene.cell[0]))
+    worst = -FAR_OUTSIDE
+    wx, wy, wz = px + hx * length, py + hy * length, pz + hz * length
+    for k in range(n, 0, -1):
+        t = length * k / n
+        x, y, z = px + hx * t, py + hy * t, pz + hz * t
+        b = _blocked(scene, x, y, z)
+        if b > worst:
+            worst, wx, wy, wz = b, x, y, z
+    return worst, wx, wy, wz
+
+
+@numba.njit(cache=True, inline="always")
+def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging):
+    """The environment's say on one segment from P of this length: the new frame, whether it is cut, and
+    whether the branch now hangs.
+
+    Light bends H toward it (phototropism); near a support H is pulled onto the surface (adhesion), up its
+    slope (climb) and toward the middle of the band it may use; a branch that was on the support and leaves
+    its reach (over an edge) hangs (``hanging`` 2; 0: never on a support, 1: on it): from there on it and
+    the branches it bears bend down and no longer adhere.  Then
+    a segment whose end would enter a solid slides along its surface (deflect) or is cut, and one that
+    ends outside the pruning volume, or farther than the set distance from the support, is cut.
+    """
+    o, cell, prm = scene.origin, scene.cell[0], scene.params
+    photo = prm[SCENE_PHOTOTROPISM]
+    if photo > 0.0:
+        vx, vy, vz = prm[SCENE_LIGHT], prm[SCENE_LIGHT + 1], prm[SCENE_LIGHT + 2]
+        if prm[SCENE_LIGHT_POINT] > 0.0:
+            vx, vy, vz = vx - px, vy - py, vz - pz
+        n = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if n > 1e-12:
+            hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
+                hx, hy, hz, lx, ly, lz, ux, uy, uz, vx / n, vy / n, vz / n, photo, np.bool_(True)
+            )
+    distance = prm[SCENE_DISTANCE]
+    if scene.support.shape[0] > 0:
+        d, nx, ny, nz = _sample_gradient(scene.support, o, cell, px, py, pz)
+        if d <= prm[SCENE_REACH] and hanging == 0:
+            hanging = np.int64(1)
+        elif d > prm[SCENE_REACH] and hanging == 1:
+            hanging = np.int64(2)
+        n = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if hanging == 1 and 0.0 < n < 1e6:
+            nx, ny, nz = nx / n, ny / n, nz / n
+            hn = hx * nx + hy * ny + hz * nz
+            tx, ty, tz = hx - hn * nx, hy - hn * ny, hz - hn * nz
+            climb = prm[SCENE_CLIMB]  # world up along the surface
+            tx -= climb * ny * nx
+            ty += climb * (1.0 - ny * ny)
+            tz -= climb * ny * nz
+            target = 0.5 * prm[SCENE_REACH]
+            if distance > 0.0:
+                target = min(target, 0.5 * distance)
+            pull = max(-1.0, min(1.0, (d - target) / max(length, 1e-9)))
+            tx -= pull * nx
+            ty -= pull * ny
+            tz -= pull * nz
+            t = math.sqrt(tx * tx + ty * ty + tz * tz)
+            if t > 1e-12:
+                a = prm[SCENE_ADHESION]
+                vx = (1.0 - a) * hx + a * tx / t
+                vy = (1.0 - a) * hy + a * ty / t
+                vz = (1.0 - a) * hz + a * tz / t
+                v = math.sqrt(vx * vx + vy * vy + vz * vz)
+                if v > 1e-12:
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _aim(
+                        hx, hy, hz, lx, ly, lz, ux, uy, uz, vx / v, vy / v, vz / v
+                    )
+        if hanging == 2 and prm[SCENE_HANG] > 0.0:
+            hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
+                hx, hy, hz, lx, ly, lz, ux, uy, uz, 0.0, -1.0, 0.0, prm[SCENE_HANG], np.bool_(True)
+            )
+    inside, qx, qy, qz = _worst_along(scene, px, py, pz, hx, hy, hz, length)
+    if inside > 0.0 and prm[SCENE_DEFLECT] > 0.0:
+        # slide: take away the part of H across the surface where the segment went in
+        for grid_id in range(3):
+            grid = scene.obstacle if grid_id == 0 else (scene.support if grid_id == 1 else scene.volume)
+            if grid.shape[0] == 0:
+                continue
+            sign = -1.0 if grid_id == 2 else 1.0  # the volume's inside is where its distance is negative
+            nx, ny, nz = _normal(grid, o, cell, qx, qy, qz)
+            nx, ny, nz = sign * nx, sign * ny, sign * nz
+            hn = hx * nx + hy * ny + hz * nz
+            if hn < 0.0:
+                vx, vy, vz = hx - hn * nx, hy - hn * ny, hz - hn * nz
+                v = math.sqrt(vx * vx + vy * vy + vz * vz)
+                if v > 1e-6:
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _aim(
+                        hx, hy, hz, lx, ly, lz, ux, uy, uz, vx / v, vy / v, vz / v
+                    )
+                    inside, qx, qy, qz = _worst_along(scene, px, py, pz, hx, hy, hz, length)
+                    if inside <= 0.0:
+                        break
+    cut = inside > 0.0
+    if not cut and distance > 0.0 and scene.support.shape[0] > 0:
+        cut = _sample(scene.support, o, cell, px + hx * length, py + hy * length, pz + hz * length) > distance
+    return hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging
+
+
+@numba.njit(cache=True, nogil=True)
+def probe(scene, points, out):
+    """Per point: 1 where it is blocked (:func:`_blocked`) else 0, and its distance to the nearest support or
+    obstacle surface (:data:`FAR_OUTSIDE` with neither)."""
+    o, cell = scene.origin, scene.cell[0]
+    for k in range(points.shape[0]):
+        x, y, z = points[k, 0], points[k, 1], points[k, 2]
+        out[k, 0] = 1.0 if _blocked(scene, x, y, z) > 0.0 else 0.0
+        d = FAR_OUTSIDE
+        if scene.obstacle.shape[0] > 0:
+            d = min(d, abs(_sample(scene.obstacle, o, cell, x, y, z)))
+        if scene.support.shape[0] > 0:
+            d = min(d, abs(_sample(scene.support, o, cell, x, y, z)))
+        out[k, 1] = d
+
+
 @numba.njit(cache=True, nogil=True)
 def survey(program, modules):
     """One pass before drawing: how many modules of each op, deepest bracket, bad arguments.
@@ -329,8 +563,11 @@ def dropped_modules(program, symbols, drop):
 
 
 @numba.njit(cache=True, nogil=True)
-def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
+def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, query, scene):
     """Run the turtle over the modules, writing segments, polygons, leaves and organs into the preallocated outputs.
+
+    ``query`` receives the state at each query module and the segments ``scene`` cut (a cut segment
+    takes the rest of its branch with it: the modules up to the ``]`` that closes it are skipped).
 
     Returns (status, bad module, segments, polygon points, polygons, leaves, organs, dropped polygons).
     """
@@ -340,7 +577,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
     first_child = np.full(n_cap, -1, np.int64)
     same_child = np.full(n_cap, -1, np.int64)  # first child of the same order
     stack_f = np.empty((max_depth, 19))
-    stack_i = np.empty((max_depth, 3), np.int64)
+    stack_i = np.empty((max_depth, 4), np.int64)
 
     angle = config.angle
     cos_angle, sin_angle = _cos_sin(angle)
@@ -365,6 +602,11 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
     jitter_width = variation.width.shape[0] > 0
     roll_branch = variation.roll.shape[0] > 0
     drop_branch = variation.skipped.shape[0] > 0
+    in_scene = scene.params.shape[0] > 0
+    skipping = np.int64(0)  # > 0: inside a branch the scene cut, that many brackets deep
+    hanging = np.int64(0)  # 0 free (never on a support), 1 on a support, 2 hanging: left it over an edge
+    n_query = np.int64(0)
+    n_cut = np.int64(0)
 
     px = py = pz = 0.0
     hx, hy = _cos_sin(config.heading)
@@ -400,6 +642,13 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             continue
         if drop_branch and variation.skipped[i]:
             continue
+        if skipping > 0:
+            if code == _PUSH:
+                skipping += 1
+            elif code == _POP:
+                skipping -= 1
+            if skipping > 0 or code != _POP:
+                continue
         has_arg = arity[i] > 0
         arg = params[offsets[i]] if has_arg else 0.0
         if code in (_FORWARD, _MOVE):
@@ -410,6 +659,15 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             length = arg * length_unit if has_arg else step * program.scale[sym]
             if jitter_length:
                 length *= variation.length[i]
+            if in_scene and code == _FORWARD and poly_open < 0:
+                hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = _steer(
+                    scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging
+                )
+                if cut:
+                    query.cut[n_cut] = i
+                    n_cut += 1
+                    skipping = np.int64(1)
+                    continue
             qx = px + hx * length
             qy = py + hy * length
             qz = pz + hz * length
@@ -514,6 +772,14 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
                         return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
                     if last >= 0 and depth_of[last] == depth:
                         seg.width_end[last] = width
+        elif code == _QUERY:
+            row = query.state[n_query]
+            row[0], row[1], row[2] = px, py, pz
+            row[3], row[4], row[5] = hx, hy, hz
+            row[6], row[7], row[8] = lx, ly, lz
+            row[9], row[10], row[11] = ux, uy, uz
+            query.module[n_query] = i
+            n_query += 1
         elif code == _TROPISM_VECTOR:  # L-Py's @Tp(x, y, z), in the tool's world axes
             base = offsets[i]
             tx = params[base + program.world[sym, 0]]
@@ -588,6 +854,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             stack_i[depth, 0] = material
             stack_i[depth, 1] = last
             stack_i[depth, 2] = anchor
+            stack_i[depth, 3] = hanging
             depth += 1
             if roll_branch:  # the branch starts rolled about H; the saved state is not
                 c, s = _cos_sin(variation.roll[i])
@@ -613,6 +880,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             material = stack_i[depth, 0]
             last = stack_i[depth, 1]
             anchor = stack_i[depth, 2]
+            hanging = stack_i[depth, 3]
         elif code in (_WIDTH, _WIDTH_ADD, _WIDTH_FACTOR):
             if code == _WIDTH:
                 width = arg * width_unit if has_arg else width * width_scale
@@ -717,6 +985,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ):
             organ.segment[n_organ] = last
             organ.module[n_organ] = i
             n_organ += 1
+    query.count[0] = n_query
+    query.count[1] = n_cut
     if poly_open >= 0:
         return 4, poly_open, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
     # width_end: where the chain goes on (the rule of Skeleton.chains), the next width; at a tip, the tip's

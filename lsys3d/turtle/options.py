@@ -9,7 +9,8 @@ table of ``docs/turtle.md`` (:func:`options_markdown`) all read those fields.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator, Mapping
+import tomllib
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, fields
 
 from ..errors import GrammarError, OptionsError, clip
@@ -18,7 +19,15 @@ from ..lsystem.grammar import Grammar, table_key_line
 from ..options import Options, check_value, option, spec_of
 from .commands import RENAMEABLE, by_symbol
 
-__all__ = ["BENDS", "GRAMMAR_KEYS", "JITTER_DISTRIBUTIONS", "TurtleOptions", "TurtleOverrides", "options_markdown"]
+__all__ = [
+    "BENDS",
+    "GRAMMAR_KEYS",
+    "JITTER_DISTRIBUTIONS",
+    "TurtleOptions",
+    "TurtleOverrides",
+    "options_markdown",
+    "parse_setting",
+]
 
 BENDS = ("abop", "angle")
 """Values of ``TurtleOptions.bend``."""
@@ -47,6 +56,9 @@ class TurtleOptions(Options):
     heading: float = option(90.0, help="initial heading in the XY plane, degrees (90: up along +Y, 0: along +X)")
     step: float = option(1.0, low=0, low_open=True, help="initial step length")
     width: float = option(0.1, low=0, help="initial branch diameter")
+    min_width: float = option(
+        0.0, low=0, help="smallest branch diameter: a thinner segment is drawn this wide (Lparser's min_thickness)"
+    )
     width_scale: float = option(0.7, low=0, low_open=True, help="factor of `!` without argument")
     length_scale: float = option(0.9, low=0, low_open=True, help='factor of `"` without argument')
     width_unit: float = option(
@@ -165,9 +177,15 @@ class TurtleOverrides(Mapping):
     lsys3d.errors.OptionsError: turtle: unknown setting 'colour' (known: angle_jitter, angle_scale, ..., width_unit)
     """
 
-    def __init__(self, values: Mapping | None = None):
+    def __init__(self, values: Mapping | Sequence[str] | None = None):
         checked = {}
-        for key, value in dict(values or {}).items():
+        if values is None:
+            values = {}
+        elif isinstance(values, (list, tuple)):  # the command line's form: ["width_jitter=0.2", ...]
+            values = dict(parse_setting(v) if isinstance(v, str) else _pair(v) for v in values)
+        elif not isinstance(values, Mapping):
+            raise OptionsError(f"turtle: expected a table of settings or a list of KEY=VALUE, not {clip(repr(values))}")
+        for key, value in dict(values).items():
             if key not in GRAMMAR_KEYS:
                 known = ", ".join(sorted(GRAMMAR_KEYS))
                 raise OptionsError(f"turtle: unknown setting {clip(repr(key))} (known: {known})")
@@ -191,6 +209,32 @@ class TurtleOverrides(Mapping):
 
     def __hash__(self) -> int:
         return hash(tuple(self._values.items()))
+
+
+def parse_setting(text: str) -> tuple[str, object]:
+    """``KEY=VALUE`` (``--turtle``'s form) as ``(key, value)``: the value is TOML (``0.2``, ``"normal"``,
+    ``[0, -1, 0]``), a bare word a string.  The value is checked by :class:`TurtleOverrides`.
+
+    >>> parse_setting("tropism = [0, -1, 0]")
+    ('tropism', [0, -1, 0])
+    """
+    key, sep, value = str(text).partition("=")
+    key = key.strip()
+    if not sep or key not in GRAMMAR_KEYS:
+        raise OptionsError(
+            f"expected KEY=VALUE with KEY one of {', '.join(sorted(GRAMMAR_KEYS))}, not {clip(repr(text))}"
+        )
+    try:
+        parsed = tomllib.loads(f"v = {value.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        parsed = value.strip()
+    return key, parsed
+
+
+def _pair(item) -> tuple:
+    if isinstance(item, (list, tuple)) and len(item) == 2 and isinstance(item[0], str):
+        return tuple(item)
+    raise OptionsError(f"turtle: expected KEY=VALUE, not {clip(repr(item))}")
 
 
 def _check_symbols(draw: str, move: str, leaf: str) -> None:

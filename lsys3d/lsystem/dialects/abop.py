@@ -39,7 +39,7 @@ _ROWS = (
 )
 
 # the book's symbols: lsys3d's own, but for the step-length and organ symbols ABOP does not have
-COMMANDS_ABOP = tuple(c for c in COMMANDS if c.symbol not in ("~", '"', "@O", "@c", "@o")) + _ROWS
+COMMANDS_ABOP = tuple(c for c in COMMANDS if c.symbol not in ("~", '"', "@O", "@c", "@o") and not c.query) + _ROWS
 
 DIALECT = Dialect(
     name="abop",

@@ -15,9 +15,10 @@ import re
 from pathlib import Path
 
 from ...errors import GrammarError, clip
-from ...turtle.commands import Axis, Command, Op, Organ
+from ...external import FileRefused, inside
+from ...turtle.commands import ENVIRONMENT_QUERY, Axis, Command, Op, Organ, queries
 from ..expr import ExprSyntaxError, Syntax, parse_expression
-from ..grammar import Grammar, read_text
+from ..grammar import MAX_PARAMETERS, Grammar, read_text
 from .common import Dialect, Notation, fail, line_where
 
 __all__ = ["DIALECT", "MAX_INCLUDES", "UNSUPPORTED", "read"]
@@ -31,11 +32,39 @@ def _rot(symbol, name, axis, sign, what):
     return Command(symbol, name, Op.ROTATE, "a", 1, what, axis, sign)
 
 
+_STATE = (
+    " Further parameters are the rules' (a state the productions carry, ABOP's growth rate `r` of `G(s,r)`): "
+    "the turtle reads `d` only, as cpfg's interpret.c does."
+)
+
 COMMANDS_CPFG = (
-    Command("F", "forward", Op.FORWARD, "d", 1, "Move forward by `d` (default: the step) drawing a segment."),
-    Command("f", "move", Op.MOVE, "d", 1, "Move forward by `d` without drawing."),
-    Command("G", "forward, no vertex", Op.FORWARD, "d", 1, "As `F`, without recording a polygon vertex.", vertex=False),
-    Command("g", "move, no vertex", Op.MOVE, "d", 1, "As `f`, without recording a polygon vertex.", vertex=False),
+    Command(
+        "F",
+        "forward",
+        Op.FORWARD,
+        "d, ...",
+        MAX_PARAMETERS,
+        "Move forward by `d` (default: the step) drawing a segment." + _STATE,
+    ),
+    Command("f", "move", Op.MOVE, "d, ...", MAX_PARAMETERS, "Move forward by `d` without drawing." + _STATE),
+    Command(
+        "G",
+        "forward, no vertex",
+        Op.FORWARD,
+        "d, ...",
+        MAX_PARAMETERS,
+        "As `F`, without recording a polygon vertex." + _STATE,
+        vertex=False,
+    ),
+    Command(
+        "g",
+        "move, no vertex",
+        Op.MOVE,
+        "d, ...",
+        MAX_PARAMETERS,
+        "As `f`, without recording a polygon vertex." + _STATE,
+        vertex=False,
+    ),
     _rot("+", "turn left", Axis.U, +1, "Turn left by `a` degrees around U (default: the angle increment)."),
     _rot("-", "turn right", Axis.U, -1, "Turn right around U."),
     _rot("&", "pitch down", Axis.L, -1, "Pitch down around L."),
@@ -87,6 +116,16 @@ COMMANDS_CPFG = (
         "@c", "disc", Op.ORGAN, "d", 1, "A disc of diameter `d` in the plane of H and L: an organ.", organ=Organ.DISC
     ),
     Command(
+        "@o",
+        "circle",
+        Op.ORGAN,
+        "d",
+        1,
+        "A circle of diameter `d` (default: the line width): an organ. cpfg draws it facing the viewer "
+        "(blackbox.c: a 2D circle); lsys3d in the plane of H and L.",
+        organ=Organ.CIRCLE,
+    ),
+    Command(
         "~",
         "surface",
         Op.ORGAN,
@@ -96,6 +135,8 @@ COMMANDS_CPFG = (
         organ=Organ.SURFACE,
         prefix=True,
     ),
+    *queries("PHLU"),  # cpfg's world is lsys3d's: Y up
+    ENVIRONMENT_QUERY,
 )
 
 UNSUPPORTED = frozenset(
@@ -125,6 +166,20 @@ UNSUPPORTED = frozenset(
         "@P",
         "@J",
         "@Tp",
+        # the rest of cpfg's blackbox.c: cylinder sides, tropisms, patches, objects, bounded circles, cuts
+        "_",  # interpret.c: the elasticity of the tropism the view file sets
+        "@!",
+        "@Ts",
+        "@Ti",
+        "@Td",
+        "@I",
+        "@PS",
+        "@PC",
+        "@PD",
+        "@mo",
+        "@mc",
+        "@bo",
+        "@bc",
     ]
 )
 """cpfg turtle commands that lsys3d reads but does not draw (named in a warning)."""
@@ -156,8 +211,8 @@ MAX_INCLUDES = 16
 
 _DIRECTIVE = re.compile(r"#\s*(define|include|ifdef|ifndef|if|else|elif|endif|undef)\b\s*(.*)\Z")
 _KEY = re.compile(
-    r"(?P<key>Lsystem|derivation length|[Aa]xiom|ignore|consider|maximum depth|define|homomorphism|decomposition"
-    r"|production|endlsystem|[Ss]tart|[Ss]tartEach|[Ee]nd|[Ee]ndEach)\b\s*:?"
+    r"(?P<key>[Ll]system|[Dd]erivation length|[Aa]xiom|[Ii]gnore|[Cc]onsider|maximum depth|[Dd]efine|homomorphism"
+    r"|decomposition|production|[Ee]ndlsystem|[Ss]tart|[Ss]tartEach|[Ee]nd|[Ee]ndEach|seed)\b\s*:?"
 )
 
 
@@ -264,7 +319,9 @@ class _Reader:
                 line, f"more than {MAX_INCLUDES} #include files (lsys3d.lsystem.dialects.cpfg.MAX_INCLUDES)"
             )
         try:
-            text = read_text(folder / name)
+            text = read_text(inside(folder, name, "#include file"))
+        except FileRefused as exc:
+            raise self.error(line, f"#include {name!r}: {exc.reason}") from None
         except GrammarError as exc:
             raise self.error(line, f"#include {name!r}: {exc.reason}") from None
         self.preprocess(text, folder, line)
@@ -282,6 +339,7 @@ class _Reader:
         systems = 0
         lines = self.joined()
         head = None  # a predecessor and condition whose arrow is on the next line
+        last_key = None
         for index, (text, number) in enumerate(lines):
             code = text.strip()
             col = len(text) - len(text.lstrip()) + 1
@@ -290,9 +348,10 @@ class _Reader:
                 head = None
             m = _KEY.match(code)
             if m and not _is_rule(code):
-                key = m.group("key")
+                key = last_key = m.group("key")
                 rest = code[m.end() :].strip()
                 rest_col = col + len(code) - len(code[m.end() :].lstrip())
+                key = _KEY_NAMES.get(key, key)
                 if key == "Lsystem":
                     systems += 1
                     if systems > 1:
@@ -314,9 +373,10 @@ class _Reader:
                     self.define_block(rest, number)
                 elif key == "endlsystem":
                     section = None
-                else:  # start:, startEach:, end:, endEach:
-                    if re.sub(r"[{}\s;]", "", rest):
-                        raise self.error(number, f"cpfg's {key}: block runs code at run time, which is not supported")
+                elif key == "seed":
+                    fields["seed"] = self.whole(rest, number, "seed")
+                else:  # Start:, StartEach:, EndEach:, End: C-like statements (lsys3d.lsystem.blocks)
+                    self.block(key, rest, number, rest_col, fields, where)
                 continue
             if section is None:
                 raise self.error(number, f"{clip(code, 40)!r} after endlsystem")
@@ -331,6 +391,13 @@ class _Reader:
                 if group and not _KEY.match(code):
                     group[-1] = f"{group[-1]} {code}"
                     continue
+                axiom_goes_on = last_key in ("Axiom", "axiom") and text[:1].isspace()  # indented, as vlab's Tropisms
+                if axiom_goes_on and not any(groups.values()) and not _KEY.match(code):
+                    fields["axiom"] = f"{fields['axiom']} {code}"
+                    continue
+                if code.lower() == "ring lsystem":
+                    raise self.error(number, "'ring lsystem' (cpfg's ring L-systems: the string's ends are "
+                                     "neighbours) is not supported")  # fmt: skip
                 raise self.error(number, f"expected a production ('predecessor --> successor'), not {clip(code, 40)!r}")
             where[(section, len(group))] = line_where(number, col)
             group.append(code)
@@ -374,6 +441,21 @@ class _Reader:
             out.append((" ".join(pending), start))
         return out
 
+    def block(self, key: str, rest: str, line: int, col: int, fields: dict, where: dict):
+        """``Start: { n = 0; }`` and the like: the statements, run by :mod:`lsys3d.lsystem.blocks`."""
+        name = _BLOCKS[key]
+        blocks = fields.setdefault("blocks", {})
+        if name in blocks:
+            raise self.error(line, f"a second {key}: block")
+        if not rest.startswith("{") or not rest.rstrip().rstrip(";").endswith("}"):
+            raise self.error(line, f"{key}: expects a block of statements in braces, not {clip(rest, 40)!r}", col)
+        blocks[name] = rest
+        where.setdefault("blocks", {})[name] = line_where(line, col)
+        if name == "start":  # srand(seed) in Start: the seed of the whole derivation (a constant), as in cpfg
+            m = re.search(r"\bsrand\s*\(([^;{}]*)\)\s*;", rest)
+            if m:
+                fields["seed"] = int(abs(self.constant(m.group(1), line))) & 0xFFFFFFFF
+
     def whole(self, text: str, line: int, what: str) -> int:
         value = self.constant(text.rstrip(";").strip(), line)
         if not (value >= 0 and float(value).is_integer()):
@@ -391,6 +473,24 @@ class _Reader:
                 self.defines[name.strip()] = self.constant(value, line)
 
 
+_KEY_NAMES = {
+    "Derivation length": "derivation length",
+    "lsystem": "Lsystem",
+    "Endlsystem": "endlsystem",
+    "Ignore": "ignore",
+    "Consider": "consider",
+    "Define": "define",
+    "start": "Start",
+    "startEach": "StartEach",
+    "end": "End",
+    "endEach": "EndEach",
+}
+"""Spellings cpfg accepts besides the manual's (vlab's models write ``lsystem:`` and ``Endlsystem``)."""
+
+
+_BLOCKS = {"Start": "start", "StartEach": "start_each", "EndEach": "end_each", "End": "end"}
+
+
 def _is_rule(code: str) -> bool:
     return "-->" in code or re.search(r"(?<!-)->", code) is not None
 
@@ -398,13 +498,16 @@ def _is_rule(code: str) -> bool:
 def _view_angle(path: Path) -> tuple[float | None, str]:
     """The angle of the view file beside ``path`` (``plant.v``: ``angle increment: 30``, ``angle factor: 12``).
 
-    Returns the angle, or None and why there is none (no view file, an unreadable one, no angle in it).
+    Returns the angle, or None and why there is none (no view file, an unreadable one, no angle in it).  A view
+    file that leads out of the grammar's folder (a symlink) is not read (:func:`lsys3d.external.inside`).
     """
     view = path.with_suffix(".v")
     if not view.is_file():
         return None, f"no view file {view.name!r} beside it"
     try:
-        text = read_text(view)
+        text = read_text(inside(path.parent, view.name, "view file"))
+    except FileRefused as exc:
+        return None, f"its view file {view.name!r} cannot be read ({exc.reason})"
     except GrammarError as exc:
         return None, f"its view file {view.name!r} cannot be read ({exc.reason})"
     m = re.search(r"^\s*angle increment\s*:\s*([-+0-9.eE]+)", text, re.MULTILINE)

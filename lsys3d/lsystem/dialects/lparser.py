@@ -25,6 +25,7 @@ from ...errors import clip
 from ...turtle.commands import Axis, Command, Op
 from ..expr import ExprSyntaxError, parse_expression
 from ..grammar import Grammar
+from . import webls
 from .common import Dialect, Notation, fail, line_where
 
 __all__ = ["ABOP_LIKE_FORMS", "DIALECT", "read"]
@@ -138,6 +139,8 @@ def read(text: str, source: str = "<string>", **overrides) -> Grammar:
     >>> g.dialect, g.iterations, g.angle, g.rules, g.turtle["width"]
     ('lparser', 4, 25.0, ('A=+FA',), 0.5)
     """
+    if webls.recognise(text):  # the web tools' form with settings lines and /* */ comments
+        return webls.read(text, source, **overrides)
     if _ABOP_LIKE.search(text):
         return _read_abop_like(text, source, **overrides)
     lines = _content(text)
@@ -147,8 +150,9 @@ def read(text: str, source: str = "<string>", **overrides) -> Grammar:
         return _read_keywords(lines, text, source, overrides)
     raise fail(
         "cannot tell which .ls format this is: Lparser's starts with the recursion depth, the angle and the "
-        "thickness (or 'recursion', 'angle', 'thickness' lines); the ABOP-like one has 'axiom:' and rules "
-        "such as 'p1: A -> B'",
+        "thickness (or 'recursion', 'angle', 'thickness' lines, and Lparser2's 'min_thickness', 'switch_yz'...); "
+        "the ABOP-like one has 'axiom:' and rules such as 'p1: A -> B'; the web tools' has settings lines "
+        "('n=5; delta=22.5; stemsize=0.1') and 'axiom:'",
         source,
         lines[0][1] if lines else 1,
         1,
@@ -170,15 +174,23 @@ def _read_lparser(lines, header, text, source, overrides, names=("recursion dept
 
 
 def _read_keywords(lines, text, source, overrides):
-    """The keyword layout: ``recursion 12``, ``angle 20``, ``thickness 50``, ``axiom X``, ``rule X = ...``."""
+    """The keyword layout: ``recursion 12``, ``angle 20``, ``thickness 50``, ``axiom X``, ``rule X = ...``.
+
+    Lparser's later versions and ports (Lparser2.c and its JavaScript build) add ``min_thickness``,
+    ``switch_yz``, ``shape``, ``color``, ``mutation``, ``trace``, ``poly_limit`` and ``no_wait``
+    (:func:`_port_key`).
+    """
     settings: dict[str, float] = {"recursion": 1.0, "angle": 90.0, "thickness": 10.0}
+    port: dict = {}
     axiom = None
     rules = []
     for code, number, col in lines:
         m = re.match(r"(\w+)\s*[:=]?\s*(.*)\Z", code)
         key, rest = m.group(1).lower(), m.group(2).strip()
         rest_col = col + code.index(rest) if rest else col
-        if key in settings:
+        if key in _PORT_KEYS:
+            _port_key(key, rest, port, source, number, rest_col)
+        elif key in settings:
             if not _NUMBER.match(rest):
                 raise fail(f"'{key}' takes a number, not {clip(rest, 30)!r}", source, number, rest_col)
             settings[key] = float(rest)
@@ -187,15 +199,59 @@ def _read_keywords(lines, text, source, overrides):
         elif key == "rule":
             rules.append((rest, number, rest_col))
         else:
-            raise fail(f"unknown Lparser line {clip(code, 30)!r} (known: recursion, angle, thickness, axiom, rule)",
-                       source, number, col)  # fmt: skip
+            known = ", ".join(["recursion", "angle", "thickness", "axiom", "rule", *_PORT_KEYS])
+            raise fail(f"unknown Lparser line {clip(code, 30)!r} (known: {known})", source, number, col)
     if axiom is None:
         raise fail("no 'axiom' line", source, lines[-1][1], 1)
     values = [settings["recursion"], settings["angle"], settings["thickness"]]
-    return _lparser_grammar(values, axiom, rules, text, source, overrides)
+    extra: dict = {}
+    if port.get("min_thickness"):  # a percentage of Lparser's unit, 1/100 of a step (Lparser2.c: min_thick /= 100)
+        extra["turtle"] = {"min_width": port["min_thickness"] / 1e4}
+    if "materials" in port:
+        extra["materials"] = port["materials"]
+    return _lparser_grammar(values, axiom, rules, text, source, overrides, extra)
 
 
-def _lparser_grammar(values, axiom, rules, text, source, overrides) -> Grammar:
+_PORT_KEYS = ("min_thickness", "switch_yz", "shape", "color", "mutation", "trace", "poly_limit", "no_wait")
+"""The keys of Lparser2.c (L. Lapré's later Lparser, as jvail/L-System's JavaScript build compiles it)."""
+
+
+def _port_key(key: str, rest: str, port: dict, source: str, line: int, col: int):
+    """One key of Lparser2.c's keyword layout: what it does there, and what lsys3d does with it.
+
+    ``min_thickness``: no segment thinner than this percentage of Lparser's unit (``min_width``);
+    ``color n r g b``: colour ``n`` of the ``c`` command (a ``[materials]`` entry); ``switch_yz``: swaps
+    y and z in the file Lparser writes (z up or y up): lsys3d's plants always stand up along +Y, so
+    either value gives the same plant; ``shape``: blocks (0) or attached cylinders (1), lsys3d sweeps
+    tubes either way; ``trace``, ``no_wait``: messages and a key press of the program.  ``mutation n``
+    (random changes of the rules) and ``poly_limit`` (a cap that stops drawing) change the plant:
+    refused unless 0.
+    """
+    numbers = rest.split()
+    ok = numbers and all(_NUMBER.match(n) for n in numbers)
+    count = 4 if key == "color" else 1
+    if not ok or len(numbers) != count:
+        what = "four whole numbers: index red green blue (0-255)" if key == "color" else "a number"
+        raise fail(f"'{key}' takes {what}, not {clip(rest, 30)!r}", source, line, col)
+    if key == "color":
+        index, *rgb = (float(n) for n in numbers)
+        if not (index.is_integer() and 0 <= index <= 255 and all(0 <= c <= 255 for c in rgb)):
+            raise fail(f"'color' takes an index and red, green, blue from 0 to 255, not {clip(rest, 30)!r}",
+                       source, line, col)  # fmt: skip
+        hex_color = "#" + "".join(f"{int(c):02x}" for c in rgb)
+        port.setdefault("materials", {})[str(int(index))] = {"base_color": hex_color}
+        return
+    value = float(numbers[0])
+    if key == "min_thickness":
+        if value < 0:
+            raise fail(f"'min_thickness' must be >= 0, not {value:g}", source, line, col)
+        port[key] = value
+    elif key in ("mutation", "poly_limit") and value != 0:
+        what = "random changes of the rules" if key == "mutation" else "a cap on the polygons that stops the drawing"
+        raise fail(f"'{key} {numbers[0]}' ({what}) is not supported; 0 is", source, line, col)
+
+
+def _lparser_grammar(values, axiom, rules, text, source, overrides, extra=None) -> Grammar:
     recursion, angle, thickness = values
     if not (recursion >= 0 and recursion.is_integer()):
         raise fail(f"the recursion depth must be a whole number >= 0, not {recursion:g}", source, 1, 1)
@@ -228,6 +284,8 @@ def _lparser_grammar(values, axiom, rules, text, source, overrides) -> Grammar:
         "turtle": {"width": thickness / 100.0},  # thickness is a percentage of the length (the step, 1)
         "dialect": "lparser",
     }
+    for key, table in (extra or {}).items():  # the port keys' settings (_port_key), under the file's own
+        fields[key] = {**table, **fields.get(key, {})}
     fields.update(overrides)
     return Grammar(**fields, source=source, text=text, _where=where)
 

@@ -18,7 +18,7 @@ import re
 from dataclasses import replace
 
 from ...errors import GrammarError, clip
-from ...turtle.commands import Axis, Command, Op, Organ
+from ...turtle.commands import Axis, Command, Op, Organ, queries
 from ..expr import ExprSyntaxError, Function, Syntax, parse_expression
 from ..grammar import Grammar
 from .common import Dialect, Located, Notation, fail, line_where
@@ -116,7 +116,14 @@ _ALIASED = {"+": "Left", "-": "Right", "^": "Up", "&": "Down", "/": "RollL", "\\
             "@v": "RollToVert", "[": "SB", "]": "EB", "{": "BP", "}": "EP", ".": "PP", "_": "IncWidth",
             "!": "DecWidth", ";": "IncColor", ",": "DecColor", "@O": "Sphere", "@o": "Circle", "@B": "Box",
             "@Ts": "Elasticity", "@Tp": "Tropism"}  # fmt: skip
-COMMANDS_LPY = _BASE + tuple(replace(c, symbol=_ALIASED[c.symbol]) for c in _BASE if c.symbol in _ALIASED)
+_QUERY_ROWS = queries("PHLUR", world=(1, 2, 0))  # PlantGL's Z-up world: its (x, y, z) is lsys3d's (y, z, x)
+_QUERY_ALIASES = {"?P": "GetPos", "?H": "GetHead", "?L": "GetLeft", "?U": "GetUp", "?R": "GetRight"}
+COMMANDS_LPY = (
+    _BASE
+    + tuple(replace(c, symbol=_ALIASED[c.symbol]) for c in _BASE if c.symbol in _ALIASED)
+    + _QUERY_ROWS
+    + tuple(replace(c, symbol=_QUERY_ALIASES[c.symbol]) for c in _QUERY_ROWS)
+)
 
 UNSUPPORTED = frozenset(
     [
@@ -182,10 +189,10 @@ UNSUPPORTED = frozenset(
 )
 """PlantGL turtle commands that lsys3d reads but does not draw (named in a warning)."""
 
-_QUERIES = frozenset(
-    ["?P", "?H", "?U", "?L", "?R", "?F", "?I", "GetPos", "GetHead", "GetUp", "GetLeft", "GetRight", "GetFrame"]
-)
-"""L-Py's query modules: filled by the turtle during derivation, which lsys3d's derivation has no turtle for."""
+_QUERIES = frozenset(["?F", "?I", "GetFrame"])
+"""L-Py's query modules lsys3d does not fill (the whole frame, the interpretation's state); ``?P``, ``?H``,
+``?L``, ``?U``, ``?R`` and their ``Get...`` names are rows of the table, filled between the steps
+(:mod:`lsys3d.turtle.query`)."""
 
 DIALECT = Dialect(
     name="lpy",
@@ -215,7 +222,10 @@ INITIALISATION = "###### INITIALISATION ######"
 """L-Py's tag before the editor's settings (materials, scalars, curves) at the end of a file."""
 
 MAX_PATHS = 256
-"""Most ways through one rule's ifs (each becomes an lsys3d rule)."""
+"""Most ways through one rule's ifs that produce (each becomes an lsys3d rule)."""
+MAX_WALK = 100_000
+"""Most statements visited while following every way through one rule's ifs (the work, not only the
+rules made: ``if``/``else`` blocks one after another double the ways each, producing or not)."""
 
 _KEYWORD = re.compile(
     r"(?P<key>Axiom|axiom|derivation length|production|homomorphism|interpretation|decomposition|maximum depth"
@@ -347,6 +357,7 @@ class _Reader:
         self.functions: dict[str, Function] = {}
         self.function_texts: list[tuple[str, int]] = []
         self.unavailable: dict[str, str] = {}  # global name -> why lsys3d cannot compute it
+        self.walked = 0  # statements followed through the current rule's ifs (bounded by MAX_WALK)
         self.axiom: tuple[str, object] | None = None
         self.iterations: tuple[str, int] | None = None
         self.groups = {"rules": [], "homomorphism": [], "decomposition": []}
@@ -597,6 +608,7 @@ class _Reader:
         self.no_queries(line, header)
         statements = self.statements(body, 0, len(body))
         paths: list = []
+        self.walked = 0
         self.walk(statements, [], [], paths, line)
         for steps, successor in paths:
             text = Located().add(header, line.number, line.col)
@@ -622,10 +634,8 @@ class _Reader:
         return nxt
 
     def no_queries(self, line: _Line, pattern: str):
-        if any(q in pattern for q in _QUERIES if q.startswith("?")) or re.search(
-            r"\bGet(Pos|Head|Up|Left|Right|Frame)\b", pattern
-        ):
-            raise self.error(line, "L-Py's query modules (?P, ?H...) need the turtle during derivation: not supported")
+        if any(q in pattern for q in _QUERIES if q.startswith("?")) or re.search(r"\bGetFrame\b", pattern):
+            raise self.error(line, "L-Py's ?F, ?I and GetFrame queries (the whole frame) are not supported")
 
     def add_rule(self, section: str, text: Located):
         group = self.groups[section]
@@ -704,6 +714,13 @@ class _Reader:
     def walk(self, statements, steps, pieces, paths, line, k: int = 0):
         """Every way through the statements: (steps, successor) for each path that produces."""
         while k < len(statements):
+            self.walked += 1
+            if self.walked > MAX_WALK:
+                raise self.error(
+                    line,
+                    f"the rule's 'if's have too many ways through (more than {MAX_WALK:,} statements to follow; "
+                    "lsys3d.lsystem.dialects.lpy.MAX_WALK)",
+                )
             s = statements[k]
             kind = s[0]
             if kind == "let":
@@ -712,6 +729,8 @@ class _Reader:
                 pieces = [*pieces, (s[1], s[2])]
             elif kind == "produce":
                 paths.append((steps, [*pieces, (s[1], s[2])]))
+                if len(paths) > MAX_PATHS:
+                    raise self.error(line, f"more than {MAX_PATHS} ways through the rule's 'if's")
                 return
             elif kind == "return":
                 break
