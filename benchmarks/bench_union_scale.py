@@ -2,6 +2,7 @@
 
     python benchmarks/bench_union_scale.py [--plant 5 6 7 8 9] [--fern] [--repeat 1]
         [--compare 7] [--no-naive] [--blender .venv-bpy/bin/python] [--hostile] [--no-cleanup-too]
+        [--dense] [--dense-only] [--extra=--union-simplify=0.25]
 
 Each run is its own process (``lsys3d -v generate``), timed from outside, its
 peak resident memory read with ``getrusage(RUSAGE_CHILDREN)`` by a wrapper
@@ -24,6 +25,11 @@ one of its union workers).  Cases:
   Blender's geometry nodes (Curve to Mesh with an 8-sided circle, filled caps,
   then Mesh Boolean union with the Manifold solver), run with the ``bpy``
   wheel's Python;
+* ``--dense``: the set of real dense grammars of issue 34 (``DENSE``: public
+  grammar files that draw more than 20k segments, most shorter than their
+  width; where they come from: ``benchmarks/dense/README.md``), each full
+  against its soup, with the time of every stage and the peak RSS;
+  ``--dense-only`` runs that set alone;
 * ``--hostile``: the pathological unions of issue 18 (500 parallel
   overlapping branches, 1,000 branches from one point, 5,000 coincident
   branches): the time each takes to finish or to be refused.
@@ -72,6 +78,15 @@ rules = ["A(l) : l >= 0.0005 -> F(l)[+A(l*0.3)]-(4)F(l)[-A(l*0.3)]-(4)A(l*0.9415
 [turtle]
 heading = 90
 """
+
+ROOT = Path(__file__).parents[1]
+# the dense set (issue 34): (name, grammar file, generations or None for the file's own); benchmarks/dense/README.md
+DENSE = [
+    ("lpy barnsleyfern", ROOT / "tests/corpus/lpy/real/02-fractals_barnsleyfern.lpy", None),
+    ("lpy barnsleyfern3", ROOT / "tests/corpus/lpy/real/02-fractals_barnsleyfern3.lpy", None),
+    ("lpy peanocurve n=4", ROOT / "tests/corpus/lpy/real/02-fractals_peanocurve.lpy", 4),
+]
+DENSE_LIMIT = "--max-union-pairs=100000000"  # the real ferns cross the default refusal (400,000 pairs)
 
 # a fresh process per run, so that RUSAGE_CHILDREN holds that run alone
 WRAPPER = textwrap.dedent(
@@ -165,19 +180,22 @@ def gib(nbytes: float) -> str:
     return f"{nbytes / 2**30:.2f} GB"
 
 
-def full_vs_soup(rows, repeat: int, tmp: Path):
+STAGES = ("derive", "interpret", "sweep", "union", "cleanup", "export")
+
+
+def full_vs_soup(rows, repeat: int, tmp: Path, extra: tuple[str, ...] = (), stages: bool = False):
     print(
         f"{'case':<24} {'segments':>9} {'faces':>10} {'full s':>7} {'union s':>8} {'cleanup s':>9} {'soup s':>7}"
         f" {'full/soup':>9} {'RSS full':>9} {'RSS soup':>9}"
     )
     table = []
-    for name, grammar, n, *extra in rows:
+    for name, grammar, n, *more in rows:
         out = tmp / f"{name}.glb"
-        full = best(lsys3d_cmd(grammar, n, out, *extra), repeat)
+        full = best(lsys3d_cmd(grammar, n, out, *more, *extra), repeat)
         faces = int(re.search(r"wrote .*?: [\d,]+ vertices, ([\d,]+) faces", full["stderr"])[1].replace(",", ""))
         soup = best(lsys3d_cmd(grammar, n, tmp / f"{name}-soup.glb", "--no-union"), repeat)
         segments = _segments(grammar, n)
-        if not extra:
+        if not more:
             table.append((name, segments, full, soup))
         print(
             f"{name:<24} {segments:>9,} {faces:>10,} {full['seconds']:>7.2f} {full['stages'].get('union', 0):>8.2f}"
@@ -185,6 +203,8 @@ def full_vs_soup(rows, repeat: int, tmp: Path):
             f" {full['seconds'] / soup['seconds']:>8.1f}x {gib(full['peak']):>9} {gib(soup['peak']):>9}",
             flush=True,
         )
+        if stages:
+            print("    stages, s: " + "  ".join(f"{k} {full['stages'][k]:.2f}" for k in STAGES if k in full["stages"]))
     return table
 
 
@@ -192,7 +212,7 @@ def _segments(grammar: Path, n: int | None) -> int:
     import lsys3d
     from lsys3d.pipeline import draw
 
-    g = lsys3d.Grammar.from_file(grammar)
+    g = lsys3d.load(grammar)
     return len(draw(g, g.iterations if n is None else n, g.seed)[1])
 
 
@@ -322,6 +342,9 @@ def main(argv=None):
     )
     ap.add_argument("--hostile", action="store_true", help="also time the pathological unions of issue 18")
     ap.add_argument("--no-cleanup-too", dest="raw", action="store_true", help="also run each case without the cleanup")
+    ap.add_argument("--dense", action="store_true", help="also the set of real dense grammars (issue 34)")
+    ap.add_argument("--dense-only", action="store_true", help="the set of real dense grammars alone")
+    ap.add_argument("--extra", action="append", default=[], help="an option given to every full run (repeatable)")
     args = ap.parse_args(argv)
     print(f"{os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}")
     with tempfile.TemporaryDirectory() as tmp:
@@ -329,12 +352,17 @@ def main(argv=None):
         plant, fern = tmp / "plant3d.toml", tmp / "fern.toml"
         plant.write_text(PLANT)
         fern.write_text(FERN)
+        if args.dense_only:
+            full_vs_soup([(*row, DENSE_LIMIT) for row in DENSE], args.repeat, tmp, tuple(args.extra), stages=True)
+            return
         rows = [(f"plant n={n}", plant, n) for n in args.plant]
+        if args.dense:
+            rows += [(*row, DENSE_LIMIT) for row in DENSE]
         if args.fern:
             rows.append(("fern", fern, None))
         if args.raw:
             rows = [r for row in rows for r in (row, (f"{row[0]} --no-cleanup", *row[1:], "--no-cleanup"))]
-        table = full_vs_soup(rows, args.repeat, tmp)
+        table = full_vs_soup(rows, args.repeat, tmp, tuple(args.extra), stages=args.dense)
         growth(table)
         if args.compare:
             compare(plant, args.compare, args.repeat, args.naive, args.blender, tmp)

@@ -78,6 +78,10 @@ SUBSTITUTIONS = {
         "tree3d -n 5 --workers 1 -o big.glb",
         "8 generations take minutes; the union on one worker is the same at 5",
     ),
+    "barnsleyfern.lpy -o fern.glb --union-cover 0.25": (
+        "barnsleyfern.lpy -n 7 -o fern.glb --union-cover 0.25",
+        "the fern's 10 generations take minutes (it is the dense benchmark); the flags are the point at 7",
+    ),
     "generate tree -o tree.usda": (
         "generate tree -n 3 -o tree.usda",
         "the flat tree's union takes 5-6 s at its own 5 generations; the flags are the point",
@@ -103,6 +107,7 @@ for, tree3d and bush, two seeds each, at few generations)."""
 
 COPIED = {
     "sympodial.lpy": "tests/corpus/lpy/sympodial.lpy",
+    "barnsleyfern.lpy": "tests/corpus/lpy/real/02-fractals_barnsleyfern.lpy",
     "plant.l": "tests/corpus/cpfg/real/05-compound-homo.l",
     "plant.v": "tests/corpus/cpfg/real/05-compound-homo.v",
     "docs/looks": "docs/looks",

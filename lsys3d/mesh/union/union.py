@@ -15,7 +15,10 @@ everything):
 
 1. *Culling* (:mod:`lsys3d.mesh.union.touch`).  A tube equal to an earlier one, or wholly
    inside a straight span of another (a short thick twig buried in its
-   parent), adds nothing and stays out.
+   parent), adds nothing and stays out.  With ``UnionOptions.cover`` (off by
+   default; :mod:`lsys3d.mesh.union.cover`), so does every tube within that
+   fraction of its width of the spans of earlier tubes that stay (the
+   nested short tubes of dense grammars), a bounded simplification.
 2. *Which pieces can touch.*  Each tube is cut into pieces (a span between two
    rings, or about a diameter of tiny spans) covered by capsules; boxes in a
    grid and a segment-segment distance find the pairs that may touch, one
@@ -66,6 +69,7 @@ from ..sweep import Tubes
 from . import booleans
 from . import jobs as union_jobs
 from .booleans import BooleanError, Part
+from .cover import COVER_PAIRS, covered_tubes
 from .local import JunctionCleaner, Junctions, Touching, UnionRun, _local_union
 from .parts import _part, _to_mesh
 from .plan import _colour, _namer, _plan, _Progress, _unique_pairs, _use
@@ -109,6 +113,14 @@ class UnionOptions(Options):
         help="processes the union may use (0: one per core this process may run on; 1 also keeps the cleanup on "
         "one thread; the result is the same)",
     )
+    cover: float = option(
+        0.0,
+        low=0,
+        high=1,
+        name="union_cover",
+        help="leave out of the boolean every tube within this fraction of its width of the spans of earlier tubes "
+        "that stay (0: off; the union's surface moves by at most that much: docs/mesh.md, dense grammars)",
+    )
     max_pairs: int = option(
         DEFAULT_MAX_PAIRS,
         low=1,
@@ -118,9 +130,14 @@ class UnionOptions(Options):
     )
 
     def plain(self) -> dict:
-        """The options as plain data, without ``workers`` (how the work runs, not what it makes)."""
+        """The options as plain data, without ``workers`` (how the work runs, not what it makes).
+
+        ``cover`` is there only when on, so files made without it keep the bytes they had before it existed.
+        """
         data = super().plain()
         del data["workers"]
+        if not self.cover:
+            del data["cover"]
         return data
 
 
@@ -338,6 +355,13 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None],
     if dup.any():
         tubes, origin = _leave_out(tubes, origin, dup, "equal to another")
     pcs = pieces(tubes)
+    if opt.cover > 0:
+        # what may show is found before the refusal: a dense grammar's crowd is mostly covered tubes
+        a, b = touching(pcs, opt.margin, COVER_PAIRS * opt.max_pairs)
+        covered = covered_tubes(tubes, pcs, a, b, opt.cover)
+        if covered.any():
+            tubes, origin = _leave_out(tubes, origin, covered, f"within {opt.cover:g} of their width of another")
+            pcs = pieces(tubes)
     a, b = touching(pcs, opt.margin, opt.max_pairs)
     progress(0.04)
     buried = buried_tubes(tubes, pcs, a, b)
