@@ -151,7 +151,7 @@ def grammar_text(grammar) -> str:
     for key in ("homomorphism_depth", "decomposition_depth"):
         if getattr(grammar, key) != 1:
             lines.append(f"{key} = {getattr(grammar, key)}")
-    for table in ("turtle", "form", "materials", "surfaces", "leaves", "environment", "blocks", "growth"):
+    for table in type(grammar).TABLES[1:]:  # the defines are written above
         if getattr(grammar, table):
             lines.append(f"[{table}]")
             lines.extend(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in getattr(grammar, table).items())

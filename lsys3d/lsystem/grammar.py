@@ -32,12 +32,23 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import ClassVar
 
 from ..errors import GrammarError, clip
 from ..external import FileRefused, read_file
 from . import dialects
 from .blocks import Program, parse_blocks
-from .locations import _KEYS, _RULE_LISTS, _api_where, _key_line, _loc, _locate_strings, _toml_error, table_key_line
+from .locations import (
+    _KEYS,
+    _RULE_LISTS,
+    TABLES,
+    _api_where,
+    _key_line,
+    _loc,
+    _locate_strings,
+    _toml_error,
+    table_key_line,
+)
 from .modules import ModuleString
 from .rules import (
     MAX_PARAMETERS,
@@ -102,6 +113,8 @@ class Grammar:
     'A'
     """
 
+    TABLES: ClassVar[tuple[str, ...]] = TABLES  # the tables, for code that holds a Grammar (provenance)
+
     axiom: str
     rules: tuple[str, ...] = ()
     name: str = ""
@@ -147,7 +160,7 @@ class Grammar:
         for key in _RULE_LISTS:
             if isinstance(getattr(self, key), str):
                 raise GrammarError(f"'{key}' must be a list of rule strings, not one string", self.source)
-        for key in ("defines", "turtle", "form", "materials", "surfaces", "leaves", "environment", "blocks", "growth"):
+        for key in TABLES:
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
         for key in (*_RULE_LISTS, "modules", "functions"):
@@ -164,14 +177,8 @@ class Grammar:
         dialect = self._dialect()
         if self.angle is None:
             set_(self, "angle", dialect.angle)
-        set_(self, "turtle", MappingProxyType(dict(self.turtle)))
-        set_(self, "form", MappingProxyType(dict(self.form)))
-        set_(self, "materials", MappingProxyType(dict(self.materials)))
-        set_(self, "surfaces", MappingProxyType(dict(self.surfaces)))
-        set_(self, "leaves", MappingProxyType(dict(self.leaves)))
-        set_(self, "environment", MappingProxyType(dict(self.environment)))
-        set_(self, "blocks", MappingProxyType(dict(self.blocks)))
-        set_(self, "growth", MappingProxyType(dict(self.growth)))
+        for key in TABLES[1:]:  # the defines once checked (below)
+            set_(self, key, MappingProxyType(dict(getattr(self, key))))
         self._check_scalars()
         notation = dialect.notation
         names = self._declared_names(notation)
@@ -338,18 +345,7 @@ class Grammar:
             data["axiom"] = data.pop("premise")
         if "axiom" not in data:
             raise GrammarError("missing 'axiom' (the start string, e.g. axiom = \"F\")", source, 1, 1)
-        tables = (
-            ("defines", dict),
-            ("turtle", dict),
-            ("form", dict),
-            ("materials", dict),
-            ("surfaces", dict),
-            ("leaves", dict),
-            ("environment", dict),
-            ("blocks", dict),
-            ("growth", dict),
-        )
-        for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + list(tables):
+        for key, kind in [(k, list) for k in (*_RULE_LISTS, "modules", "functions")] + [(k, dict) for k in TABLES]:
             if key in data and not isinstance(data[key], kind):
                 line = _key_line(text, key)
                 raise GrammarError(
@@ -380,14 +376,7 @@ class Grammar:
                 "angle",
                 "seed",
                 "ignore",
-                "defines",
-                "turtle",
-                "form",
-                "materials",
-                "surfaces",
-                "leaves",
-                "environment",
-                "growth",
+                *TABLES,
                 "source",
                 "text",
                 "dialect",
@@ -398,7 +387,6 @@ class Grammar:
                 "consider",
                 "modules",
                 "functions",
-                "blocks",
             )
         }
         fields.update(changes)

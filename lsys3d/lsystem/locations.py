@@ -12,6 +12,9 @@ import numpy as np
 
 from ..errors import GrammarError
 
+TABLES = ("defines", "turtle", "form", "materials", "surfaces", "leaves", "environment", "blocks", "growth")
+"""A grammar's tables (TOML ``[name]``), in the order recipes and provenance write them: the one list of them."""
+
 _KEYS = {
     "name",
     "description",
@@ -30,16 +33,8 @@ _KEYS = {
     "ignore",
     "consider",
     "modules",
-    "defines",
     "functions",
-    "turtle",
-    "form",
-    "materials",
-    "surfaces",
-    "leaves",
-    "environment",
-    "blocks",
-    "growth",
+    *TABLES,
 }
 
 
