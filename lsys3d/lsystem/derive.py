@@ -477,21 +477,22 @@ def _passes(
 
 
 @numba.njit(cache=True, nogil=True)
-def _cut_mask(symbols, cut):
-    """The modules kept when each ``cut`` symbol removes itself and the rest of its branch (up to its ``]``)."""
-    m = symbols.shape[0]
+def cut_mask(is_open, is_close, starts):
+    """The modules kept when each of ``starts`` removes itself and the rest of its branch (up to its ``]``):
+    ABOP's ``%``, and the turtle's cuts by an environment (:mod:`lsys3d.turtle.query`).  ``is_open`` and
+    ``is_close`` mark the brackets; a start inside a branch already cut adds nothing."""
+    m = is_open.shape[0]
     keep = np.ones(m, np.bool_)
     i = 0
-    while i < m:
-        if symbols[i] != cut:
-            i += 1
+    for s in np.sort(starts):
+        if s < i:  # inside the branch the previous start cut
             continue
         depth = 0
+        i = s
         while i < m:
-            s = symbols[i]
-            if s == _OPEN:
+            if is_open[i]:
                 depth += 1
-            elif s == _CLOSE:
+            elif is_close[i]:
                 if depth == 0:
                     break
                 depth -= 1
@@ -503,7 +504,8 @@ def _cut_mask(symbols, cut):
 def _cut(ms: ModuleString, cut: int, trace: Trace | None = None) -> ModuleString:
     if not (ms.symbols == cut).any():
         return ms
-    keep = _cut_mask(ms.symbols, np.uint8(cut))
+    symbols = ms.symbols
+    keep = cut_mask(symbols == _OPEN, symbols == _CLOSE, np.flatnonzero(symbols == cut))
     if trace is not None:
         trace(CUT, ms.symbols, ms.symbols[keep], keep, None, None)
     return ModuleString(

@@ -17,11 +17,10 @@ Vectors are given in the dialect's world axes (PlantGL's Z-up world for L-Py).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from ..lsystem import dialects
-from ..lsystem.derive import DEFAULT_MAX_MODULES, derive
+from ..lsystem.derive import DEFAULT_MAX_MODULES, cut_mask, derive
 from ..lsystem.grammar import Grammar
 from ..lsystem.modules import ModuleString
 from .commands import Command, Op, symbol_table
@@ -39,26 +38,6 @@ def asks_turtle(grammar: Grammar, commands: tuple[Command, ...]) -> bool:
     """Whether the grammar writes a query module of this vocabulary (so derivation needs the turtle)."""
     queries = {c.symbol for c in commands if c.op == Op.QUERY}
     return bool(queries & set(grammar.written_symbols))
-
-
-@numba.njit(cache=True, nogil=True)
-def _cut_mask(is_open, is_close, starts):
-    """The modules kept when each start removes itself and the rest of its branch (up to its ``]``)."""
-    m = is_open.shape[0]
-    keep = np.ones(m, np.bool_)
-    for s in starts:
-        depth = 0
-        i = s
-        while i < m:
-            if is_open[i]:
-                depth += 1
-            elif is_close[i]:
-                if depth == 0:
-                    break
-                depth -= 1
-            keep[i] = False
-            i += 1
-    return keep
 
 
 def answer(
@@ -116,7 +95,7 @@ def answer(
     if len(found.cut):
         is_open = table.op[symbols] == Op.PUSH
         is_close = table.op[symbols] == Op.POP
-        keep = _cut_mask(is_open, is_close, found.cut)
+        keep = cut_mask(is_open, is_close, found.cut)
         bud = environment.options.bud if environment is not None else ""
         code = modules.code(bud) if bud else -1
         if code >= 0:  # the cut module becomes the bud, without parameters
