@@ -528,3 +528,25 @@ def test_a_batch_of_seeds_that_change_nothing_warns_once(tmp_path):
             assert "abop-1.24a grows the same plant from every seed" in seeds[0] and "3 variants" in seeds[0]
             counts = [line["counts"] for line in read_manifests(folder / "out").values()]
             assert len(counts) == 3 and counts[0] == counts[1] == counts[2]  # what it warns of
+
+
+def test_a_worker_stop_that_lands_in_a_finalizer_is_put_off_until_after_it():
+    """SIGTERM inside ``__del__`` (Python would print and swallow the SystemExit) stops the worker 10 ms later."""
+    from lsys3d.library import runners
+
+    class Closing:
+        def __del__(self):
+            runners._stop(signal.SIGTERM, sys._getframe())  # as if the signal arrived here
+            seen.append("finalizer ran to its end")
+
+    seen: list[str] = []
+    previous = signal.getsignal(signal.SIGALRM)
+    try:
+        Closing()  # dropped at once: its __del__ runs
+        assert seen == ["finalizer ran to its end"]
+        with pytest.raises(SystemExit) as stopped:
+            time.sleep(5)
+        assert stopped.value.code == 128 + signal.SIGTERM
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)

@@ -105,6 +105,19 @@ def available_memory() -> int:
 
 
 def _stop(signum, frame):
+    """A worker's SIGTERM: SystemExit unwinds the job, so its writers remove their temporary files.
+
+    Python prints and swallows an exception raised inside a finalizer (``__del__``: a zipfile closing after a
+    ``.usdz``), which would leave a traceback on the batch's stderr and the worker running: there the stop is
+    put off by 10 ms (SIGALRM), to land outside the finalizer.
+    """
+    inside = frame
+    while inside is not None:
+        if inside.f_code.co_name == "__del__":
+            signal.signal(signal.SIGALRM, lambda _signum, later: _stop(signum, later))
+            signal.setitimer(signal.ITIMER_REAL, 0.01)
+            return
+        inside = inside.f_back
     raise SystemExit(128 + signum)
 
 
