@@ -160,9 +160,11 @@ def test_the_fresh_sample_is_counted_honestly():
     """Issue 41's fresh sample: 36 files; README.md gives the rate before and after (the goal, 90%, is not met)."""
     outcomes = [_outcome(name) for name in FRESH]
     assert len(FRESH) == 36
-    # measured: 20 of 36 read and match (56%), 4 read with a warning, 12 are refused in one line (Horneophyton's
-    # ?H, refused by the reader when the sample was gathered, reads since query modules came: with a warning)
-    assert (outcomes.count("match"), outcomes.count("warns"), outcomes.count("refused")) == (20, 4, 12), outcomes
+    # measured: 22 of 36 read and match (61%), 4 read with a warning, 10 are refused in one line (Horneophyton's
+    # ?H, refused by the reader when the sample was gathered, reads since query modules came: with a warning;
+    # JumpingLamp and TexturedSurfaces read since vlab's functions, WeepingBirch matches since the view file's
+    # tropism)
+    assert (outcomes.count("match"), outcomes.count("warns"), outcomes.count("refused")) == (22, 4, 10), outcomes
 
 
 def shedding_model(steps: int = 320) -> tuple[int, int, int, int]:
@@ -248,6 +250,9 @@ def test_each_gathered_file_reads_unmodified_and_matches(name, caplog):
         for symbol, (low, high) in expected["between"].items():
             assert low <= derived.count(symbol) <= high, symbol
         segments = sum(derived.count(symbol) for symbol in expected["draws"])
+        if "per_polygon" in expected:  # each polygon's moves place its vertices: they are no segments
+            segments -= expected["per_polygon"] * derived.count("{")
+            expected = {**expected, "polygons": derived.count("{")}
     else:
         assert len(derived) == expected["modules"]
         for symbol, count in expected["counts"].items():

@@ -64,6 +64,8 @@ CPFG = {
     "@o": Op.ORGAN, "~l": Op.ORGAN, "$": Op.ROLL_HORIZONTAL,
     # query and communication modules (Mech and Prusinkiewicz 1996; the cpfg manual's environment section)
     "?P": Op.QUERY, "?H": Op.QUERY, "?L": Op.QUERY, "?U": Op.QUERY, "?E": Op.QUERY,
+    # cpfg's interpret.c: '_' adds the view file's elasticity increment, '_(e)' sets the elasticity
+    "_": Op.ELASTICITY_ADD,
 }  # fmt: skip
 # Lparser: lparser.txt (L. Lapre), the symbol table reproduced in the Lparser ports
 LPARSER = {

@@ -64,6 +64,7 @@ from .rules import (
     _RuleContext,
     _Scanner,
 )
+from .splines import native_functions
 
 __all__ = [
     "MAX_GRAMMAR_BYTES",
@@ -102,7 +103,9 @@ class Grammar:
     character (``["Leaf", "Apex"]``); ``consider`` is the complement of
     ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``; ``blocks`` are cpfg's C-like
     blocks (``{"start": "{n = 0;}", "start_each": "{n++;}"}``, :mod:`lsys3d.lsystem.blocks`), whose
-    globals the rules read: those only ``start`` sets as constants, the others at each step.
+    globals the rules read: those only ``start`` sets as constants, the others at each step.  ``splines``
+    are vlab's graphically defined functions, which expressions call as ``func(id, x)``
+    (:mod:`lsys3d.lsystem.splines`; ``{"1": {"name": "rho", "samples": 100, "points": [[0, 0.3], ...]}}``).
 
     Examples
     --------
@@ -132,6 +135,7 @@ class Grammar:
     leaves: Mapping[str, object] = field(default_factory=dict)
     environment: Mapping[str, object] = field(default_factory=dict)
     growth: Mapping[str, object] = field(default_factory=dict)
+    splines: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
     dialect: str = "lsys3d"
@@ -183,7 +187,10 @@ class Grammar:
         notation = dialect.notation
         names = self._declared_names(notation)
         scanner = _Scanner(notation, names)
-        functions = _parse_functions(self.functions, self.source, self._where, notation)
+        functions = {
+            **native_functions(self.splines, self.source),  # cpfg's func(id, x): vlab's function editor
+            **_parse_functions(self.functions, self.source, self._where, notation),
+        }
         set_(
             self,
             "defines",

@@ -62,6 +62,7 @@ class Op(IntEnum):
     FORWARD_STEPS = 22  # move a length drawing a segment per step of a given length (L-Py's nF)
     TROPISM_VECTOR = 23  # set the tropism vector T of the moves that follow (L-Py's @Tp)
     QUERY = 24  # record the turtle's state here: a query module (?P, ?H...) or cpfg's ?E, filled between steps
+    ELASTICITY_ADD = 25  # add the elasticity increment to the elasticity (cpfg's _); with an argument, set it
 
 
 N_OPS = len(Op)

@@ -61,6 +61,8 @@ Config = namedtuple(
         "angle_scale",
         "bend_angle",
         "length_unit",
+        "bend_after",
+        "elasticity_increment",
     ],
 )
 Variation = namedtuple("Variation", ["angle", "length", "width", "roll", "skipped", "turn"])
@@ -110,6 +112,7 @@ _ANGLE_FACTOR = int(Op.ANGLE_FACTOR)
 _RANDOM_TURN = int(Op.RANDOM_TURN)
 _TROPISM = int(Op.TROPISM)
 _ELASTICITY = int(Op.ELASTICITY)
+_ELASTICITY_ADD = int(Op.ELASTICITY_ADD)
 _FORWARD_STEPS = int(Op.FORWARD_STEPS)
 _TROPISM_VECTOR = int(Op.TROPISM_VECTOR)
 _QUERY = int(Op.QUERY)
@@ -265,6 +268,33 @@ def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
     nly = ly * c + (kz * lx - kx * lz) * s + ky * d
     nlz = lz * c + (kx * ly - ky * lx) * s + kz * d
     return _orthonormal(nhx, nhy, nhz, nlx, nly, nlz)
+
+
+@numba.njit(cache=True)
+def _bend_after(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e):
+    """cpfg's tropism after a move (interpret.c ``bend``): H turns toward U by the angle whose sine is
+    e (T.U), then toward L by the angle whose sine is e (T.L) (sines held to [-1, 1])."""
+    s = min(1.0, max(-1.0, e * (tx * ux + ty * uy + tz * uz)))
+    c = math.sqrt(1.0 - s * s)
+    hx, hy, hz, ux, uy, uz = (
+        c * hx + s * ux,
+        c * hy + s * uy,
+        c * hz + s * uz,
+        c * ux - s * hx,
+        c * uy - s * hy,
+        c * uz - s * hz,
+    )
+    s = min(1.0, max(-1.0, e * (tx * lx + ty * ly + tz * lz)))
+    c = math.sqrt(1.0 - s * s)
+    hx, hy, hz, lx, ly, lz = (
+        c * hx + s * lx,
+        c * hy + s * ly,
+        c * hz + s * lz,
+        c * lx - s * hx,
+        c * ly - s * hy,
+        c * lz - s * hz,
+    )
+    return _orthonormal(hx, hy, hz, lx, ly, lz)
 
 
 @numba.njit(cache=True)
@@ -594,6 +624,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     tx, ty, tz = config.tx, config.ty, config.tz
     bend = tx != 0.0 or ty != 0.0 or tz != 0.0
     by_angle = config.bend_angle
+    after = config.bend_after  # cpfg's tropism: the frame bends after each move, not before
+    elasticity_increment = config.elasticity_increment
     # one-shot bends (Lparser's t, Houdini's T) pull toward T, or down when T is not set
     gx, gy, gz = (tx, ty, tz) if bend else (0.0, -1.0, 0.0)
     random_turn = variation.turn.shape[0] > 0
@@ -652,7 +684,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
         has_arg = arity[i] > 0
         arg = params[offsets[i]] if has_arg else 0.0
         if code in (_FORWARD, _MOVE):
-            if elasticity != 0.0 and bend:
+            if elasticity != 0.0 and bend and not after:
                 hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
                     hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
                 )
@@ -710,6 +742,10 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             else:
                 last = -1
             px, py, pz = qx, qy, qz
+            if after and elasticity != 0.0 and bend:
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend_after(
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity
+                )
         elif code == _FORWARD_STEPS:  # L-Py's nF(length, dlength[, radius]): PlantGL's Turtle::nF
             # each step is the FORWARD above, with its length (kept apart: a loop there slows every F)
             dlength = params[offsets[i] + 1]
@@ -719,7 +755,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             w1 = params[offsets[i] + 2] * width_unit if taper else width
             dw = (w1 - w0) / arg if taper and arg > 0.0 else 0.0
             for k in range(n_rep):
-                if elasticity != 0.0 and bend:
+                if elasticity != 0.0 and bend and not after:
                     hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
                         hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
                     )
@@ -766,6 +802,10 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                     anchor = s_
                     n_seg += 1
                 px, py, pz = qx, qy, qz
+                if after and elasticity != 0.0 and bend:
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend_after(
+                        hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity
+                    )
                 if taper:  # PlantGL's F(dlength, topradius): the next width, the radius itself after the rest
                     width = w0 + dw * dlength * (k + 1) if k < whole else w1
                     if not (0.0 <= width <= far):
@@ -818,6 +858,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             )
         elif code == _ELASTICITY:
             elasticity = arg if has_arg else 0.0
+        elif code == _ELASTICITY_ADD:
+            elasticity = arg if has_arg else elasticity + elasticity_increment
         elif code == _ANGLE_FACTOR:
             f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle_scale)
             angle = angle * f ** program.sign[sym]

@@ -19,7 +19,10 @@ from ...external import FileRefused, inside
 from ...turtle.commands import ENVIRONMENT_QUERY, Axis, Command, Op, Organ, queries
 from ..expr import ExprSyntaxError, Syntax, parse_expression
 from ..grammar import MAX_PARAMETERS, Grammar, read_text
+from ..splines import to_table
+from . import vlab
 from .common import Dialect, Notation, fail, line_where
+from .macros import MacroError, expand
 
 __all__ = ["DIALECT", "MAX_INCLUDES", "UNSUPPORTED", "read"]
 
@@ -131,9 +134,20 @@ COMMANDS_CPFG = (
         Op.ORGAN,
         "s",
         1,
-        "`~c(s)`: the predefined surface `c`, scaled by `s`: an organ.",
+        "`~c(s)`: the predefined surface `c`, scaled by `s`: an organ. cpfg's `~c(sx, sy, sz)` scales it "
+        "by three factors; lsys3d by `sx` (a warning names the module).",
         organ=Organ.SURFACE,
         prefix=True,
+        ignored=("sy", "sz"),
+    ),
+    Command(
+        "_",
+        "elasticity",
+        Op.ELASTICITY_ADD,
+        "e",
+        1,
+        "Add the elasticity increment (the view file's `elasticity increment:`) to the elasticity of the "
+        "tropism (`tropism direction:`, `initial elasticity:`), or set it to `e`.",
     ),
     *queries("PHLU"),  # cpfg's world is lsys3d's: Y up
     ENVIRONMENT_QUERY,
@@ -167,7 +181,6 @@ UNSUPPORTED = frozenset(
         "@J",
         "@Tp",
         # the rest of cpfg's blackbox.c: cylinder sides, tropisms, patches, objects, bounded circles, cuts
-        "_",  # interpret.c: the elasticity of the tropism the view file sets
         "@!",
         "@Ts",
         "@Ti",
@@ -243,6 +256,7 @@ class _Reader:
         self.source = source
         self.defines: dict[str, float] = {}
         self.macros: set[str] = set()  # names #define'd (with or without a value), for #ifdef
+        self.texts: dict[str, str] = {}  # #define'd texts that are not constants, put in place as cpp does
         self.included = 0
         self.lines: list[tuple[str, int]] = []  # (text, line of the main file)
 
@@ -279,11 +293,15 @@ class _Reader:
                 elif word == "undef":
                     self.macros.discard(rest)
                     self.defines.pop(rest, None)
+                    self.texts.pop(rest, None)
                 elif word == "include":
                     self.include(rest, folder, number)
                 continue
             if active[-1] and line:
-                self.lines.append((raw.rstrip(), number))
+                try:
+                    self.lines.append((expand(raw.rstrip(), self.texts), number))
+                except MacroError as exc:
+                    raise self.error(number, str(exc)) from None
         if len(active) != 1:
             raise self.error(at or 1, "#if or #ifdef without #endif")
 
@@ -302,7 +320,16 @@ class _Reader:
         name, value = m.group(1), m.group(3).strip()
         self.macros.add(name)
         if value:
-            self.defines[name] = self.constant(value, line)
+            try:
+                value = expand(value, self.texts)
+            except MacroError as exc:
+                raise self.error(line, str(exc)) from None
+            try:
+                self.defines[name] = self.constant(value, line)
+                self.texts.pop(name, None)
+            except GrammarError:  # not a constant (it calls func(...), reads a variable): cpp's text, put in place
+                self.texts[name] = value
+                self.defines.pop(name, None)
 
     def include(self, rest: str, folder: Path | None, line: int):
         m = re.match(r"""["<]([^">]+)[">]\Z""", rest)
@@ -330,6 +357,10 @@ class _Reader:
     def read(self, **overrides) -> Grammar:
         path = Path(self.source)
         folder = path.parent if self.source and not self.source.startswith("<") and path.is_file() else None
+        view = vlab.read_view(path) if folder is not None else vlab.View()
+        for name, number in view.names.items():  # a function set's names: cpfg's -DNAME=NUMBER
+            self.macros.add(name)
+            self.defines[name] = float(number)
         self.preprocess(self.text, folder, None)
         fields: dict = {"dialect": "cpfg"}
         where: dict = {}
@@ -408,6 +439,10 @@ class _Reader:
             fields.setdefault("homomorphism_depth", depth)
         fields.update(groups)
         fields["defines"] = dict(self.defines)
+        if view.functions:
+            fields["splines"] = to_table(view.functions)
+        if view.turtle():
+            fields["turtle"] = view.turtle()
         if folder is not None and "angle" not in overrides:
             angle, missing = _view_angle(path)
             if angle is not None:
