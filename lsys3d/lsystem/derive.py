@@ -718,6 +718,8 @@ class _Context:
         self.m = len(ms)
         self.code = plan.code
         self.left_of, self.right_of, self.kept, self.close = _skip_tables(ms.symbols, ignored)
+        # cpfg's ring L-systems: a walk that runs off one end of the string goes on from the other
+        self.ring = bool(plan.grammar.ring) and self.m > 0
 
     def _bind(self, j: np.ndarray, ok: np.ndarray, pm: PatternModule, values: list) -> None:
         """Narrow ``ok`` to the candidates whose module ``j`` is ``pm``; append its parameters to ``values``."""
@@ -737,6 +739,8 @@ class _Context:
         found = []
         for pm in reversed(pattern):
             j = np.where(j >= 0, self.left_of[np.maximum(j, 0)], -1)
+            if self.ring:
+                j = np.where(j < 0, self.left_of[self.m - 1], j)
             ok &= j >= 0
             values: list = []
             self._bind(j, ok, pm, values)
@@ -760,6 +764,8 @@ class _Context:
                 ok &= j < m
             else:
                 j = self.right_of[j]
+                if self.ring:
+                    j = np.where(j >= m, self.right_of[0], j)
                 ok &= j < m  # the end of the string, or of a branch, has no right context
                 ok &= self.ms.symbols[np.minimum(j, m - 1)] != _CLOSE
                 self._bind(j, ok, pm, values)

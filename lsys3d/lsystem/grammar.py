@@ -103,7 +103,8 @@ class Grammar:
     character (``["Leaf", "Apex"]``); ``consider`` is the complement of
     ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``; ``blocks`` are cpfg's C-like
     blocks (``{"start": "{n = 0;}", "start_each": "{n++;}"}``, :mod:`lsys3d.lsystem.blocks`), whose
-    globals the rules read: those only ``start`` sets as constants, the others at each step.  ``splines``
+    globals the rules read: those only ``start`` sets as constants, the others at each step.  ``ring`` makes
+    the string a ring for context (cpfg's ``ring lsystem``: its first and last modules are neighbours).  ``splines``
     are vlab's graphically defined functions, which expressions call as ``func(id, x)``
     (:mod:`lsys3d.lsystem.splines`; ``{"1": {"name": "rho", "samples": 100, "points": [[0, 0.3], ...]}}``).
 
@@ -147,6 +148,7 @@ class Grammar:
     modules: tuple[str, ...] = ()
     functions: tuple[str, ...] = ()
     blocks: Mapping[str, str] = field(default_factory=dict)
+    ring: bool = False
     # parsed, filled in by __post_init__
     productions: tuple[Production, ...] = field(init=False, repr=False)
     homomorphism_productions: tuple[Production, ...] = field(init=False, repr=False)
@@ -293,6 +295,8 @@ class Grammar:
             depth = getattr(self, key)
             if isinstance(depth, bool) or not isinstance(depth, int) or not 1 <= depth <= MAX_DEPTH:
                 raise bad(key, f"must be a whole number from 1 to {MAX_DEPTH}, not {clip(repr(depth))}")
+        if not isinstance(self.ring, bool):
+            raise bad("ring", f"must be true or false, not {clip(repr(self.ring))}")
         if not _finite_number(self.angle):
             raise bad("angle", f"must be a number of degrees, not {clip(repr(self.angle))}")
         for key in ("name", "description", "group", "axiom", "ignore", "consider"):
@@ -394,6 +398,7 @@ class Grammar:
                 "consider",
                 "modules",
                 "functions",
+                "ring",
             )
         }
         fields.update(changes)

@@ -45,6 +45,7 @@ _KEYS = {
     "consider",
     "modules",
     "functions",
+    "ring",
     *TABLES,
 }
 

@@ -426,9 +426,9 @@ class _Reader:
                 if axiom_goes_on and not any(groups.values()) and not _KEY.match(code):
                     fields["axiom"] = f"{fields['axiom']} {code}"
                     continue
-                if code.lower() == "ring lsystem":
-                    raise self.error(number, "'ring lsystem' (cpfg's ring L-systems: the string's ends are "
-                                     "neighbours) is not supported")  # fmt: skip
+                if re.fullmatch(r"ring\s+lsystem\s*:?", code, re.IGNORECASE):  # the ends are neighbours
+                    fields["ring"] = True
+                    continue
                 raise self.error(number, f"expected a production ('predecessor --> successor'), not {clip(code, 40)!r}")
             where[(section, len(group))] = line_where(number, col)
             group.append(code)
