@@ -149,16 +149,47 @@ COMMANDS_CPFG = (
         "Add the elasticity increment (the view file's `elasticity increment:`) to the elasticity of the "
         "tropism (`tropism direction:`, `initial elasticity:`), or set it to `e`.",
     ),
+    Command(
+        "@Gs",
+        "start generalized cylinder",
+        Op.CYLINDER_START,
+        "",
+        0,
+        "Start a generalized cylinder here: its first control point.",
+    ),
+    Command(
+        "@Gc",
+        "generalized cylinder point",
+        Op.CYLINDER_POINT,
+        "n",
+        1,
+        "A control point: a tube from the last one to here along cpfg's Hermite curve (the headings are its "
+        "tangents), in `n` straight pieces (default 4), its width going from the last point's to this one's.",
+    ),
+    Command(
+        "@Ge",
+        "end generalized cylinder",
+        Op.CYLINDER_POINT,
+        "n",
+        1,
+        "The last control point, as `@Gc(n)`: the cylinder ends here.",
+        sign=-1,
+    ),
+    Command(
+        "@Gt",
+        "cylinder tangents",
+        Op.CYLINDER_TANGENTS,
+        "a, b",
+        2,
+        "The factors of the tangents into (`a`) and out of (`b`, default `a`) the control points that follow "
+        "(times the distance between two points; 1.2 at first).",
+    ),
     *queries("PHLU"),  # cpfg's world is lsys3d's: Y up
     ENVIRONMENT_QUERY,
 )
 
 UNSUPPORTED = frozenset(
     [
-        "@Gs",
-        "@Gc",
-        "@Ge",
-        "@Gt",
         "@Gr",
         "@Tx",
         "@M",
