@@ -6,8 +6,10 @@ tropism (interpret.c ``bend``) written out again in plain Python, one value at a
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -156,7 +158,7 @@ def test_a_missing_function_file_and_an_unknown_function_are_refused_in_one_line
     path = _model(tmp_path, grammar, "angle increment: 30\nfunction: line.func\n", {"line.func": LINE})
     with pytest.raises(lsys3d.LSystemError) as info:
         lsys3d.derive(lsys3d.Grammar.from_file(path))
-    assert "func(2, x): no such function (the view file's are 1)" in str(info.value)
+    assert "func(2, ...): no such function (the view file's are 1)" in str(info.value)
     assert "\n" not in str(info.value)
 
 
@@ -209,3 +211,98 @@ def test_the_view_files_tropism_is_the_grammars_and_bends_as_cpfgs(tmp_path, cap
     assert not caplog.records  # '_' is drawn: no warning names it
     want = cpfg_tropism([1, 2, 1, 1, 1, 1.5], [0.1, 0.1, 0.3, 0.3, 0.5, 0.9], (0.3, -1, 0.2))
     assert np.allclose(skeleton.end, want, atol=1e-9)
+
+
+# ---------------------------------------------------------------- cpfg's curveXYZ.cpp, written out again
+def cpfg_curve(points, samples=100):
+    """curveX/curveY(1, t) and curveGAL(1) as curveXYZ.cpp computes them (type bspline, one level of points)."""
+    size = len(points)
+
+    def b(i, k, t):  # Bi1 ... Bi4 with the knots 0, 1, 2...
+        if k == 1:
+            return 1.0 if i <= t < i + 1 else 0.0
+        return (t - i) / (k - 1) * b(i, k - 1, t) + (i + k - t) / (k - 1) * b(i + 1, k - 1, t)
+
+    def p_value(t):
+        i = 3 + int(t * (size - 3.000001))
+        t = 3.0 + t * (size - 3.000001)
+        return [sum(points[i - 3 + j][c] * b(i - 3 + j, 4, t) for j in range(4)) for c in range(3)]
+
+    pts = [p_value(i / (samples - 1)) for i in range(samples)]
+    total, lengths = 0.0, [0.0]
+    for q, r in itertools.pairwise(pts):
+        total += math.sqrt(sum((r[c] - q[c]) ** 2 for c in range(3)))
+        lengths.append(total)
+    lengths = [v / total for v in lengths]
+
+    def a_value(t):
+        t = min(max(t, 0.0), 1.0)
+        low, high = 0, samples - 1
+        while high - low > 1:
+            mid = (low + high) // 2
+            if lengths[mid] > t:
+                high = mid
+            else:
+                low = mid
+        return p_value((low + (t - lengths[low]) / (lengths[high] - lengths[low])) / (samples - 1))
+
+    return a_value, total
+
+
+def ridley_model():
+    """vlab's Ridley (Algorithm 5 of Prusinkiewicz et al. 2001) from its rules: each primordium's (y, x, colour,
+    sides, diameter), one decomposition at a time, the curve and the function of its model folder."""
+    con = [line.split() for line in (REAL / "profile.con").read_text().splitlines()[10:] if line.strip()]
+    points = [tuple(float(v) for v in p[:3]) for p in con for _ in range(int(p[3]))]
+    curve, length = cpfg_curve(points)
+    rho_file = read_function((REAL / "rho.func").read_text(), "rho.func")
+    rho_of = cpfg_function(rho_file.points, rho_file.samples)
+    s, a, ds, out = 0.0, 0.0, 0.001, []
+    while s < length:  # A(s,a) : s<L
+        rho = 0.1 * rho_of(s / length)
+        rho_square = rho**2
+        while a < rho_square and s < length:
+            x = curve(s / length)[0]
+            a = a + 2 * x * ds
+            s = s + ds
+        a = a - rho_square
+        y = curve(s / length)[1]
+        out.append((y, x, math.floor(1 + s / length * 32), 6 + 300 * rho, 2.1 * rho))
+    return out, length
+
+
+def test_ridley_places_its_primordia_as_cpfg_does():
+    """Its curve (profile.con, curve: in the view file), its function (rho.func) and the while loop of its block."""
+    expected = tomllib.loads((REAL.parent.parent / "expected.toml").read_text())["cpfg/real/manual-Ridley-spiral.l"][0]
+    primordia, _ = ridley_model()
+    assert len(primordia) == expected["organs"] == expected["counts"]["@O"]
+    grammar = lsys3d.Grammar.from_file(REAL / "manual-Ridley-spiral.l")
+    assert grammar.decomposition_depth == 3000 and len(primordia) < 3000  # each primordium one decomposition
+    derived = lsys3d.derive(grammar)
+    modules = [derived.module(i) for i in range(len(derived))]
+    moves = [p[0] for s, p in modules if s == "f"]
+    got = list(zip(moves[0::2], moves[1::2], strict=True))
+    assert np.allclose(got, [(y, x) for y, x, *_ in primordia], atol=1e-9)
+    assert np.allclose([p[0] for s, p in modules if s == "@O"], [d for *_, d in primordia], atol=1e-9)
+    assert [p[0] for s, p in modules if s == ";"] == [c for _, _, c, _, _ in primordia]
+
+
+def test_a_while_loop_in_a_rules_block_runs_for_each_module_apart(monkeypatch):
+    text = (
+        "Lsystem: 1\nderivation length: 1\nAxiom: A(3) A(4) A(0)\n"
+        "A(n) : {k = 0; s = 0; while (k < n) {k = k + 1; s = s + k;}} --> B(s, k)\nendlsystem\n"
+    )
+    assert str(lsys3d.derive(lsys3d.Grammar.from_text(text, source="p.l"))) == "B(6,3)B(10,4)B(0,0)"
+    endless = text.replace("k = k + 1; ", "")
+    monkeypatch.setattr("lsys3d.lsystem.derive.MAX_LOOP", 1000)  # lsys3d.lsystem.rules.MAX_LOOP: 100,000
+    with pytest.raises(lsys3d.LSystemError, match="a while loop ran more than 1,000 rounds") as info:
+        lsys3d.derive(lsys3d.Grammar.from_text(endless, source="p.l"))
+    assert "\n" not in str(info.value)
+
+
+def test_curves_of_other_types_are_refused_in_one_line(tmp_path):
+    con = (REAL / "profile.con").read_text().replace("type: bspline", "type: bezier")
+    path = _model(tmp_path, "Lsystem: 1\nAxiom: F\nendlsystem\n", "curve: p.con\n", {"p.con": con})
+    with pytest.raises(lsys3d.GrammarError) as info:
+        lsys3d.Grammar.from_file(path)
+    assert "curve type 'bezier' is not supported (only 'bspline')" in str(info.value)

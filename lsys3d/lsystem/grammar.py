@@ -79,7 +79,7 @@ __all__ = [
 
 MAX_GRAMMAR_BYTES = 1 << 20
 """Largest grammar file read, in bytes."""
-MAX_DEPTH = 1000
+MAX_DEPTH = 10_000
 """Largest ``homomorphism_depth`` / ``decomposition_depth`` (L-Py's and cpfg's ``maximum depth``)."""
 
 _NAME = re.compile(r"[A-Za-z_@?~][A-Za-z_0-9@]*\Z")  # a declared module name (Leaf, @Gs, ?P)
@@ -200,7 +200,7 @@ class Grammar:
                 _check_defines(dict(self.defines), self.source, self._where.get("defines"), notation, functions)
             ),
         )
-        program, constants = self._program()
+        program, constants = self._program(functions)
         set_(self, "program", program)
         context = _RuleContext(self.source, {**self.defines, **constants}, scanner, notation, functions, dialect)
         context.globals = program.step_names if program is not None else frozenset()
@@ -233,11 +233,12 @@ class Grammar:
         set_(self, "alphabet", context.alphabet.table())
         set_(self, "axiom_modules", _evaluate_axiom(axiom, context.alphabet, self.source, where_axiom))
 
-    def _program(self) -> tuple[Program | None, dict[str, float]]:
+    def _program(self, functions) -> tuple[Program | None, dict[str, float]]:
         """cpfg's blocks parsed, and the globals that stay constant after ``Start`` (constants of the rules)."""
         if not self.blocks:
             return None, {}
-        program = parse_blocks(self.blocks, self.defines, self.source, self._where.get("blocks"))
+        natives = {k: f for k, f in functions.items() if f.native is not None}
+        program = parse_blocks(self.blocks, self.defines, self.source, self._where.get("blocks"), natives)
         values, _ = program.run_start(self.seed)
         return program, {k: v for k, v in values.items() if k not in program.step_names}
 

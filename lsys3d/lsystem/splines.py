@@ -37,9 +37,11 @@ from .expr import EvalError, Function
 __all__ = [
     "MAX_POINTS",
     "MAX_SAMPLES",
+    "Curve",
     "SplineFunction",
     "from_table",
     "native_functions",
+    "read_curve",
     "read_function",
     "read_function_set",
     "to_table",
@@ -228,57 +230,188 @@ def read_function_set(text: str, source: str) -> tuple[SplineFunction, ...]:
     return tuple(out)
 
 
-def to_table(functions) -> dict[str, dict]:
-    """Functions as a grammar's ``[splines]`` table: ``"1" = { name = "rho", samples = 100, points = [...] }``."""
-    return {
+@dataclass(frozen=True)
+class Curve:
+    """A curve of vlab's curve editor (a ``.con`` file of type ``bspline``), for cpfg's ``curveX(id, t)``...
+
+    ``t`` in [0, 1] is the arc length along the curve, as a fraction of its whole length (cpfg's
+    ``CCurveXYZ::calcAValue``: the curve sampled at ``samples`` evenly spaced parameters, the lengths of the
+    polyline between them, the parameter of ``t`` interpolated between the two samples around it);
+    ``curveGAL(id)`` is the polyline's whole length.  The curve is the uniform cubic B-spline of the
+    control points (each as many times as its multiplicity says).
+    """
+
+    name: str
+    points: tuple[tuple[float, float, float], ...]
+    samples: int = 100
+
+    def at(self, u: np.ndarray) -> np.ndarray:
+        """The curve's points at parameters ``u`` in [0, 1]: ``(len(u), 3)`` (cpfg's ``calcPValue``, bspline)."""
+        pts = np.asarray(self.points, np.float64)
+        size = len(pts)
+        u = np.asarray(u, np.float64)
+        i = 3 + (u * (size - 3.000001)).astype(np.int64)
+        v = (3.0 + u * (size - 3.000001)) - i  # the local parameter in [0, 1)
+        weights = (
+            (1 - v) ** 3 / 6,
+            (3 * v**3 - 6 * v**2 + 4) / 6,
+            (-3 * v**3 + 3 * v**2 + 3 * v + 1) / 6,
+            v**3 / 6,
+        )
+        return sum(w[:, None] * pts[i - 3 + k] for k, w in enumerate(weights))
+
+    @cached_property
+    def lengths(self) -> tuple[np.ndarray, float]:
+        """The samples' arc lengths as fractions of the whole, and the whole (cpfg's ``createAPoints``)."""
+        points = self.at(np.arange(self.samples) / (self.samples - 1))
+        steps = np.sqrt((np.diff(points, axis=0) ** 2).sum(axis=1))
+        total = float(steps.sum())
+        cumulative = np.concatenate([[0.0], np.cumsum(steps)])
+        return (cumulative / total if total > 0 else cumulative), total
+
+    def point(self, t) -> np.ndarray:
+        """The point at the fraction ``t`` of the arc length (held to [0, 1]): ``(len(t), 3)``."""
+        t = np.clip(np.asarray(t, np.float64), 0.0, 1.0)
+        frac, _ = self.lengths
+        n = self.samples
+        # cpfg's halving search for the two samples around t: the last min with frac[min] <= t
+        low = np.clip(np.searchsorted(frac, t, side="right") - 1, 0, n - 2)
+        high = low + 1
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = (low + (t - frac[low]) / (frac[high] - frac[low])) / (n - 1)
+        return self.at(np.clip(np.nan_to_num(u), 0.0, 1.0))
+
+
+def read_curve(text: str, source: str, samples: int = 100) -> Curve:
+    """A curve file of vlab's (``.con``: ``points:``, ``dimension:``, ``type:`` and the points) into a :class:`Curve`.
+
+    Only the ``bspline`` type (cpfg's default) and one level of points are read; other types are refused in
+    one line naming them.
+    """
+    lines = _lines(text)
+    count = dimension = None
+    kind = "bspline"
+    out: list[tuple[float, float, float]] = []
+    name = re.sub(r"\.con\Z", "", source.replace("\\", "/").rsplit("/", 1)[-1])
+    for number, line in lines:
+        m = re.match(r"([a-z ]+):\s*(.*)\Z", line)
+        if m:
+            key, rest = m.group(1).strip(), m.group(2).strip()
+            if key == "points":
+                if count is not None:
+                    raise _fail(source, number, "curves of curves (a second 'points:') are not supported")
+                count = _whole(rest, lines, [n for n, _ in lines].index(number), key, source, MAX_POINTS)
+            elif key in ("dimension", "dim"):
+                dimension = _whole(rest, lines, [n for n, _ in lines].index(number), key, source, 4)
+            elif key == "type":
+                kind = rest
+            continue
+        if count is None:
+            raise _fail(source, number, f"a point before 'points:': {clip(line, 40)!r}")
+        try:
+            values = [float(w) for w in line.split()]
+        except ValueError:
+            raise _fail(source, number, f"a point reads numbers, not {clip(line, 40)!r}") from None
+        if len(values) != (dimension or 2) or not all(np.isfinite(values)):
+            raise _fail(source, number, f"a point of {dimension or 2} numbers expected, not {clip(line, 40)!r}")
+        times = int(values[3]) if len(values) > 3 else 1
+        if not 1 <= times <= MAX_POINTS or len(out) + times > MAX_POINTS:
+            raise _fail(source, number, f"a point's multiplicity must be 1 to {MAX_POINTS} in all, not {times}")
+        z = values[2] if len(values) > 2 else 0.0
+        out += [(values[0], values[1], z)] * times
+    if kind != "bspline":
+        raise _fail(source, 1, f"curve type {clip(kind, 30)!r} is not supported (only 'bspline')")
+    if count is None or len(out) < 4:
+        raise _fail(source, 1, "a curve needs 'points:' and at least 4 points")
+    if not 2 <= samples <= MAX_SAMPLES:
+        raise _fail(source, 1, f"a curve's samples must be 2 to {MAX_SAMPLES}, not {samples}")
+    return Curve(name, tuple(out), samples)
+
+
+def to_table(functions, curves=()) -> dict[str, dict]:
+    """Functions and curves as a grammar's ``[splines]`` table.
+
+    ``"1" = { name = "rho", samples = 100, points = [[x, y], ...] }`` for ``func(1, x)``, and ``"curve 1" =
+    { name = "profile", samples = 100, points = [[x, y, z], ...] }`` for ``curveX(1, t)``...
+    """
+    out = {
         str(i + 1): {"name": f.name, "samples": f.samples, "points": [list(p) for p in f.points]}
         for i, f in enumerate(functions)
     }
+    for i, c in enumerate(curves):
+        out[f"curve {i + 1}"] = {"name": c.name, "samples": c.samples, "points": [list(p) for p in c.points]}
+    return out
 
 
-def from_table(table: Mapping, source: str) -> dict[int, SplineFunction]:
-    """A grammar's ``[splines]`` table back into its functions, by number (a :class:`GrammarError` if malformed)."""
-    out = {}
+def from_table(table: Mapping, source: str) -> tuple[dict[int, SplineFunction], dict[int, Curve]]:
+    """A grammar's ``[splines]`` table back into its functions and curves, by number (a :class:`GrammarError`
+    if malformed)."""
+    functions, curves = {}, {}
     for key, entry in table.items():
         where = f"[splines] {clip(str(key), 20)}"
-        if not re.fullmatch(r"[1-9]\d{0,5}", str(key)) or not isinstance(entry, Mapping):
-            raise GrammarError(f"{where}: expected 'NUMBER = {{ name, samples, points }}'", source)
+        m = re.fullmatch(r"(curve )?([1-9]\d{0,5})", str(key))
+        if m is None or not isinstance(entry, Mapping):
+            raise GrammarError(f"{where}: expected 'NUMBER' or 'curve NUMBER' = {{ name, samples, points }}", source)
+        width = 3 if m.group(1) else 2
         points = entry.get("points")
         samples = entry.get("samples", 0)
         ok = isinstance(points, (list, tuple)) and 4 <= len(points) <= MAX_POINTS
         ok = ok and all(
             isinstance(p, (list, tuple))
-            and len(p) == 2
+            and len(p) == width
             and all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in p)
             for p in points
         )
         if not ok:
-            raise GrammarError(f"{where}: 'points' must be 4 to {MAX_POINTS} pairs of numbers [x, y]", source)
-        if isinstance(samples, bool) or not isinstance(samples, int) or not 0 <= samples <= MAX_SAMPLES:
-            raise GrammarError(f"{where}: 'samples' must be a whole number from 0 to {MAX_SAMPLES}", source)
+            raise GrammarError(f"{where}: 'points' must be 4 to {MAX_POINTS} lists of {width} numbers", source)
+        low = 2 if width == 3 else 0
+        if isinstance(samples, bool) or not isinstance(samples, int) or not low <= samples <= MAX_SAMPLES:
+            raise GrammarError(f"{where}: 'samples' must be a whole number from {low} to {MAX_SAMPLES}", source)
         name = entry.get("name", "")
         if not isinstance(name, str):
             raise GrammarError(f"{where}: 'name' must be a string", source)
-        out[int(key)] = SplineFunction(name, tuple((float(x), float(y)) for x, y in points), samples)
-    return out
+        if width == 3:
+            curves[int(m.group(2))] = Curve(name, tuple(tuple(float(v) for v in p) for p in points), samples)
+        else:
+            functions[int(m.group(2))] = SplineFunction(name, tuple((float(x), float(y)) for x, y in points), samples)
+    return functions, curves
 
 
 def native_functions(table: Mapping, source: str) -> dict[str, Function]:
     """cpfg's ``func(id, x)`` over a grammar's ``[splines]`` table (nothing when the table is empty)."""
     if not table:
         return {}
-    functions = from_table(table, source)
+    functions, curves = from_table(table, source)
 
-    def func(ids: np.ndarray, x: np.ndarray) -> np.ndarray:
+    def each(name: str, table: dict, ids: np.ndarray, what):
+        noun = "function" if name == "func" else "curve"
         ids = np.trunc(ids)  # cpfg's (int)
-        out = np.zeros(len(x))
+        out = np.zeros(len(ids))
         for number in np.unique(ids):
             index = np.flatnonzero(ids == number)
-            function = functions.get(int(number)) if np.isfinite(number) else None
-            if function is None:
-                known = ", ".join(str(k) for k in sorted(functions))
-                raise EvalError(f"func({number:g}, x): no such function (the view file's are {known})", index[:1])
-            out[index] = function.evaluate(x[index])
+            found = table.get(int(number)) if np.isfinite(number) else None
+            if found is None:
+                known = ", ".join(str(k) for k in sorted(table)) or "none"
+                raise EvalError(f"{name}({number:g}, ...): no such {noun} (the view file's are {known})", index[:1])
+            out[index] = what(found, index)
         return out
 
-    return {"func": Function("func", ("id", "x"), None, native=func)}
+    out = {}
+    if functions:
+        out["func"] = Function(
+            "func", ("id", "x"), None, native=lambda ids, x: each("func", functions, ids, lambda f, k: f.evaluate(x[k]))
+        )
+    if curves:
+        for axis, name in enumerate(("curveX", "curveY", "curveZ")):
+            out[name] = Function(
+                name,
+                ("id", "t"),
+                None,
+                native=lambda ids, t, axis=axis, name=name: each(
+                    name, curves, ids, lambda c, k: c.point(t[k])[:, axis]
+                ),
+            )
+        out["curveGAL"] = Function(
+            "curveGAL", ("id",), None, native=lambda ids: each("curveGAL", curves, ids, lambda c, k: c.lengths[1])
+        )
+    return out

@@ -470,8 +470,8 @@ class _Reader:
             fields.setdefault("homomorphism_depth", depth)
         fields.update(groups)
         fields["defines"] = dict(self.defines)
-        if view.functions:
-            fields["splines"] = to_table(view.functions)
+        if view.functions or view.curves:
+            fields["splines"] = to_table(view.functions, view.curves)
         if view.turtle():
             fields["turtle"] = view.turtle()
         if folder is not None and "angle" not in overrides:

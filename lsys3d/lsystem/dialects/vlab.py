@@ -3,6 +3,8 @@
 cpfg reads the view file (``plant.v`` beside ``plant.l``) for its drawing settings.  Besides the angle
 (:func:`lsys3d.lsystem.dialects.cpfg.read`), lsys3d reads from it:
 
+- ``curve: profile.con`` (one line a curve, ``curveX(1, t)``... the first): vlab's curves, which
+  ``curveX``, ``curveY``, ``curveZ`` and ``curveGAL`` read;
 - ``function: leaf.func 100`` (one line per function: ``func(1, x)`` is the first) and ``function set:
   functions.fset`` (vlab's gallery of named functions: each name is a ``#define`` of its number, as cpfg's
   preprocessor is given them): the files of vlab's function editor, read from the model's folder
@@ -24,7 +26,7 @@ from pathlib import Path
 from ...errors import GrammarError, clip
 from ...external import FileRefused, inside
 from ..grammar import read_text
-from ..splines import SplineFunction, read_function, read_function_set
+from ..splines import Curve, SplineFunction, read_curve, read_function, read_function_set
 
 __all__ = ["View", "read_view", "strip_comments"]
 
@@ -34,6 +36,7 @@ class View:
     """The settings of a view file that change what lsys3d grows (functions and the tropism)."""
 
     functions: tuple[SplineFunction, ...] = ()
+    curves: tuple[Curve, ...] = ()
     names: dict[str, int] = field(default_factory=dict)  # a function set's names and their numbers
     tropism: tuple[float, float, float] | None = None
     elasticity: float = 0.0
@@ -58,7 +61,8 @@ def strip_comments(text: str) -> str:
 
 
 _LINE = re.compile(
-    r"(?P<key>function set|function|tropism direction|initial elasticity|elasticity increment)\s*:\s*(?P<rest>.*)\Z"
+    r"(?P<key>function set|function|curve|tropism direction|initial elasticity|elasticity increment)\s*:\s*"
+    r"(?P<rest>.*)\Z"
 )
 
 
@@ -77,6 +81,7 @@ def read_view(path: Path) -> View:
     except (FileRefused, GrammarError):
         return View()  # the angle's reader says why (cpfg.read warns)
     functions: list[SplineFunction] = []
+    curves: list[Curve] = []
     names: dict[str, int] = {}
     settings: dict = {}
     for number, raw in enumerate(strip_comments(text).split("\n"), start=1):
@@ -88,22 +93,24 @@ def read_view(path: Path) -> View:
         def fail(what: str, number=number) -> GrammarError:
             return GrammarError(what, str(view), number, 1)
 
-        if key in ("function", "function set"):
+        if key in ("function", "function set", "curve"):
             words = rest.split()
-            if not words or len(words) > (2 if key == "function" else 1):
-                raise fail(f"{key}: expects a file name{' and the samples' if key == 'function' else ''}")
+            if not words or len(words) > (1 if key == "function set" else 2):
+                raise fail(f"{key}: expects a file name{'' if key == 'function set' else ' and the samples'}")
             name = words[0]
-            samples = 0
+            samples = 100 if key == "curve" else 0  # cpfg's default for a curve (interpret.c)
             if len(words) == 2:
                 if not re.fullmatch(r"\d{1,6}", words[1]):
-                    raise fail(f"function: the samples must be a whole number, not {clip(words[1], 20)!r}")
+                    raise fail(f"{key}: the samples must be a whole number, not {clip(words[1], 20)!r}")
                 samples = int(words[1])
             try:
                 content = read_text(inside(folder, name, "function file"))
             except (FileRefused, GrammarError) as exc:
                 raise fail(f"{key}: {clip(name, 60)!r}: {exc.reason}") from None
             source = str(folder / name)
-            if key == "function":
+            if key == "curve":
+                curves.append(read_curve(content, source, samples))
+            elif key == "function":
                 functions.append(read_function(content, source, samples))
             else:  # cpfg's ReadFunctionSet: the set replaces the functions read before it
                 functions = list(read_function_set(content, source))
@@ -119,7 +126,7 @@ def read_view(path: Path) -> View:
             if not values:
                 raise fail(f"{key}: expects a number, not {clip(rest, 40)!r}")
             settings["elasticity" if key == "initial elasticity" else "elasticity_increment"] = values[0]
-    return View(tuple(functions), names, **settings)
+    return View(tuple(functions), tuple(curves), names, **settings)
 
 
 def _numbers(text: str, count: int) -> list[float] | None:
