@@ -47,6 +47,7 @@ from .locations import (
     _loc,
     _locate_strings,
     _toml_error,
+    table_error,
     table_key_line,
 )
 from .modules import ModuleString
@@ -73,6 +74,7 @@ __all__ = [
     "PatternModule",
     "Production",
     "SuccessorModule",
+    "table_error",
     "table_key_line",
 ]
 
