@@ -31,6 +31,7 @@ import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from dataclasses import replace as _with
 from types import MappingProxyType
 from typing import ClassVar
 
@@ -82,6 +83,7 @@ MAX_DEPTH = 1000
 """Largest ``homomorphism_depth`` / ``decomposition_depth`` (L-Py's and cpfg's ``maximum depth``)."""
 
 _NAME = re.compile(r"[A-Za-z_@?~][A-Za-z_0-9@]*\Z")  # a declared module name (Leaf, @Gs, ?P)
+_SUB_LSYSTEM = re.compile(r"\s*lsystem\s*:\s*(\d+)\s*\Z")  # cpfg's sub-L-systems in a rule list
 _SURROGATE = re.compile("[\ud800-\udfff]")
 GROUPS = ("species", "figure", "curve", "scene")
 """What a grammar's ``group`` may say it is: a plant species, a textbook figure, a curve, or a plant growing in
@@ -153,6 +155,8 @@ class Grammar:
     _axiom_parsed: tuple = field(init=False, repr=False, compare=False)
     considered: frozenset[str] | None = field(init=False, repr=False)
     program: Program | None = field(init=False, repr=False, compare=False)
+    lsystem_main: int = field(init=False, repr=False, compare=False)  # cpfg's main L-system's number, -1: none
+    lsystem_numbers: frozenset[int] = field(init=False, repr=False, compare=False)  # all of cpfg's L-systems
     _where: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
@@ -201,16 +205,28 @@ class Grammar:
         context.current = self.axiom
         axiom = context.modules(self.axiom, "axiom", (), where_axiom)
         groups = {}
+        main, numbers = -1, set()
         for key in _RULE_LISTS:
             productions = []
             wheres = []
+            lsystem = -1
             for i, rule in enumerate(getattr(self, key)):
                 if not isinstance(rule, str):
                     raise GrammarError(f"{_ordinal(key, i)} must be a string, not {type(rule).__name__}", self.source)
                 where = self._where.get((key, i)) or _api_where(f"{key}[{i}]")
-                productions.append(context.rule(i, rule, where))
+                marker = _SUB_LSYSTEM.match(rule) if notation.sub_lsystems else None
+                if marker:  # cpfg's 'lsystem: N': the rules after it are sub-L-system N's
+                    lsystem = int(marker.group(1))
+                    numbers.add(lsystem)
+                    main = lsystem if main < 0 and i == 0 and key == "rules" else main
+                    continue
+                productions.append(_with(context.rule(i, rule, where), lsystem=lsystem))
                 wheres.append(where)
             groups[key] = (productions, wheres)
+        if any(p.lsystem >= 0 for g in groups.values() for p in g[0]) and main < 0:
+            raise GrammarError("rules of a sub-L-system ('lsystem: N') need the main one's first", self.source)
+        set_(self, "lsystem_main", main)
+        set_(self, "lsystem_numbers", frozenset(numbers))
         derived = groups["rules"][0] + groups["decomposition"][0]
         if dialect.arity_check:
             _check_arities(derived, groups["rules"][1] + groups["decomposition"][1], axiom, where_axiom, self.source)

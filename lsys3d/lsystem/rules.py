@@ -53,7 +53,10 @@ class Production:
     is None for a rule written without one.  ``steps`` holds a condition with
     local variables: ``("let", name, expr)`` and ``("test", expr)`` in the order
     written, each test narrowing the modules the later steps see (then
-    ``condition`` is None).
+    ``condition`` is None).  ``following`` holds the rest of a strict predecessor of
+    several modules (cpfg's ``XF(x) --> ...``, :attr:`Notation.sequences`): the modules
+    that must stand right after ``predecessor``, all replaced by the successor.
+    ``lsystem`` is the number of the cpfg sub-L-system the rule belongs to (-1: the main one).
     """
 
     index: int
@@ -66,6 +69,8 @@ class Production:
     successor: tuple[SuccessorModule, ...]
     weight: float | None
     steps: tuple[tuple, ...] = ()
+    following: tuple[PatternModule, ...] = ()
+    lsystem: int = -1
 
     @property
     def context_sensitive(self) -> bool:
@@ -75,6 +80,7 @@ class Production:
     def formals(self) -> tuple[str, ...]:
         names = [n for m in self.left for n in m.formals]
         names += self.predecessor.formals
+        names += [n for m in self.following for n in m.formals]
         names += [n for m in self.right for n in m.formals]
         return tuple(names)
 
@@ -89,7 +95,9 @@ class Production:
         """Rules with equal keys are stochastic alternatives of one another."""
         cond = self.condition.text if self.condition is not None else None
         steps = tuple((s[0], s[1] if s[0] == "let" else "", s[-1].text) for s in self.steps)
-        return (self.left, self.predecessor.symbol, len(self.predecessor.formals), self.right, cond, steps)
+        pred = (self.predecessor.symbol, len(self.predecessor.formals))
+        following = tuple((m.symbol, len(m.formals)) for m in self.following)
+        return (self.left, *pred, self.right, cond, steps, following, self.lsystem)
 
 
 class _Alphabet:
@@ -393,10 +401,11 @@ class _RuleContext:
         if len(pred) != 1:
             if not pred:
                 raise err("missing predecessor before the arrow", at)
-            raise err("the predecessor must be one module (use '<' and '>' for context)", at)
-        if pred[0].symbol in "[]":
+            if not notation.sequences:
+                raise err("the predecessor must be one module (use '<' and '>' for context)", at)
+        if any(m.symbol in "[]" for m in pred):
             raise err("a bracket cannot be a predecessor", at)
-        if pred[0].symbol == "*":
+        if any(m.symbol == "*" for m in pred):
             raise err("'*' (any module) can stand in a context, not as the predecessor", at)
         right = self.modules(rule, "context", (), where, gt[0] + 1, ctx_end) if gt else ()
         if gt and not right:
@@ -435,6 +444,7 @@ class _RuleContext:
             location="{}:{}:{}".format(*_loc(source, where, _lstrip_len(rule))),
             left=left,
             predecessor=pred[0],
+            following=tuple(pred[1:]),
             right=right,
             condition=condition,
             successor=successor,

@@ -20,6 +20,7 @@ from ...turtle.commands import ENVIRONMENT_QUERY, Axis, Command, Op, Organ, quer
 from ..expr import ExprSyntaxError, Syntax, parse_expression
 from ..grammar import MAX_PARAMETERS, Grammar, read_text
 from .common import Dialect, Notation, fail, line_where
+from .macros import Macro, MacroError, expand, parse_definition
 
 __all__ = ["DIALECT", "MAX_INCLUDES", "UNSUPPORTED", "read"]
 
@@ -168,6 +169,7 @@ UNSUPPORTED = frozenset(
         "@Tp",
         # the rest of cpfg's blackbox.c: cylinder sides, tropisms, patches, objects, bounded circles, cuts
         "_",  # interpret.c: the elasticity of the tropism the view file sets
+        "?",  # ?(n, s): a sub-L-system's call, which scales its lengths and widths by s (interpret.c)
         "@!",
         "@Ts",
         "@Ti",
@@ -193,6 +195,8 @@ DIALECT = Dialect(
         arrows=("-->", "->"),
         reserved=":=",
         syntax=_SYNTAX,
+        sequences=True,
+        sub_lsystems=True,
     ),
     commands=COMMANDS_CPFG,
     turtle={"width_increment": 1.0},
@@ -243,6 +247,7 @@ class _Reader:
         self.source = source
         self.defines: dict[str, float] = {}
         self.macros: set[str] = set()  # names #define'd (with or without a value), for #ifdef
+        self.text_macros: dict[str, Macro] = {}  # the C preprocessor's text macros (lsystem.dialects.macros)
         self.included = 0
         self.lines: list[tuple[str, int]] = []  # (text, line of the main file)
 
@@ -261,7 +266,7 @@ class _Reader:
                 if word in ("ifdef", "ifndef"):
                     active.append(active[-1] and ((rest in self.macros) == (word == "ifdef")))
                 elif word == "if":
-                    active.append(active[-1] and self.constant(rest, number) != 0)
+                    active.append(active[-1] and self.constant(self.expanded(rest, number), number) != 0)
                 elif word in ("else", "elif"):
                     if len(active) < 2:
                         raise self.error(number, f"#{word} without #if")
@@ -279,11 +284,12 @@ class _Reader:
                 elif word == "undef":
                     self.macros.discard(rest)
                     self.defines.pop(rest, None)
+                    self.text_macros.pop(rest, None)
                 elif word == "include":
                     self.include(rest, folder, number)
                 continue
             if active[-1] and line:
-                self.lines.append((raw.rstrip(), number))
+                self.lines.append((self.expanded(raw.rstrip(), number), number))
         if len(active) != 1:
             raise self.error(at or 1, "#if or #ifdef without #endif")
 
@@ -293,16 +299,36 @@ class _Reader:
         except (ExprSyntaxError, ArithmeticError) as exc:
             raise self.error(line, f"{clip(text, 40)!r}: {exc}") from None
 
+    def expanded(self, text: str, line: int) -> str:
+        """``text`` with the text macros replaced (the C preprocessor's part: :mod:`.macros`)."""
+        if not self.text_macros:
+            return text
+        try:
+            return expand(text, self.text_macros)
+        except MacroError as exc:
+            raise self.error(line, str(exc)) from None
+
     def define(self, rest: str, line: int):
-        m = re.match(r"([A-Za-z_]\w*)(\()?\s*(.*)\Z", rest)
-        if m is None:
-            raise self.error(line, f"#define {clip(rest, 40)!r}: expected a name")
-        if m.group(2):
-            raise self.error(line, f"#define {m.group(1)}(...): macros with parameters are not supported")
-        name, value = m.group(1), m.group(3).strip()
+        """``#define``: a number is a constant of the rules (``defines``); other text, a macro (as C's)."""
+        try:
+            macro = parse_definition(rest)
+        except MacroError as exc:
+            raise self.error(line, f"#define {clip(rest, 40)!r}: {exc}") from None
+        name, value = macro.name, macro.body
         self.macros.add(name)
-        if value:
-            self.defines[name] = self.constant(value, line)
+        self.defines.pop(name, None)
+        self.text_macros.pop(name, None)
+        if macro.parameters is None and value:
+            value = self.expanded(value, line)
+            try:
+                self.defines[name] = float(
+                    parse_expression(value, defines=self.defines, syntax=_SYNTAX).evaluate({})[0]
+                )
+                return
+            except (ExprSyntaxError, ArithmeticError):
+                pass  # not a constant: text put where the name stands, as the C preprocessor does
+        if value or macro.parameters is not None:
+            self.text_macros[name] = macro
 
     def include(self, rest: str, folder: Path | None, line: int):
         m = re.match(r"""["<]([^">]+)[">]\Z""", rest)
@@ -336,8 +362,11 @@ class _Reader:
         section = "rules"
         groups = {"rules": [], "homomorphism": [], "decomposition": []}
         depth = None
-        systems = 0
+        systems, label = 0, 0
         lines = self.joined()
+        # cpfg's sub-L-systems: every L-system's rules go into the same lists, each after an 'lsystem: N' line
+        # (the Grammar's rule lists read them so: lsys3d.lsystem.sequences); only the first gives the axiom
+        several = sum(1 for text, _ in lines if (k := _KEY.match(text.strip())) and k.group("key") in _SYSTEM) > 1
         head = None  # a predecessor and condition whose arrow is on the next line
         last_key = None
         for index, (text, number) in enumerate(lines):
@@ -352,10 +381,18 @@ class _Reader:
                 rest = code[m.end() :].strip()
                 rest_col = col + len(code) - len(code[m.end() :].lstrip())
                 key = _KEY_NAMES.get(key, key)
+                if systems > 1 and key in _MAIN_ONLY:
+                    raise self.error(number, f"{key}: in a sub-L-system (lsystem: {label}) is not supported")
                 if key == "Lsystem":
                     systems += 1
-                    if systems > 1:
-                        raise self.error(number, "more than one Lsystem: (cpfg's sub-L-systems) is not supported")
+                    if several:
+                        label = self.whole(rest, number, "the L-system's number")
+                        for name, group in groups.items():
+                            where[(name, len(group))] = line_where(number, col)
+                            group.append(f"lsystem: {label}")
+                    section = "rules"
+                elif systems > 1 and key in ("derivation length", "Axiom", "axiom"):
+                    continue  # cpfg derives from the main L-system's axiom, its length (lsys_input.y)
                 elif key == "derivation length":
                     fields["iterations"] = self.whole(rest, number, key)
                 elif key in ("Axiom", "axiom"):
@@ -467,6 +504,8 @@ class _Reader:
         body = rest.strip().strip("{}").strip()
         for statement in body.split(";"):
             if statement.strip():
+                if re.match(r"\s*array\b", statement):
+                    raise self.error(line, f"define: arrays ({clip(statement.strip(), 30)!r}) are not supported")
                 name, sep, value = statement.partition("=")
                 if not sep or not re.fullmatch(r"\s*[A-Za-z_]\w*\s*", name):
                     raise self.error(line, f"define: {clip(statement.strip(), 40)!r}: expected 'name = value'")
@@ -487,6 +526,10 @@ _KEY_NAMES = {
 }
 """Spellings cpfg accepts besides the manual's (vlab's models write ``lsystem:`` and ``Endlsystem``)."""
 
+
+_SYSTEM = frozenset({"Lsystem", "lsystem"})
+_MAIN_ONLY = frozenset({"ignore", "consider", "Start", "StartEach", "EndEach", "End", "seed", "maximum depth"})
+"""What a sub-L-system may not set: lsys3d keeps one of each for the whole grammar."""
 
 _BLOCKS = {"Start": "start", "StartEach": "start_each", "EndEach": "end_each", "End": "end"}
 
