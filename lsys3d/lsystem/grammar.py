@@ -104,7 +104,9 @@ class Grammar:
     character (``["Leaf", "Apex"]``); ``consider`` is the complement of
     ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``; ``blocks`` are cpfg's C-like
     blocks (``{"start": "{n = 0;}", "start_each": "{n++;}"}``, :mod:`lsys3d.lsystem.blocks`), whose
-    globals the rules read: those only ``start`` sets as constants, the others at each step.
+    globals the rules read: those only ``start`` sets as constants, the others at each step.  ``repairs`` are
+    what a native file's reader mended as the file's own tool does (``file:line: what``): each is a warning
+    (with ``--strict``, an error) wherever the grammar is drawn (:mod:`lsys3d.turtle.diagnostics`).
 
     Examples
     --------
@@ -145,6 +147,7 @@ class Grammar:
     modules: tuple[str, ...] = ()
     functions: tuple[str, ...] = ()
     blocks: Mapping[str, str] = field(default_factory=dict)
+    repairs: tuple[str, ...] = field(default=(), compare=False)
     # parsed, filled in by __post_init__
     productions: tuple[Production, ...] = field(init=False, repr=False)
     homomorphism_productions: tuple[Production, ...] = field(init=False, repr=False)
@@ -403,6 +406,7 @@ class Grammar:
                 "consider",
                 "modules",
                 "functions",
+                "repairs",
             )
         }
         fields.update(changes)
