@@ -130,3 +130,60 @@ def test_a_cpfg_file_with_macros_reads_them():
     g = Grammar.from_text(text, source="plant.l")
     assert g.defines["N"] == 4 and "ang" not in g.defines
     assert str(lsys3d.derive(g)) == "F[+(0)]F[+(3.333333)]A(2)"
+
+
+# ---------------------------------------------------------------- arrays, '=' in a right context
+def test_cpfg_arrays_are_constants_the_rules_index():
+    text = (
+        "#define M 2\nLsystem: 1\ndefine: { array len[M][3] = {1, 2, 3,\n 4, 5}; array max[2] = {3, 1}; }\n"
+        "derivation length: 5\naxiom: A(0,0)\nA(o,i) : i < max[o] --> F(len[o][i])A(o, i+1)\n"
+        "A(o,i) : i == max(o, 3) && o < 1 --> [A(o+1, 0)]\nendlsystem\n"
+    )
+    g = Grammar.from_text(text, source="plant.l")
+    assert g.defines["len"].tolist() == [[1, 2, 3], [4, 5, 0]]  # C's: the values missing are 0
+    assert str(lsys3d.derive(g)) == "F(1)F(2)F(3)[F(4)A(1,1)]"
+    from lsys3d.provenance import grammar_text
+
+    again = Grammar.from_text(grammar_text(g), source="again.toml")
+    assert str(lsys3d.derive(again)) == str(lsys3d.derive(g))
+    bad = Grammar.from_text(text.replace("i < max[o]", "i < 4"), source="plant.l")
+    with pytest.raises(DerivationError, match=r"index 3 of array 'len' outside 0\.\.2 in parameter 'len\[o\]\[i\]'"):
+        lsys3d.derive(bad)
+
+
+@pytest.mark.parametrize(
+    ("defines", "message"),
+    [
+        ({"a": [[1, 2], [3]]}, "must be a list of numbers"),
+        ({"a": [1, float("inf")]}, "not finite"),
+        ({"a": [0] * 100_001}, "more than 100000"),
+        ({"pi": [1, 2]}, "define name 'pi' is reserved"),
+    ],
+)
+def test_array_defines_are_checked(defines, message):
+    with pytest.raises(GrammarError, match=message):
+        Grammar(axiom="F(a[0])", defines=defines)
+
+
+def test_an_array_needs_its_indices():
+    with pytest.raises(GrammarError, match=r"array 'a' needs 2 index\(es\)"):
+        Grammar(axiom="F(a[0])", defines={"a": [[1, 2]]})
+    assert str(lsys3d.derive(Grammar(axiom="F(a[0][1])", defines={"a": [[1, 2]]}), 0)) == "F(2)"
+
+
+def test_equals_in_a_right_context_skips_to_the_branch_end():
+    rules = ["A > [B=]E --> X"]
+    assert str(lsys3d.derive(cpfg("A[B[C]D]E", rules), 1)) == "X[B[C]D]E"
+    assert str(lsys3d.derive(cpfg("A[C]E", rules), 1)) == "A[C]E"
+    with pytest.raises(GrammarError, match="must come before"):
+        cpfg("A", ["A > B= --> X"])
+    assert str(lsys3d.derive(cpfg("A=", ["= --> B"]), 1)) == "AB"  # elsewhere '=' is a module
+
+
+def test_a_cpfg_turn_reads_its_first_parameter():
+    from lsys3d.lsystem.derive import interpretation
+    from lsys3d.turtle import interpret
+
+    one, two = (cpfg(f"+(90{extra})F", [], angle=30) for extra in ("", ",0"))
+    a, b = (interpret(interpretation(g, g.axiom_modules), g) for g in (one, two))
+    assert (a.end == b.end).all()

@@ -12,7 +12,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import GrammarError, clip
-from .expr import CONSTANTS, FUNCTIONS, RANDOM_FUNCTIONS, Expr, ExprSyntaxError, Function, parse_expression
+from .expr import (
+    CONSTANTS,
+    FUNCTIONS,
+    RANDOM_FUNCTIONS,
+    Expr,
+    ExprSyntaxError,
+    Function,
+    constant_array,
+    parse_expression,
+)
 from .locations import Where, _api_where, _error, _loc
 from .modules import ASCII_ALPHABET, ModuleString
 
@@ -143,8 +152,16 @@ def _check_defines(defines: dict, source: str, where, notation, functions=None) 
     for name, value in defines.items():
         if not isinstance(name, str) or not _IDENT.match(name):
             raise GrammarError(f"define name {clip(repr(name))} is not a valid name", *_loc(source, source_where, 0))
-        if _reserved(name):
+        array = isinstance(value, (list, tuple, np.ndarray))
+        # an array may take a function's name (cpfg's 'array max[M]'): max[i] is the one, max(a, b) the other
+        if _reserved(name) and not (array and name not in CONSTANTS and name not in _WORDS):
             raise GrammarError(f"define name {name!r} is reserved", *_loc(source, source_where, 0))
+        if array:  # a constant array: cpfg's 'array a[3] = {...}'
+            try:
+                out[name] = constant_array(value, f"define {name!r}")
+            except ValueError as exc:
+                raise GrammarError(str(exc), *_loc(source, source_where, 0)) from None
+            continue
         if isinstance(value, str):
             try:
                 expr = parse_expression(value, defines=out, syntax=notation.syntax, functions=functions)
@@ -408,6 +425,8 @@ class _RuleContext:
         if any(m.symbol == "*" for m in pred):
             raise err("'*' (any module) can stand in a context, not as the predecessor", at)
         right = self.modules(rule, "context", (), where, gt[0] + 1, ctx_end) if gt else ()
+        if notation.branch_skip and any(m.symbol == notation.branch_skip for m in right):
+            right = self.skip_to_branch_end(right, rule, gt[0], err)
         if gt and not right:
             raise err("empty right context after '>'", gt[0])
         # '*' alone is no context at all (ABOP's '* < + > * -> -')
@@ -451,6 +470,15 @@ class _RuleContext:
             weight=weight,
             steps=steps,
         )
+
+    def skip_to_branch_end(self, right, rule: str, at: int, err):
+        """cpfg's ``=`` in a right context skips the rest of the branch, up to the ``]`` that must follow it
+        (generate.c's ``RconDiff``): what lsys3d's ``]`` in a right context does alone, so it is left out."""
+        skip = self.notation.branch_skip
+        for k, m in enumerate(right):
+            if m.symbol == skip and (k + 1 == len(right) or right[k + 1].symbol != "]"):
+                raise err(f"{skip!r} in a right context (the rest of the branch skipped) must come before ']'", at)
+        return tuple(m for m in right if m.symbol != skip)
 
     def condition(self, rule: str, start: int, stop: int, formals: list[str], where: Where):
         """A condition: tests and ``{name = expression; ...}`` blocks, in order; ``*`` or nothing is none."""

@@ -57,6 +57,9 @@ class Notation:
     sub_lsystems : bool
         A rule list may hold cpfg's ``lsystem: N`` lines: the rules after one belong to sub-L-system ``N``
         and rewrite the modules between a ``?(N, ...)`` and its ``$`` (:mod:`lsys3d.lsystem.sequences`).
+    branch_skip : str
+        A symbol that, in a right context, skips the rest of the branch up to the ``]`` after it (cpfg's
+        ``=``: ``A > [B=]C``); lsys3d's ``]`` in a right context skips it alone.
     """
 
     names: frozenset[str] = frozenset()
@@ -72,6 +75,7 @@ class Notation:
     unweighted_alternatives: bool = False
     sequences: bool = False
     sub_lsystems: bool = False
+    branch_skip: str = ""
 
 
 @dataclass(frozen=True)

@@ -11,13 +11,16 @@ trigonometric functions in degrees as cpfg's are.
 from __future__ import annotations
 
 import logging
+import math
 import re
 from pathlib import Path
+
+import numpy as np
 
 from ...errors import GrammarError, clip
 from ...external import FileRefused, inside
 from ...turtle.commands import ENVIRONMENT_QUERY, Axis, Command, Op, Organ, queries
-from ..expr import ExprSyntaxError, Syntax, parse_expression
+from ..expr import MAX_ARRAY, ExprSyntaxError, Syntax, constant_array, parse_expression
 from ..grammar import MAX_PARAMETERS, Grammar, read_text
 from .common import Dialect, Notation, fail, line_where
 from .macros import Macro, MacroError, expand, parse_definition
@@ -30,7 +33,9 @@ log = logging.getLogger("lsys3d")
 
 
 def _rot(symbol, name, axis, sign, what):
-    return Command(symbol, name, Op.ROTATE, "a", 1, what, axis, sign)
+    # cpfg's interpret.c turns by the first parameter and reads no other (vlab's Lilac writes +(20,0))
+    what += " Further parameters are read and left, as cpfg's interpret.c does."
+    return Command(symbol, name, Op.ROTATE, "a, ...", MAX_PARAMETERS, what, axis, sign)
 
 
 _STATE = (
@@ -193,10 +198,11 @@ DIALECT = Dialect(
         names=frozenset(c.symbol for c in COMMANDS_CPFG if len(c.symbol) > 1) | UNSUPPORTED,
         surface_prefix="~",
         arrows=("-->", "->"),
-        reserved=":=",
+        reserved=":",  # '=' is a module (cpfg's lexer reads any character as one: vlab's Lilac writes I(o,i,w)=)
         syntax=_SYNTAX,
         sequences=True,
         sub_lsystems=True,
+        branch_skip="=",
     ),
     commands=COMMANDS_CPFG,
     turtle={"width_increment": 1.0},
@@ -505,11 +511,33 @@ class _Reader:
         for statement in body.split(";"):
             if statement.strip():
                 if re.match(r"\s*array\b", statement):
-                    raise self.error(line, f"define: arrays ({clip(statement.strip(), 30)!r}) are not supported")
+                    self.array(statement.strip(), line)
+                    continue
                 name, sep, value = statement.partition("=")
                 if not sep or not re.fullmatch(r"\s*[A-Za-z_]\w*\s*", name):
                     raise self.error(line, f"define: {clip(statement.strip(), 40)!r}: expected 'name = value'")
                 self.defines[name.strip()] = self.constant(value, line)
+
+    def array(self, statement: str, line: int):
+        """``array len[M][N] = {1, 2, ...};`` in ``define:``: a constant array (C's: missing values are 0)."""
+        m = re.fullmatch(r"array\s+([A-Za-z_]\w*)\s*((?:\[[^\[\]]*\]\s*)+)(?:=\s*(.*))?", statement, re.DOTALL)
+        if m is None:
+            raise self.error(line, f"define: {clip(statement, 40)!r}: expected 'array name[size] = {{values}}'")
+        name = m.group(1)
+        shape = [self.whole(d, line, f"the size of array {name!r}") for d in re.findall(r"\[([^\]]*)\]", m.group(2))]
+        size = math.prod(shape)
+        if not 0 < size <= MAX_ARRAY:
+            raise self.error(line, f"define: array {name!r} of {size} elements (1 to {MAX_ARRAY}: expr.MAX_ARRAY)")
+        text = (m.group(3) or "").strip()
+        if text and not (text.startswith("{") and text.endswith("}")):
+            raise self.error(line, f"define: array {name!r}: its values go in braces, not {clip(text, 30)!r}")
+        pieces = [p for p in re.sub(r"[{}]", " ", text).split(",")] if text else []
+        if pieces and not pieces[-1].strip():  # {1, 2, 3,}: C allows the last comma
+            pieces.pop()
+        if len(pieces) > size:
+            raise self.error(line, f"define: array {name!r} has {size} elements, not {len(pieces)} values")
+        values = [self.constant(p, line) for p in pieces] + [0.0] * (size - len(pieces))
+        self.defines[name] = constant_array(np.reshape(values, shape), f"array {name!r}")
 
 
 _KEY_NAMES = {
