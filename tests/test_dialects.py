@@ -61,7 +61,9 @@ CPFG = {
     "\\": (Op.ROTATE, H, -1), "/": (Op.ROTATE, H, +1), "|": Op.TURN_AROUND, "@v": Op.ROLL_HORIZONTAL,
     "[": Op.PUSH, "]": Op.POP, "{": Op.POLYGON_BEGIN, ".": Op.POLYGON_VERTEX, "}": Op.POLYGON_END,
     ";": Op.MATERIAL, ",": Op.MATERIAL, "#": Op.WIDTH_ADD, "!": Op.WIDTH_ADD, "@O": Op.ORGAN, "@c": Op.ORGAN,
-    "@o": Op.ORGAN, "~l": Op.ORGAN, "$": Op.ROLL_HORIZONTAL,
+    "@o": Op.ORGAN, "~l": Op.ORGAN,
+    # cpfg's interpret.c (vlab): '?' stacks a sub-L-system's scale and '$' unstacks it; '$' does not roll
+    "?": (Op.SUB_LSYSTEM, Axis.NONE, +1), "$": (Op.SUB_LSYSTEM, Axis.NONE, -1),
     # query and communication modules (Mech and Prusinkiewicz 1996; the cpfg manual's environment section)
     "?P": Op.QUERY, "?H": Op.QUERY, "?L": Op.QUERY, "?U": Op.QUERY, "?E": Op.QUERY,
 }  # fmt: skip

@@ -5,6 +5,7 @@ Expectations by hand, from cpfg's generate.c (PredDiff, FindProd, CheckPred) as 
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 import lsys3d
@@ -187,3 +188,19 @@ def test_a_cpfg_turn_reads_its_first_parameter():
     one, two = (cpfg(f"+(90{extra})F", [], angle=30) for extra in ("", ",0"))
     a, b = (interpret(interpretation(g, g.axiom_modules), g) for g in (one, two))
     assert (a.end == b.end).all()
+
+
+def test_the_cpfg_turtle_scales_a_sub_lsystems_part():
+    """interpret.c: ?(n, s) multiplies lengths, widths and surfaces by s (the width at once) until its $."""
+    from lsys3d.lsystem.derive import interpretation
+    from lsys3d.turtle import interpret
+
+    g = cpfg("#(1)F?(2,2)F(3)#(0.5)~l(1)?(3,0.5)F$F$F", ["lsystem: 1", "lsystem: 2", "lsystem: 3"])
+    sk = interpret(interpretation(g, g.axiom_modules), g)
+    lengths = np.linalg.norm(sk.end - sk.start, axis=1)
+    assert np.allclose(lengths, [1, 6, 1, 2, 1])
+    assert np.allclose(sk.width_start, [1, 2, 0.5, 1, 0.5])  # ?(2,2) doubles the width, #(0.5) sets 0.5 * 2
+    assert np.allclose(sk.organ_size, [2])
+    # without parameters '?' is no call, and an unmatched '$' does nothing: no scale
+    plain = cpfg("F?F$F", [])
+    assert np.allclose(np.linalg.norm(np.diff(interpret(plain.axiom_modules, plain).end, axis=0), axis=1), [1, 1])

@@ -79,7 +79,26 @@ COMMANDS_CPFG = (
     _rot("/", "roll right", Axis.H, +1, "Roll right around H."),
     Command("|", "turn around", Op.TURN_AROUND, "", 0, "Turn around 180 degrees around U."),
     Command("@v", "roll to vertical", Op.ROLL_HORIZONTAL, "", 0, "Roll around H so that U is closest to up."),
-    Command("$", "roll to horizontal", Op.ROLL_HORIZONTAL, "", 0, "Roll around H so that L is horizontal."),
+    Command(
+        "?",
+        "sub-L-system",
+        Op.SUB_LSYSTEM,
+        "n, s",
+        2,
+        "`?(n, s)`: sub-L-system `n` rewrites what follows up to its `$`; the turtle scales lengths and widths "
+        "by `s` there (interpret.c's scale factor; the width at once). Without parameters, nothing.",
+        sign=+1,
+    ),
+    Command(
+        "$",
+        "end of sub-L-system",
+        Op.SUB_LSYSTEM,
+        "",
+        0,
+        "The end of the sub-L-system of the last `?(n, s)`: its scale undone (cpfg's `$` does not roll, as "
+        "ABOP's does; an unmatched `$` does nothing).",
+        sign=-1,
+    ),
     Command("[", "push", Op.PUSH, "", 0, "Push the turtle's state."),
     Command("]", "pop", Op.POP, "", 0, "Pop the turtle's state."),
     Command("{", "begin polygon", Op.POLYGON_BEGIN, "", 0, "Start a polygon."),
@@ -174,7 +193,6 @@ UNSUPPORTED = frozenset(
         "@Tp",
         # the rest of cpfg's blackbox.c: cylinder sides, tropisms, patches, objects, bounded circles, cuts
         "_",  # interpret.c: the elasticity of the tropism the view file sets
-        "?",  # ?(n, s): a sub-L-system's call, which scales its lengths and widths by s (interpret.c)
         "@!",
         "@Ts",
         "@Ti",
