@@ -176,6 +176,12 @@ def test_equals_in_a_right_context_skips_to_the_branch_end():
     rules = ["A > [B=]E --> X"]
     assert str(lsys3d.derive(cpfg("A[B[C]D]E", rules), 1)) == "X[B[C]D]E"
     assert str(lsys3d.derive(cpfg("A[C]E", rules), 1)) == "A[C]E"
+    # without '=', cpfg's ']' is the next module past whole branches: D stands before it (RconDiff)
+    strict = ["A > [B]E --> X"]
+    assert str(lsys3d.derive(cpfg("A[B[C]D]E", strict), 1)) == "A[B[C]D]E"
+    assert str(lsys3d.derive(cpfg("A[B[C]]E", strict), 1)) == "X[B[C]]E"
+    own = Grammar(axiom="A[B[C]D]E", rules=["A > [B]E -> X"])  # lsys3d's ']' skips the rest of the branch
+    assert str(lsys3d.derive(own, 1)) == "X[B[C]D]E"
     with pytest.raises(GrammarError, match="must come before"):
         cpfg("A", ["A > B= --> X"])
     assert str(lsys3d.derive(cpfg("A=", ["= --> B"]), 1)) == "AB"  # elsewhere '=' is a module

@@ -727,6 +727,9 @@ class _Context:
         self.m = len(ms)
         self.code = plan.code
         self.left_of, self.right_of, self.kept, self.close = _skip_tables(ms.symbols, ignored)
+        # cpfg: ']' in a right context is the next ']' (past ignored symbols and whole branches), and '=' skips
+        # the rest of the branch up to it (RconDiff); elsewhere ']' alone skips the rest of the branch
+        self.skip = dialects.get(plan.grammar.dialect).notation.branch_skip
 
     def _bind(self, j: np.ndarray, ok: np.ndarray, pm: PatternModule, values: list) -> None:
         """Narrow ``ok`` to the candidates whose module ``j`` is ``pm``; append its parameters to ``values``."""
@@ -764,9 +767,14 @@ class _Context:
             if pm.symbol == "[":  # a branch starts here (ignored symbols before it skipped)
                 j = self.kept[j]
                 ok &= (j < m) & (self.ms.symbols[np.minimum(j, m - 1)] == _OPEN)
-            elif pm.symbol == "]":  # the rest of the current branch is skipped
+            elif pm.symbol == "]" and self.skip:  # cpfg: the next module, past branches, is the ']'
+                j = self.right_of[j]
+                ok &= (j < m) & (self.ms.symbols[np.minimum(j, m - 1)] == _CLOSE)
+            elif pm.symbol == "]" or (self.skip and pm.symbol == self.skip):  # the rest of the branch skipped
                 j = self.close[j]
                 ok &= j < m
+                if pm.symbol != "]":  # cpfg's '=': the ']' that follows it in the pattern is this one
+                    j = j - 1
             else:
                 j = self.right_of[j]
                 ok &= j < m  # the end of the string, or of a branch, has no right context

@@ -472,13 +472,13 @@ class _RuleContext:
         )
 
     def skip_to_branch_end(self, right, rule: str, at: int, err):
-        """cpfg's ``=`` in a right context skips the rest of the branch, up to the ``]`` that must follow it
-        (generate.c's ``RconDiff``): what lsys3d's ``]`` in a right context does alone, so it is left out."""
+        """cpfg's ``=`` in a right context skips the rest of the branch up to the ``]`` that must follow it
+        (generate.c's ``RconDiff``; the derivation walks it: :class:`lsys3d.lsystem.derive._Context`)."""
         skip = self.notation.branch_skip
         for k, m in enumerate(right):
             if m.symbol == skip and (k + 1 == len(right) or right[k + 1].symbol != "]"):
                 raise err(f"{skip!r} in a right context (the rest of the branch skipped) must come before ']'", at)
-        return tuple(m for m in right if m.symbol != skip)
+        return right
 
     def condition(self, rule: str, start: int, stop: int, formals: list[str], where: Where):
         """A condition: tests and ``{name = expression; ...}`` blocks, in order; ``*`` or nothing is none."""

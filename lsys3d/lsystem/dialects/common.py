@@ -59,7 +59,9 @@ class Notation:
         and rewrite the modules between a ``?(N, ...)`` and its ``$`` (:mod:`lsys3d.lsystem.sequences`).
     branch_skip : str
         A symbol that, in a right context, skips the rest of the branch up to the ``]`` after it (cpfg's
-        ``=``: ``A > [B=]C``); lsys3d's ``]`` in a right context skips it alone.
+        ``=``: ``A > [B=]C``); then ``]`` in a right context is the next module past ignored symbols and
+        whole branches, as cpfg's ``RconDiff`` reads it.  Without it (lsys3d and the others), ``]`` in a
+        right context skips the rest of the branch alone.
     """
 
     names: frozenset[str] = frozenset()
