@@ -170,7 +170,7 @@ class Grammar:
         for key in TABLES:
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
-        for key in (*_RULE_LISTS, "modules", "functions"):
+        for key in (*_RULE_LISTS, "modules", "functions", "repairs"):
             value = getattr(self, key)
             if not isinstance(value, (list, tuple)):
                 raise self._key_error(key, f"must be a list of strings, not {type(value).__name__}")
