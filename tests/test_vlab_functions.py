@@ -17,7 +17,6 @@ import pytest
 
 import lsys3d
 from lsys3d.lsystem.derive import interpretation
-from lsys3d.lsystem.dialects.macros import expand
 from lsys3d.lsystem.splines import read_function, read_function_set
 from lsys3d.pipeline import draw
 
@@ -171,9 +170,16 @@ def test_a_view_file_cannot_lead_out_of_the_models_folder(tmp_path):
         lsys3d.Grammar.from_file(path)
 
 
-def test_text_macros_are_put_in_place_as_cpp_does():
-    assert expand("a+ab+b", {"a": "func(1,t)", "b": "a*2"}) == "func(1,t)+ab+func(1,t)*2"
-    assert expand("x", {"x": "x+1"}) == "x+1"  # a macro's name in its own text stays
+def test_a_macro_of_a_function_call_is_put_in_place(tmp_path):
+    """JumpingLamp's '#define angle1 100*func(Ang_1,t)': text (not a constant), put where its name stands."""
+    path = _model(
+        tmp_path,
+        "#define W 2*func(1,x)\nLsystem: 1\nderivation length: 1\nAxiom: A(0.5)\nA(x) --> F(W)\nendlsystem\n",
+        "angle increment: 30\nfunction: line.func\n",
+        {"line.func": LINE},
+    )
+    derived = lsys3d.derive(lsys3d.Grammar.from_file(path))
+    assert derived.module(0)[1][0] == pytest.approx(1.0, abs=0.005)
     text = "#define W 2*w\nLsystem: 1\nderivation length: 1\nAxiom: A(3)\nA(w) --> F(W)\nendlsystem\n"
     assert str(lsys3d.derive(lsys3d.Grammar.from_text(text, source="p.l"))) == "F(6)"
 
