@@ -85,3 +85,12 @@ def test_generate_with_blobs_cleans_and_exports(tmp_path):
     assert bark.is_watertight and bark.is_winding_consistent
     plain = lsys3d.generate(FERN, iterations=8, union_blobs=0.25, max_union_pairs=10**8, cleanup=False)
     assert plain.bark.is_watertight and plain.bark.volume == pytest.approx(bark.volume, rel=1e-6)
+
+
+def test_a_branching_plant_has_no_blob_and_keeps_its_union():
+    # the benchmark's 3D plant: its twigs are thin and its clusters overlap little, so the boolean stays
+    options = {"iterations": 4, "union_blobs": 0.25}
+    with_blobs = lsys3d.generate("tree3d", **options).bark
+    without = lsys3d.generate("tree3d", iterations=4).bark
+    np.testing.assert_array_equal(with_blobs.vertices, without.vertices)
+    np.testing.assert_array_equal(with_blobs.faces, without.faces)
