@@ -21,9 +21,10 @@ whose edge is a fraction of the width (``UnionOptions.blobs``):
    the grid edge it lies on and the blocks' surfaces weld into one closed,
    oriented 2-manifold (a value within ``NUDGE`` edges of zero is moved
    off it, so no vertex lands on a sample and no two edges share one).
-3. *The check.*  The result goes through ``manifold3d.Manifold`` (closed,
-   oriented, not empty) before it is used; a cluster whose level set fails
-   the check goes through the boolean as before.
+3. *The check.*  The result must be closed and consistently oriented (every
+   directed edge once and its reverse once), without faces of zero area, of
+   positive volume (:func:`_checked`); a cluster whose level set fails the
+   check on every grid offset goes through the boolean as before.
 
 Each face's source (``Mesh.face_source``) is the wall face, on the nearest
 span (by the same distance), nearest to the face's centre: the stages after
@@ -43,7 +44,6 @@ from __future__ import annotations
 import logging
 import time
 
-import manifold3d
 import numba
 import numpy as np
 
@@ -51,7 +51,7 @@ from ...arrays import components, local_index, ranges
 from ...errors import OptionsError
 from ..mesh import Mesh
 from ..sweep import Tubes
-from .parts import _no_corners
+from .parts import _closed, _no_corners
 
 log = logging.getLogger("lsys3d")
 
@@ -237,7 +237,7 @@ def level_set(tubes: Tubes, which: np.ndarray, edge: float):
     tuple or None
         ``vertices (v, 3) float64``, ``faces (f, 3) int64`` (counter-clockwise seen from outside) and
         ``source (f,) int64`` (a wall face of ``tubes`` each face lies nearest); None when the level set is
-        no closed, oriented, non-empty 2-manifold (manifold3d's check) on any of the grids :data:`SHIFTS` gives.
+        no closed, oriented 2-manifold (:func:`_checked`) on any of the grids :data:`SHIFTS` gives.
     """
     for attempt in range(len(SHIFTS)):
         made = _level_set(tubes, which, edge, attempt)
@@ -356,16 +356,19 @@ def _marching_cubes():
 
 
 def _checked(vertices: np.ndarray, faces: np.ndarray) -> bool:
-    """Whether manifold3d takes the surface as a closed, oriented, non-empty 2-manifold of positive volume."""
-    if not len(faces):
+    """Whether the surface is closed and consistently oriented (every directed edge once, its reverse once),
+    with no face of zero area, and encloses a positive volume.
+
+    manifold3d's own check (building a ``Manifold``) took 14.6 s of the 26 s level set of a space-filling
+    curve's 3.3 million triangles; this one is the same edge test the union makes of its stitched seams.
+    """
+    if not len(faces) or not _closed(faces, len(vertices)):
         return False
-    mesh = manifold3d.Mesh(
-        vert_properties=np.ascontiguousarray(vertices, np.float32), tri_verts=np.ascontiguousarray(faces, np.uint32)
-    )
-    solid = manifold3d.Manifold(mesh)
-    if solid.status() != manifold3d.Error.NoError or solid.is_empty():
+    tri = vertices[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    if not (np.einsum("ij,ij->i", cross, cross) > 0).all():
         return False
-    return solid.num_tri() == len(faces) and solid.volume() > 0
+    return float(np.einsum("ij,ij->i", tri[:, 0], cross).sum()) > 0
 
 
 def blob_clusters(tubes: Tubes, pair_a: np.ndarray, pair_b: np.ndarray, fraction: float) -> list[np.ndarray]:
