@@ -94,3 +94,20 @@ def test_a_branching_plant_has_no_blob_and_keeps_its_union():
     without = lsys3d.generate("tree3d", iterations=4).bark
     np.testing.assert_array_equal(with_blobs.vertices, without.vertices)
     np.testing.assert_array_equal(with_blobs.faces, without.faces)
+
+
+def test_a_blob_beside_a_cluster_that_keeps_the_boolean(fern):
+    # the fern (a blob) and, far from it, two long branches at a fork (the boolean): one closed mesh of both
+    from lsys3d.mesh.sweep.tubes import _concat
+
+    sk = make_skeleton([[5, 0, 0], [5, 1, 0], [5, 1, 0]], [[5, 1, 0], [5.5, 2, 0], [4.5, 2, 0]], 0.05, None, [-1, 0, 0])
+    fork = sweep(sk)
+    both = _concat([fern, fork])
+    opt = UnionOptions(blobs=0.25, max_pairs=10**8, workers=1)
+    mesh = union(both, opt)
+    alone = union(fern, opt), union(fork, opt)
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    assert len(mesh.faces) == len(alone[0].faces) + len(alone[1].faces)
+    assert mesh.volume == pytest.approx(alone[0].volume + alone[1].volume, rel=1e-9)
+    # the fork's faces name the fork's tube faces, after the fern's
+    assert (mesh.face_source >= len(fern.faces)).sum() == len(alone[1].faces)
