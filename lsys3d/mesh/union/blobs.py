@@ -81,8 +81,9 @@ BAND = 1.25
 # the cost model, seconds per unit of work on the 2-core machine (shared, load average 10-13), rounded up for
 # the level set and down for the boolean, so that a cluster goes to the level set only when it clearly pays:
 # barnsleyfern's samples took 0.15-1.5 s for 15 million (1e-8 to 1e-7 a sample: 2.5e-8); its blocks' marching
-# cubes, weld and sources about 0.3 s for 38 blocks of 32^3 cells (2.4e-7 a cell); its default boolean 120 s for 794,336 tube triangles (1.5e-4 a triangle), param-004's
-# over 900 s for 2,381,712 (over 3.8e-4): 2.5e-5 is six times below the cheapest measured
+# cubes, weld and sources about 0.3 s for 38 blocks of 32^3 cells (2.4e-7 a cell); its default boolean 120 s
+# for 794,336 tube triangles (1.5e-4 a triangle), param-004's over 900 s for 2,381,712 (over 3.8e-4): 2.5e-5
+# is six times below the cheapest measured
 SECONDS_PER_SAMPLE = 2.5e-8  # the compiled distance, per span and sample in its box
 SECONDS_PER_BLOCK_CELL = 2.5e-7  # marching cubes and welding, per cell of an active block
 SECONDS_PER_BOOLEAN_TRIANGLE = 2.5e-5  # manifold's boolean per tube triangle of a crowded cluster
