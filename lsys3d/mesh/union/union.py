@@ -18,7 +18,11 @@ everything):
    parent), adds nothing and stays out.  With ``UnionOptions.cover`` (off by
    default; :mod:`lsys3d.mesh.union.cover`), so does every tube within that
    fraction of its width of the spans of earlier tubes that stay (the
-   nested short tubes of dense grammars), a bounded simplification.
+   nested short tubes of dense grammars), a bounded simplification.  With
+   ``UnionOptions.blobs`` (off by default; :mod:`lsys3d.mesh.union.blobs`), a
+   cluster of many mutually overlapping tubes is meshed as a level set
+   instead, where a cost model finds that faster than the boolean, and its
+   tubes leave the boolean too.
 2. *Which pieces can touch.*  Each tube is cut into pieces (a span between two
    rings, or about a diameter of tiny spans) covered by capsules; boxes in a
    grid and a segment-segment distance find the pairs that may touch, one
