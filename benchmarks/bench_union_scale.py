@@ -85,6 +85,7 @@ DENSE = [
     ("lpy barnsleyfern", ROOT / "tests/corpus/lpy/real/02-fractals_barnsleyfern.lpy", None),
     ("lpy barnsleyfern3", ROOT / "tests/corpus/lpy/real/02-fractals_barnsleyfern3.lpy", None),
     ("lpy peanocurve n=4", ROOT / "tests/corpus/lpy/real/02-fractals_peanocurve.lpy", 4),
+    ("webls param-004 n=14", ROOT / "benchmarks/dense/webls/parametric-param-004.ls", 14),
 ]
 DENSE_LIMIT = "--max-union-pairs=100000000"  # the real ferns cross the default refusal (400,000 pairs)
 

@@ -18,7 +18,11 @@ everything):
    parent), adds nothing and stays out.  With ``UnionOptions.cover`` (off by
    default; :mod:`lsys3d.mesh.union.cover`), so does every tube within that
    fraction of its width of the spans of earlier tubes that stay (the
-   nested short tubes of dense grammars), a bounded simplification.
+   nested short tubes of dense grammars), a bounded simplification.  With
+   ``UnionOptions.blobs`` (off by default; :mod:`lsys3d.mesh.union.blobs`), a
+   cluster of many mutually overlapping tubes is meshed as a level set
+   instead, where a cost model finds that faster than the boolean, and its
+   tubes leave the boolean too.
 2. *Which pieces can touch.*  Each tube is cut into pieces (a span between two
    rings, or about a diameter of tiny spans) covered by capsules; boxes in a
    grid and a segment-segment distance find the pairs that may touch, one
@@ -56,7 +60,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import manifold3d
 import numpy as np
@@ -68,6 +72,7 @@ from ..mesh import Mesh
 from ..sweep import Tubes
 from . import booleans
 from . import jobs as union_jobs
+from .blobs import blob_meshes
 from .booleans import BooleanError, Part
 from .cover import COVER_PAIRS, covered_tubes
 from .local import JunctionCleaner, Junctions, Touching, UnionRun, _local_union
@@ -121,6 +126,15 @@ class UnionOptions(Options):
         help="leave out of the boolean every tube within this fraction of its width of the spans of earlier tubes "
         "that stay (0: off; the union's surface moves by at most that much: docs/mesh.md, dense grammars)",
     )
+    blobs: float = option(
+        0.0,
+        low=0,
+        high=1,
+        name="union_blobs",
+        help="mesh a cluster of many mutually overlapping tubes as a level set, on a grid whose edge is this fraction "
+        "of its thinnest width, where a cost model finds that faster than the boolean (0: off; needs scikit-image; "
+        "docs/mesh.md, dense grammars)",
+    )
     max_pairs: int = option(
         DEFAULT_MAX_PAIRS,
         low=1,
@@ -132,12 +146,14 @@ class UnionOptions(Options):
     def plain(self) -> dict:
         """The options as plain data, without ``workers`` (how the work runs, not what it makes).
 
-        ``cover`` is there only when on, so files made without it keep the bytes they had before it existed.
+        ``cover`` and ``blobs`` are there only when on, so files made without them keep the bytes they had before
+        they existed.
         """
         data = super().plain()
         del data["workers"]
-        if not self.cover:
-            del data["cover"]
+        for key in ("cover", "blobs"):
+            if not getattr(self, key):
+                del data[key]
         return data
 
 
@@ -288,8 +304,11 @@ def _union(
         progress(1.0)
         return _sourced(mesh, np.arange(nf), where), False
     t0 = time.perf_counter()
-    tubes, pcs, a, b, origin = _prepare(tubes, opt, progress, corners)
+    tubes, pcs, a, b, origin, blobs = _prepare(tubes, opt, progress, corners)
     release_memory()
+    if not len(tubes):  # every tube went into a level set: nothing for the boolean, no junction to clean
+        progress(1.0)
+        return _weld_float32([_joined(None, blobs)]), True
     log.debug("union: %d pieces, %d touching pairs (%.2f s)", len(pcs), len(a), time.perf_counter() - t0)
     progress(0.10)
     busy = np.zeros(len(pcs), bool)
@@ -307,7 +326,7 @@ def _union(
             del tubes, pcs, a, b, busy  # the weld's memory: the stitched mesh is all that is needed now
             mesh = _weld_float32(held)
             progress(1.0)
-            return _sourced(mesh, origin, where), cleaned
+            return _with_blobs(_sourced(mesh, origin, where), blobs), cleaned
     ta, tb = pcs.tube[a], pcs.tube[b]
     pairs = _unique_pairs(ta, tb)
     colour = _colour(len(tubes), pairs)
@@ -332,7 +351,25 @@ def _union(
     held.append(_true_sources(_drop_crumbs(held.pop()), tubes))
     mesh = _weld_float32(held)
     progress(1.0)
-    return _sourced(mesh, origin, where), False
+    return _with_blobs(_sourced(mesh, origin, where), blobs), False
+
+
+def _joined(mesh: Mesh | None, blobs: list[Mesh]) -> Mesh:
+    """The union's mesh and the level sets of the blobs (disjoint from it: other clusters) as one, face sources kept."""
+    parts = ([] if mesh is None else [mesh]) + blobs
+    shift = np.cumsum([0] + [len(m.vertices) for m in parts[:-1]])
+    return Mesh(
+        np.concatenate([m.vertices for m in parts]),
+        np.concatenate([m.faces + k for m, k in zip(parts, shift, strict=True)]),
+        np.concatenate([m.normals for m in parts]),
+        np.concatenate([m.uv for m in parts]),
+        face_source=np.concatenate([m.face_source for m in parts]),
+    )
+
+
+def _with_blobs(mesh: Mesh, blobs: list[Mesh]) -> Mesh:
+    """:func:`_joined`, welded as the union's own result is (nothing to do without blobs)."""
+    return _weld_float32([_joined(mesh, blobs)]) if blobs else mesh
 
 
 def _leave_out(tubes: Tubes, origin: np.ndarray, drop: np.ndarray, why: str):
@@ -344,9 +381,11 @@ def _leave_out(tubes: Tubes, origin: np.ndarray, drop: np.ndarray, why: str):
 def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None], corners: bool = True):
     """Cull what adds nothing, find what may touch, refine long straight spans.
 
-    Returns the tubes, their pieces, the pairs of pieces that may touch, and
+    Returns the tubes, their pieces, the pairs of pieces that may touch,
     for each face of the returned tubes the face of the given tubes it is (or
-    lies in, for a span split by new rings).  Without ``corners`` (the points
+    lies in, for a span split by new rings), and the level sets of the
+    clusters meshed as blobs (``UnionOptions.blobs``; their tubes are left
+    out; their face sources name faces of the given tubes).  Without ``corners`` (the points
     alone go through the boolean) the refined tubes carry no wedge normals and uv.
     """
     origin = np.arange(len(tubes.faces))
@@ -355,6 +394,18 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None],
     if dup.any():
         tubes, origin = _leave_out(tubes, origin, dup, "equal to another")
     pcs = pieces(tubes)
+    blobs = []
+    if opt.blobs > 0:
+        # the blobs are found before the refusal too: they are what makes a dense grammar's crowd
+        a, b = touching(pcs, opt.margin, COVER_PAIRS * opt.max_pairs)
+        pairs = _unique_pairs(pcs.tube[a], pcs.tube[b])
+        blobs, meshed = blob_meshes(tubes, pairs[:, 0], pairs[:, 1], opt.blobs, corners)
+        if meshed.any():
+            blobs = [replace(m, face_source=origin[m.face_source]) for m in blobs]
+            tubes, origin = _leave_out(tubes, origin, meshed, "meshed as level sets")
+            if not len(tubes):
+                return tubes, None, None, None, origin, blobs
+            pcs = pieces(tubes)
     if opt.cover > 0:
         # what may show is found before the refusal: a dense grammar's crowd is mostly covered tubes
         a, b = touching(pcs, opt.margin, COVER_PAIRS * opt.max_pairs)
@@ -378,4 +429,4 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None],
             progress(0.07)
             pcs = pieces(tubes)
             a, b = touching(pcs, opt.margin, opt.max_pairs)
-    return tubes, pcs, a, b, origin
+    return tubes, pcs, a, b, origin, blobs
