@@ -476,12 +476,35 @@ def _maple_masks(x, y, n):
     return blade, petiole, vein, across
 
 
+def _ivy_masks(x, y, n):
+    """Hedera helix: three or five broad triangular lobes with smooth edges, shallow sinuses, pale main veins."""
+    cx, cy = 0.0, 0.34
+    r = np.hypot(x - cx, y - cy)
+    theta = np.arctan2(x - cx, y - cy)  # 0 up, positive to the right
+    lobes = ((0.0, 0.62), (1.05, 0.46), (-1.05, 0.46), (2.1, 0.33), (-2.1, 0.33))
+    reach = np.zeros_like(r)
+    for angle, length in lobes:
+        d = np.abs(np.angle(np.exp(1j * (theta - angle))))
+        reach = np.maximum(reach, length * np.clip(1.0 - d / 1.05, 0.0, 1.0) ** 0.75)  # a broad, untoothed lobe
+    outline = np.maximum(0.27, reach) * (1.0 - 0.25 * _smoothstep(2.6, 3.1, np.abs(theta)))  # a heart at the base
+    blade = _edge(outline - r, n)
+    petiole = _edge(0.01 - np.abs(x), n) * (y > 0.005) * (y < cy)
+    vein = np.zeros_like(r)
+    for angle, length in lobes:
+        ux, uy = math.sin(angle), math.cos(angle)
+        d, t = _segment_distance(x, y, (cx, cy), (cx + ux * length * 0.8, cy + uy * length * 0.8))
+        vein = np.maximum(vein, (1.0 - _smoothstep(0.003, 0.009 * (1.2 - t), d)) * (t < 0.97))
+    across = np.clip(r / np.maximum(outline, 1e-9), 0, 1)
+    return blade, petiole, vein, across
+
+
 _LEAF_OUTLINES: dict[str, tuple[Callable, float]] = {
     "ovate": (_ovate_masks, 0.004),
     "willow": (_willow_masks, 0.003),
     "birch_leaf": (_birch_masks, 0.004),
     "oak_leaf": (_oak_masks, 0.004),
     "maple": (_maple_masks, 0.004),
+    "ivy": (_ivy_masks, 0.004),
 }
 """The single-leaf kinds' outlines and reliefs, by kind: what the single-leaf and the spray kinds draw."""
 
@@ -530,6 +553,11 @@ def oak_leaf(g: _Grid, colors, tile_size: float) -> Fields:
 def maple(g: _Grid, colors, tile_size: float) -> Fields:
     """Maple leaf: palmate, five pointed, toothed lobes from one point, veins radiating to their tips."""
     return _single(g, colors, "maple")
+
+
+def ivy(g: _Grid, colors, tile_size: float) -> Fields:
+    """Ivy leaf (Hedera helix): three to five broad, smooth, triangular lobes, dark and glossy, pale veins."""
+    return _single(g, colors, "ivy")
 
 
 def _strokes(g: _Grid, strokes, canvas_color, canvas_alpha, canvas_height):
@@ -927,6 +955,7 @@ KINDS: dict[str, TextureKind] = {
         TextureKind(
             "maple", "leaf", maple, ("#4f8c2c", "#a6c777", "#8a5a2a"), ("blade", "veins", "stalk"), maple.__doc__
         ),
+        TextureKind("ivy", "leaf", ivy, ("#1f4a1a", "#b4c49a", "#5a4a2a"), ("blade", "veins", "stalk"), ivy.__doc__),
         TextureKind(
             "willow", "leaf", willow, ("#6a9a48", "#c2d49a", "#7a8a40"), ("blade", "veins", "stalk"), willow.__doc__
         ),
