@@ -1,37 +1,27 @@
 """Procedural textures: tileable bark and alpha-cut leaf images, made with numpy from a seed.
 
-Every kind is one row of :data:`KINDS` (name, group, generator, default
-colours, what it looks like) and one generator function below, which returns
-the fields of one image -- height, linear colour, roughness and, for leaves,
-coverage -- over a square grid.  :func:`procedural` turns them into the PNG
-images a :class:`~lsys3d.look.materials.Material` carries (:class:`TextureSet`):
+Every kind is one row of :data:`KINDS` (name, group, generator, default colours, what it looks like) and one
+generator function below, which returns the fields of one image -- height, linear colour, roughness and, for leaves,
+coverage -- over a square grid.  :func:`procedural` turns them into the PNG images a
+:class:`~lsys3d.look.materials.Material` carries (:class:`TextureSet`):
 
-* ``albedo``: the base colour, sRGB (RGB for bark; RGBA for leaves, whose
-  alpha is the cut-out);
-* ``normal``: a tangent-space normal map from the height field's slopes, in
-  glTF's convention (OpenGL: ``+X`` along ``u``, ``+Y`` up the image, ``+Z``
-  out of the surface);
-* ``roughness`` (bark only): glTF's metallic-roughness packing, roughness in
-  G, metallic (0) in B, R unused (255).
+* ``albedo``: the base colour, sRGB (RGB for bark; RGBA for leaves, whose alpha is the cut-out);
+* ``normal``: a tangent-space normal map from the height field's slopes, in glTF's convention (OpenGL: ``+X`` along
+  ``u``, ``+Y`` up the image, ``+Z`` out of the surface);
+* ``roughness`` (bark only): glTF's metallic-roughness packing, roughness in G, metallic (0) in B, R unused (255).
 
-**Bark** images wrap: every noise is periodic over the tile
-(:func:`lsys3d.noise.fbm3`'s ``period``), and every cell pattern wraps its
-cells, so the left column continues the right one and the top the bottom.
-The image's columns run around a branch (the sweep's ``u``) and its rows
-along it (``v``), so furrows and fibres run down the image and ring scars
-across it.  ``tile_size`` is the metres of bark one image covers: features
-keep their size in metres (an oak's ridges stay some 5 cm apart) and a larger
-tile holds more of them; the material takes it as its
-:attr:`~lsys3d.look.materials.Material.tile_size`, which the sweep uses for the
-tubes' texture coordinates.
+**Bark** images wrap: every noise is periodic over the tile (:func:`lsys3d.noise.fbm3`'s ``period``), and every cell
+pattern wraps its cells, so the left column continues the right one and the top the bottom. The image's columns run
+around a branch (the sweep's ``u``) and its rows along it (``v``), so furrows and fibres run down the image and ring
+scars across it.  ``tile_size`` is the metres of bark one image covers: features keep their size in metres (an oak's
+ridges stay some 5 cm apart) and a larger tile holds more of them; the material takes it as its
+:attr:`~lsys3d.look.materials.Material.tile_size`, which the sweep uses for the tubes' texture coordinates.
 
-**Leaf** images show one leaf, frond, spray or flower on a transparent
-background, its base at the bottom centre (``v = 0``) and its tip at the top,
-as the leaf models' uv ``[0, 1]^2`` expect.
+**Leaf** images show one leaf, frond, spray or flower on a transparent background, its base at the bottom centre
+(``v = 0``) and its tip at the top, as the leaf models' uv ``[0, 1]^2`` expect.
 
-The images depend only on the kind and the parameters (numpy's PCG64 seeded
-through :class:`lsys3d.streams.Stream`, float64 arithmetic, the deterministic
-PNG encoder of :mod:`lsys3d.images`), so the same seed gives the same bytes;
+The images depend only on the kind and the parameters (numpy's PCG64 seeded through :class:`lsys3d.streams.Stream`,
+float64 arithmetic, the deterministic PNG encoder of :mod:`lsys3d.images`), so the same seed gives the same bytes;
 :func:`procedural` keeps the sets it made in the process.
 """
 
@@ -477,25 +467,19 @@ def _maple_masks(x, y, n):
 
 
 def _ivy_masks(x, y, n):
-    """Hedera helix: three or five broad triangular lobes with smooth edges, shallow sinuses, pale main veins."""
-    cx, cy = 0.0, 0.34
-    r = np.hypot(x - cx, y - cy)
-    theta = np.arctan2(x - cx, y - cy)  # 0 up, positive to the right
+    """Hedera helix: three or five broad, untoothed, triangular lobes, shallow sinuses, a heart at the base."""
+    r, theta = np.hypot(x, y - 0.34), np.arctan2(x, y - 0.34)  # theta: 0 up, positive to the right
     lobes = ((0.0, 0.62), (1.05, 0.46), (-1.05, 0.46), (2.1, 0.33), (-2.1, 0.33))
-    reach = np.zeros_like(r)
-    for angle, length in lobes:
-        d = np.abs(np.angle(np.exp(1j * (theta - angle))))
-        reach = np.maximum(reach, length * np.clip(1.0 - d / 1.05, 0.0, 1.0) ** 0.75)  # a broad, untoothed lobe
-    outline = np.maximum(0.27, reach) * (1.0 - 0.25 * _smoothstep(2.6, 3.1, np.abs(theta)))  # a heart at the base
-    blade = _edge(outline - r, n)
-    petiole = _edge(0.01 - np.abs(x), n) * (y > 0.005) * (y < cy)
+    reach = np.max(
+        [b * np.clip(1 - np.abs(np.angle(np.exp(1j * (theta - a)))) / 1.05, 0, 1) ** 0.75 for a, b in lobes], 0
+    )
+    outline = np.maximum(0.27, reach) * (1.0 - 0.25 * _smoothstep(2.6, 3.1, np.abs(theta)))
     vein = np.zeros_like(r)
-    for angle, length in lobes:
-        ux, uy = math.sin(angle), math.cos(angle)
-        d, t = _segment_distance(x, y, (cx, cy), (cx + ux * length * 0.8, cy + uy * length * 0.8))
+    for a, b in lobes:  # pale main veins from the petiole to each lobe
+        d, t = _segment_distance(x, y, (0.0, 0.34), (0.8 * b * math.sin(a), 0.34 + 0.8 * b * math.cos(a)))
         vein = np.maximum(vein, (1.0 - _smoothstep(0.003, 0.009 * (1.2 - t), d)) * (t < 0.97))
-    across = np.clip(r / np.maximum(outline, 1e-9), 0, 1)
-    return blade, petiole, vein, across
+    petiole = _edge(0.01 - np.abs(x), n) * (y > 0.005) * (y < 0.34)
+    return _edge(outline - r, n), petiole, vein, np.clip(r / np.maximum(outline, 1e-9), 0, 1)
 
 
 _LEAF_OUTLINES: dict[str, tuple[Callable, float]] = {
