@@ -119,11 +119,11 @@ def test_vine_winds_up_its_post():
         up = sk.parent[root_of] >= 0
         root_of[up] = sk.parent[root_of[up]]
     roots = np.flatnonzero(sk.parent < 0)
-    assert len(roots) == 2
+    assert len(roots) == 3
     for root in roots:  # each stem's main axis, in the order it grew
         main = np.flatnonzero((root_of == root) & (sk.order == 0))
         turns = np.ptp(np.unwrap(np.arctan2(sk.end[main, 2], sk.end[main, 0]))) / (2 * np.pi)
-        assert turns >= 3.5  # twining stems (the old goal: 1.5 turns)
+        assert turns >= 3  # twining stems, a turn every 30-40 cm (the old goal: 1.5 turns)
     assert sk.end[:, 1].max() >= 2.35  # it reached the top, where its ?P sent it over
 
 
