@@ -135,6 +135,32 @@ def test_a_climber_within_reach_wraps_round_an_edge(tmp_path):
     assert ((sk.end[:, 1] < 0.9) & (sk.end[:, 2] < -0.2)).any()  # under the shelf, back from its front
 
 
+def _wall_climber(tmp_path, **environment):
+    # a wall 1 m high, its face at z = 0 (20 cm thick): a strand climbs its face from the foot
+    wall = _box(tmp_path, "wall", (-1, 0, -0.2), (1, 1.0, 0.0))
+    g = Grammar(
+        axiom="^(90)f(0.02)&(90)A",
+        rules=["A -> F(0.05)A"],
+        iterations=40,
+        turtle={"heading": 90},
+        environment={"support": wall, "distance": 0.3, "hang": 0.5, "reach": 0.06, "climb": 0.2, **environment},
+        source=str(tmp_path / "climb.toml"),
+    )
+    _, sk = _grow(g)
+    assert _inside(wall, _along(sk)).max() <= 1e-6
+    return sk
+
+
+def test_release_lets_a_climber_go_over_a_top_edge_and_hang_in_front(tmp_path):
+    held = _wall_climber(tmp_path)  # off (the default): the wall holds it over the top and down the back
+    assert held.end[:, 2].min() < -0.2 and held.end[-1, 1] < 0.9
+    sk = _wall_climber(tmp_path, release=0.5)
+    top = np.flatnonzero(sk.end[:, 1] > 1.0)
+    assert len(top) and sk.end[:, 2].min() > -0.05  # over the edge, never behind the face
+    assert sk.end[-1, 1] < 0.8 and sk.end[-1, 2] > 0.0 and sk.heading[-1, 1] < -0.9  # hanging down in front
+    assert EnvironmentOptions().release == 0.0
+
+
 def test_topiary_keeps_every_segment_inside_the_volume(tmp_path):
     box = _box(tmp_path, "box", (-0.5, 0.05, -0.5), (0.5, 1.0, 0.5))
     g = Grammar(

@@ -293,3 +293,22 @@ def test_cli_preview_quality_flag(tmp_path):
         [sys.executable, "-m", "lsys3d", "preview", "--quality", "best"], capture_output=True, text=True
     )
     assert proc.returncode == 2 and "invalid choice: 'best'" in proc.stderr
+
+
+def test_scene_is_drawn_with_the_plant_and_its_volume_left_out(tmp_path):
+    # vine-post, young: with --scene the 2.4 m post stands in the picture (grey), without it the vine alone (green)
+    vine = lsys3d.generate("vine-post", iterations=12, union=False)
+    options = PreviewOptions(size=(120, 240), samples=4, blender=bpy_python(), background=BACKGROUND)
+
+    def shares(image):
+        r, g, b = image[object_mask(image)].astype(int).T
+        return ((abs(r - g) < 12) & (abs(g - b) < 12)).mean(), ((g > r + 10) & (g > b + 10)).mean()
+
+    grey, green = shares(read_png(preview(vine, tmp_path / "plain.png", options)))
+    assert green > 0.5
+    grey, green = shares(read_png(preview(vine, tmp_path / "post.png", options.replace(scene=True))))
+    assert grey > 0.6 and green < 0.25
+    # topiary: its box is a pruning volume, left out, so the picture is the hedge's alone
+    hedge = lsys3d.generate("topiary", iterations=8, union=False)
+    boxed = read_png(preview(hedge, tmp_path / "boxed.png", options.replace(scene=True)))
+    assert np.array_equal(boxed, read_png(preview(hedge, tmp_path / "hedge.png", options)))

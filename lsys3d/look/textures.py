@@ -1,37 +1,27 @@
 """Procedural textures: tileable bark and alpha-cut leaf images, made with numpy from a seed.
 
-Every kind is one row of :data:`KINDS` (name, group, generator, default
-colours, what it looks like) and one generator function below, which returns
-the fields of one image -- height, linear colour, roughness and, for leaves,
-coverage -- over a square grid.  :func:`procedural` turns them into the PNG
-images a :class:`~lsys3d.look.materials.Material` carries (:class:`TextureSet`):
+Every kind is one row of :data:`KINDS` (name, group, generator, default colours, what it looks like) and one
+generator function below, which returns the fields of one image -- height, linear colour, roughness and, for leaves,
+coverage -- over a square grid.  :func:`procedural` turns them into the PNG images a
+:class:`~lsys3d.look.materials.Material` carries (:class:`TextureSet`):
 
-* ``albedo``: the base colour, sRGB (RGB for bark; RGBA for leaves, whose
-  alpha is the cut-out);
-* ``normal``: a tangent-space normal map from the height field's slopes, in
-  glTF's convention (OpenGL: ``+X`` along ``u``, ``+Y`` up the image, ``+Z``
-  out of the surface);
-* ``roughness`` (bark only): glTF's metallic-roughness packing, roughness in
-  G, metallic (0) in B, R unused (255).
+* ``albedo``: the base colour, sRGB (RGB for bark; RGBA for leaves, whose alpha is the cut-out);
+* ``normal``: a tangent-space normal map from the height field's slopes, in glTF's convention (OpenGL: ``+X`` along
+  ``u``, ``+Y`` up the image, ``+Z`` out of the surface);
+* ``roughness`` (bark only): glTF's metallic-roughness packing, roughness in G, metallic (0) in B, R unused (255).
 
-**Bark** images wrap: every noise is periodic over the tile
-(:func:`lsys3d.noise.fbm3`'s ``period``), and every cell pattern wraps its
-cells, so the left column continues the right one and the top the bottom.
-The image's columns run around a branch (the sweep's ``u``) and its rows
-along it (``v``), so furrows and fibres run down the image and ring scars
-across it.  ``tile_size`` is the metres of bark one image covers: features
-keep their size in metres (an oak's ridges stay some 5 cm apart) and a larger
-tile holds more of them; the material takes it as its
-:attr:`~lsys3d.look.materials.Material.tile_size`, which the sweep uses for the
-tubes' texture coordinates.
+**Bark** images wrap: every noise is periodic over the tile (:func:`lsys3d.noise.fbm3`'s ``period``), and every cell
+pattern wraps its cells, so the left column continues the right one and the top the bottom. The image's columns run
+around a branch (the sweep's ``u``) and its rows along it (``v``), so furrows and fibres run down the image and ring
+scars across it.  ``tile_size`` is the metres of bark one image covers: features keep their size in metres (an oak's
+ridges stay some 5 cm apart) and a larger tile holds more of them; the material takes it as its
+:attr:`~lsys3d.look.materials.Material.tile_size`, which the sweep uses for the tubes' texture coordinates.
 
-**Leaf** images show one leaf, frond, spray or flower on a transparent
-background, its base at the bottom centre (``v = 0``) and its tip at the top,
-as the leaf models' uv ``[0, 1]^2`` expect.
+**Leaf** images show one leaf, frond, spray or flower on a transparent background, its base at the bottom centre
+(``v = 0``) and its tip at the top, as the leaf models' uv ``[0, 1]^2`` expect.
 
-The images depend only on the kind and the parameters (numpy's PCG64 seeded
-through :class:`lsys3d.streams.Stream`, float64 arithmetic, the deterministic
-PNG encoder of :mod:`lsys3d.images`), so the same seed gives the same bytes;
+The images depend only on the kind and the parameters (numpy's PCG64 seeded through :class:`lsys3d.streams.Stream`,
+float64 arithmetic, the deterministic PNG encoder of :mod:`lsys3d.images`), so the same seed gives the same bytes;
 :func:`procedural` keeps the sets it made in the process.
 """
 
@@ -476,12 +466,29 @@ def _maple_masks(x, y, n):
     return blade, petiole, vein, across
 
 
+def _ivy_masks(x, y, n):
+    """Hedera helix: three or five broad, untoothed, triangular lobes, shallow sinuses, a heart at the base."""
+    r, theta = np.hypot(x, y - 0.34), np.arctan2(x, y - 0.34)  # theta: 0 up, positive to the right
+    lobes = ((0.0, 0.62), (1.05, 0.46), (-1.05, 0.46), (2.1, 0.33), (-2.1, 0.33))
+    reach = np.max(
+        [b * np.clip(1 - np.abs(np.angle(np.exp(1j * (theta - a)))) / 1.05, 0, 1) ** 0.75 for a, b in lobes], 0
+    )
+    outline = np.maximum(0.27, reach) * (1.0 - 0.25 * _smoothstep(2.6, 3.1, np.abs(theta)))
+    vein = np.zeros_like(r)
+    for a, b in lobes:  # pale main veins from the petiole to each lobe
+        d, t = _segment_distance(x, y, (0.0, 0.34), (0.8 * b * math.sin(a), 0.34 + 0.8 * b * math.cos(a)))
+        vein = np.maximum(vein, (1.0 - _smoothstep(0.003, 0.009 * (1.2 - t), d)) * (t < 0.97))
+    petiole = _edge(0.01 - np.abs(x), n) * (y > 0.005) * (y < 0.34)
+    return _edge(outline - r, n), petiole, vein, np.clip(r / np.maximum(outline, 1e-9), 0, 1)
+
+
 _LEAF_OUTLINES: dict[str, tuple[Callable, float]] = {
     "ovate": (_ovate_masks, 0.004),
     "willow": (_willow_masks, 0.003),
     "birch_leaf": (_birch_masks, 0.004),
     "oak_leaf": (_oak_masks, 0.004),
     "maple": (_maple_masks, 0.004),
+    "ivy": (_ivy_masks, 0.004),
 }
 """The single-leaf kinds' outlines and reliefs, by kind: what the single-leaf and the spray kinds draw."""
 
@@ -530,6 +537,11 @@ def oak_leaf(g: _Grid, colors, tile_size: float) -> Fields:
 def maple(g: _Grid, colors, tile_size: float) -> Fields:
     """Maple leaf: palmate, five pointed, toothed lobes from one point, veins radiating to their tips."""
     return _single(g, colors, "maple")
+
+
+def ivy(g: _Grid, colors, tile_size: float) -> Fields:
+    """Ivy leaf (Hedera helix): three to five broad, smooth, triangular lobes, dark and glossy, pale veins."""
+    return _single(g, colors, "ivy")
 
 
 def _strokes(g: _Grid, strokes, canvas_color, canvas_alpha, canvas_height):
@@ -927,6 +939,7 @@ KINDS: dict[str, TextureKind] = {
         TextureKind(
             "maple", "leaf", maple, ("#4f8c2c", "#a6c777", "#8a5a2a"), ("blade", "veins", "stalk"), maple.__doc__
         ),
+        TextureKind("ivy", "leaf", ivy, ("#1f4a1a", "#b4c49a", "#5a4a2a"), ("blade", "veins", "stalk"), ivy.__doc__),
         TextureKind(
             "willow", "leaf", willow, ("#6a9a48", "#c2d49a", "#7a8a40"), ("blade", "veins", "stalk"), willow.__doc__
         ),

@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import OptionsError, PreviewError, clip
-from ..exchange import export
+from ..exchange import ExportOptions, export
 from ..exchange.atomic import atomic_path, check_target
 from ..options import Options, option
 from ..tree import Tree
@@ -126,6 +126,10 @@ class PreviewOptions(Options):
         600.0, kind=float, optional=True, low=0, low_open=True, help="seconds before Blender is stopped", cli=False
     )
     no_clobber: bool = option(False, help="refuse to overwrite an existing file")
+    scene: bool = option(
+        False,
+        help="also draw the scene the plant grew in ([environment], --environment), its pruning volumes left out",
+    )
     pose: tuple[str, ...] = option(
         (),
         kind="strings",
@@ -422,7 +426,7 @@ class PreviewSession:
         width, height = options.size
         t0 = time.perf_counter()
         folder = self._folder.name
-        glb = export(tree, Path(folder) / "tree.glb")
+        glb = export(tree, Path(folder) / "tree.glb", ExportOptions(scene=options.scene))
         with atomic_path(path, options.no_clobber) as tmp:
             job = {
                 "glb": str(glb),

@@ -280,6 +280,9 @@ def render(job, fresh=False):
     bpy.ops.import_scene.gltf(filepath=job["glb"])
     if not any(o.type == "MESH" for o in scene.objects):
         raise RuntimeError(f"preview_blender: {job['glb']}: Blender imported no mesh")
+    for obj in list(scene.objects):  # a pruning volume of the scene (--scene) would hide the plant it shapes
+        if obj.type == "MESH" and obj.name.startswith("volume_"):
+            bpy.data.objects.remove(obj)
     if job.get("pose"):
         _pose(bpy, job["pose"])
     if job.get("time") is not None:

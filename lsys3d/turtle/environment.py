@@ -100,6 +100,15 @@ class EnvironmentOptions(Options):
     hang: float = option(
         0.0, low=0, high=1, cli=False, name="env_hang", help="bend toward the ground per segment away from a support"
     )
+    release: float = option(
+        0.0,
+        low=0,
+        high=1,
+        cli=False,
+        name="env_release",
+        help="a climber lets go where its support's normal points up more than this (0..1; 0: never): over a "
+        "top edge or a ledge it leans out and hangs",
+    )
     reach: float = option(
         0.0, low=0, cli=False, name="env_reach", help="distance within which the support holds (0: 2 x distance)"
     )
@@ -493,6 +502,7 @@ def _build(env: Environment) -> kernel.Scene:
     params[kernel.SCENE_CLEARANCE] = o.clearance + 0.1 * cell
     params[kernel.SCENE_SOLID_SUPPORT] = 1.0 if all(m.closed for m in env.role("support")) else 0.0
     params[kernel.SCENE_REACH] = _reach(o) if _reach(o) > 0 else 4.0 * cell
+    params[kernel.SCENE_RELEASE] = o.release
     log.info("environment: %d mesh(es), grid %s of %.4g m", len(env.meshes), "x".join(map(str, shape)), cell)
     return kernel.Scene(np.asarray(origin, np.float64), np.array([cell]), grids["obstacle"], grids["volume"],
                         grids["support"], params)  # fmt: skip

@@ -85,7 +85,8 @@ outside the solid; ``(0, 0, 0)`` when the role is absent) sampled from ``origin`
 
 SCENE_DISTANCE, SCENE_ADHESION, SCENE_CLIMB, SCENE_HANG, SCENE_PHOTOTROPISM = 0, 1, 2, 3, 4
 SCENE_LIGHT, SCENE_LIGHT_POINT, SCENE_DEFLECT, SCENE_CLEARANCE, SCENE_SOLID_SUPPORT, SCENE_REACH = 5, 8, 9, 10, 11, 12
-SCENE_PARAMS = 13
+SCENE_RELEASE = 13
+SCENE_PARAMS = 14
 FAR_OUTSIDE = 1e9
 """The signed distance of a point outside a grid: far outside every solid."""
 
@@ -446,6 +447,13 @@ def _worst_along(scene, px, py, pz, hx, hy, hz, length):
     return worst, wx, wy, wz
 
 
+@numba.njit(cache=True)
+def _release(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz):
+    """A climber lets go where its support faces up (``release``: over a top edge, on a ledge): H leans
+    halfway out along the support's normal N, so the branch goes out over the edge before it hangs."""
+    return _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz, 0.5, np.bool_(True))
+
+
 @numba.njit(cache=True, inline="always")
 def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging):
     """The environment's say on one segment from P of this length: the new frame, whether it is cut, and
@@ -453,8 +461,9 @@ def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hangin
 
     Light bends H toward it (phototropism); near a support H is pulled onto the surface (adhesion), up its
     slope (climb) and toward the middle of the band it may use; a branch that was on the support and leaves
-    its reach (over an edge) hangs (``hanging`` 2; 0: never on a support, 1: on it): from there on it and
-    the branches it bears bend down and no longer adhere.  Then
+    its reach (over an edge), or with ``release`` reaches a part of it that faces up (:func:`_release`), hangs
+    (``hanging`` 2; 0: never on a support, 1: on it): from there on it and the branches it bears bend down
+    and no longer adhere.  Then
     a segment whose end would enter a solid slides along its surface (deflect) or is cut, and one that
     ends outside the pruning volume, or farther than the set distance from the support, is cut.
     """
@@ -477,6 +486,9 @@ def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hangin
         elif d > prm[SCENE_REACH] and hanging == 1:
             hanging = np.int64(2)
         n = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if hanging == 1 and prm[SCENE_RELEASE] > 0.0 and 0.0 < n < 1e6 and ny > prm[SCENE_RELEASE] * n:
+            hx, hy, hz, lx, ly, lz, ux, uy, uz = _release(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx / n, ny / n, nz / n)
+            hanging = np.int64(2)
         if hanging == 1 and 0.0 < n < 1e6:
             nx, ny, nz = nx / n, ny / n, nz / n
             hn = hx * nx + hy * ny + hz * nz
