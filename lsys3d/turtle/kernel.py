@@ -300,24 +300,12 @@ def _bend_after(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e):
     e (T.U), then toward L by the angle whose sine is e (T.L) (sines held to [-1, 1])."""
     s = min(1.0, max(-1.0, e * (tx * ux + ty * uy + tz * uz)))
     c = math.sqrt(1.0 - s * s)
-    hx, hy, hz, ux, uy, uz = (
-        c * hx + s * ux,
-        c * hy + s * uy,
-        c * hz + s * uz,
-        c * ux - s * hx,
-        c * uy - s * hy,
-        c * uz - s * hz,
-    )
+    nhx, nhy, nhz = c * hx + s * ux, c * hy + s * uy, c * hz + s * uz
+    ux, uy, uz = c * ux - s * hx, c * uy - s * hy, c * uz - s * hz
     s = min(1.0, max(-1.0, e * (tx * lx + ty * ly + tz * lz)))
     c = math.sqrt(1.0 - s * s)
-    hx, hy, hz, lx, ly, lz = (
-        c * hx + s * lx,
-        c * hy + s * ly,
-        c * hz + s * lz,
-        c * lx - s * hx,
-        c * ly - s * hy,
-        c * lz - s * hz,
-    )
+    hx, hy, hz = c * nhx + s * lx, c * nhy + s * ly, c * nhz + s * lz
+    lx, ly, lz = c * lx - s * nhx, c * ly - s * nhy, c * lz - s * nhz
     return _orthonormal(hx, hy, hz, lx, ly, lz)
 
 
