@@ -151,6 +151,8 @@ def grammar_text(grammar) -> str:
     for key in ("homomorphism_depth", "decomposition_depth"):
         if getattr(grammar, key) != 1:
             lines.append(f"{key} = {getattr(grammar, key)}")
+    if getattr(grammar, "ring", False):
+        lines.append("ring = true")
     for table in type(grammar).TABLES[1:]:  # the defines are written above
         if getattr(grammar, table):
             lines.append(f"[{table}]")

@@ -66,6 +66,11 @@ CPFG = {
     "?": (Op.SUB_LSYSTEM, Axis.NONE, +1), "$": (Op.SUB_LSYSTEM, Axis.NONE, -1),
     # query and communication modules (Mech and Prusinkiewicz 1996; the cpfg manual's environment section)
     "?P": Op.QUERY, "?H": Op.QUERY, "?L": Op.QUERY, "?U": Op.QUERY, "?E": Op.QUERY,
+    # cpfg's interpret.c: '_' adds the view file's elasticity increment, '_(e)' sets the elasticity
+    "_": Op.ELASTICITY_ADD,
+    # generalized cylinders (blackbox.c, general.c): @Gs starts, @Gc and @Ge set control points, @Gt tangents
+    "@Gs": Op.CYLINDER_START, "@Gc": Op.CYLINDER_POINT, "@Ge": (Op.CYLINDER_POINT, Axis.NONE, -1),
+    "@Gt": Op.CYLINDER_TANGENTS,
 }  # fmt: skip
 # Lparser: lparser.txt (L. Lapre), the symbol table reproduced in the Lparser ports
 LPARSER = {

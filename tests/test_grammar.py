@@ -357,7 +357,7 @@ functions = ["f(x) = x"]
     for bad, message in [
         ('axiom = "A"\npremise = "B"\n', "both 'axiom' and 'premise'"),
         ('axiom = "A"\ndialect = "fractint"\n', "unknown dialect 'fractint' (known: lsys3d, abop, lpy"),
-        ('axiom = "A"\ndecomposition_depth = 0\n', "'decomposition_depth' must be a whole number from 1 to 1000"),
+        ('axiom = "A"\ndecomposition_depth = 0\n', "'decomposition_depth' must be a whole number from 1 to 10000"),
         ('axiom = "A"\nhomomorphism = "B -> F"\n', "'homomorphism' must be a list"),
     ]:
         with pytest.raises(GrammarError, match=re.escape(message)):

@@ -109,6 +109,7 @@ class _Parser:
         self.defines = defines
         self.fail = fail
         self.site = site
+        self.functions: dict = {}
 
     def peek(self, k: int = 0) -> _Token:
         return self.tokens[min(self.i + k, len(self.tokens) - 1)]
@@ -212,7 +213,12 @@ class _Parser:
             raise self.fail("expected an expression", start.at)
         try:
             return parse_expression(
-                text, names=self.names, defines=self.defines, syntax=_SYNTAX, site=self.site + start.at
+                text,
+                names=self.names,
+                defines=self.defines,
+                syntax=_SYNTAX,
+                site=self.site + start.at,
+                functions=self.functions,
             )
         except ExprSyntaxError as exc:
             raise self.fail(str(exc), start.at + exc.offset) from None
@@ -454,7 +460,11 @@ class _State:
 
 
 def parse_blocks(
-    blocks: Mapping[str, str], defines: Mapping | None = None, source: str = "<grammar>", places=None
+    blocks: Mapping[str, str],
+    defines: Mapping | None = None,
+    source: str = "<grammar>",
+    places=None,
+    functions: Mapping | None = None,
 ) -> Program:
     """Read the blocks of a grammar (``{"start": "{n = 0;}", "start_each": "{n = n + 1;}"}``) into a Program.
 
@@ -494,6 +504,7 @@ def parse_blocks(
     parsed = {}
     for k, (name, (toks, fail)) in enumerate(tokens.items()):
         parser = _Parser(blocks[name], toks, frozenset(names), dict(defines or {}), fail, (k + 1) << 24, name)
+        parser.functions = dict(functions or {})  # vlab's func, curveX...: the grammar's graphically defined ones
         parsed[name] = parser.statements()
     return Program(parsed, frozenset(names), frozenset(later), source, places)
 

@@ -54,6 +54,7 @@ from . import dialects, sequences
 from .expr import NOT_FINITE, STEP, EvalError, RandomDraws
 from .grammar import Grammar, PatternModule, Production
 from .modules import ModuleString
+from .rules import MAX_LOOP, _flat
 
 __all__ = [
     "DEFAULT_MAX_MODULES",
@@ -727,6 +728,8 @@ class _Context:
         self.m = len(ms)
         self.code = plan.code
         self.left_of, self.right_of, self.kept, self.close = _skip_tables(ms.symbols, ignored)
+        # cpfg's ring L-systems: a walk that runs off one end of the string goes on from the other
+        self.ring = bool(plan.grammar.ring) and self.m > 0
         # cpfg: ']' in a right context is the next ']' (past ignored symbols and whole branches), and '=' skips
         # the rest of the branch up to it (RconDiff); elsewhere ']' alone skips the rest of the branch
         self.skip = dialects.get(plan.grammar.dialect).notation.branch_skip
@@ -749,6 +752,8 @@ class _Context:
         found = []
         for pm in reversed(pattern):
             j = np.where(j >= 0, self.left_of[np.maximum(j, 0)], -1)
+            if self.ring:
+                j = np.where(j < 0, self.left_of[self.m - 1], j)
             ok &= j >= 0
             values: list = []
             self._bind(j, ok, pm, values)
@@ -777,6 +782,8 @@ class _Context:
                     j = j - 1
             else:
                 j = self.right_of[j]
+                if self.ring:
+                    j = np.where(j >= m, self.right_of[0], j)
                 ok &= j < m  # the end of the string, or of a branch, has no right context
                 ok &= self.ms.symbols[np.minimum(j, m - 1)] != _CLOSE
                 self._bind(j, ok, pm, values)
@@ -812,6 +819,44 @@ class _Draws(RandomDraws):
 
     def subset(self, index: np.ndarray) -> _Draws:
         return _Draws(self.seed, self.keys, self.index[index])
+
+
+def _loop(step, env: dict, size: int, draws, fail) -> dict:
+    """cpfg's ``while (c) {...}`` in a rule's block: the statements run for the modules whose ``c`` holds, until
+    it holds for none (at most ``rules.MAX_LOOP`` rounds).  A variable first set in the loop is 0 where the loop
+    does not run (cpfg's variables start at 0)."""
+    _, body, cond = step
+    env = dict(env)
+    for s in _flat(body):
+        if s[0] == "let" and s[1] not in env:
+            env[s[1]] = np.zeros(size)
+    for _ in range(MAX_LOOP):
+        try:
+            go = np.broadcast_to(cond.evaluate(env, size, random=draws) != 0, (size,))
+        except EvalError as exc:
+            raise fail(exc, "its while loop's condition", np.arange(size)) from None
+        if not go.any():
+            return env
+        k = np.flatnonzero(go)
+        inner = _subset(env, k)
+        inner_draws = draws.subset(k)
+        for s in body:
+            if s[0] == "while":
+                inner = _loop(s, inner, len(k), inner_draws, lambda exc, what, j, k=k: fail(exc, what, k[j]))
+                continue
+            try:
+                inner[s[1]] = s[-1].evaluate(inner, len(k), random=inner_draws)
+            except EvalError as exc:
+                raise fail(exc, f"local variable '{s[1]}'", k) from None
+        for name, value in inner.items():
+            full = np.array(np.broadcast_to(env[name], (size,)), dtype=np.float64) if name in env else np.zeros(size)
+            full[k] = value
+            env[name] = full
+    raise fail(
+        EvalError(f"a while loop ran more than {MAX_LOOP:,} rounds", np.zeros(1, np.int64)),
+        "its while loop",
+        np.arange(size),
+    )
 
 
 def _narrow(sel, env, draws, ok):
@@ -904,6 +949,15 @@ def _step(
             for step in pool.steps:  # local variables and tests, in order
                 if not len(sel):
                     break
+                if step[0] == "while":
+                    env = _loop(
+                        step,
+                        env,
+                        len(sel),
+                        draws,
+                        lambda exc, what, k, prod0=prod0, sel=sel: _fail(prod0, what, exc, ms, sel[k], during),
+                    )
+                    continue
                 try:
                     value = step[-1].evaluate(env, len(sel), random=draws)
                 except EvalError as exc:

@@ -197,11 +197,17 @@ DEFAULT_SYNTAX = Syntax()
 
 @dataclass(frozen=True)
 class Function:
-    """A grammar's own pure function: parameter names and one expression over them (L-Py's ``def f(x): return``)."""
+    """A grammar's own pure function: parameter names and one expression over them (L-Py's ``def f(x): return``).
+
+    ``native`` instead of a body: a function of float64 arrays, one per parameter, that gives one value per
+    element (vlab's graphically defined functions, :mod:`lsys3d.lsystem.splines`); it raises
+    :class:`EvalError` for arguments it has no value for.
+    """
 
     name: str
     params: tuple[str, ...]
-    body: Expr
+    body: Expr | None
+    native: object = field(default=None, compare=False, repr=False)
 
 
 class ExprSyntaxError(ValueError):
@@ -275,7 +281,7 @@ class Expr:
             node = todo.pop()
             if node.op == "random":
                 return True
-            if node.op == "ucall" and node.function is not None:
+            if node.op == "ucall" and node.function is not None and node.function.body is not None:
                 todo.append(node.function.body)
             todo.extend(node.args)
         return False
@@ -472,6 +478,8 @@ def _eval(node: Expr, scope: _Scope):
     if op == "ucall":
         fn = node.function
         values = {p: np.asarray(_eval(a, scope), dtype=np.float64) for p, a in zip(fn.params, node.args, strict=True)}
+        if fn.native is not None:
+            return fn.native(*(np.broadcast_to(v, (scope.size,)) for v in values.values()))
         if STEP in scope.env:
             values[STEP] = scope.env[STEP]
         inner = _Scope(values, scope.size, scope.random, (scope.salt * 31 + hash_site(node)) % 64)

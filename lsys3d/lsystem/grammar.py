@@ -66,6 +66,7 @@ from .rules import (
     _RuleContext,
     _Scanner,
 )
+from .splines import native_functions
 
 __all__ = [
     "MAX_GRAMMAR_BYTES",
@@ -81,7 +82,7 @@ __all__ = [
 
 MAX_GRAMMAR_BYTES = 1 << 20
 """Largest grammar file read, in bytes."""
-MAX_DEPTH = 1000
+MAX_DEPTH = 10_000
 """Largest ``homomorphism_depth`` / ``decomposition_depth`` (L-Py's and cpfg's ``maximum depth``)."""
 
 _NAME = re.compile(r"[A-Za-z_@?~][A-Za-z_0-9@]*\Z")  # a declared module name (Leaf, @Gs, ?P)
@@ -106,7 +107,11 @@ class Grammar:
     character (``["Leaf", "Apex"]``); ``consider`` is the complement of
     ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``; ``blocks`` are cpfg's C-like
     blocks (``{"start": "{n = 0;}", "start_each": "{n++;}"}``, :mod:`lsys3d.lsystem.blocks`), whose
-    globals the rules read: those only ``start`` sets as constants, the others at each step.  ``repairs`` are
+    globals the rules read: those only ``start`` sets as constants, the others at each step.  ``ring`` makes
+    the string a ring for context (cpfg's ``ring lsystem``: its first and last modules are neighbours).  ``splines``
+    are vlab's graphically defined functions, which expressions call as ``func(id, x)``
+    (:mod:`lsys3d.lsystem.splines`; ``{"1": {"name": "rho", "samples": 100, "points": [[0, 0.3], ...]}}``).
+    ``repairs`` are
     what a native file's reader mended as the file's own tool does (``file:line: what``): each is a warning
     (with ``--strict``, an error) wherever the grammar is drawn (:mod:`lsys3d.turtle.diagnostics`).
 
@@ -138,6 +143,7 @@ class Grammar:
     leaves: Mapping[str, object] = field(default_factory=dict)
     environment: Mapping[str, object] = field(default_factory=dict)
     growth: Mapping[str, object] = field(default_factory=dict)
+    splines: Mapping[str, object] = field(default_factory=dict)
     source: str = "<grammar>"
     text: str | None = None
     dialect: str = "lsys3d"
@@ -149,6 +155,7 @@ class Grammar:
     modules: tuple[str, ...] = ()
     functions: tuple[str, ...] = ()
     blocks: Mapping[str, str] = field(default_factory=dict)
+    ring: bool = False
     repairs: tuple[str, ...] = field(default=(), compare=False)
     # parsed, filled in by __post_init__
     productions: tuple[Production, ...] = field(init=False, repr=False)
@@ -192,7 +199,10 @@ class Grammar:
         notation = dialect.notation
         names = self._declared_names(notation)
         scanner = _Scanner(notation, names)
-        functions = _parse_functions(self.functions, self.source, self._where, notation)
+        functions = {
+            **native_functions(self.splines, self.source),  # cpfg's func(id, x): vlab's function editor
+            **_parse_functions(self.functions, self.source, self._where, notation),
+        }
         set_(
             self,
             "defines",
@@ -200,7 +210,7 @@ class Grammar:
                 _check_defines(dict(self.defines), self.source, self._where.get("defines"), notation, functions)
             ),
         )
-        program, constants = self._program()
+        program, constants = self._program(functions)
         set_(self, "program", program)
         context = _RuleContext(self.source, {**self.defines, **constants}, scanner, notation, functions, dialect)
         context.globals = program.step_names if program is not None else frozenset()
@@ -245,11 +255,12 @@ class Grammar:
         set_(self, "alphabet", context.alphabet.table())
         set_(self, "axiom_modules", _evaluate_axiom(axiom, context.alphabet, self.source, where_axiom))
 
-    def _program(self) -> tuple[Program | None, dict[str, float]]:
+    def _program(self, functions) -> tuple[Program | None, dict[str, float]]:
         """cpfg's blocks parsed, and the globals that stay constant after ``Start`` (constants of the rules)."""
         if not self.blocks:
             return None, {}
-        program = parse_blocks(self.blocks, self.defines, self.source, self._where.get("blocks"))
+        natives = {k: f for k, f in functions.items() if f.native is not None}
+        program = parse_blocks(self.blocks, self.defines, self.source, self._where.get("blocks"), natives)
         values, _ = program.run_start(self.seed)
         return program, {k: v for k, v in values.items() if k not in program.step_names}
 
@@ -307,6 +318,8 @@ class Grammar:
             depth = getattr(self, key)
             if isinstance(depth, bool) or not isinstance(depth, int) or not 1 <= depth <= MAX_DEPTH:
                 raise bad(key, f"must be a whole number from 1 to {MAX_DEPTH}, not {clip(repr(depth))}")
+        if not isinstance(self.ring, bool):
+            raise bad("ring", f"must be true or false, not {clip(repr(self.ring))}")
         if not _finite_number(self.angle):
             raise bad("angle", f"must be a number of degrees, not {clip(repr(self.angle))}")
         for key in ("name", "description", "group", "axiom", "ignore", "consider"):
@@ -408,6 +421,7 @@ class Grammar:
                 "consider",
                 "modules",
                 "functions",
+                "ring",
                 "repairs",
             )
         }

@@ -12,7 +12,18 @@ import numpy as np
 
 from ..errors import GrammarError
 
-TABLES = ("defines", "turtle", "form", "materials", "surfaces", "leaves", "environment", "blocks", "growth")
+TABLES = (
+    "defines",
+    "turtle",
+    "form",
+    "materials",
+    "surfaces",
+    "leaves",
+    "environment",
+    "blocks",
+    "growth",
+    "splines",
+)
 """A grammar's tables (TOML ``[name]``), in the order recipes and provenance write them: the one list of them."""
 
 _KEYS = {
@@ -34,6 +45,7 @@ _KEYS = {
     "consider",
     "modules",
     "functions",
+    "ring",
     *TABLES,
 }
 

@@ -96,14 +96,14 @@ class Production:
     @property
     def random(self) -> bool:
         """Whether applying the rule draws random numbers (a random function in its condition or successor)."""
-        exprs = [s[-1] for s in self.steps] + ([self.condition] if self.condition is not None else [])
+        exprs = [s[-1] for s in _flat(self.steps)] + ([self.condition] if self.condition is not None else [])
         exprs += [a for m in self.successor for a in m.args]
         return any(e.random for e in exprs)
 
     def pool_key(self):
         """Rules with equal keys are stochastic alternatives of one another."""
         cond = self.condition.text if self.condition is not None else None
-        steps = tuple((s[0], s[1] if s[0] == "let" else "", s[-1].text) for s in self.steps)
+        steps = tuple((s[0], s[1] if s[0] == "let" else "", s[-1].text) for s in _flat(self.steps))
         pred = (self.predecessor.symbol, len(self.predecessor.formals))
         following = tuple((m.symbol, len(m.formals)) for m in self.following)
         return (self.left, *pred, self.right, cond, steps, following, self.lsystem)
@@ -249,6 +249,35 @@ def _top_level(text: str, start: int = 0, stop: int | None = None):
             depth = max(depth - 1, 0)
         elif depth == 0:
             yield i, ch
+
+
+def _flat(steps) -> list:
+    """A condition's steps with the statements of its ``while`` loops after each loop, in order."""
+    out = []
+    for s in steps:
+        out.append(s)
+        if s[0] == "while":
+            out += _flat(s[1])
+    return out
+
+
+def _closing(text: str, at: int, stop: int, opener: str, closer: str) -> int:
+    """Where the ``closer`` that matches the ``opener`` at ``at`` stands (nesting counted), or -1."""
+    depth = 0
+    for i in range(at, stop):
+        if text[i] == opener:
+            depth += 1
+        elif text[i] == closer:
+            depth -= 1
+            if depth == 0:
+                return i
+    return -1
+
+
+MAX_LOOP = 100_000
+"""Most rounds of a ``while`` loop in a rule's block (cpfg's; a loop that never ends is an error)."""
+
+_WHILE = re.compile(r"\s*while\s*\(")
 
 
 def _outside_blocks(text: str, start: int, stop: int, conditions: bool):
@@ -507,7 +536,7 @@ class _RuleContext:
                     steps.append(("test", expr))
                 if i == stop:
                     break
-                close = rule.find("}", i + 1, stop)
+                close = _closing(rule, i, stop, "{", "}")
                 if close < 0:
                     raise _error("'{' without '}' in the condition", self.source, where, i)
                 steps += self.block(rule, i + 1, close, names, where)
@@ -519,10 +548,47 @@ class _RuleContext:
         return None, tuple(steps), names
 
     def block(self, rule: str, start: int, stop: int, names: list[str], where: Where):
-        """``name = expression`` statements separated by ';' or line breaks (``+=`` and the like too)."""
+        """``name = expression`` statements separated by ';' or line breaks (``+=`` and the like too), and
+        cpfg's ``while (condition) statement`` (a statement or ``{...}``), run at most :data:`MAX_LOOP` rounds."""
         steps = []
         at = start
-        for statement in re.split(r"[;\n]", rule[start:stop]):
+        while at < stop:
+            loop = _WHILE.match(rule, at, stop)
+            if loop is None:
+                end = at
+                depth = 0
+                while end < stop and not (depth == 0 and rule[end] in ";\n"):
+                    depth += {"(": 1, ")": -1}.get(rule[end], 0)
+                    end += 1
+                steps += self.statement(rule, at, end, names, where)
+                at = end + 1
+                continue
+            opened = loop.end() - 1
+            closed = _closing(rule, opened, stop, "(", ")")
+            if closed < 0:
+                raise _error("unclosed '(' after while", self.source, where, opened)
+            cond = self.expression(rule[opened + 1 : closed], names, where, opened + 1, "bad condition: ")
+            first = closed + 1 + _lstrip_len(rule[closed + 1 : stop])
+            if first < stop and rule[first] == "{":
+                end = _closing(rule, first, stop, "{", "}")
+                if end < 0:
+                    raise _error("'{' without '}' in the while loop", self.source, where, first)
+                body = self.block(rule, first + 1, end, names, where)
+            else:
+                end = rule.find(";", first, stop)
+                end = stop if end < 0 else end
+                body = self.block(rule, first, end, names, where)
+            if not body:
+                raise _error("a while loop without a statement", self.source, where, loop.start())
+            steps.append(("while", tuple(body), cond))
+            at = end + 1
+        return steps
+
+    def statement(self, rule: str, start: int, stop: int, names: list[str], where: Where):
+        """One ``name = expression`` statement of a block (none for blanks)."""
+        steps = []
+        at = start
+        for statement in (rule[start:stop],):
             if statement.strip():
                 m = _STATEMENT.match(statement)
                 if m is None:
@@ -555,7 +621,6 @@ class _RuleContext:
                 steps.append(("let", name, expr))
                 if name not in names:
                     names.append(name)
-            at += len(statement) + 1
         return steps
 
     def modules(self, text, kind, formals, where, start=0, stop=None):

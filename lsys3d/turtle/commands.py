@@ -63,6 +63,10 @@ class Op(IntEnum):
     TROPISM_VECTOR = 23  # set the tropism vector T of the moves that follow (L-Py's @Tp)
     QUERY = 24  # record the turtle's state here: a query module (?P, ?H...) or cpfg's ?E, filled between steps
     SUB_LSYSTEM = 25  # cpfg's ?(n, s) (sign +1) and $ (sign -1): push and pop the scale of lengths and widths
+    ELASTICITY_ADD = 26  # add the elasticity increment to the elasticity (cpfg's _); with an argument, set it
+    CYLINDER_START = 27  # start a generalized cylinder: its first control point (cpfg's @Gs)
+    CYLINDER_POINT = 28  # a control point: the tube from the last one to here (@Gc; Command.sign -1 ends it: @Ge)
+    CYLINDER_TANGENTS = 29  # the tangent factors of the control points that follow (cpfg's @Gt)
 
 
 N_OPS = len(Op)

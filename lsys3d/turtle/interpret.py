@@ -283,6 +283,8 @@ def interpret_answering(
         options.angle_scale,
         options.bend == "angle",
         options.length_unit,
+        options.bend == "cpfg",
+        options.elasticity_increment,
     )
     variation = _variation(m, options, seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
 

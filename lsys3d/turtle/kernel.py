@@ -61,6 +61,8 @@ Config = namedtuple(
         "angle_scale",
         "bend_angle",
         "length_unit",
+        "bend_after",
+        "elasticity_increment",
     ],
 )
 Variation = namedtuple("Variation", ["angle", "length", "width", "roll", "skipped", "turn"])
@@ -111,6 +113,10 @@ _ANGLE_FACTOR = int(Op.ANGLE_FACTOR)
 _RANDOM_TURN = int(Op.RANDOM_TURN)
 _TROPISM = int(Op.TROPISM)
 _ELASTICITY = int(Op.ELASTICITY)
+_ELASTICITY_ADD = int(Op.ELASTICITY_ADD)
+_CYLINDER_START = int(Op.CYLINDER_START)
+_CYLINDER_POINT = int(Op.CYLINDER_POINT)
+_CYLINDER_TANGENTS = int(Op.CYLINDER_TANGENTS)
 _FORWARD_STEPS = int(Op.FORWARD_STEPS)
 _TROPISM_VECTOR = int(Op.TROPISM_VECTOR)
 _QUERY = int(Op.QUERY)
@@ -125,6 +131,12 @@ STEP_EPSILON = 1e-5
 """A rest of L-Py's ``nF(length, dlength)`` shorter than this draws no last segment (PlantGL's GEOM_EPSILON)."""
 
 MAX_STEPS = 2**53
+CYLINDER_RINGS = 4
+"""Pieces of a generalized cylinder between two control points without a number (cpfg's DEFAULT_RINGS)."""
+MAX_RINGS = 10_000
+"""Most pieces between two control points (``@Gc(n)``)."""
+CYLINDER_TANGENT = 1.2
+"""cpfg's default tangent parameter of a generalized cylinder (interpret.c)."""
 """Most steps one ``nF`` module, or all of them, count (far above any segment limit: keeps the counts exact
 integers that cannot wrap around)."""
 
@@ -272,6 +284,29 @@ def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
     nly = ly * c + (kz * lx - kx * lz) * s + ky * d
     nlz = lz * c + (kx * ly - ky * lx) * s + kz * d
     return _orthonormal(nhx, nhy, nhz, nlx, nly, nlz)
+
+
+@numba.njit(cache=True)
+def _rings(has_arg, arg):
+    """The pieces of a generalized cylinder's connection: ``@Gc(n)``'s n (at least 1), else the default."""
+    if not has_arg:
+        return CYLINDER_RINGS
+    return max(1, min(MAX_RINGS, int(arg)))
+
+
+@numba.njit(cache=True)
+def _bend_after(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e):
+    """cpfg's tropism after a move (interpret.c ``bend``): H turns toward U by the angle whose sine is
+    e (T.U), then toward L by the angle whose sine is e (T.L) (sines held to [-1, 1])."""
+    s = min(1.0, max(-1.0, e * (tx * ux + ty * uy + tz * uz)))
+    c = math.sqrt(1.0 - s * s)
+    nhx, nhy, nhz = c * hx + s * ux, c * hy + s * uy, c * hz + s * uz
+    ux, uy, uz = c * ux - s * hx, c * uy - s * hy, c * uz - s * hz
+    s = min(1.0, max(-1.0, e * (tx * lx + ty * ly + tz * lz)))
+    c = math.sqrt(1.0 - s * s)
+    hx, hy, hz = c * nhx + s * lx, c * nhy + s * ly, c * nhz + s * lz
+    lx, ly, lz = c * lx - s * nhx, c * ly - s * nhy, c * lz - s * nhz
+    return _orthonormal(hx, hy, hz, lx, ly, lz)
 
 
 @numba.njit(cache=True)
@@ -544,6 +579,8 @@ def survey(program, modules):
             if not (length >= 0.0 and dlength > 0.0 and math.isfinite(dlength)):
                 return counts, deepest, i, 3
             counts[_FORWARD] = min(counts[_FORWARD] + _steps(length, dlength)[2], MAX_STEPS)  # no wrap-around
+        elif code == _CYLINDER_POINT:  # a generalized cylinder's pieces up to this control point
+            counts[_FORWARD] += _rings(arity[i] > 0, params[offsets[i]] if arity[i] > 0 else 0.0)
         elif code == _TROPISM_VECTOR:
             if arity[i] != 3:
                 return counts, deepest, i, 3
@@ -594,8 +631,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     depth_of = np.empty(n_cap, np.int64)
     first_child = np.full(n_cap, -1, np.int64)
     same_child = np.full(n_cap, -1, np.int64)  # first child of the same order
-    stack_f = np.empty((max_depth, 19))
-    stack_i = np.empty((max_depth, 4), np.int64)
+    stack_f = np.empty((max_depth, 30))
+    stack_i = np.empty((max_depth, 5), np.int64)
 
     angle = config.angle
     cos_angle, sin_angle = _cos_sin(angle)
@@ -612,6 +649,18 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     tx, ty, tz = config.tx, config.ty, config.tz
     bend = tx != 0.0 or ty != 0.0 or tz != 0.0
     by_angle = config.bend_angle
+    after = config.bend_after  # cpfg's tropism: the frame bends after each move, not before
+    elasticity_increment = config.elasticity_increment
+    # cpfg's generalized cylinder (@Gs, @Gc, @Ge): on or off, the last control point (position, heading,
+    # width, its tangent parameter) and the tangent parameters of the turtle (@Gt)
+    cyl_on = 0.0
+    cx0 = cy0 = cz0 = 0.0
+    chx = chy = chz = 0.0
+    cw0 = 0.0
+    ct0 = CYLINDER_TANGENT
+    tan_in = CYLINDER_TANGENT
+    tan_out = CYLINDER_TANGENT
+    cyl_last = np.int64(-1)  # the cylinder's last piece (its next piece's parent: the moves between break no chain)
     # one-shot bends (Lparser's t, Houdini's T) pull toward T, or down when T is not set
     gx, gy, gz = (tx, ty, tz) if bend else (0.0, -1.0, 0.0)
     random_turn = variation.turn.shape[0] > 0
@@ -674,7 +723,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
         has_arg = arity[i] > 0
         arg = params[offsets[i]] if has_arg else 0.0
         if code in (_FORWARD, _MOVE):
-            if elasticity != 0.0 and bend:
+            if elasticity != 0.0 and bend and not after:
                 hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
                     hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
                 )
@@ -732,6 +781,10 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             else:
                 last = -1
             px, py, pz = qx, qy, qz
+            if after and elasticity != 0.0 and bend:
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend_after(
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity
+                )
         elif code == _FORWARD_STEPS:  # L-Py's nF(length, dlength[, radius]): PlantGL's Turtle::nF
             # each step is the FORWARD above, with its length (kept apart: a loop there slows every F)
             dlength = params[offsets[i] + 1]
@@ -741,7 +794,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             w1 = params[offsets[i] + 2] * width_unit if taper else width
             dw = (w1 - w0) / arg if taper and arg > 0.0 else 0.0
             for k in range(n_rep):
-                if elasticity != 0.0 and bend:
+                if elasticity != 0.0 and bend and not after:
                     hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
                         hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
                     )
@@ -788,6 +841,10 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                     anchor = s_
                     n_seg += 1
                 px, py, pz = qx, qy, qz
+                if after and elasticity != 0.0 and bend:
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend_after(
+                        hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity
+                    )
                 if taper:  # PlantGL's F(dlength, topradius): the next width, the radius itself after the rest
                     width = w0 + dw * dlength * (k + 1) if k < whole else w1
                     if not (0.0 <= width <= far):
@@ -859,6 +916,85 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             )
         elif code == _ELASTICITY:
             elasticity = arg if has_arg else 0.0
+        elif code == _ELASTICITY_ADD:
+            elasticity = arg if has_arg else elasticity + elasticity_increment
+        elif code == _CYLINDER_TANGENTS:  # @Gt(a, b): the tangents' factors into and out of a control point
+            if has_arg:
+                tan_in = arg
+                tan_out = params[offsets[i] + 1] if arity[i] > 1 else arg
+        elif code == _CYLINDER_START or (code == _CYLINDER_POINT and cyl_on == 0.0):
+            cyl_on = 1.0  # the first control point: nothing drawn yet
+            cx0, cy0, cz0, chx, chy, chz, cw0, ct0 = px, py, pz, hx, hy, hz, width, tan_out
+            cyl_last = last
+            if code == _CYLINDER_POINT and program.sign[sym] < 0:
+                cyl_on = 0.0
+        elif code == _CYLINDER_POINT:
+            # cpfg's general.c interpolate_connection: a Hermite curve from the last control point to here,
+            # tangents the headings times the distance and the tangent parameters, the radius linear
+            dx, dy, dz = px - cx0, py - cy0, pz - cz0
+            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+            if dist >= 1e-5 and poly_open < 0:
+                rings = _rings(has_arg, arg)
+                a1, a2 = dist * ct0, dist * tan_in
+                t1x, t1y, t1z = chx * a1, chy * a1, chz * a1
+                t2x, t2y, t2z = hx * a2, hy * a2, hz * a2
+                k2x, k2y, k2z = 3 * dx - 2 * t1x - t2x, 3 * dy - 2 * t1y - t2y, 3 * dz - 2 * t1z - t2z
+                k3x, k3y, k3z = -2 * dx + t1x + t2x, -2 * dy + t1y + t2y, -2 * dz + t1z + t2z
+                ax, ay, az = cx0, cy0, cz0
+                for k in range(1, rings + 1):
+                    v = k / rings
+                    bx = cx0 + v * (t1x + v * (k2x + v * k3x))
+                    by = cy0 + v * (t1y + v * (k2y + v * k3y))
+                    bz = cz0 + v * (t1z + v * (k2z + v * k3z))
+                    if k == rings:  # the curve ends where the turtle is
+                        bx, by, bz = px, py, pz
+                    if not (abs(bx) <= far and abs(by) <= far and abs(bz) <= far):
+                        return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                    sx, sy, sz = bx - ax, by - ay, bz - az
+                    piece = math.sqrt(sx * sx + sy * sy + sz * sz)
+                    if piece > 0.0:
+                        sx, sy, sz = sx / piece, sy / piece, sz / piece
+                    else:
+                        sx, sy, sz = hx, hy, hz
+                    d = lx * sx + ly * sy + lz * sz  # the piece's frame: L made square to it
+                    qlx, qly, qlz = lx - d * sx, ly - d * sy, lz - d * sz
+                    if qlx * qlx + qly * qly + qlz * qlz < 1e-12:
+                        d = ux * sx + uy * sy + uz * sz
+                        qlx, qly, qlz = ux - d * sx, uy - d * sy, uz - d * sz
+                    sx, sy, sz, qlx, qly, qlz, qux, quy, quz = _orthonormal(sx, sy, sz, qlx, qly, qlz)
+                    s_ = n_seg
+                    _put(seg.start, s_, ax, ay, az)
+                    _put(seg.end, s_, bx, by, bz)
+                    _put(seg.heading, s_, sx, sy, sz)
+                    _put(seg.left, s_, qlx, qly, qlz)
+                    _put(seg.up, s_, qux, quy, quz)
+                    seg.width_start[s_] = cw0 + (width - cw0) * (k - 1) / rings
+                    seg.width_end[s_] = cw0 + (width - cw0) * v
+                    if not (seg.width_start[s_] <= far and seg.width_end[s_] <= far):
+                        return 10, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                    if anchor >= 0:
+                        rise = depth - depth_of[anchor]
+                        order = seg.order[anchor] + (rise if rise > 0 else 0)
+                    else:
+                        order = 0
+                    seg.parent[s_] = cyl_last
+                    seg.module[s_] = i
+                    seg.order[s_] = order
+                    seg.material[s_] = material
+                    depth_of[s_] = depth
+                    if cyl_last >= 0:
+                        if first_child[cyl_last] < 0:
+                            first_child[cyl_last] = s_
+                        if same_child[cyl_last] < 0 and seg.order[cyl_last] == order:
+                            same_child[cyl_last] = s_
+                    last = s_
+                    cyl_last = s_
+                    anchor = s_
+                    n_seg += 1
+                    ax, ay, az = bx, by, bz
+            cx0, cy0, cz0, chx, chy, chz, cw0, ct0 = px, py, pz, hx, hy, hz, width, tan_out
+            if program.sign[sym] < 0:  # @Ge: the cylinder ends here
+                cyl_on = 0.0
         elif code == _ANGLE_FACTOR:
             f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle_scale)
             angle = angle * f ** program.sign[sym]
@@ -892,10 +1028,22 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             row[16] = tx
             row[17] = ty
             row[18] = tz
+            row[19] = cyl_on
+            row[20] = cx0
+            row[21] = cy0
+            row[22] = cz0
+            row[23] = chx
+            row[24] = chy
+            row[25] = chz
+            row[26] = cw0
+            row[27] = ct0
+            row[28] = tan_in
+            row[29] = tan_out
             stack_i[depth, 0] = material
             stack_i[depth, 1] = last
             stack_i[depth, 2] = anchor
             stack_i[depth, 3] = hanging
+            stack_i[depth, 4] = cyl_last
             depth += 1
             if roll_branch:  # the branch starts rolled about H; the saved state is not
                 c, s = _cos_sin(variation.roll[i])
@@ -918,10 +1066,17 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             elasticity = row[15]
             tx, ty, tz = row[16], row[17], row[18]
             bend = tx != 0.0 or ty != 0.0 or tz != 0.0
+            cyl_on = row[19]
+            cx0, cy0, cz0 = row[20], row[21], row[22]
+            chx, chy, chz = row[23], row[24], row[25]
+            cw0 = row[26]
+            ct0 = row[27]
+            tan_in, tan_out = row[28], row[29]
             material = stack_i[depth, 0]
             last = stack_i[depth, 1]
             anchor = stack_i[depth, 2]
             hanging = stack_i[depth, 3]
+            cyl_last = stack_i[depth, 4]
         elif code in (_WIDTH, _WIDTH_ADD, _WIDTH_FACTOR):
             if code == _WIDTH:
                 width = arg * width_unit if has_arg else width * width_scale

@@ -29,7 +29,7 @@ __all__ = [
     "parse_setting",
 ]
 
-BENDS = ("abop", "angle")
+BENDS = ("abop", "angle", "cpfg")
 """Values of ``TurtleOptions.bend``."""
 
 JITTER_DISTRIBUTIONS = ("uniform", "normal")
@@ -84,11 +84,15 @@ class TurtleOptions(Options):
     leaf: str = option("~", help="the leaf-instance symbol")
     tropism: tuple[float, float, float] = option((0.0, 0.0, 0.0), help="tropism vector T (ABOP 2.8), `[x, y, z]`")
     elasticity: float = option(0.0, help="before each move the frame turns by e\\|H x T\\| radians about H x T")
+    elasticity_increment: float = option(
+        0.0, help="what cpfg's `_` adds to the elasticity (the view file's `elasticity increment:`)"
+    )
     bend: str = option(
         "abop",
         choices=BENDS,
         help='how the elasticity bends: `"abop"` by e\\|H x T\\| radians (ABOP 2.8), `"angle"` by e times the '
-        "angle between H and T (PlantGL's turtle, L-Py's default)",
+        "angle between H and T (PlantGL's turtle, L-Py's default), `\"cpfg\"` after each move, H toward U by the "
+        "angle whose sine is e (T.U) and toward L by the one whose sine is e (T.L) (cpfg's view-file tropism)",
     )
     angle_jitter: float = option(0.0, low=0, help="random change of each rotation angle, up to this many degrees")
     length_jitter: float = option(0.0, low=0, help="random relative change of each step, up to this fraction")

@@ -22,6 +22,8 @@ from ...external import FileRefused, inside
 from ...turtle.commands import ENVIRONMENT_QUERY, Axis, Command, Op, Organ, queries
 from ..expr import MAX_ARRAY, ExprSyntaxError, Syntax, constant_array, parse_expression
 from ..grammar import MAX_PARAMETERS, Grammar, read_text
+from ..splines import to_table
+from . import vlab
 from .common import Dialect, Notation, fail, line_where
 from .macros import Macro, MacroError, expand, parse_definition
 
@@ -156,9 +158,55 @@ COMMANDS_CPFG = (
         Op.ORGAN,
         "s",
         1,
-        "`~c(s)`: the predefined surface `c`, scaled by `s`: an organ.",
+        "`~c(s)`: the predefined surface `c`, scaled by `s`: an organ. cpfg's `~c(sx, sy, sz)` scales it "
+        "by three factors; lsys3d by `sx` (a warning names the module).",
         organ=Organ.SURFACE,
         prefix=True,
+        ignored=("sy", "sz"),
+    ),
+    Command(
+        "_",
+        "elasticity",
+        Op.ELASTICITY_ADD,
+        "e",
+        1,
+        "Add the elasticity increment (the view file's `elasticity increment:`) to the elasticity of the "
+        "tropism (`tropism direction:`, `initial elasticity:`), or set it to `e`.",
+    ),
+    Command(
+        "@Gs",
+        "start generalized cylinder",
+        Op.CYLINDER_START,
+        "",
+        0,
+        "Start a generalized cylinder here: its first control point.",
+    ),
+    Command(
+        "@Gc",
+        "generalized cylinder point",
+        Op.CYLINDER_POINT,
+        "n",
+        1,
+        "A control point: a tube from the last one to here along cpfg's Hermite curve (the headings are its "
+        "tangents), in `n` straight pieces (default 4), its width going from the last point's to this one's.",
+    ),
+    Command(
+        "@Ge",
+        "end generalized cylinder",
+        Op.CYLINDER_POINT,
+        "n",
+        1,
+        "The last control point, as `@Gc(n)`: the cylinder ends here.",
+        sign=-1,
+    ),
+    Command(
+        "@Gt",
+        "cylinder tangents",
+        Op.CYLINDER_TANGENTS,
+        "a, b",
+        2,
+        "The factors of the tangents into (`a`) and out of (`b`, default `a`) the control points that follow "
+        "(times the distance between two points; 1.2 at first).",
     ),
     *queries("PHLU"),  # cpfg's world is lsys3d's: Y up
     ENVIRONMENT_QUERY,
@@ -166,10 +214,6 @@ COMMANDS_CPFG = (
 
 UNSUPPORTED = frozenset(
     [
-        "@Gs",
-        "@Gc",
-        "@Ge",
-        "@Gt",
         "@Gr",
         "@Tx",
         "@M",
@@ -192,7 +236,6 @@ UNSUPPORTED = frozenset(
         "@J",
         "@Tp",
         # the rest of cpfg's blackbox.c: cylinder sides, tropisms, patches, objects, bounded circles, cuts
-        "_",  # interpret.c: the elasticity of the tropism the view file sets
         "@!",
         "@Ts",
         "@Ti",
@@ -380,6 +423,10 @@ class _Reader:
     def read(self, **overrides) -> Grammar:
         path = Path(self.source)
         folder = path.parent if self.source and not self.source.startswith("<") and path.is_file() else None
+        view = vlab.read_view(path) if folder is not None else vlab.View()
+        for name, number in view.names.items():  # a function set's names: cpfg's -DNAME=NUMBER
+            self.macros.add(name)
+            self.defines[name] = float(number)
         self.preprocess(self.text, folder, None)
         fields: dict = {"dialect": "cpfg"}
         where: dict = {}
@@ -456,9 +503,9 @@ class _Reader:
                 if axiom_goes_on and not any(groups.values()) and not _KEY.match(code):
                     fields["axiom"] = f"{fields['axiom']} {code}"
                     continue
-                if code.lower() == "ring lsystem":
-                    raise self.error(number, "'ring lsystem' (cpfg's ring L-systems: the string's ends are "
-                                     "neighbours) is not supported")  # fmt: skip
+                if re.fullmatch(r"ring\s+lsystem\s*:?", code, re.IGNORECASE):  # the ends are neighbours
+                    fields["ring"] = True
+                    continue
                 raise self.error(number, f"expected a production ('predecessor --> successor'), not {clip(code, 40)!r}")
             where[(section, len(group))] = line_where(number, col)
             group.append(code)
@@ -469,6 +516,10 @@ class _Reader:
             fields.setdefault("homomorphism_depth", depth)
         fields.update(groups)
         fields["defines"] = dict(self.defines)
+        if view.functions or view.curves:
+            fields["splines"] = to_table(view.functions, view.curves)
+        if view.turtle():
+            fields["turtle"] = view.turtle()
         if folder is not None and "angle" not in overrides:
             angle, missing = _view_angle(path)
             if angle is not None:
