@@ -371,21 +371,33 @@ def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pyteste
     assert "def test_koch_counts" in long.stdout.str()
 
 
+RECORDED_IN_A_TEMPORARY_FOLDER = """
+
+def test_records_in_a_temporary_folder(tmp_path):
+    tree = lsys3d.generate("koch", iterations=1, seed=7)
+    assert_matches_golden(tree, tmp_path / "elsewhere.json")
+    assert (tmp_path / "elsewhere.json").exists()
+"""
+
+
 def test_pytest_update_lists_what_it_changed(pytester):
-    pytester.makepyfile(test_trees=EXAMPLE_TEST)
+    pytester.makepyfile(test_trees=EXAMPLE_TEST + RECORDED_IN_A_TEMPORARY_FOLDER)
     first = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
-    first.assert_outcomes(passed=1)
+    first.assert_outcomes(passed=2)
     path = pytester.path / "golden" / "koch.json"
     first.stdout.fnmatch_lines(["*= lsys3d golden files updated =*", f"updated {path}: recorded (a new golden file*"])
+    # the summary lists the project's golden files: one a test records in a temporary folder is not among them
+    assert "elsewhere.json" not in first.stdout.str()
     _, recorded = read_golden(path)
     _edit(path, lambda d: d["report"]["bark"].update(faces=d["report"]["bark"]["faces"] + 6))
     again = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
-    again.assert_outcomes(passed=1)
+    again.assert_outcomes(passed=2)
     faces = recorded["bark"]["faces"]
     again.stdout.fnmatch_lines([f"updated {path}: 1 key", f"  bark.faces: {faces + 6:,} -> {faces:,}  -6 (*%)"])
     assert read_golden(path)[1] == recorded
     quiet = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
-    assert "lsys3d golden files updated" not in quiet.stdout.str()  # nothing changed, nothing listed
+    # nothing changed in the project's golden files (the temporary one was recorded again), nothing listed
+    assert "lsys3d golden files updated" not in quiet.stdout.str()
 
 
 # ---------------------------------------------------------------- determinism across processes
