@@ -304,6 +304,7 @@ def _pytest(folder: Path, *args):
     )
 
 
+@pytest.mark.slow  # three pytest runs in subprocesses
 def test_pytest_plugin_option_records_golden_files(tmp_path):
     """The example a user copies: fails without a golden file, records it with the plugin's option."""
     (tmp_path / "test_trees.py").write_text(textwrap.dedent(EXAMPLE_TEST))
@@ -343,6 +344,7 @@ def _failure_section(lines: list[str]) -> list[str]:
     return lines[start:end]
 
 
+@pytest.mark.slow  # three pytest runs in subprocesses
 def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pytester):
     """The table first, no traceback through lsys3d's source nor a repr of the tree, at most 25 lines."""
     pytester.makepyfile(test_trees=EXAMPLE_TEST)
@@ -380,6 +382,7 @@ def test_records_in_a_temporary_folder(tmp_path):
 """
 
 
+@pytest.mark.slow  # three pytest runs in subprocesses
 def test_pytest_update_lists_what_it_changed(pytester):
     pytester.makepyfile(test_trees=EXAMPLE_TEST + RECORDED_IN_A_TEMPORARY_FOLDER)
     first = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
@@ -433,6 +436,7 @@ def _grow_in_process(folder: Path, hash_seed: str, *names: str) -> dict:
     return json.loads(done.stdout)
 
 
+@pytest.mark.slow  # two processes grow and export five grammars
 def test_same_counts_and_bytes_in_separate_processes(tmp_path):
     """Same grammar and seed: identical counts and exported bytes, whatever the hash seed, and
     whatever other grammars (one of them edited in between) the process grew before."""
