@@ -30,8 +30,9 @@ def pytest_sessionstart(session):
     runs ``pytest -n auto``) this runs in the controller before it starts the workers, so the workers load the
     kernels instead of compiling them side by side (two processes writing one kernel's cache index at once
     can point it at the other's machine code).  The default tree (a species: form, leaves) and the textbook
-    tree3d take the paths most tests take; warm, this costs about three seconds.  The two trees are shared
-    with the workers (tests/shared.py), which would otherwise each grow them again.
+    tree3d take the paths most tests take, and tree3d is written as .glb and .usdc (the writers' kernels); warm,
+    this costs about three seconds.  The two trees are shared with the workers (tests/shared.py), which would
+    otherwise each grow them again.
     """
     if hasattr(session.config, "workerinput") or session.config.option.collectonly:
         return  # an xdist worker: the controller has compiled them
@@ -46,6 +47,9 @@ def pytest_sessionstart(session):
 
     for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
         grown(preset)  # and left for the workers' tests of these presets
+    with tempfile.TemporaryDirectory(prefix="lsys3d-precompile-") as folder:
+        for suffix in (".glb", ".usdc"):  # the writers' kernels, which most CLI tests' subprocesses call
+            lsys3d.export(grown("tree3d"), os.path.join(folder, f"tree3d{suffix}"))
 
 
 def pytest_collection_modifyitems(session, config, items):
