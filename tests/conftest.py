@@ -38,18 +38,18 @@ def pytest_sessionstart(session):
         return  # an xdist worker: the controller has compiled them
     if getattr(session.config.option, "dist", "no") != "no":
         # the folder where the workers share what one of them computed (tests/shared.py), before they start
-        folder = tempfile.mkdtemp(prefix="lsys3d-tests-")
-        os.environ[shared.SHARED] = folder
-        session.config.add_cleanup(lambda: shutil.rmtree(folder, ignore_errors=True))
+        run = tempfile.mkdtemp(prefix="lsys3d-tests-")
+        os.environ[shared.SHARED] = run
+        session.config.add_cleanup(lambda: shutil.rmtree(run, ignore_errors=True))
     from grown import grown
 
     import lsys3d
 
     for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
         grown(preset)  # and left for the workers' tests of these presets
-    with tempfile.TemporaryDirectory(prefix="lsys3d-precompile-") as folder:
+    with tempfile.TemporaryDirectory(prefix="lsys3d-precompile-") as scratch:
         for suffix in (".glb", ".usdc"):  # the writers' kernels, which most CLI tests' subprocesses call
-            lsys3d.export(grown("tree3d"), os.path.join(folder, f"tree3d{suffix}"))
+            lsys3d.export(grown("tree3d"), os.path.join(scratch, f"tree3d{suffix}"))
 
 
 def pytest_collection_modifyitems(session, config, items):
