@@ -87,7 +87,7 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check .
 
 test: lint validators
-	$(BIN)/pytest -n auto
+	$(BIN)/pytest -n auto --dist worksteal
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done

@@ -41,8 +41,8 @@ log = logging.getLogger("lsys3d")
 
 _UPDATE_OPTION = "--lsys3d-update-golden"
 _update_from_pytest = False
-_updates: list[str] = []
-"""What the updates since the pytest plugin last looked changed, one text per golden file."""
+_updates: list[tuple[Path, str]] = []
+"""What the updates since the pytest plugin last looked changed: each golden file and one text for it."""
 _reported: list[str] = []
 """The updates of the whole pytest run (the controlling process's, under pytest-xdist), for its summary."""
 
@@ -138,7 +138,7 @@ def assert_matches_golden(tree, path: str | os.PathLike, *, update: bool | None 
 
 def _updated(path: Path, what: str) -> None:
     text = f"updated {path}: {what}"
-    _updates.append(text)
+    _updates.append((path, text))
     log.warning("%s", text)
 
 
@@ -196,7 +196,17 @@ def pytest_configure(config):
 def pytest_runtest_makereport(item, call):
     report = yield
     if _updates:
-        report.user_properties.append((_UPDATES_KEY, list(_updates)))
+        # the project's golden files: those a test records in a temporary folder (pytest's tmp_path, anything
+        # outside the rootdir) stay in the test's log, not in the run's summary
+        factory = getattr(item.config, "_tmp_path_factory", None)
+        temporary = factory.getbasetemp() if factory is not None else None
+        listed = [
+            text
+            for path, text in _updates
+            if _inside(path, item.config.rootpath) and not (temporary is not None and _inside(path, temporary))
+        ]
+        if listed:
+            report.user_properties.append((_UPDATES_KEY, listed))
         _updates.clear()
     excinfo = call.excinfo
     if (
@@ -206,6 +216,11 @@ def pytest_runtest_makereport(item, call):
     ):
         report.longrepr = _Failure(_test_line(item, excinfo), str(excinfo.value))
     return report
+
+
+def _inside(path: Path, root: Path) -> bool:
+    """Whether ``path`` lies in the folder ``root`` (both resolved: a symlinked temporary folder is not)."""
+    return Path(path).resolve().is_relative_to(Path(root).resolve())
 
 
 def pytest_runtest_logreport(report):

@@ -1,12 +1,16 @@
-"""A small library grown once per test session by a real batch, shared by the batch and forest tests."""
+"""A small library grown once per test run by a real batch, shared by the batch and forest tests (and the xdist
+workers)."""
 
 from __future__ import annotations
 
 import atexit
 import functools
+import os
 import shutil
 import tempfile
 from pathlib import Path
+
+from shared import SHARED, shared
 
 from lsys3d.library.batch import batch
 
@@ -54,10 +58,17 @@ def write_project(folder: Path, jobs: str = JOBS) -> Path:
 
 @functools.cache
 def _grown() -> tuple[Path, object]:
-    folder = Path(tempfile.mkdtemp(prefix="lsys3d-batch-"))
-    atexit.register(shutil.rmtree, folder, ignore_errors=True)
-    result = batch(write_project(folder), folder / "out", workers=2)
-    return folder, result
+    """The batch run once in the whole test run (its folder in the run's shared folder, tests/shared.py, which
+    the controller removes at the end), or once per process in a plain ``pytest``."""
+    run = os.environ.get(SHARED)
+
+    def grow() -> tuple[Path, object]:
+        folder = Path(tempfile.mkdtemp(prefix="lsys3d-batch-", dir=run))
+        if run is None:
+            atexit.register(shutil.rmtree, folder, ignore_errors=True)
+        return folder, batch(write_project(folder), folder / "out", workers=2)
+
+    return shared("small-library", grow)
 
 
 def small_library() -> tuple[Path, object]:

@@ -8,8 +8,11 @@ test does not set its own count.
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 
 import pytest
+import shared
 from hypothesis import settings
 
 settings.register_profile("default", derandomize=True, print_blob=True)
@@ -27,11 +30,30 @@ def pytest_sessionstart(session):
     runs ``pytest -n auto``) this runs in the controller before it starts the workers, so the workers load the
     kernels instead of compiling them side by side (two processes writing one kernel's cache index at once
     can point it at the other's machine code).  The default tree (a species: form, leaves) and the textbook
-    tree3d take the paths most tests take; warm, this costs about three seconds.
+    tree3d take the paths most tests take, and tree3d is written as .glb and .usdc (the writers' kernels); warm,
+    this costs about three seconds.  The two trees are shared with the workers (tests/shared.py), which would
+    otherwise each grow them again.
     """
     if hasattr(session.config, "workerinput") or session.config.option.collectonly:
         return  # an xdist worker: the controller has compiled them
+    if getattr(session.config.option, "dist", "no") != "no":
+        # the folder where the workers share what one of them computed (tests/shared.py), before they start
+        run = tempfile.mkdtemp(prefix="lsys3d-tests-")
+        os.environ[shared.SHARED] = run
+        session.config.add_cleanup(lambda: shutil.rmtree(run, ignore_errors=True))
+    from grown import grown
+
     import lsys3d
 
     for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
-        lsys3d.generate(lsys3d.load(preset))
+        grown(preset)  # and left for the workers' tests of these presets
+    with tempfile.TemporaryDirectory(prefix="lsys3d-precompile-") as scratch:
+        for suffix in (".glb", ".usdc"):  # the writers' kernels, which most CLI tests' subprocesses call
+            lsys3d.export(grown("tree3d"), os.path.join(scratch, f"tree3d{suffix}"))
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """The tests marked ``slow`` first (in their order), the rest after them: under pytest-xdist the long ones
+    start while the other workers work through the short ones, instead of one of them ending the run alone.
+    Every process sorts the same collection the same way, as pytest-xdist needs."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)

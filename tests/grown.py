@@ -1,8 +1,11 @@
-"""Each bundled preset grown once per test session, shared by the test modules that look at it."""
+"""Each bundled preset grown once per test run, shared by the test modules (and the xdist workers) that look at
+it (:func:`shared.shared`)."""
 
 from __future__ import annotations
 
 import functools
+
+from shared import shared
 
 import lsys3d
 from lsys3d.lsystem.presets import preset_info
@@ -11,8 +14,8 @@ from lsys3d.pipeline import generate
 
 @functools.cache
 def grown(name: str):
-    """The preset's tree at its own iterations and seed (grown on first use, then cached)."""
-    return generate(name)
+    """The preset's tree at its own iterations and seed (grown on first use in the run, then shared)."""
+    return shared(f"grown-{name}", lambda: generate(name))
 
 
 def species() -> list[str]:

@@ -273,6 +273,7 @@ def test_the_temporary_files_of_killed_writers_are_removed_usds_own_too(tmp_path
     assert sorted(p.name for p in folder.iterdir()) == sorted(kept)
 
 
+@pytest.mark.slow  # two batches in a subprocess
 def test_sigterm_stops_the_batch_and_the_same_command_resumes(tmp_path):
     jobs = write_project(
         tmp_path,

@@ -17,6 +17,10 @@ from validators import REPO, bpy_lsys3d_env, bpy_python, in_ci, require
 
 MARK = "LSYS3D-ADDON "
 
+#: One Blender session grows the module's plants (the ``addon`` fixture): slow as a whole, and its tests kept
+#: together (the ``slow`` tests run first, tests/conftest.py).
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def addon(tmp_path_factory) -> dict:
@@ -141,7 +145,6 @@ def test_export_writes_with_lsys3ds_writer(addon):
     assert addon["exported"] > 1000
 
 
-@pytest.mark.slow
 def test_the_extension_zip_installs_in_blender(tmp_path):
     """``tools/blender_extension.py`` for this platform, installed as "Install from Disk" does, registers the
     add-on from the bundled wheels (lsys3d imported from the extension's site-packages, not this checkout)."""

@@ -238,7 +238,12 @@ def _prepare(folder: Path) -> None:
 PAGES = [path for path in DOCS if doc_commands(path)]
 
 
-@pytest.mark.parametrize("page", PAGES, ids=[str(p.relative_to(REPO)) for p in PAGES])
+# the README's commands are the most (grow, export, batch, forest, check...): slow on their own
+@pytest.mark.parametrize(
+    "page",
+    [pytest.param(p, marks=[pytest.mark.slow] if p.name == "README.md" else []) for p in PAGES],
+    ids=[str(p.relative_to(REPO)) for p in PAGES],
+)
 def test_the_pages_commands_run(page, tmp_path, monkeypatch, capsys):
     _prepare(tmp_path)
     monkeypatch.chdir(tmp_path)

@@ -37,6 +37,7 @@ def server(tmp_path):
     proc.wait(timeout=60)
 
 
+@pytest.mark.slow  # an editor server and a headless Chromium
 def test_the_editor_in_chromium(server, tmp_path):
     require_browser()
     url, grammar = server

@@ -300,6 +300,7 @@ def test_a_stand_with_room_is_placed_as_without_overlap():
     assert np.array_equal(a.position, b.position) and np.array_equal(a.variant, b.variant)
 
 
+@pytest.mark.slow  # 500 trees placed by the CLI in a subprocess
 def test_the_readme_forest_command_places_500_trees(tmp_path):
     """The README's commands: a library of its jobs file (tree3d, sides 6, angle jitter 8: crowns of 6-7 m;
     two of its fifty seeds), then `lsys3d forest library/ -o forest.usdc --area 100x100 --count 500 --seed 3`:

@@ -304,6 +304,7 @@ def _pytest(folder: Path, *args):
     )
 
 
+@pytest.mark.slow  # three pytest runs in subprocesses
 def test_pytest_plugin_option_records_golden_files(tmp_path):
     """The example a user copies: fails without a golden file, records it with the plugin's option."""
     (tmp_path / "test_trees.py").write_text(textwrap.dedent(EXAMPLE_TEST))
@@ -343,6 +344,7 @@ def _failure_section(lines: list[str]) -> list[str]:
     return lines[start:end]
 
 
+@pytest.mark.slow  # three pytest runs in subprocesses
 def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pytester):
     """The table first, no traceback through lsys3d's source nor a repr of the tree, at most 25 lines."""
     pytester.makepyfile(test_trees=EXAMPLE_TEST)
@@ -371,21 +373,34 @@ def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pyteste
     assert "def test_koch_counts" in long.stdout.str()
 
 
+RECORDED_IN_A_TEMPORARY_FOLDER = """
+
+def test_records_in_a_temporary_folder(tmp_path):
+    tree = lsys3d.generate("koch", iterations=1, seed=7)
+    assert_matches_golden(tree, tmp_path / "elsewhere.json")
+    assert (tmp_path / "elsewhere.json").exists()
+"""
+
+
+@pytest.mark.slow  # three pytest runs in subprocesses
 def test_pytest_update_lists_what_it_changed(pytester):
-    pytester.makepyfile(test_trees=EXAMPLE_TEST)
+    pytester.makepyfile(test_trees=EXAMPLE_TEST + RECORDED_IN_A_TEMPORARY_FOLDER)
     first = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
-    first.assert_outcomes(passed=1)
+    first.assert_outcomes(passed=2)
     path = pytester.path / "golden" / "koch.json"
     first.stdout.fnmatch_lines(["*= lsys3d golden files updated =*", f"updated {path}: recorded (a new golden file*"])
+    # the summary lists the project's golden files: one a test records in a temporary folder is not among them
+    assert "elsewhere.json" not in first.stdout.str()
     _, recorded = read_golden(path)
     _edit(path, lambda d: d["report"]["bark"].update(faces=d["report"]["bark"]["faces"] + 6))
     again = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
-    again.assert_outcomes(passed=1)
+    again.assert_outcomes(passed=2)
     faces = recorded["bark"]["faces"]
     again.stdout.fnmatch_lines([f"updated {path}: 1 key", f"  bark.faces: {faces + 6:,} -> {faces:,}  -6 (*%)"])
     assert read_golden(path)[1] == recorded
     quiet = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
-    assert "lsys3d golden files updated" not in quiet.stdout.str()  # nothing changed, nothing listed
+    # nothing changed in the project's golden files (the temporary one was recorded again), nothing listed
+    assert "lsys3d golden files updated" not in quiet.stdout.str()
 
 
 # ---------------------------------------------------------------- determinism across processes
@@ -421,6 +436,7 @@ def _grow_in_process(folder: Path, hash_seed: str, *names: str) -> dict:
     return json.loads(done.stdout)
 
 
+@pytest.mark.slow  # two processes grow and export five grammars
 def test_same_counts_and_bytes_in_separate_processes(tmp_path):
     """Same grammar and seed: identical counts and exported bytes, whatever the hash seed, and
     whatever other grammars (one of them edited in between) the process grew before."""

@@ -884,6 +884,7 @@ def test_grammar_parsing_is_linear_in_the_number_of_rules(tmp_path):
     one_error_line(proc, "same.toml:4:10: unclosed '(' after 'F'")
 
 
+@pytest.mark.slow  # reads files of growing sizes in subprocesses
 @pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_AS")
 def test_native_readers_are_linear_in_the_size_of_the_file(tmp_path):
     """10,000 rules as L-Py one-liners and as cpfg productions, 8,000 L-Py rule bodies with ifs and a 600 KB
