@@ -21,6 +21,8 @@ import logging
 import os
 import subprocess
 import sys
+import tempfile
+import threading
 from collections.abc import Callable, Iterable, Iterator
 
 from numba.core import event
@@ -137,22 +139,28 @@ class Helper:
         self.own = tuple(own)
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # this lsys3d, not another install's
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
+        # a file, not a pipe: a helper with much to say never waits for the main process to read it
+        self._stderr = tempfile.TemporaryFile()  # noqa: SIM115 (closed by wait)
         self.process = subprocess.Popen(
             [sys.executable, "-m", module],
             env=env,
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
+            stderr=self._stderr,
         )
         self.returncode: int | None = None
+        self._lock = threading.Lock()
 
     def wait(self) -> None:
         """Wait for the process to end (at once if it has); its failure is only logged: the main process
         then compiles what it did not."""
-        if self.returncode is not None:
-            return
-        _, err = self.process.communicate()
-        self.returncode = self.process.returncode
+        with self._lock:  # (the cleanup's two threads may both get here)
+            if self.returncode is not None:
+                return
+            self.returncode = self.process.wait()
+            with self._stderr:
+                self._stderr.seek(0)
+                err = self._stderr.read()
         if self.returncode:
             tail = err.decode(errors="replace").strip().splitlines()[-1:] or [""]
             log.debug("compiling: the helper %s failed (%d): %s", self.module, self.returncode, tail[0])
@@ -198,7 +206,12 @@ def ahead(module: str, own: tuple[str, ...], entries: Iterable[CPUDispatcher]) -
     if all(is_cached(k) for k in entries):
         yield None
         return
-    helper = Helper(module, own)
+    try:
+        helper = Helper(module, own)
+    except OSError as exc:  # no process to be had: this one compiles everything, as without a helper
+        log.debug("compiling: no helper %s: %s", module, exc)
+        yield None
+        return
     gate = _Gate()
     _helpers.append(helper)
     event.register("numba:compile", gate)

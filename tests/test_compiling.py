@@ -102,6 +102,15 @@ def test_no_helper_starts_when_the_kernels_are_cached(monkeypatch):
         assert helper is None
 
 
+def test_a_failing_helper_is_waited_for_and_leaves_the_compiling_to_the_main_process():
+    kernel = _kernel("lsys3d.for_the_test.failing")
+    with compiling.ahead("lsys3d.for_the_test_no_such_module", ("lsys3d.for_the_test.failing",), [kernel]) as helper:
+        assert helper is not None and compiling._helpers == [helper]
+        assert kernel(3) == 6  # waits for the helper first (the gate), then compiles it here
+        assert helper.returncode not in (None, 0)
+    assert compiling._helpers == []
+
+
 def _no_process(*args, **kw):
     raise AssertionError("a warm run started a helper process")
 
