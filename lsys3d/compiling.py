@@ -23,6 +23,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
 
 from numba.core import event
@@ -157,7 +158,11 @@ class Helper:
         with self._lock:  # (the cleanup's two threads may both get here)
             if self.returncode is not None:
                 return
+            start = time.perf_counter()
             self.returncode = self.process.wait()
+            waited = time.perf_counter() - start
+            if waited > 0.05:
+                log.info("compiling: waited %.1f s for the helper %s", waited, self.module)
             with self._stderr:
                 self._stderr.seek(0)
                 err = self._stderr.read()
