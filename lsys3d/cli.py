@@ -436,7 +436,7 @@ def cmd_generate(args) -> int:
         return _generate_siblings(args, options, export_options)
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
-    with progress:
+    with _compiling_ahead(options), progress:
         tree = _grow(load(args.grammar), args.iterations, args.seed, options, progress)
         path = run_stage("export", export, tree, args.output, export_options, progress=progress)
     if not args.quiet and drawing:
@@ -469,7 +469,7 @@ def _generate_siblings(args, options, export_options) -> int:
     first = grammar.seed if args.seed is None else args.seed
     progress = _Progress(sys.stderr.isatty() and not args.quiet)
     t0 = time.perf_counter()
-    with progress:
+    with _compiling_ahead(options), progress:
         trees = [grow(grammar, args.iterations, first + i, options, progress) for i in range(args.variants)]
         paths = run_stage("export", export_variants, trees, args.output, export_options, progress=progress)
     if not args.quiet:
@@ -487,6 +487,18 @@ def _generate_siblings(args, options, export_options) -> int:
                 )
             _print(f"{len(paths)} files in {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def _compiling_ahead(options):
+    """On a first run, the cleanup's kernels compiled by a helper process on the other core while this one
+    derives, draws, sweeps and unions (:func:`lsys3d.compiling.ahead`); nothing when they are cached or the
+    cleanup is off."""
+    if not (options.union.enabled and options.cleanup.enabled):
+        return contextlib.nullcontext()
+    from . import compiling
+    from .mesh import precompile
+
+    return compiling.ahead(precompile.__name__, precompile.OWN, precompile.ENTRIES)
 
 
 def _grow(grammar, iterations, seed, options, progress=None):

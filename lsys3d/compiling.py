@@ -1,20 +1,35 @@
-"""Numba's compilation of lsys3d's kernels, watched.
+"""Numba's compilation of lsys3d's kernels, watched, and shared with a second process.
 
 The first run of lsys3d compiles its kernels (numba, ``cache=True``) and writes them to the ``__pycache__``
-folders beside their modules; later runs load them in a fraction of a second.  The first run takes most of
-a minute, so the command line says what it is doing meanwhile: :func:`watch` calls back on each kernel
+folders beside their modules; later runs load them in a fraction of a second.  The first run takes a while,
+so the command line says what it is doing meanwhile: :func:`watch` calls back on each kernel
 compiled, with the number compiled so far and the number of kernels of the loaded modules that have no
 cached code yet.
+
+:func:`ahead` halves the wait on two cores: while the main process derives, draws, sweeps and unions
+(compiling those stages' kernels), a helper process compiles the kernels of a later stage into the cache
+(:mod:`lsys3d.mesh.precompile`: the cleanup's), and the main process loads them from there.  No kernel is
+compiled by both at once: the helper compiles only the kernels of its own modules (:func:`only` stops it at
+any other), and the main process waits for it (:func:`wait`) before it calls into those modules, and in any
+case before it would compile one of their kernels itself.
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
+import os
+import subprocess
 import sys
-from collections.abc import Callable, Iterator
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterable, Iterator
 
 from numba.core import event
 from numba.core.registry import CPUDispatcher
+
+log = logging.getLogger("lsys3d")
 
 
 def kernels() -> list[CPUDispatcher]:
@@ -81,3 +96,138 @@ def watch(report: Callable[[int, int, str], None]) -> Iterator[None]:
         yield
     finally:
         event.unregister("numba:compile", counter)
+
+
+class ForeignKernel(RuntimeError):
+    """A helper process (:func:`only`) was about to compile a kernel that is not one of its own."""
+
+
+def _module(dispatcher) -> str:
+    return getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
+
+
+class _Only(event.Listener):
+    def __init__(self, own: tuple[str, ...]):
+        self.own = own
+
+    def on_start(self, ev: event.Event) -> None:
+        dispatcher = ev.data["dispatcher"]
+        if _own(dispatcher) and not _module(dispatcher).startswith(self.own):
+            name = f"{_module(dispatcher)}.{dispatcher.py_func.__qualname__}"
+            raise ForeignKernel(f"lsys3d.compiling.only: {name} is not a kernel of {', '.join(self.own)}")
+
+    def on_end(self, ev: event.Event) -> None:
+        pass
+
+
+@contextlib.contextmanager
+def only(own: tuple[str, ...]) -> Iterator[None]:
+    """Raise :class:`ForeignKernel` where numba would compile one of lsys3d's kernels outside the modules ``own``
+    (prefixes of module names): what a helper process of :func:`ahead` runs under."""
+    listener = _Only(tuple(own))
+    event.register("numba:compile", listener)
+    try:
+        yield
+    finally:
+        event.unregister("numba:compile", listener)
+
+
+class Helper:
+    """A process compiling the kernels of the modules ``own`` into numba's cache (see :func:`ahead`)."""
+
+    def __init__(self, module: str, own: tuple[str, ...]):
+        self.module = module
+        self.own = tuple(own)
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # this lsys3d, not another install's
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
+        # a file, not a pipe: a helper with much to say never waits for the main process to read it
+        self._stderr = tempfile.TemporaryFile()  # noqa: SIM115 (closed by wait)
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", module],
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=self._stderr,
+        )
+        self.returncode: int | None = None
+        self._lock = threading.Lock()
+
+    def wait(self) -> None:
+        """Wait for the process to end (at once if it has); its failure is only logged: the main process
+        then compiles what it did not."""
+        with self._lock:  # (the cleanup's two threads may both get here)
+            if self.returncode is not None:
+                return
+            start = time.perf_counter()
+            self.returncode = self.process.wait()
+            waited = time.perf_counter() - start
+            if waited > 0.05:
+                log.info("compiling: waited %.1f s for the helper %s", waited, self.module)
+            with self._stderr:
+                self._stderr.seek(0)
+                err = self._stderr.read()
+        if self.returncode:
+            tail = err.decode(errors="replace").strip().splitlines()[-1:] or [""]
+            log.debug("compiling: the helper %s failed (%d): %s", self.module, self.returncode, tail[0])
+
+    def covers(self, dispatcher) -> bool:
+        return _module(dispatcher).startswith(self.own)
+
+
+_helpers: list[Helper] = []
+
+
+class _Gate(event.Listener):
+    """In the main process: before compiling a kernel of a running helper's modules, wait for the helper."""
+
+    def on_start(self, ev: event.Event) -> None:
+        dispatcher = ev.data["dispatcher"]
+        for helper in list(_helpers):
+            if helper.covers(dispatcher):
+                helper.wait()
+
+    def on_end(self, ev: event.Event) -> None:
+        pass
+
+
+def wait(module: str) -> None:
+    """Wait for the helpers compiling the kernels of ``module`` (a module name): call it before calling into
+    the module, so its kernels come from the cache.  Nothing to wait for, mostly: returns at once."""
+    for helper in list(_helpers):
+        if module.startswith(helper.own):
+            helper.wait()
+
+
+@contextlib.contextmanager
+def ahead(module: str, own: tuple[str, ...], entries: Iterable[CPUDispatcher]) -> Iterator[Helper | None]:
+    """While the block runs, compile the kernels of the modules ``own`` in a helper process, ``python -m
+    module``, if any of ``entries`` (the kernels it calls first) has no cached code: on a first run only.
+
+    Yields the :class:`Helper`, or None when everything is cached.  The block must call :func:`wait` before
+    it calls into those modules; should it compile one of their kernels first, it waits for the helper
+    then (and compiles that kernel again: the lookup in the cache came before).  The helper is waited for
+    on the way out.  The results are the same with or without it: it only fills the cache.
+    """
+    if all(is_cached(k) for k in entries):
+        yield None
+        return
+    try:
+        helper = Helper(module, own)
+    except OSError as exc:  # no process to be had: this one compiles everything, as without a helper
+        log.debug("compiling: no helper %s: %s", module, exc)
+        yield None
+        return
+    gate = _Gate()
+    _helpers.append(helper)
+    event.register("numba:compile", gate)
+    try:
+        yield helper
+    except BaseException:
+        helper.process.terminate()  # (an error or ^C: its work is thrown away with the main process's)
+        raise
+    finally:
+        event.unregister("numba:compile", gate)
+        try:
+            helper.wait()
+        finally:
+            _helpers.remove(helper)

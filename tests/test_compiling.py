@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+
 import numba
 import numpy as np
+import pytest
 
 from lsys3d import compiling
 
@@ -42,3 +48,137 @@ def test_the_loaded_modules_kernels_are_found():
 
     found = compiling.kernels()
     assert kernel.run in found and len(found) == len({id(k) for k in found})
+
+
+def test_only_stops_at_a_kernel_of_another_module():
+    mine, other = _kernel("lsys3d.for_the_test.mine"), _kernel("lsys3d.for_the_test_other")
+    with compiling.only(("lsys3d.for_the_test.mine",)):
+        assert mine(2) == 4
+        with pytest.raises(compiling.ForeignKernel, match="for_the_test_other"):
+            other(2)
+    assert other(2) == 4  # outside: compiled as ever
+
+
+class _FakeHelper:
+    """Stands in for a helper process: records when it is waited for."""
+
+    def __init__(self, own, log):
+        self.own, self.log = own, log
+
+    def covers(self, dispatcher) -> bool:
+        return dispatcher.py_func.__module__.startswith(self.own)
+
+    def wait(self) -> None:
+        self.log.append("waited")
+
+
+def test_the_main_process_waits_for_the_helper_before_compiling_one_of_its_kernels(monkeypatch):
+    log = []
+    helper = _FakeHelper(("lsys3d.for_the_test.helped",), log)
+    monkeypatch.setattr(compiling, "_helpers", [helper])
+    gate = compiling._Gate()
+    helped, other = _kernel("lsys3d.for_the_test.helped"), _kernel("lsys3d.for_the_test.main")
+    with compiling.watch(lambda done, total, name: log.append(name)):
+        compiling.event.register("numba:compile", gate)
+        try:
+            other(1)
+            assert log == ["_kernel.<locals>.double"]  # not the helper's: no wait
+            helped(1)
+        finally:
+            compiling.event.unregister("numba:compile", gate)
+    assert log[1:] == ["waited", "_kernel.<locals>.double"] or log[1:] == ["_kernel.<locals>.double", "waited"]
+    compiling.wait("lsys3d.for_the_test.helped.x")  # and before calling into its modules
+    assert log[-1] == "waited"
+    compiling.wait("lsys3d.elsewhere")
+    assert log.count("waited") == 2
+
+
+def test_no_helper_starts_when_the_kernels_are_cached(monkeypatch):
+    from lsys3d.mesh import precompile
+
+    precompile.run()  # the cleanup's kernels loaded (or compiled) in this process
+    monkeypatch.setattr(compiling.subprocess, "Popen", _no_process)
+    with compiling.ahead(precompile.__name__, precompile.OWN, precompile.ENTRIES) as helper:
+        assert helper is None
+
+
+def test_a_failing_helper_is_waited_for_and_leaves_the_compiling_to_the_main_process():
+    kernel = _kernel("lsys3d.for_the_test.failing")
+    with compiling.ahead("lsys3d.for_the_test_no_such_module", ("lsys3d.for_the_test.failing",), [kernel]) as helper:
+        assert helper is not None and compiling._helpers == [helper]
+        assert kernel(3) == 6  # waits for the helper first (the gate), then compiles it here
+        assert helper.returncode not in (None, 0)
+    assert compiling._helpers == []
+
+
+def _no_process(*args, **kw):
+    raise AssertionError("a warm run started a helper process")
+
+
+_SIGNATURES = """
+import json
+import lsys3d
+from lsys3d import compiling
+from lsys3d.mesh import precompile
+
+def signatures():
+    own = [k for k in compiling.kernels() if k.py_func.__module__.startswith(precompile.OWN)]
+    return {f"{k.py_func.__module__}.{k.py_func.__qualname__}": len(k.signatures) for k in own if k.signatures}
+
+with compiling.only(precompile.OWN):
+    precompile.run()
+helped = signatures()
+lsys3d.generate(lsys3d.load(lsys3d.DEFAULT_PRESET))
+entries = sorted(f"{k.py_func.__module__}.{k.py_func.__qualname__}" for k in precompile.ENTRIES)
+print(json.dumps([helped, signatures(), entries]))
+"""
+
+
+def test_the_helper_compiles_the_signatures_the_default_trees_cleanup_asks_for():
+    """What the helper compiles is what the cleanup of the default tree calls, type for type: the tree asks
+    for no signature of the cleanup's kernels that the helper did not make, and ENTRIES are the kernels the
+    helper calls from Python (the ones the main process checks the cache for)."""
+    out = subprocess.run([sys.executable, "-c", _SIGNATURES], capture_output=True, text=True, check=True)
+    helped, after, entries = json.loads(out.stdout.splitlines()[-1])
+    assert after == helped
+    assert sorted(helped) == entries
+
+
+_FIRST_RUN = """
+import json, sys
+from numba.core import event
+from lsys3d import compiling
+
+compiled, helped = [], []
+
+class Listener(event.Listener):
+    def on_start(self, ev):
+        compiled.append(ev.data["dispatcher"].py_func.__module__)
+        helped.append(bool(compiling._helpers))
+
+    def on_end(self, ev):
+        pass
+
+event.register("numba:compile", Listener())
+from lsys3d.cli import main
+code = main(["generate", "-q", "-o", sys.argv[1]])
+print(json.dumps([code, compiled, any(helped)]))
+"""
+
+
+@pytest.mark.slow
+def test_a_first_run_compiles_the_cleanup_in_a_helper_and_writes_the_same_bytes(tmp_path):
+    """From an empty kernel cache, ``lsys3d generate`` (the default tree) starts the helper, compiles none of
+    the cleanup's kernels itself (so never one the helper compiles), and writes the bytes a warm run does."""
+    from lsys3d.mesh import precompile
+
+    cold, warm = tmp_path / "cold.glb", tmp_path / "warm.glb"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    out = subprocess.run(
+        [sys.executable, "-c", _FIRST_RUN, str(cold)], capture_output=True, text=True, check=True, env=env
+    )
+    code, compiled, helped = json.loads(out.stdout.splitlines()[-1])
+    assert code == 0 and helped
+    assert compiled and not [m for m in compiled if m.startswith(precompile.OWN)]
+    subprocess.run([sys.executable, "-m", "lsys3d", "generate", "-q", "-o", str(warm)], check=True)
+    assert cold.read_bytes() == warm.read_bytes()

@@ -49,6 +49,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import compiling
 from ..errors import GeometryError
 from ..options import Options, option
 from . import remesh
@@ -339,6 +340,7 @@ def clean_mesh(
     identity = Cleaned(bark, np.arange(len(bark.vertices)), {})
     if not opt.enabled or bark.face_source is None or not len(bark.faces) or not len(tubes):
         return identity
+    compiling.wait(remesh.__name__)  # a first run's helper compiling the kernels (lsys3d.mesh.precompile)
     with _executor(threads) as pool:
         if junctions:
             points, faces, fsrc = bark.vertices, bark.faces, bark.face_source
@@ -374,6 +376,7 @@ def clean_junctions(tubes: Tubes, junctions: Junctions, options: CleanupOptions 
     opt = CleanupOptions() if options is None else options
     if not opt.enabled or not len(junctions.faces):
         return None
+    compiling.wait(remesh.__name__)
     surface = _Surface(junctions.vertices, junctions.faces, junctions.source)
     with _executor(threads) as pool:
         cleaned = _clean_arrays(surface, tubes, opt, pool=pool, caps=junctions)
@@ -496,4 +499,5 @@ def smooth_normals(vertices: np.ndarray, faces: np.ndarray, flat: np.ndarray, po
     executor), one of its threads makes half of them (the same bits).
     """
     points, faces, flat = np.asarray(vertices, np.float64), np.asarray(faces, np.int64), np.asarray(flat, bool)
+    compiling.wait(remesh.__name__)
     return remesh.corner_normals(points, faces, flat, pool)

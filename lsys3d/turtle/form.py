@@ -324,7 +324,7 @@ def _along(parent, length, same):  # pragma: no cover - compiled
     return out
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _rotation(wx, wy, wz, r):  # pragma: no cover - compiled
     """The rotation matrix of the rotation vector ``w`` (Rodrigues), into ``r``."""
     angle = math.sqrt(wx * wx + wy * wy + wz * wz)
@@ -341,7 +341,7 @@ def _rotation(wx, wy, wz, r):  # pragma: no cover - compiled
     r[2, 0], r[2, 1], r[2, 2] = z * x * t - y * s, z * y * t + x * s, c + z * z * t
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _toward(hx, hy, hz, tx, ty, tz, rate, w):  # pragma: no cover - compiled
     """Add to rotation vector ``w`` the turn of heading ``h`` toward ``t`` by ``rate`` radians (no overshoot)."""
     if rate < 0:
@@ -356,18 +356,26 @@ def _toward(hx, hy, hz, tx, ty, tz, rate, w):  # pragma: no cover - compiled
     w[2] += cz / sn * angle
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _matvec(m, v, out):  # pragma: no cover - compiled
     for a in range(3):
         out[a] = m[a, 0] * v[0] + m[a, 1] * v[1] + m[a, 2] * v[2]
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _matmul(a, b, out):  # pragma: no cover - compiled
     """``out = a @ b`` for 3x3 matrices (``out`` may not be ``a`` or ``b``)."""
     for i in range(3):
         for j in range(3):
             out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@numba.njit(cache=True, nogil=True)
+def _copy3(a, out):  # pragma: no cover - compiled
+    """``out[:, :] = a`` for 3x3 matrices, as a loop (numba compiles a slice assignment much more slowly)."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, j]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -415,7 +423,7 @@ def _place(
                 p0[i, a] = start[s, a]
         if first:
             _matmul(cur, turn[s], tmp)
-            cur[:, :] = tmp
+            _copy3(tmp, cur)
             k *= scale[s]
         length = k * (t1[i] - t0[i]) * math.sqrt(vec[s, 0] ** 2 + vec[s, 1] ** 2 + vec[s, 2] ** 2)
         _matvec(cur, heading[s], h)
@@ -435,7 +443,7 @@ def _place(
                 _toward(h[0], h[1], h[2], h[0] / horizontal, 0.0, h[2] / horizontal, plagio[i] * length, w)
         _rotation(w[0], w[1], w[2], bend)
         _matmul(bend, cur, tmp)
-        cur[:, :] = tmp
+        _copy3(tmp, cur)
         for a in range(3):
             for b in range(3):
                 q[i, a, b] = cur[a, b]

@@ -236,12 +236,19 @@ def _add_vertex(points, n, first, x, y, z):
 def _rotate_points(points, base, start, stop):
     """Move rows ``start:stop`` to ``base`` and the rows ``base:start`` after them (a nested polygon closing)."""
     k = stop - start
-    inner = points[start:stop].copy()
+    inner = np.empty((k, 3))
+    for r in range(k):  # loops, not slices: numba compiles slice assignment slowly
+        inner[r, 0] = points[start + r, 0]
+        inner[r, 1] = points[start + r, 1]
+        inner[r, 2] = points[start + r, 2]
     for r in range(start - 1, base - 1, -1):
         points[r + k, 0] = points[r, 0]
         points[r + k, 1] = points[r, 1]
         points[r + k, 2] = points[r, 2]
-    points[base : base + k] = inner
+    for r in range(k):
+        points[base + r, 0] = inner[r, 0]
+        points[base + r, 1] = inner[r, 1]
+        points[base + r, 2] = inner[r, 2]
 
 
 @numba.njit(cache=True)
@@ -322,7 +329,11 @@ def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
     return _orthonormal(hx, hy, hz, lx, ly, lz)
 
 
-@numba.njit(cache=True, inline="always")
+# The environment's helpers below are called, not inlined as numba IR (inline="always"): inlined, numba typed and
+# lowered _steer and the samplings in it again inside run (with _rotate_points' slice assignments, which numba
+# also compiles slowly, 9 of the 25 CPU seconds the oak's turtle took to compile); called, LLVM still inlines
+# what is small.  Only grammars with an environment call them.
+@numba.njit(cache=True)
 def _sample(grid, origin, cell, x, y, z):
     """The grid's signed distance at a point: trilinear between its nodes, :data:`FAR_OUTSIDE` off the grid."""
     nx, ny, nz = grid.shape
@@ -342,7 +353,7 @@ def _sample(grid, origin, cell, x, y, z):
     return (c00 * (1 - b) + c10 * b) * (1 - c) + (c01 * (1 - b) + c11 * b) * c
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _sample_gradient(grid, origin, cell, x, y, z):
     """The grid's trilinear distance at a point and its gradient (the interpolant's own, from the same eight
     nodes); :data:`FAR_OUTSIDE` and a zero gradient off the grid."""
@@ -405,7 +416,7 @@ def _aim(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz):
     return _orthonormal(nx, ny, nz, nlx, nly, nlz)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _blocked(scene, x, y, z):
     """How far inside a solid the point is (> 0: inside an obstacle or a solid support, or outside the volume)."""
     o, cell, prm = scene.origin, scene.cell[0], scene.params
@@ -420,7 +431,7 @@ def _blocked(scene, x, y, z):
     return worst
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _worst_along(scene, px, py, pz, hx, hy, hz, length):
     """The deepest :func:`_blocked` along a segment, sampled every half cell and at its end, and that point."""
     n = min(64, 1 + int(2.0 * length / scene.cell[0]))
@@ -442,7 +453,7 @@ def _release(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz):
     return _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz, 0.5, np.bool_(True))
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging):
     """The environment's say on one segment from P of this length: the new frame, whether it is cut, and
     whether the branch now hangs.

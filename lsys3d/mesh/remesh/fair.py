@@ -228,7 +228,7 @@ def _fair_finish(he, closeness, members, start):
     return moves
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _at(p, start, slot, m, v):
     """Where vertex ``v`` was before the fairing: ``start`` for a collar vertex, else where it is."""
     j = slot[v]

@@ -10,7 +10,7 @@ from .halfedge import _leaf
 _FLAT = 1e30  # the aspect of a triangle without area
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
@@ -20,7 +20,7 @@ def _normal_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
     return _cross(bx - ax, by - ay, bz - az, cx - ax, cy - ay, cz - az)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _before(ax, ay, az, bx, by, bz):
     """Whether point ``a`` comes before ``b`` in lexicographic order (a tie-break that ignores vertex order)."""
     if ax != bx:
