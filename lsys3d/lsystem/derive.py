@@ -232,6 +232,8 @@ def derive(
         ``between(string, step) -> string``, called on the string before each step and on the last
         string (``step`` the number of steps made so far): an open L-system's environment, here the
         turtle that fills query modules (:mod:`lsys3d.turtle.query`). The string it returns goes on.
+        A ``between`` with a ``trace`` method (a :data:`Trace`) is told of every change derivation makes
+        to the string it returned, so it can re-read only what changed.
 
     Raises
     ------
@@ -295,6 +297,8 @@ def generations(
         _check_finite_start(current)
     if between is not None and trace is not None:  # its cuts and fillings are no rewriting the trace could follow
         raise DerivationError("generations: a trace cannot follow what 'between' changes in the string")
+    if between is not None:  # a between that follows the changes (to re-read only what changed) is told of them
+        trace = getattr(between, "trace", None)
     if between is not None:
         current = between(current, 0)
     yield current
