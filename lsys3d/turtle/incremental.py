@@ -172,6 +172,14 @@ def _find(positions, count, j):
 
 
 @numba.njit(cache=True, inline="always")
+def _deposit(deposits, n, px, py, pz, qx, qy, qz, area):
+    """Record an area the plant casts shade with, at the middle of P and Q."""
+    row = deposits[n]
+    row[0], row[1], row[2], row[3] = 0.5 * (px + qx), 0.5 * (py + qy), 0.5 * (pz + qz), area
+    return n + 1
+
+
+@numba.njit(cache=True, inline="always")
 def _same(a, b):
     """Equal, and the same zero (a -0.0 and a 0.0 can part ways later: atan2, copysign)."""
     return a == b and (a != 0.0 or math.copysign(1.0, a) == math.copysign(1.0, b))
@@ -198,14 +206,17 @@ def answer_pass(
     positions,
     states,
     counts,
+    deposits,
 ):
     """One pass of the turtle's state over the string: the state at each query module that may have changed,
     the segments the scene cuts, and the state before every module ``recorded`` marks (and every cut).
 
     ``origin`` (empty: the whole string) and the last pass's records (``old_positions[:old_count]``,
     ``old_states``, over ``old_symbols``) say what is known (module docstring).  Outputs: ``query_module``,
-    ``query_state`` (position, H, L, U), ``cuts``, ``positions`` and ``states`` (:data:`STATE` numbers);
-    ``counts`` = [queries, cuts, records].  Returns (status, bad module): :data:`lsys3d.turtle.kernel.MESSAGES`'
+    ``query_state`` (position, H, L, U), ``cuts``, ``positions`` and ``states`` (:data:`STATE` numbers),
+    ``deposits`` (when not empty: each segment's middle and its length x width, each leaf's place and its
+    size squared, the plant's shade of :mod:`lsys3d.turtle.shadow`); ``counts`` = [queries, cuts, records,
+    deposits].  Returns (status, bad module): :data:`lsys3d.turtle.kernel.MESSAGES`'
     codes, or :data:`FOLLOW_LOST`.
     """
     symbols, arity, offsets, params = modules
@@ -229,6 +240,8 @@ def answer_pass(
     jitter_width = variation.width.shape[0] > 0
     roll_branch = variation.roll.shape[0] > 0
     in_scene = scene.params.shape[0] > 0
+    shading = deposits.shape[0] > 0  # the plant's own shade (lsys3d.turtle.shadow): where its area is
+    n_dep = np.int64(0)
     following = origin.shape[0] > 0
 
     initial = np.empty(STATE)
@@ -395,6 +408,8 @@ def answer_pass(
                 drawn = width * variation.width[i] if jitter_width else width
                 if not drawn <= far:
                     return 10, i
+            if shading and n_poly == 0 and code == _FORWARD:
+                n_dep = _deposit(deposits, n_dep, px, py, pz, qx, qy, qz, length * width)
             px, py, pz = qx, qy, qz
         elif code == _FORWARD_STEPS:
             dlength = params[offsets[i] + 1]
@@ -420,6 +435,8 @@ def answer_pass(
                     drawn = width * variation.width[i] if jitter_width else width
                     if not drawn <= far:
                         return 10, i
+                if shading and n_poly == 0:
+                    n_dep = _deposit(deposits, n_dep, px, py, pz, qx, qy, qz, length * width)
                 px, py, pz = qx, qy, qz
                 if taper:
                     width = w0 + dw * dlength * (k + 1) if k < whole else w1
@@ -555,6 +572,8 @@ def answer_pass(
             size = arg if has_arg else step
             if not (0.0 <= size <= far):
                 return 9, i
+            if shading:
+                n_dep = _deposit(deposits, n_dep, px, py, pz, px, py, pz, size * size)
         elif code == _ORGAN:
             kind = program.organ[sym]
             if kind in (_SURFACE, _INSTANCE):
@@ -567,6 +586,7 @@ def answer_pass(
     counts[0] = n_query
     counts[1] = n_cut
     counts[2] = n_rec
+    counts[3] = n_dep
     if running and n_poly > 0:
         if poly_open[n_poly - 1] < 0:  # opened before the change: a pass over the whole string names it
             return FOLLOW_LOST, m

@@ -40,6 +40,7 @@ from .interpret import (
 )
 from .kernel import FAR_OUTSIDE
 from .options import TurtleOptions
+from .shadow import shade
 
 __all__ = ["Answerer", "answer", "asks_turtle", "derive_answering"]
 
@@ -85,7 +86,9 @@ class Answerer:
         self.grammar = grammar
         o = self.turtle
         varied = o.angle_jitter > 0 or o.length_jitter > 0 or o.width_jitter > 0 or o.branch_roll > 0
-        self.follow = grammar is not None and not varied  # the natural variation's numbers follow the index
+        # the natural variation's numbers follow the index; the plant's shade changes every answer
+        self.shading = environment is not None and environment.options.shadow
+        self.follow = grammar is not None and not varied and not self.shading
         self._tables: dict = {}
         self._table = None  # the symbol table of the last pass
         # origin[i]: the index, in the last pass's string, of the module i copies (-1: produced since);
@@ -148,21 +151,23 @@ class Answerer:
         found = self._pass(*args, origin, records)
         if found is None:  # a change the records cannot follow: the whole string
             found = self._pass(*args, _WHOLE, None)
-        query_module, query_state, cut, positions, states = found
-        out, origin = _written(modules, table, query_module, query_state, cut, self.environment)
+        query_module, query_state, cut, positions, states, deposits = found
+        out, origin = _written(modules, table, query_module, query_state, cut, self.environment, deposits)
         self._records = (modules.symbols, positions, states) if follow else None
         self.origin = origin if follow else None
         return out
 
     def _pass(self, modules, table, program, arrays, max_depth, variation, recorded, counts, origin, records):
-        m = len(modules)
         n_query = int(counts[Op.QUERY])
         query_module = np.empty(n_query, np.int64)
         query_state = np.empty((n_query, 12))
         cut = np.empty(int(counts[Op.FORWARD]) if self.environment is not None else 0, np.int64)
-        positions = np.empty(m, np.int64)
-        states = np.empty((m, incremental.STATE))
-        found = np.zeros(3, np.int64)
+        n_records = int(np.count_nonzero(recorded[modules.symbols])) + len(cut)  # rewritable modules, cut segments
+        positions = np.empty(n_records, np.int64)
+        states = np.empty((n_records, incremental.STATE))
+        found = np.zeros(4, np.int64)
+        n_area = int(counts[Op.FORWARD] + counts[Op.LEAF]) if self.shading else 0
+        deposits = np.empty((n_area, 4))
         if records is None:
             old_symbols, old_positions, old_states = modules.symbols[:0], _WHOLE, states[:0]
         else:
@@ -187,22 +192,33 @@ class Answerer:
             positions,
             states,
             found,
+            deposits,
         )
         if status == incremental.FOLLOW_LOST:
             return None
         if status != kernel.OK:
             raise module_error(modules, table, int(bad), kernel.MESSAGES[status])
-        n_query, n_cut, n_rec = (int(c) for c in found)
-        return query_module[:n_query], query_state[:n_query], cut[:n_cut], positions[:n_rec], states[:n_rec]
+        n_query, n_cut, n_rec, n_dep = (int(c) for c in found)
+        return (
+            query_module[:n_query],
+            query_state[:n_query],
+            cut[:n_cut],
+            positions[:n_rec],
+            states[:n_rec],
+            deposits[:n_dep] if self.shading else None,
+        )
 
 
 def _removes_polygons(table: SymbolTable, symbols: np.ndarray, keep: np.ndarray) -> bool:
     return bool(np.isin(table.op[symbols[~keep]], _POLYGON_OPS).any())
 
 
-def _written(modules, table, query_module, query_state, cut, environment) -> tuple[ModuleString, np.ndarray | None]:
+def _written(
+    modules, table, query_module, query_state, cut, environment, deposits=None
+) -> tuple[ModuleString, np.ndarray | None]:
     """The string with the answers written and the cut branches removed, and where its modules came from
-    (:attr:`Answerer.origin`: empty when no module was removed; -1 for a bud; None when a polygon was cut)."""
+    (:attr:`Answerer.origin`: empty when no module was removed; -1 for a bud; None when a polygon was cut).
+    With ``deposits`` (the plant's area, :mod:`lsys3d.turtle.shadow`), ``?E``'s light is shaded by it."""
     params = modules.params
     if len(query_module):
         params = params.copy()
@@ -216,6 +232,8 @@ def _written(modules, table, query_module, query_state, cut, environment) -> tup
             if cmd.query == "E":
                 if environment is not None:
                     values = environment.probe(state[:, :3])
+                    if deposits is not None:
+                        values[:, 2] *= shade(deposits, state[:, :3], environment.options)
                 else:  # nothing blocks, no surface near, full light
                     values = np.tile([0.0, FAR_OUTSIDE, 1.0], (len(state), 1))
                 slots = (0, 1, 2)
