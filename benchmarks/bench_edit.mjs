@@ -2,13 +2,10 @@
 // into the grammar N times (changing the define lr), each after the previous edit's union is shown, and reads
 // the page's own timings (the input event to the frame that draws the soup, then the union).
 // usage: node benchmarks/bench_edit.mjs URL EDITS CHROMIUM ARGS_JSON
-import { createRequire } from 'node:module';
-import path from 'node:path';
+import { launch } from '../tools/chromium.mjs';
 
-const require = createRequire(path.join(process.cwd(), 'node_modules/'));
-const { chromium } = require('playwright-core');
 const [url, edits, executablePath, argsJson] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath, args: JSON.parse(argsJson) });
+const browser = await launch(executablePath, argsJson);
 const out = { soup: [], full: [], soupFetched: [], soupWorker: [], burst: [] };
 try {
   const page = await browser.newPage({ viewport: { width: 1280, height: 800 } });

@@ -1,12 +1,9 @@
 // The picture of docs/edit.md: the editor on tree3d with an angle jitter, its seed variants, and a bad rule's
 // inline error (docs/make_edit_screenshot.py runs it). usage: node docs/edit_screenshot.mjs URL OUT.png CHROMIUM ARGS_JSON
-import { createRequire } from 'node:module';
-import path from 'node:path';
+import { launch } from '../tools/chromium.mjs';
 
-const require = createRequire(path.join(process.cwd(), 'node_modules/'));
-const { chromium } = require('playwright-core');
 const [url, out, executablePath, argsJson] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath, args: JSON.parse(argsJson) });
+const browser = await launch(executablePath, argsJson);
 try {
   const page = await browser.newPage({ viewport: { width: 1400, height: 860 } });
   const settled = () =>

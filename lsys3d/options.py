@@ -209,6 +209,59 @@ def _in_range(x, spec: Spec, where: str):
         raise OptionsError(f"{where}: must be {spec.range_text()}, not {shown}")
 
 
+def merge_table(cls, table: Mapping, options, error, *, keys=None, as_tuple=()):
+    """Options ``cls`` from a grammar's table, with ``options``' non-default fields over it.
+
+    The one way a grammar's table of settings (``[form]``, ``[leaves]``,
+    ``[environment]``) meets the options that the CLI and the API set.
+
+    Parameters
+    ----------
+    cls : type
+        A frozen options dataclass whose fields are declared with :func:`option`.
+    table : mapping
+        The grammar's table, key -> value as TOML gave them.
+    options : cls
+        Its fields that differ from ``cls()``'s win over the table.
+    error : callable
+        ``error(key, what)`` -> the exception to raise for a bad entry
+        (:func:`lsys3d.lsystem.locations.table_error`, at the key's line).
+    keys : collection of str, optional
+        The fields a table may set (default: all).
+    as_tuple : collection of str
+        Fields that hold a tuple, where the table may write one value.
+
+    Raises
+    ------
+    Exception
+        ``error(key, what)`` for an unknown key, a bad value, or a check across
+        fields that names a key of the table; an :class:`OptionsError` that names
+        no key of the table (it came from ``options``) is raised as it is.
+    """
+    specs = {f.name: spec_of(f) for f in fields(cls) if keys is None or f.name in keys}
+    values: dict = {}
+    for key, value in table.items():
+        if key not in specs:
+            raise error(key, f"unknown key {clip(repr(key))} (known keys: {', '.join(sorted(specs))})")
+        if key in as_tuple and isinstance(value, (int, float, str)) and not isinstance(value, bool):
+            value = (value,)
+        try:
+            values[key] = check_value(specs[key], value, key)
+        except OptionsError as exc:
+            raise error(key, str(exc)) from None
+    defaults = cls()
+    values.update(
+        {f.name: getattr(options, f.name) for f in fields(cls) if getattr(options, f.name) != getattr(defaults, f.name)}
+    )
+    try:
+        return cls(**values)
+    except OptionsError as exc:  # a check across fields: at the key it names, when the table wrote it
+        m = re.match(rf"{cls.__name__}\.(\w+)", str(exc))
+        if m is None or m.group(1) not in table:
+            raise
+        raise error(m.group(1), str(exc)) from None
+
+
 def check_value(spec: Spec, value, where: str):
     """The normalised value of a setting, or :class:`OptionsError` ``where: what``.
 

@@ -143,7 +143,7 @@ def grammar_text(grammar) -> str:
     lines.append(f"angle = {grammar.angle!r}")
     lines.append(f"seed = {grammar.seed}")
     if grammar.defines:
-        lines.append("defines = { " + ", ".join(f"{k} = {v!r}" for k, v in grammar.defines.items()) + " }")
+        lines.append("defines = { " + ", ".join(f"{k} = {_define(v)}" for k, v in grammar.defines.items()) + " }")
     for key in ("modules", "functions", "rules", "homomorphism", "decomposition"):
         values = getattr(grammar, key)
         if values or key == "rules":
@@ -156,6 +156,11 @@ def grammar_text(grammar) -> str:
             lines.append(f"[{table}]")
             lines.extend(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in getattr(grammar, table).items())
     return "\n".join(lines) + "\n"
+
+
+def _define(value) -> str:
+    """A define's TOML value: a number, or a constant array as nested lists."""
+    return _toml_value(value.tolist()) if hasattr(value, "tolist") else repr(value)
 
 
 def _toml_key(key) -> str:

@@ -1,13 +1,11 @@
 // The editor in headless Chromium (tests/test_edit_browser.py): type, see the tree change, an inline error on
 // its line, a slider, export a .glb, save and reload. Prints one JSON object of what it saw.
 // usage: node tests/edit_browser.mjs URL OUTDIR CHROMIUM ARGS_JSON
-import { createRequire } from 'node:module';
 import path from 'node:path';
+import { launch } from '../tools/chromium.mjs';
 
-const require = createRequire(path.join(process.cwd(), 'node_modules/'));
-const { chromium } = require('playwright-core');
 const [url, outdir, executablePath, argsJson] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath, args: JSON.parse(argsJson) });
+const browser = await launch(executablePath, argsJson);
 const out = { errors: [] };
 try {
   const page = await browser.newPage({ viewport: { width: 1280, height: 800 }, acceptDownloads: true });

@@ -1,14 +1,11 @@
 // Opens an HTML file holding lsys3d's notebook viewer (Tree._repr_html_) in headless Chromium, offline, and prints
 // the triangles it draws and whether it asked the network for anything (tests/test_notebook.py).
 // usage: node tests/notebook_view.mjs FILE CHROMIUM ARGS_JSON
-import { createRequire } from 'node:module';
-import path from 'node:path';
 import { pathToFileURL } from 'node:url';
+import { launch } from '../tools/chromium.mjs';
 
-const require = createRequire(path.join(process.cwd(), 'node_modules/'));
-const { chromium } = require('playwright-core');
 const [file, executablePath, argsJson] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath, args: JSON.parse(argsJson) });
+const browser = await launch(executablePath, argsJson);
 const out = { errors: [], requests: [] };
 try {
   const page = await browser.newPage({ viewport: { width: 900, height: 700 } });

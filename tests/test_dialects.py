@@ -61,7 +61,9 @@ CPFG = {
     "\\": (Op.ROTATE, H, -1), "/": (Op.ROTATE, H, +1), "|": Op.TURN_AROUND, "@v": Op.ROLL_HORIZONTAL,
     "[": Op.PUSH, "]": Op.POP, "{": Op.POLYGON_BEGIN, ".": Op.POLYGON_VERTEX, "}": Op.POLYGON_END,
     ";": Op.MATERIAL, ",": Op.MATERIAL, "#": Op.WIDTH_ADD, "!": Op.WIDTH_ADD, "@O": Op.ORGAN, "@c": Op.ORGAN,
-    "@o": Op.ORGAN, "~l": Op.ORGAN, "$": Op.ROLL_HORIZONTAL,
+    "@o": Op.ORGAN, "~l": Op.ORGAN,
+    # cpfg's interpret.c (vlab): '?' stacks a sub-L-system's scale and '$' unstacks it; '$' does not roll
+    "?": (Op.SUB_LSYSTEM, Axis.NONE, +1), "$": (Op.SUB_LSYSTEM, Axis.NONE, -1),
     # query and communication modules (Mech and Prusinkiewicz 1996; the cpfg manual's environment section)
     "?P": Op.QUERY, "?H": Op.QUERY, "?L": Op.QUERY, "?U": Op.QUERY, "?E": Op.QUERY,
 }  # fmt: skip
@@ -413,8 +415,9 @@ endlsystem
     assert str(lsys3d.derive(g)) == "F(2)[+F(4)[+A(4)]A(4)]F(4)[+A(4)]A(4)"
     for text, message in [
         ('#include "../x.h"\n', "only files in the grammar's own folder"),
-        ("#define F(x) x\n", "macros with parameters are not supported"),
-        ("Lsystem: 1\naxiom: A\nendlsystem\nLsystem: 2\n", "more than one Lsystem"),
+        ("#define F(x) x\naxiom: F(1,2)\n", "macro F(...) takes 1 arguments, not 2"),
+        ("#define F(x) x\naxiom: F(1\n", "the arguments of macro F(...) are not closed on the line"),
+        ("Lsystem: 1\naxiom: A\nendlsystem\nLsystem: 2\nStart: {n = 0;}\n", "Start: in a sub-L-system (lsystem: 2)"),
         ("#ifdef X\naxiom: A\n", "#if or #ifdef without #endif"),
         ("Lsystem: 1\nStart: {x[1] = 1;}\naxiom: A\n", "Start: block: arrays ('x[...]') are not supported"),
         ("Lsystem: 1\naxiom: A\nA == B\n", "expected a production"),

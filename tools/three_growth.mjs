@@ -6,10 +6,10 @@
 // with three.js from node_modules/three).  The page loads the .glb with GLTFLoader, plays the animation named
 // "growth" on an AnimationMixer, steps it to each time the page asks for, and reads every skinned mesh's
 // vertices with SkinnedMesh.getVertexPosition (three.js's own skinning, on the CPU).  Prints one JSON line.
-import { chromium } from "playwright-core";
+import { launch } from "./chromium.mjs";
 
 const [url, executablePath, argsJson] = process.argv.slice(2);
-const browser = await chromium.launch({ executablePath, args: JSON.parse(argsJson || "[]"), headless: true });
+const browser = await launch(executablePath, argsJson);
 try {
   const page = await browser.newPage();
   const errors = [];

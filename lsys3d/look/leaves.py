@@ -24,19 +24,19 @@ normal (leaves are flat), ``uv`` maps the leaf's box onto [0, 1] x [0, 1].
 
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
+from functools import partial
 
 import manifold3d
 import numpy as np
 
 from ..arrays import unique
-from ..errors import GeometryError, GrammarError, LimitError, OptionsError, clip
-from ..lsystem.grammar import table_key_line
+from ..errors import GeometryError, LimitError, OptionsError
+from ..lsystem.grammar import table_error
 from ..mesh.mesh import Mesh
 from ..mesh.sweep import DEFAULT_MAX_TRIANGLES
-from ..options import Options, check_value, option, spec_of
+from ..options import Options, merge_table, option
 from ..turtle.hierarchy import Hierarchy
 from ..turtle.skeleton import MAX_COORDINATE, Skeleton
 from .attributes import KEYS, branch_values
@@ -149,33 +149,7 @@ class LeafOptions(Options):
         table = dict(getattr(grammar, "leaves", {}) or {})
         if not table:
             return options
-        specs = {f.name: spec_of(f) for f in fields(cls)}
-        values = {}
-        for key, value in table.items():
-            if key not in specs:
-                known = ", ".join(sorted(specs))
-                raise _leaves_error(grammar, key, f"unknown key {clip(repr(key))} (known keys: {known})")
-            try:
-                values[key] = check_value(specs[key], value, key)
-            except OptionsError as exc:
-                raise _leaves_error(grammar, key, str(exc)) from None
-        defaults = cls()
-        values.update({f: getattr(options, f) for f in specs if getattr(options, f) != getattr(defaults, f)})
-        try:
-            return cls(**values)
-        except OptionsError as exc:
-            m = re.match(r"LeafOptions\.(\w+)", str(exc))
-            raise _leaves_error(grammar, m.group(1) if m else "", str(exc)) from None
-
-
-def _leaves_error(grammar, key: str, what: str) -> GrammarError:
-    text = getattr(grammar, "text", None)
-    line = table_key_line(text, "leaves", key) if text else None
-    col = None
-    if line:
-        written = text.splitlines()[line - 1]
-        col = len(written) - len(written.lstrip()) + 1  # where the key (or the table's header) starts
-    return GrammarError(f"[leaves] {what}", grammar.source, line, col)
+        return merge_table(cls, table, options, partial(table_error, grammar, "leaves"))
 
 
 @dataclass(frozen=True, eq=False)

@@ -49,10 +49,10 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from ..errors import AssetError, GrammarError, OptionsError, clip
+from ..errors import AssetError, OptionsError, clip
 from ..external import grammar_folder, resolve
 from ..images import Image, read_image
-from ..lsystem.grammar import table_key_line
+from ..lsystem.grammar import table_error
 from .attributes import nearest_branch
 from .textures import KINDS, MAX_RESOLUTION, MIN_RESOLUTION, procedural
 
@@ -322,8 +322,7 @@ def material_table(grammar) -> MaterialTable:
                     f"not {clip(repr(key))}"
                 )
         except OptionsError as exc:
-            line = table_key_line(grammar.text, "materials", str(key)) if grammar.text else None
-            raise GrammarError(f"[materials] {exc}", grammar.source, line, 1 if line else None) from None
+            raise table_error(grammar, "materials", str(key), str(exc)) from None
     return MaterialTable(bark, leaf, by_index)
 
 

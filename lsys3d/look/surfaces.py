@@ -53,10 +53,10 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ..errors import AssetError, GrammarError, OptionsError, clip
+from ..errors import AssetError, OptionsError, clip
 from ..external import grammar_folder, load_scene, read_file, resolve
 from ..images import Image, read_image
-from ..lsystem.grammar import table_key_line
+from ..lsystem.grammar import table_error
 from ..mesh.mesh import Mesh
 from .materials import Material, MaterialTable
 
@@ -312,8 +312,7 @@ def surface_table(grammar) -> SurfaceTable:
                 raise OptionsError(f"{where}: a surface's name is a letter or _ then letters, digits, _ . -")
             out[key] = _surface(key, entry, folder, where)
         except OptionsError as exc:
-            line = table_key_line(grammar.text, "surfaces", str(key)) if grammar.text else None
-            raise GrammarError(f"[surfaces] {exc}", grammar.source, line, 1 if line else None) from None
+            raise table_error(grammar, "surfaces", str(key), str(exc)) from None
     log.info("surfaces: %s", ", ".join(f"{k} ({len(s.mesh.faces)} triangles)" for k, s in out.items()))
     return SurfaceTable(out)
 

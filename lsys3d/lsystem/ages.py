@@ -56,10 +56,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import GrammarError, clip
+from ..errors import clip
 from .derive import CUT, DEFAULT_MAX_MODULES, PRODUCTION, generations, interpretation
 from .grammar import Grammar
-from .locations import table_key_line
+from .locations import table_error
 from .modules import ModuleString
 
 __all__ = [
@@ -151,21 +151,19 @@ class GrowthTable:
         return terminal, initial, duration, function
 
 
-def _error(grammar: Grammar, key: str, what: str) -> GrammarError:
-    line = table_key_line(grammar.text, "growth", key) if grammar.text else None
-    return GrammarError(f"[growth] {what}", grammar.source, line, 1 if line else None)
-
-
 def _number(grammar: Grammar, where: str, value, low: float, key: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < low:
-        raise _error(grammar, key, f"{where}: must be a number >= {low:g}, not {clip(repr(value))}")
+        raise table_error(grammar, "growth", key, f"{where}: must be a number >= {low:g}, not {clip(repr(value))}")
     return float(value)
 
 
 def _function(grammar: Grammar, where: str, value, key: str) -> str:
     if value not in FUNCTIONS:
-        raise _error(
-            grammar, key, f"{where}: unknown growth function {clip(repr(value))} (known: {', '.join(FUNCTIONS)})"
+        raise table_error(
+            grammar,
+            "growth",
+            key,
+            f"{where}: unknown growth function {clip(repr(value))} (known: {', '.join(FUNCTIONS)})",
         )
     return value
 
@@ -197,16 +195,20 @@ def growth_table(grammar: Grammar) -> GrowthTable:
     for symbol, entry in raw.items():
         if not isinstance(entry, dict):
             known = ", ".join(_TOP_KEYS)
-            raise _error(
+            raise table_error(
                 grammar,
+                "growth",
                 symbol,
                 f"{clip(repr(symbol))}: a symbol's entry is a table, e.g. "
                 f"{symbol} = {{ terminal_age = 1 }} (the table's own keys: {known})",
             )
         unknown = sorted(set(entry) - set(_SYMBOL_KEYS))
         if unknown:
-            raise _error(
-                grammar, symbol, f"{symbol}: unknown key {clip(repr(unknown[0]))} (known: {', '.join(_SYMBOL_KEYS)})"
+            raise table_error(
+                grammar,
+                "growth",
+                symbol,
+                f"{symbol}: unknown key {clip(repr(unknown[0]))} (known: {', '.join(_SYMBOL_KEYS)})",
             )
         where = f"{symbol}."
         terminal = _number(

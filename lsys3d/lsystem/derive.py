@@ -50,7 +50,7 @@ import numpy as np
 from ..arrays import ranges
 from ..errors import DerivationError, LimitError, clip
 from ..streams import Stream, hashed_uniform, rule_generator
-from . import dialects
+from . import dialects, sequences
 from .expr import NOT_FINITE, STEP, EvalError, RandomDraws
 from .grammar import Grammar, PatternModule, Production
 from .modules import ModuleString
@@ -96,6 +96,8 @@ class _Pool:
     alternatives: list[Production]
     cumulative: np.ndarray | None = None  # cumulative weights when stochastic
     steps: tuple = ()  # a condition with local variables: ("let", name, expr) and ("test", expr)
+    following: tuple = ()  # the rest of a predecessor of several modules (cpfg: lsystem.sequences)
+    lsystem: int = -1  # the sub-L-system whose modules the rules rewrite (cpfg's ?(n) ... $), -1: the main one
 
 
 class _Plan:
@@ -130,6 +132,8 @@ class _Plan:
                     prod.condition,
                     [],
                     steps=prod.steps,
+                    following=prod.following,
+                    lsystem=prod.lsystem,
                 )
                 pools[key] = pool
                 self.pools_by_code.setdefault(code, []).append(pool)
@@ -143,12 +147,17 @@ class _Plan:
         self.random = any(p.random for p in productions)
         self.stochastic = self.random or any(p.cumulative is not None for p in pools.values())
         self.context = any(p.left or p.right for p in pools.values())
+        self.sequences = any(p.following for p in pools.values())
+        # cpfg's sub-L-systems: which L-system's rules rewrite a module depends on the ?(n) and $ before it
+        self.lsystems = grammar.lsystem_main >= 0
         cut = grammar.cut_symbol
         self.cut = self.code[cut] if cut and cut in grammar.written_symbols else -1
         # every module's successor length is known from its symbol and arity alone (and no cut or
         # decomposition changes it afterwards)
         self.predictable = (
             not self.context
+            and not self.sequences
+            and not self.lsystems
             and self.cut < 0
             and not grammar.decomposition_productions
             and all(p.cumulative is None and p.condition is None and not p.steps for p in pools.values())
@@ -722,6 +731,9 @@ class _Context:
         self.m = len(ms)
         self.code = plan.code
         self.left_of, self.right_of, self.kept, self.close = _skip_tables(ms.symbols, ignored)
+        # cpfg: ']' in a right context is the next ']' (past ignored symbols and whole branches), and '=' skips
+        # the rest of the branch up to it (RconDiff); elsewhere ']' alone skips the rest of the branch
+        self.skip = dialects.get(plan.grammar.dialect).notation.branch_skip
 
     def _bind(self, j: np.ndarray, ok: np.ndarray, pm: PatternModule, values: list) -> None:
         """Narrow ``ok`` to the candidates whose module ``j`` is ``pm``; append its parameters to ``values``."""
@@ -759,9 +771,14 @@ class _Context:
             if pm.symbol == "[":  # a branch starts here (ignored symbols before it skipped)
                 j = self.kept[j]
                 ok &= (j < m) & (self.ms.symbols[np.minimum(j, m - 1)] == _OPEN)
-            elif pm.symbol == "]":  # the rest of the current branch is skipped
+            elif pm.symbol == "]" and self.skip:  # cpfg: the next module, past branches, is the ']'
+                j = self.right_of[j]
+                ok &= (j < m) & (self.ms.symbols[np.minimum(j, m - 1)] == _CLOSE)
+            elif pm.symbol == "]" or (self.skip and pm.symbol == self.skip):  # the rest of the branch skipped
                 j = self.close[j]
                 ok &= j < m
+                if pm.symbol != "]":  # cpfg's '=': the ']' that follows it in the pattern is this one
+                    j = j - 1
             else:
                 j = self.right_of[j]
                 ok &= j < m  # the end of the string, or of a branch, has no right context
@@ -838,6 +855,11 @@ def _step(
     chosen: list[tuple[Production, np.ndarray, dict, _Draws]] = []
     context = _Context(plan, ms) if plan.context else None
     during = _during(keys)
+    active = None
+    if plan.lsystems:
+        main = plan.grammar.lsystem_main
+        codes = plan.code.get("?", -1), plan.code.get("$", -1)
+        active = sequences.active_lsystems(ms, *codes, main, plan.grammar.lsystem_numbers)
 
     for code, pools in plan.pools_by_code.items():
         remaining = np.flatnonzero(sym == code)
@@ -847,16 +869,21 @@ def _step(
             if not len(remaining):
                 break
             sel = remaining[ms.arity[remaining] == pool.arity]
+            if active is not None:
+                sel = sel[active[sel] == (pool.lsystem if pool.lsystem >= 0 else plan.grammar.lsystem_main)]
+            if pool.following:
+                sel = sel[sequences.follows(ms, sel, pool.following, plan.code)]
             if not len(sel):
                 continue
             prod0 = pool.alternatives[0]
             env: dict[str, np.ndarray | float] = {STEP: float(step_number), **(variables or {})}
+            last = sel + len(pool.following)  # the predecessor's last module: the right context follows it
             if pool.left or pool.right:
                 keep = np.ones(len(sel), np.bool_)
                 values: list[np.ndarray] = []
-                for side, pattern in ((context.left, pool.left), (context.right, pool.right)):
+                for side, pattern, at in ((context.left, pool.left, sel), (context.right, pool.right, last)):
                     if pattern:
-                        ok, found = side(sel, pattern)
+                        ok, found = side(at, pattern)
                         keep &= ok
                         values += found
                 names = [n for pm in (*pool.left, *pool.right) for n in pm.formals]
@@ -868,6 +895,9 @@ def _step(
                 base = offsets[sel]
                 for c, name in enumerate(prod0.predecessor.formals):
                     env[name] = params[base + c]
+            if pool.following:
+                names = [n for pm in pool.following for n in pm.formals]
+                env.update(zip(names, sequences.following_values(ms, sel, pool.following), strict=True))
             draws = _Draws(seed, keys, sel)
             if pool.condition is not None:
                 try:
@@ -910,6 +940,11 @@ def _step(
 
     out_len = np.ones(m, dtype=np.int64)
     out_arity = ms.arity.astype(np.int64)
+    if plan.sequences:  # the modules matches of several modules consume: they become nothing
+        chosen, consumed = _consume(chosen, m)
+        matched[consumed] = True
+        out_len[consumed] = 0
+        out_arity[consumed] = 0
     for prod, idx, _, _ in chosen:
         out_len[idx] = len(prod.successor)
         out_arity[idx] = sum(len(s.args) for s in prod.successor)
@@ -976,6 +1011,25 @@ def _copy_unmatched(matched, sym, arity, offsets, params, mod_off, par_off, new_
         dst = par_off[i]
         for c in range(arity[i]):
             new_params[dst + c] = params[src + c]
+
+
+def _consume(chosen: list, m: int) -> tuple[list, np.ndarray]:
+    """The matches that stand after cpfg's left-to-right walk (:func:`sequences.resolve_overlaps`), and the
+    modules the matches of several modules consume (no rule rewrites those on their own)."""
+    multi = [(idx, len(prod.following) + 1) for prod, idx, _, _ in chosen if prod.following]
+    if not multi:
+        return chosen, np.zeros(m, np.bool_)
+    starts = np.concatenate([idx for idx, _ in multi])
+    lengths = np.concatenate([np.full(len(idx), k, np.int64) for idx, k in multi])
+    consumed = sequences.resolve_overlaps(m, starts, lengths)
+    kept = []
+    for prod, idx, env, draws in chosen:
+        ok = ~consumed[idx]
+        if ok.all():
+            kept.append((prod, idx, env, draws))
+        elif ok.any():
+            kept.append((prod, idx[ok], _subset(env, ok), draws.subset(np.flatnonzero(ok))))
+    return kept, consumed
 
 
 def _not_finite(chosen, ms: ModuleString, new_params, par_off, during: str) -> DerivationError:

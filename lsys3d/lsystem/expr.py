@@ -38,6 +38,7 @@ import numpy as np
 __all__ = [
     "CONSTANTS",
     "FUNCTIONS",
+    "MAX_ARRAY",
     "RANDOM_FUNCTIONS",
     "STEP",
     "EvalError",
@@ -46,6 +47,8 @@ __all__ = [
     "Function",
     "RandomDraws",
     "Syntax",
+    "Table",
+    "constant_array",
     "parse_expression",
 ]
 
@@ -393,6 +396,60 @@ def _random(node: Expr, scope: _Scope):
     return args[0] + args[1] * z
 
 
+MAX_ARRAY = 100_000
+"""Most elements one constant array (cpfg's ``array``, a define that is a list) may hold."""
+
+
+class Table:
+    """A constant array an expression indexes (``a[i][j]``), held by identity: its node stays hashable."""
+
+    __slots__ = ("values",)
+
+    def __init__(self, values: np.ndarray):
+        self.values = values
+
+    def __repr__(self) -> str:
+        return f"Table(shape={self.values.shape})"
+
+
+def constant_array(value, what: str = "array") -> np.ndarray:
+    """``value`` (nested lists of numbers, or an array) as a read-only float64 array, checked.
+
+    Raises ValueError when it is not rectangular, holds something that is not a finite number, has more than
+    8 dimensions or more than :data:`MAX_ARRAY` elements.
+
+    >>> constant_array([[1, 2], [3, 4]]).shape
+    (2, 2)
+    """
+    try:
+        array = np.array(value, dtype=np.float64)
+    except (ValueError, TypeError):
+        raise ValueError(f"{what} must be a list of numbers, of lists of the same length...") from None
+    if array.ndim == 0 or array.ndim > 8 or 0 in array.shape:
+        raise ValueError(f"{what} must have 1 to 8 dimensions, none of them empty")
+    if array.size > MAX_ARRAY:
+        raise ValueError(f"{what} has {array.size} elements, more than {MAX_ARRAY} (lsys3d.lsystem.expr.MAX_ARRAY)")
+    if not np.isfinite(array).all():
+        raise ValueError(f"{what} holds a number that is not finite")
+    array.setflags(write=False)
+    return array
+
+
+def _index(node: Expr, indices: list, size: int) -> np.ndarray:
+    """``a[i][j]``: a constant array's elements (C's indices: truncated toward zero, each within its size)."""
+    name, table = node.value[0], node.value[1].values
+    shape = table.shape
+    flat = np.zeros(size, np.int64)
+    for k, value in enumerate(indices):
+        i = np.trunc(np.broadcast_to(np.asarray(value, dtype=np.float64), (size,)))
+        bad = ~((i >= 0) & (i < shape[k]))
+        if bad.any():
+            first = int(np.flatnonzero(bad)[0])
+            raise EvalError(f"index {i[first]:g} of array '{name}' outside 0..{shape[k] - 1}", [first])
+        flat = flat * shape[k] + i.astype(np.int64)
+    return table.reshape(-1)[flat]
+
+
 def _eval(node: Expr, scope: _Scope):
     op = node.op
     if op == "num":
@@ -401,6 +458,8 @@ def _eval(node: Expr, scope: _Scope):
         return scope.env[node.value]
     if op == "neg":
         return -np.asarray(_eval(node.args[0], scope), dtype=np.float64)
+    if op == "index":
+        return _index(node, [_eval(a, scope) for a in node.args], scope.size)
     if op == "not":
         return np.logical_not(_eval(node.args[0], scope)).astype(np.float64)
     if op == "call":
@@ -474,7 +533,7 @@ _TOKEN = re.compile(
     (?P<ws>\s+)
   | (?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)
   | (?P<name>[A-Za-z_][A-Za-z_0-9]*)
-  | (?P<op>\*\*|//|<=|>=|==|!=|&&|\|\||[-+*/%^<>!(),=])
+  | (?P<op>\*\*|//|<=|>=|==|!=|&&|\|\||[-+*/%^<>!(),=\[\]])
     """,
     re.VERBOSE,
 )
@@ -648,6 +707,8 @@ class _Parser:
                 return self.call(val, pos)
             if self.names is not None and val in self.names:
                 return self.node("name", pos, val)
+            if isinstance(self.defines.get(val), np.ndarray):
+                return self.element(val, pos)
             if val in self.defines:
                 return self.node("num", pos, float(self.defines[val]))
             if val in CONSTANTS:
@@ -666,6 +727,26 @@ class _Parser:
         if kind == "end":
             raise ExprSyntaxError("expression ends too early", pos)
         raise ExprSyntaxError(f"unexpected {val!r} in expression", pos)
+
+    def element(self, name: str, pos: int) -> Expr:
+        """``a[i][j]``: an element of the constant array ``a`` (a define that is an array: cpfg's ``array``)."""
+        table = self.defines[name]
+        args = []
+        for _ in range(table.ndim):
+            if self.peek()[1] != "[":
+                raise ExprSyntaxError(f"array '{name}' needs {table.ndim} index(es): {name}" + "[i]" * table.ndim, pos)
+            self.take()
+            self.enter(pos)
+            args.append(self.binary(0))
+            self.expect("]")
+            self.depth -= 1
+        node = self.node("index", pos, (name, Table(table)), args)
+        if all(a.op == "num" for a in args):
+            try:
+                return self.node("num", pos, float(node.evaluate({})[0]))
+            except EvalError as exc:
+                raise ExprSyntaxError(str(exc), pos) from None
+        return node
 
     def call(self, name: str, pos: int) -> Expr:
         if name == _STEP_FUNCTION and self.syntax.python and name not in self.functions:

@@ -31,6 +31,7 @@ import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from dataclasses import replace as _with
 from types import MappingProxyType
 from typing import ClassVar
 
@@ -47,6 +48,7 @@ from .locations import (
     _loc,
     _locate_strings,
     _toml_error,
+    table_error,
     table_key_line,
 )
 from .modules import ModuleString
@@ -73,6 +75,7 @@ __all__ = [
     "PatternModule",
     "Production",
     "SuccessorModule",
+    "table_error",
     "table_key_line",
 ]
 
@@ -82,6 +85,7 @@ MAX_DEPTH = 1000
 """Largest ``homomorphism_depth`` / ``decomposition_depth`` (L-Py's and cpfg's ``maximum depth``)."""
 
 _NAME = re.compile(r"[A-Za-z_@?~][A-Za-z_0-9@]*\Z")  # a declared module name (Leaf, @Gs, ?P)
+_SUB_LSYSTEM = re.compile(r"\s*lsystem\s*:\s*(\d+)\s*\Z")  # cpfg's sub-L-systems in a rule list
 _SURROGATE = re.compile("[\ud800-\udfff]")
 GROUPS = ("species", "figure", "curve", "scene")
 """What a grammar's ``group`` may say it is: a plant species, a textbook figure, a curve, or a plant growing in
@@ -102,7 +106,9 @@ class Grammar:
     character (``["Leaf", "Apex"]``); ``consider`` is the complement of
     ``ignore``; ``functions`` are pure functions, ``"f(x) = x * 2"``; ``blocks`` are cpfg's C-like
     blocks (``{"start": "{n = 0;}", "start_each": "{n++;}"}``, :mod:`lsys3d.lsystem.blocks`), whose
-    globals the rules read: those only ``start`` sets as constants, the others at each step.
+    globals the rules read: those only ``start`` sets as constants, the others at each step.  ``repairs`` are
+    what a native file's reader mended as the file's own tool does (``file:line: what``): each is a warning
+    (with ``--strict``, an error) wherever the grammar is drawn (:mod:`lsys3d.turtle.diagnostics`).
 
     Examples
     --------
@@ -143,6 +149,7 @@ class Grammar:
     modules: tuple[str, ...] = ()
     functions: tuple[str, ...] = ()
     blocks: Mapping[str, str] = field(default_factory=dict)
+    repairs: tuple[str, ...] = field(default=(), compare=False)
     # parsed, filled in by __post_init__
     productions: tuple[Production, ...] = field(init=False, repr=False)
     homomorphism_productions: tuple[Production, ...] = field(init=False, repr=False)
@@ -153,6 +160,8 @@ class Grammar:
     _axiom_parsed: tuple = field(init=False, repr=False, compare=False)
     considered: frozenset[str] | None = field(init=False, repr=False)
     program: Program | None = field(init=False, repr=False, compare=False)
+    lsystem_main: int = field(init=False, repr=False, compare=False)  # cpfg's main L-system's number, -1: none
+    lsystem_numbers: frozenset[int] = field(init=False, repr=False, compare=False)  # all of cpfg's L-systems
     _where: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
@@ -163,7 +172,7 @@ class Grammar:
         for key in TABLES:
             if not isinstance(getattr(self, key), Mapping):
                 raise self._key_error(key, f"must be a table, not {type(getattr(self, key)).__name__}")
-        for key in (*_RULE_LISTS, "modules", "functions"):
+        for key in (*_RULE_LISTS, "modules", "functions", "repairs"):
             value = getattr(self, key)
             if not isinstance(value, (list, tuple)):
                 raise self._key_error(key, f"must be a list of strings, not {type(value).__name__}")
@@ -201,16 +210,28 @@ class Grammar:
         context.current = self.axiom
         axiom = context.modules(self.axiom, "axiom", (), where_axiom)
         groups = {}
+        main, numbers = -1, set()
         for key in _RULE_LISTS:
             productions = []
             wheres = []
+            lsystem = -1
             for i, rule in enumerate(getattr(self, key)):
                 if not isinstance(rule, str):
                     raise GrammarError(f"{_ordinal(key, i)} must be a string, not {type(rule).__name__}", self.source)
                 where = self._where.get((key, i)) or _api_where(f"{key}[{i}]")
-                productions.append(context.rule(i, rule, where))
+                marker = _SUB_LSYSTEM.match(rule) if notation.sub_lsystems else None
+                if marker:  # cpfg's 'lsystem: N': the rules after it are sub-L-system N's
+                    lsystem = int(marker.group(1))
+                    numbers.add(lsystem)
+                    main = lsystem if main < 0 and i == 0 and key == "rules" else main
+                    continue
+                productions.append(_with(context.rule(i, rule, where), lsystem=lsystem))
                 wheres.append(where)
             groups[key] = (productions, wheres)
+        if any(p.lsystem >= 0 for g in groups.values() for p in g[0]) and main < 0:
+            raise GrammarError("rules of a sub-L-system ('lsystem: N') need the main one's first", self.source)
+        set_(self, "lsystem_main", main)
+        set_(self, "lsystem_numbers", frozenset(numbers))
         derived = groups["rules"][0] + groups["decomposition"][0]
         if dialect.arity_check:
             _check_arities(derived, groups["rules"][1] + groups["decomposition"][1], axiom, where_axiom, self.source)
@@ -387,6 +408,7 @@ class Grammar:
                 "consider",
                 "modules",
                 "functions",
+                "repairs",
             )
         }
         fields.update(changes)

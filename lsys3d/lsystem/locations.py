@@ -94,6 +94,26 @@ def table_key_line(text: str, table: str, key: str) -> int | None:
     return start
 
 
+def table_error(grammar, table: str, key: str, what: str) -> GrammarError:
+    """``[table] what`` at the line and column where ``key`` is written in the grammar's ``[table]``.
+
+    The table's own line when the key is not written there; no position for a
+    grammar without text (built in Python).  The one error of a bad entry in
+    any of a grammar's tables (:data:`TABLES`), ``[turtle]`` too.
+
+    >>> g = type("G", (), {"text": '[form]\\n  flare = "x"\\n', "source": "g.toml"})()
+    >>> str(table_error(g, "form", "flare", "flare: must be a number"))
+    'g.toml:2:3: [form] flare: must be a number'
+    """
+    text = getattr(grammar, "text", None)
+    line = table_key_line(text, table, str(key)) if text else None
+    col = None
+    if line is not None:
+        written = text.splitlines()[line - 1]
+        col = len(written) - len(written.lstrip()) + 1  # where the key (or the table's header) starts
+    return GrammarError(f"[{table}] {what}", grammar.source, line, col)
+
+
 def _key_line(text: str, key: str) -> int | None:
     m = re.search(rf"^[ \t]*[\"']?{re.escape(key)}[\"']?[ \t]*=", text, re.MULTILINE)
     if m is None:

@@ -12,7 +12,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import GrammarError, clip
-from .expr import CONSTANTS, FUNCTIONS, RANDOM_FUNCTIONS, Expr, ExprSyntaxError, Function, parse_expression
+from .expr import (
+    CONSTANTS,
+    FUNCTIONS,
+    RANDOM_FUNCTIONS,
+    Expr,
+    ExprSyntaxError,
+    Function,
+    constant_array,
+    parse_expression,
+)
 from .locations import Where, _api_where, _error, _loc
 from .modules import ASCII_ALPHABET, ModuleString
 
@@ -53,7 +62,10 @@ class Production:
     is None for a rule written without one.  ``steps`` holds a condition with
     local variables: ``("let", name, expr)`` and ``("test", expr)`` in the order
     written, each test narrowing the modules the later steps see (then
-    ``condition`` is None).
+    ``condition`` is None).  ``following`` holds the rest of a strict predecessor of
+    several modules (cpfg's ``XF(x) --> ...``, :attr:`Notation.sequences`): the modules
+    that must stand right after ``predecessor``, all replaced by the successor.
+    ``lsystem`` is the number of the cpfg sub-L-system the rule belongs to (-1: the main one).
     """
 
     index: int
@@ -66,6 +78,8 @@ class Production:
     successor: tuple[SuccessorModule, ...]
     weight: float | None
     steps: tuple[tuple, ...] = ()
+    following: tuple[PatternModule, ...] = ()
+    lsystem: int = -1
 
     @property
     def context_sensitive(self) -> bool:
@@ -75,6 +89,7 @@ class Production:
     def formals(self) -> tuple[str, ...]:
         names = [n for m in self.left for n in m.formals]
         names += self.predecessor.formals
+        names += [n for m in self.following for n in m.formals]
         names += [n for m in self.right for n in m.formals]
         return tuple(names)
 
@@ -89,7 +104,9 @@ class Production:
         """Rules with equal keys are stochastic alternatives of one another."""
         cond = self.condition.text if self.condition is not None else None
         steps = tuple((s[0], s[1] if s[0] == "let" else "", s[-1].text) for s in self.steps)
-        return (self.left, self.predecessor.symbol, len(self.predecessor.formals), self.right, cond, steps)
+        pred = (self.predecessor.symbol, len(self.predecessor.formals))
+        following = tuple((m.symbol, len(m.formals)) for m in self.following)
+        return (self.left, *pred, self.right, cond, steps, following, self.lsystem)
 
 
 class _Alphabet:
@@ -135,8 +152,16 @@ def _check_defines(defines: dict, source: str, where, notation, functions=None) 
     for name, value in defines.items():
         if not isinstance(name, str) or not _IDENT.match(name):
             raise GrammarError(f"define name {clip(repr(name))} is not a valid name", *_loc(source, source_where, 0))
-        if _reserved(name):
+        array = isinstance(value, (list, tuple, np.ndarray))
+        # an array may take a function's name (cpfg's 'array max[M]'): max[i] is the one, max(a, b) the other
+        if _reserved(name) and not (array and name not in CONSTANTS and name not in _WORDS):
             raise GrammarError(f"define name {name!r} is reserved", *_loc(source, source_where, 0))
+        if array:  # a constant array: cpfg's 'array a[3] = {...}'
+            try:
+                out[name] = constant_array(value, f"define {name!r}")
+            except ValueError as exc:
+                raise GrammarError(str(exc), *_loc(source, source_where, 0)) from None
+            continue
         if isinstance(value, str):
             try:
                 expr = parse_expression(value, defines=out, syntax=notation.syntax, functions=functions)
@@ -393,12 +418,15 @@ class _RuleContext:
         if len(pred) != 1:
             if not pred:
                 raise err("missing predecessor before the arrow", at)
-            raise err("the predecessor must be one module (use '<' and '>' for context)", at)
-        if pred[0].symbol in "[]":
+            if not notation.sequences:
+                raise err("the predecessor must be one module (use '<' and '>' for context)", at)
+        if any(m.symbol in "[]" for m in pred):
             raise err("a bracket cannot be a predecessor", at)
-        if pred[0].symbol == "*":
+        if any(m.symbol == "*" for m in pred):
             raise err("'*' (any module) can stand in a context, not as the predecessor", at)
         right = self.modules(rule, "context", (), where, gt[0] + 1, ctx_end) if gt else ()
+        if notation.branch_skip and any(m.symbol == notation.branch_skip for m in right):
+            right = self.skip_to_branch_end(right, rule, gt[0], err)
         if gt and not right:
             raise err("empty right context after '>'", gt[0])
         # '*' alone is no context at all (ABOP's '* < + > * -> -')
@@ -435,12 +463,22 @@ class _RuleContext:
             location="{}:{}:{}".format(*_loc(source, where, _lstrip_len(rule))),
             left=left,
             predecessor=pred[0],
+            following=tuple(pred[1:]),
             right=right,
             condition=condition,
             successor=successor,
             weight=weight,
             steps=steps,
         )
+
+    def skip_to_branch_end(self, right, rule: str, at: int, err):
+        """cpfg's ``=`` in a right context skips the rest of the branch up to the ``]`` that must follow it
+        (generate.c's ``RconDiff``; the derivation walks it: :class:`lsys3d.lsystem.derive._Context`)."""
+        skip = self.notation.branch_skip
+        for k, m in enumerate(right):
+            if m.symbol == skip and (k + 1 == len(right) or right[k + 1].symbol != "]"):
+                raise err(f"{skip!r} in a right context (the rest of the branch skipped) must come before ']'", at)
+        return right
 
     def condition(self, rule: str, start: int, stop: int, formals: list[str], where: Where):
         """A condition: tests and ``{name = expression; ...}`` blocks, in order; ``*`` or nothing is none."""

@@ -62,6 +62,7 @@ class Op(IntEnum):
     FORWARD_STEPS = 22  # move a length drawing a segment per step of a given length (L-Py's nF)
     TROPISM_VECTOR = 23  # set the tropism vector T of the moves that follow (L-Py's @Tp)
     QUERY = 24  # record the turtle's state here: a query module (?P, ?H...) or cpfg's ?E, filled between steps
+    SUB_LSYSTEM = 25  # cpfg's ?(n, s) (sign +1) and $ (sign -1): push and pop the scale of lengths and widths
 
 
 N_OPS = len(Op)

@@ -70,7 +70,7 @@ def findings(grammar: Grammar, shown: ModuleString, skeleton: Skeleton, table) -
         p.predecessor.symbol for group in (grammar.productions, grammar.decomposition_productions) for p in group
     }
     rewritten |= {p.predecessor.symbol for p in grammar.homomorphism_productions}
-    out = []
+    out = list(grammar.repairs)  # what the reader mended, as the file's own tool reads it
     present = _present(shown)
     alphabet = shown.alphabet
     unsupported, meaningless = [], []

@@ -29,17 +29,17 @@ from __future__ import annotations
 
 import logging
 import math
-import re
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import AssetError, GrammarError, OptionsError, clip
+from ..errors import AssetError, clip
 from ..external import grammar_folder, load_scene, read_file, resolve
-from ..lsystem.grammar import table_key_line
+from ..lsystem.grammar import table_error
 from ..lsystem.presets import bundled_folder
-from ..options import Options, check_value, option, spec_of
+from ..options import Options, merge_table, option
 from . import kernel
 
 __all__ = [
@@ -145,30 +145,7 @@ class EnvironmentOptions(Options):
         table = dict(getattr(grammar, "environment", {}) or {})
         if not table:
             return options
-        specs = {f.name: spec_of(f) for f in fields(cls)}
-        values = {}
-        for key, value in table.items():
-            if key not in specs:
-                raise _table_error(grammar, key, f"unknown key {clip(repr(key))} (known keys: {', '.join(specs)})")
-            if key in ROLES and isinstance(value, str):
-                value = (value,)
-            try:
-                values[key] = check_value(specs[key], value, key)
-            except OptionsError as exc:
-                raise _table_error(grammar, key, str(exc)) from None
-        defaults = cls()
-        values.update({f: getattr(options, f) for f in specs if getattr(options, f) != getattr(defaults, f)})
-        try:
-            return cls(**values)
-        except OptionsError as exc:
-            m = re.match(r"EnvironmentOptions\.(\w+)", str(exc))
-            raise _table_error(grammar, m.group(1) if m else "", str(exc)) from None
-
-
-def _table_error(grammar, key: str, what: str) -> GrammarError:
-    text = getattr(grammar, "text", None)
-    line = table_key_line(text, "environment", key) if text and key else None
-    return GrammarError(f"[environment] {key}: {what}" if key else what, grammar.source, line, 1 if line else None)
+        return merge_table(cls, table, options, partial(table_error, grammar, "environment"), as_tuple=ROLES)
 
 
 @dataclass(frozen=True, eq=False)

@@ -35,15 +35,16 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, fields, replace
+from functools import partial
 
 import numba
 import numpy as np
 
 from ..arrays import dot, local_index, unit
-from ..errors import GrammarError, LimitError, OptionsError, clip
-from ..lsystem.grammar import Grammar, table_key_line
+from ..errors import LimitError, OptionsError, clip
+from ..lsystem.grammar import Grammar, table_error
 from ..noise import fbm3
-from ..options import Options, check_value, option, spec_of
+from ..options import Options, merge_table, option, spec_of
 from ..streams import Stream, generator
 from .interpret import DEFAULT_MAX_SEGMENTS
 from .skeleton import Skeleton
@@ -223,28 +224,9 @@ class FormOptions(Options):
         options = options if options is not None else cls()
         if not options.enabled:
             return options
-        values: dict = {}
-        for key, value in getattr(grammar, "form", {}).items():
-            if key not in GRAMMAR_KEYS:
-                known = ", ".join(sorted(GRAMMAR_KEYS))
-                raise _form_error(grammar, key, f"unknown key {clip(repr(key))} (known keys: {known})")
-            if key in _PER_ORDER and isinstance(value, (int, float)) and not isinstance(value, bool):
-                value = (value,)
-            try:
-                values[key] = check_value(_SPECS[key], value, key)
-            except OptionsError as exc:
-                raise _form_error(grammar, key, str(exc)) from None
-        defaults = cls()
-        for f in fields(cls):
-            if getattr(options, f.name) != getattr(defaults, f.name):
-                values[f.name] = getattr(options, f.name)
-        try:
-            return cls(**values)
-        except OptionsError as exc:  # a check across fields (phyllotaxis, phototropism_light)
-            key = next((k for k in ("phyllotaxis", "phototropism_light") if k in str(exc) and k in grammar.form), None)
-            if key is None:
-                raise
-            raise _form_error(grammar, key, str(exc)) from None
+        table = getattr(grammar, "form", {})
+        error = partial(table_error, grammar, "form")
+        return merge_table(cls, table, options, error, keys=GRAMMAR_KEYS, as_tuple=_PER_ORDER)
 
 
 _PER_ORDER = ("gravitropism", "angle_variation", "length_variation")
@@ -279,17 +261,6 @@ def _phyllotaxis_ok(value: str) -> bool:
         return True
     m = _WHORL.match(value)
     return m is not None and 2 <= int(m.group(1)) <= 16
-
-
-def _form_error(grammar: Grammar, key: str, what: str) -> GrammarError:
-    line = col = None
-    if grammar.text:
-        line = table_key_line(grammar.text, "form", key)
-        if line is not None:
-            text = grammar.text.splitlines()[line - 1]
-            at = text.find(key)
-            col = at + 1 if at >= 0 else 1
-    return GrammarError(f"[form] {what}", grammar.source, line, col)
 
 
 def _per_order(values: tuple, order: np.ndarray, shift: int = 0) -> np.ndarray:

@@ -101,7 +101,8 @@ def follows(grammar: Grammar, op_of) -> bool:
     start or end, and every successor keeps its brackets and polygons balanced.
     """
     for prod in (*grammar.productions, *grammar.decomposition_productions):
-        if op_of(prod.predecessor.symbol) in _STRUCTURAL:
+        consumed = (prod.predecessor, *getattr(prod, "following", ()))  # cpfg: predecessors of several modules
+        if any(op_of(module.symbol) in _STRUCTURAL for module in consumed):
             return False
         depth = poly = 0
         for module in prod.successor:

@@ -113,6 +113,7 @@ _ELASTICITY = int(Op.ELASTICITY)
 _FORWARD_STEPS = int(Op.FORWARD_STEPS)
 _TROPISM_VECTOR = int(Op.TROPISM_VECTOR)
 _QUERY = int(Op.QUERY)
+_SUB_LSYSTEM = int(Op.SUB_LSYSTEM)
 _AXIS_U = int(Axis.U)
 _AXIS_L = int(Axis.L)
 _AXIS_H = int(Axis.H)
@@ -129,6 +130,9 @@ integers that cannot wrap around)."""
 MAX_POLYGON_DEPTH = 1000
 """Most polygons open at once: ``{`` inside an open polygon starts a polygon of its own (Lparser's
 and cpfg's polygon stack; Lparser's own bound is 1000 too)."""
+
+MAX_SUB_LSYSTEMS = 64
+"""Most of cpfg's sub-L-system scales stacked at once (``?(n, s)`` not yet closed by ``$``)."""
 
 # status codes; the message says what went wrong at module `bad`
 OK = 0
@@ -147,6 +151,8 @@ MESSAGES = {
     10: f"the width with width_jitter is more than {MAX_COORDINATE:g} (lsys3d.turtle.skeleton.MAX_COORDINATE)",
     11: "the rotation angle must be a finite number",
     12: f"the organ's size must be a number from 0 to {MAX_COORDINATE:g} (lsys3d.turtle.skeleton.MAX_COORDINATE)",
+    13: f"more than {MAX_SUB_LSYSTEMS} sub-L-systems open at once (lsys3d.turtle.kernel.MAX_SUB_LSYSTEMS)",
+    14: "a sub-L-system's scale (the s of ?(n, s)) must be a finite number > 0",
 }
 
 
@@ -633,6 +639,10 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     # their points lie in order from the first's start up to the current polygon's start
     poly_stack = np.empty((MAX_POLYGON_DEPTH, 4), np.int64)
     poly_depth = 0
+    # cpfg's sub-L-systems: ?(n, s) scales lengths and widths by s until its $ (interpret.c's scale_factor)
+    sub_scale = 1.0
+    sub_stack = np.empty(MAX_SUB_LSYSTEMS, np.float64)
+    sub_top = 0
 
     m = symbols.shape[0]
     for i in range(m):
@@ -656,7 +666,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                 hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
                     hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
                 )
-            length = arg * length_unit if has_arg else step * program.scale[sym]
+            length = (arg * length_unit if has_arg else step * program.scale[sym]) * sub_scale
             if jitter_length:
                 length *= variation.length[i]
             if in_scene and code == _FORWARD and poly_open < 0:
@@ -772,6 +782,25 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                         return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
                     if last >= 0 and depth_of[last] == depth:
                         seg.width_end[last] = width
+        elif code == _SUB_LSYSTEM:
+            before = sub_scale
+            if program.sign[sym] > 0:  # ?(n, s): a sub-L-system starts (a '?' without parameters is none)
+                if not has_arg:
+                    continue
+                if sub_top == MAX_SUB_LSYSTEMS:
+                    return 13, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                sub_stack[sub_top] = sub_scale
+                sub_top += 1
+                if arity[i] >= 2:
+                    sub_scale = sub_scale * params[offsets[i] + 1]
+                if not (sub_scale > 0.0 and sub_scale <= far):
+                    return 14, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+            elif sub_top > 0:  # $: it ends (an unmatched $ changes nothing: cpfg warns and goes on)
+                sub_top -= 1
+                sub_scale = sub_stack[sub_top]
+            width = width * sub_scale / before
+            if not (0.0 <= width <= far):
+                return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
         elif code == _QUERY:
             row = query.state[n_query]
             row[0], row[1], row[2] = px, py, pz
@@ -885,9 +914,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             if code == _WIDTH:
                 width = arg * width_unit if has_arg else width * width_scale
             elif code == _WIDTH_ADD:  # L-Py's '_' and '!', cpfg's '#' and '!': a step, or the width given
-                width = (
-                    arg * width_unit if has_arg else max(0.0, width + program.sign[sym] * width_increment * width_unit)
-                )
+                step_width = width_increment * width_unit * sub_scale
+                width = arg * width_unit * sub_scale if has_arg else max(0.0, width + program.sign[sym] * step_width)
             else:  # Lparser's and Houdini's factors
                 f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else width_scale)
                 width = width * f ** program.sign[sym]
@@ -970,7 +998,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
         elif code == _ORGAN:
             kind = program.organ[sym]
             if kind in (_SURFACE, _INSTANCE):  # a scale
-                size = arg if has_arg else 1.0
+                size = (arg if has_arg else 1.0) * sub_scale
             else:  # a diameter (sphere, disc, circle, box), in width units; the width when not given
                 size = arg * width_unit if has_arg else width
             if not (0.0 <= size <= far):

@@ -13,9 +13,9 @@ import tomllib
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, fields
 
-from ..errors import GrammarError, OptionsError, clip
+from ..errors import OptionsError, clip
 from ..lsystem import dialects
-from ..lsystem.grammar import Grammar, table_key_line
+from ..lsystem.grammar import Grammar, table_error
 from ..options import Options, check_value, option, spec_of
 from .commands import RENAMEABLE, by_symbol
 
@@ -139,16 +139,16 @@ class TurtleOptions(Options):
         for key, value in grammar.turtle.items():
             if key not in GRAMMAR_KEYS:
                 known = ", ".join(sorted(GRAMMAR_KEYS))
-                raise _turtle_error(grammar, key, f"unknown key {clip(repr(key))} (known keys: {known})")
+                raise table_error(grammar, "turtle", key, f"unknown key {clip(repr(key))} (known keys: {known})")
             try:
                 values[key] = check_value(_SPECS[key], value, key)
             except OptionsError as exc:
-                raise _turtle_error(grammar, key, str(exc)) from None
+                raise table_error(grammar, "turtle", key, str(exc)) from None
         try:
             _check_symbols(values.get("draw", "F"), values.get("move", "f"), values.get("leaf", "~"))
         except OptionsError as exc:
             key = re.match(r"'(\w+)'", str(exc)).group(1)
-            raise _turtle_error(grammar, key, str(exc)) from None
+            raise table_error(grammar, "turtle", key, str(exc)) from None
         values.update(TurtleOverrides(overrides or {}))
         unknown = sorted(set(more) - set(_SPECS))
         if unknown:
@@ -256,11 +256,6 @@ def _check_symbols(draw: str, move: str, leaf: str) -> None:
 
 
 assert set(RENAMEABLE) <= set(_SPECS)  # the renameable commands' symbols are settings
-
-
-def _turtle_error(grammar: Grammar, key: str, what: str) -> GrammarError:
-    line = table_key_line(grammar.text, "turtle", key) if grammar.text else None
-    return GrammarError(f"[turtle] {what}", grammar.source, line, 1 if line else None)
 
 
 def options_markdown() -> str:

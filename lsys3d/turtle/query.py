@@ -32,6 +32,7 @@ from .environment import Environment
 from .interpret import (
     DEFAULT_MAX_SEGMENTS,
     NO_SCENE,
+    interpret_answering,
     kernel_program,
     module_error,
     natural_variation,
@@ -148,14 +149,37 @@ class Answerer:
             origin, records = _WHOLE, None
         variation = natural_variation(m, self.turtle, self.seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
         args = (modules, table, program, arrays, max_depth, variation, recorded, counts)
-        found = self._pass(*args, origin, records)
-        if found is None:  # a change the records cannot follow: the whole string
-            found = self._pass(*args, _WHOLE, None)
+        if counts[Op.SUB_LSYSTEM]:  # cpfg's sub-L-system scales: the full turtle, which draws them
+            follow = False
+            found = self._full_pass(modules)
+        else:
+            found = self._pass(*args, origin, records)
+            if found is None:  # a change the records cannot follow: the whole string
+                found = self._pass(*args, _WHOLE, None)
         query_module, query_state, cut, positions, states, deposits = found
         out, origin = _written(modules, table, query_module, query_state, cut, self.environment, deposits)
         self._records = (modules.symbols, positions, states) if follow else None
         self.origin = origin if follow else None
         return out
+
+    def _full_pass(self, modules):
+        """The answers from the turtle that draws (:func:`~lsys3d.turtle.interpret.interpret_answering`): for
+        the commands the lean pass does not follow (cpfg's sub-L-systems)."""
+        skeleton, found = interpret_answering(
+            modules,
+            self.turtle,
+            self.seed,
+            max_segments=self.max_segments,
+            commands=self.commands,
+            scene=None if self.environment is None else self.scene,
+        )
+        deposits = None
+        if self.shading:
+            mid = 0.5 * (skeleton.start + skeleton.end)
+            area = np.linalg.norm(skeleton.end - skeleton.start, axis=1) * skeleton.width_start
+            leaves = np.column_stack([skeleton.leaf_position, skeleton.leaf_size**2])
+            deposits = np.concatenate([np.column_stack([mid, area]), leaves])
+        return found.module, found.state, found.cut, _WHOLE, np.zeros((0, incremental.STATE)), deposits
 
     def _pass(self, modules, table, program, arrays, max_depth, variation, recorded, counts, origin, records):
         n_query = int(counts[Op.QUERY])

@@ -51,6 +51,17 @@ class Notation:
         Rules without a weight for the same predecessor, contexts and condition are stochastic alternatives
         (lsys3d's own notation); elsewhere only weighted rules are, and the first rule that matches applies,
         as in L-Py, cpfg and the others.
+    sequences : bool
+        A strict predecessor may be several modules (cpfg: ``XF(x) --> ...`` replaces an ``X`` and the ``F``
+        right after it; cpfg's module names are one character, so ``leaf(a) --> ...`` is four modules).
+    sub_lsystems : bool
+        A rule list may hold cpfg's ``lsystem: N`` lines: the rules after one belong to sub-L-system ``N``
+        and rewrite the modules between a ``?(N, ...)`` and its ``$`` (:mod:`lsys3d.lsystem.sequences`).
+    branch_skip : str
+        A symbol that, in a right context, skips the rest of the branch up to the ``]`` after it (cpfg's
+        ``=``: ``A > [B=]C``); then ``]`` in a right context is the next module past ignored symbols and
+        whole branches, as cpfg's ``RconDiff`` reads it.  Without it (lsys3d and the others), ``]`` in a
+        right context skips the rest of the branch alone.
     """
 
     names: frozenset[str] = frozenset()
@@ -64,6 +75,9 @@ class Notation:
     values_in_patterns: bool = False
     star_empty: bool = True
     unweighted_alternatives: bool = False
+    sequences: bool = False
+    sub_lsystems: bool = False
+    branch_skip: str = ""
 
 
 @dataclass(frozen=True)

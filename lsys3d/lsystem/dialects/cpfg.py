@@ -11,15 +11,19 @@ trigonometric functions in degrees as cpfg's are.
 from __future__ import annotations
 
 import logging
+import math
 import re
 from pathlib import Path
+
+import numpy as np
 
 from ...errors import GrammarError, clip
 from ...external import FileRefused, inside
 from ...turtle.commands import ENVIRONMENT_QUERY, Axis, Command, Op, Organ, queries
-from ..expr import ExprSyntaxError, Syntax, parse_expression
+from ..expr import MAX_ARRAY, ExprSyntaxError, Syntax, constant_array, parse_expression
 from ..grammar import MAX_PARAMETERS, Grammar, read_text
 from .common import Dialect, Notation, fail, line_where
+from .macros import Macro, MacroError, expand, parse_definition
 
 __all__ = ["DIALECT", "MAX_INCLUDES", "UNSUPPORTED", "read"]
 
@@ -29,7 +33,9 @@ log = logging.getLogger("lsys3d")
 
 
 def _rot(symbol, name, axis, sign, what):
-    return Command(symbol, name, Op.ROTATE, "a", 1, what, axis, sign)
+    # cpfg's interpret.c turns by the first parameter and reads no other (vlab's Lilac writes +(20,0))
+    what += " Further parameters are read and left, as cpfg's interpret.c does."
+    return Command(symbol, name, Op.ROTATE, "a, ...", MAX_PARAMETERS, what, axis, sign)
 
 
 _STATE = (
@@ -73,7 +79,26 @@ COMMANDS_CPFG = (
     _rot("/", "roll right", Axis.H, +1, "Roll right around H."),
     Command("|", "turn around", Op.TURN_AROUND, "", 0, "Turn around 180 degrees around U."),
     Command("@v", "roll to vertical", Op.ROLL_HORIZONTAL, "", 0, "Roll around H so that U is closest to up."),
-    Command("$", "roll to horizontal", Op.ROLL_HORIZONTAL, "", 0, "Roll around H so that L is horizontal."),
+    Command(
+        "?",
+        "sub-L-system",
+        Op.SUB_LSYSTEM,
+        "n, s",
+        2,
+        "`?(n, s)`: sub-L-system `n` rewrites what follows up to its `$`; the turtle scales lengths and widths "
+        "by `s` there (interpret.c's scale factor; the width at once). Without parameters, nothing.",
+        sign=+1,
+    ),
+    Command(
+        "$",
+        "end of sub-L-system",
+        Op.SUB_LSYSTEM,
+        "",
+        0,
+        "The end of the sub-L-system of the last `?(n, s)`: its scale undone (cpfg's `$` does not roll, as "
+        "ABOP's does; an unmatched `$` does nothing).",
+        sign=-1,
+    ),
     Command("[", "push", Op.PUSH, "", 0, "Push the turtle's state."),
     Command("]", "pop", Op.POP, "", 0, "Pop the turtle's state."),
     Command("{", "begin polygon", Op.POLYGON_BEGIN, "", 0, "Start a polygon."),
@@ -191,8 +216,11 @@ DIALECT = Dialect(
         names=frozenset(c.symbol for c in COMMANDS_CPFG if len(c.symbol) > 1) | UNSUPPORTED,
         surface_prefix="~",
         arrows=("-->", "->"),
-        reserved=":=",
+        reserved=":",  # '=' is a module (cpfg's lexer reads any character as one: vlab's Lilac writes I(o,i,w)=)
         syntax=_SYNTAX,
+        sequences=True,
+        sub_lsystems=True,
+        branch_skip="=",
     ),
     commands=COMMANDS_CPFG,
     turtle={"width_increment": 1.0},
@@ -243,6 +271,7 @@ class _Reader:
         self.source = source
         self.defines: dict[str, float] = {}
         self.macros: set[str] = set()  # names #define'd (with or without a value), for #ifdef
+        self.text_macros: dict[str, Macro] = {}  # the C preprocessor's text macros (lsystem.dialects.macros)
         self.included = 0
         self.lines: list[tuple[str, int]] = []  # (text, line of the main file)
 
@@ -261,7 +290,7 @@ class _Reader:
                 if word in ("ifdef", "ifndef"):
                     active.append(active[-1] and ((rest in self.macros) == (word == "ifdef")))
                 elif word == "if":
-                    active.append(active[-1] and self.constant(rest, number) != 0)
+                    active.append(active[-1] and self.constant(self.expanded(rest, number), number) != 0)
                 elif word in ("else", "elif"):
                     if len(active) < 2:
                         raise self.error(number, f"#{word} without #if")
@@ -279,11 +308,12 @@ class _Reader:
                 elif word == "undef":
                     self.macros.discard(rest)
                     self.defines.pop(rest, None)
+                    self.text_macros.pop(rest, None)
                 elif word == "include":
                     self.include(rest, folder, number)
                 continue
             if active[-1] and line:
-                self.lines.append((raw.rstrip(), number))
+                self.lines.append((self.expanded(raw.rstrip(), number), number))
         if len(active) != 1:
             raise self.error(at or 1, "#if or #ifdef without #endif")
 
@@ -293,16 +323,36 @@ class _Reader:
         except (ExprSyntaxError, ArithmeticError) as exc:
             raise self.error(line, f"{clip(text, 40)!r}: {exc}") from None
 
+    def expanded(self, text: str, line: int) -> str:
+        """``text`` with the text macros replaced (the C preprocessor's part: :mod:`.macros`)."""
+        if not self.text_macros:
+            return text
+        try:
+            return expand(text, self.text_macros)
+        except MacroError as exc:
+            raise self.error(line, str(exc)) from None
+
     def define(self, rest: str, line: int):
-        m = re.match(r"([A-Za-z_]\w*)(\()?\s*(.*)\Z", rest)
-        if m is None:
-            raise self.error(line, f"#define {clip(rest, 40)!r}: expected a name")
-        if m.group(2):
-            raise self.error(line, f"#define {m.group(1)}(...): macros with parameters are not supported")
-        name, value = m.group(1), m.group(3).strip()
+        """``#define``: a number is a constant of the rules (``defines``); other text, a macro (as C's)."""
+        try:
+            macro = parse_definition(rest)
+        except MacroError as exc:
+            raise self.error(line, f"#define {clip(rest, 40)!r}: {exc}") from None
+        name, value = macro.name, macro.body
         self.macros.add(name)
-        if value:
-            self.defines[name] = self.constant(value, line)
+        self.defines.pop(name, None)
+        self.text_macros.pop(name, None)
+        if macro.parameters is None and value:
+            value = self.expanded(value, line)
+            try:
+                self.defines[name] = float(
+                    parse_expression(value, defines=self.defines, syntax=_SYNTAX).evaluate({})[0]
+                )
+                return
+            except (ExprSyntaxError, ArithmeticError):
+                pass  # not a constant: text put where the name stands, as the C preprocessor does
+        if value or macro.parameters is not None:
+            self.text_macros[name] = macro
 
     def include(self, rest: str, folder: Path | None, line: int):
         m = re.match(r"""["<]([^">]+)[">]\Z""", rest)
@@ -336,8 +386,11 @@ class _Reader:
         section = "rules"
         groups = {"rules": [], "homomorphism": [], "decomposition": []}
         depth = None
-        systems = 0
+        systems, label = 0, 0
         lines = self.joined()
+        # cpfg's sub-L-systems: every L-system's rules go into the same lists, each after an 'lsystem: N' line
+        # (the Grammar's rule lists read them so: lsys3d.lsystem.sequences); only the first gives the axiom
+        several = sum(1 for text, _ in lines if (k := _KEY.match(text.strip())) and k.group("key") in _SYSTEM) > 1
         head = None  # a predecessor and condition whose arrow is on the next line
         last_key = None
         for index, (text, number) in enumerate(lines):
@@ -352,10 +405,18 @@ class _Reader:
                 rest = code[m.end() :].strip()
                 rest_col = col + len(code) - len(code[m.end() :].lstrip())
                 key = _KEY_NAMES.get(key, key)
+                if systems > 1 and key in _MAIN_ONLY:
+                    raise self.error(number, f"{key}: in a sub-L-system (lsystem: {label}) is not supported")
                 if key == "Lsystem":
                     systems += 1
-                    if systems > 1:
-                        raise self.error(number, "more than one Lsystem: (cpfg's sub-L-systems) is not supported")
+                    if several:
+                        label = self.whole(rest, number, "the L-system's number")
+                        for name, group in groups.items():
+                            where[(name, len(group))] = line_where(number, col)
+                            group.append(f"lsystem: {label}")
+                    section = "rules"
+                elif systems > 1 and key in ("derivation length", "Axiom", "axiom"):
+                    continue  # cpfg derives from the main L-system's axiom, its length (lsys_input.y)
                 elif key == "derivation length":
                     fields["iterations"] = self.whole(rest, number, key)
                 elif key in ("Axiom", "axiom"):
@@ -467,10 +528,34 @@ class _Reader:
         body = rest.strip().strip("{}").strip()
         for statement in body.split(";"):
             if statement.strip():
+                if re.match(r"\s*array\b", statement):
+                    self.array(statement.strip(), line)
+                    continue
                 name, sep, value = statement.partition("=")
                 if not sep or not re.fullmatch(r"\s*[A-Za-z_]\w*\s*", name):
                     raise self.error(line, f"define: {clip(statement.strip(), 40)!r}: expected 'name = value'")
                 self.defines[name.strip()] = self.constant(value, line)
+
+    def array(self, statement: str, line: int):
+        """``array len[M][N] = {1, 2, ...};`` in ``define:``: a constant array (C's: missing values are 0)."""
+        m = re.fullmatch(r"array\s+([A-Za-z_]\w*)\s*((?:\[[^\[\]]*\]\s*)+)(?:=\s*(.*))?", statement, re.DOTALL)
+        if m is None:
+            raise self.error(line, f"define: {clip(statement, 40)!r}: expected 'array name[size] = {{values}}'")
+        name = m.group(1)
+        shape = [self.whole(d, line, f"the size of array {name!r}") for d in re.findall(r"\[([^\]]*)\]", m.group(2))]
+        size = math.prod(shape)
+        if not 0 < size <= MAX_ARRAY:
+            raise self.error(line, f"define: array {name!r} of {size} elements (1 to {MAX_ARRAY}: expr.MAX_ARRAY)")
+        text = (m.group(3) or "").strip()
+        if text and not (text.startswith("{") and text.endswith("}")):
+            raise self.error(line, f"define: array {name!r}: its values go in braces, not {clip(text, 30)!r}")
+        pieces = [p for p in re.sub(r"[{}]", " ", text).split(",")] if text else []
+        if pieces and not pieces[-1].strip():  # {1, 2, 3,}: C allows the last comma
+            pieces.pop()
+        if len(pieces) > size:
+            raise self.error(line, f"define: array {name!r} has {size} elements, not {len(pieces)} values")
+        values = [self.constant(p, line) for p in pieces] + [0.0] * (size - len(pieces))
+        self.defines[name] = constant_array(np.reshape(values, shape), f"array {name!r}")
 
 
 _KEY_NAMES = {
@@ -487,6 +572,10 @@ _KEY_NAMES = {
 }
 """Spellings cpfg accepts besides the manual's (vlab's models write ``lsystem:`` and ``Endlsystem``)."""
 
+
+_SYSTEM = frozenset({"Lsystem", "lsystem"})
+_MAIN_ONLY = frozenset({"ignore", "consider", "Start", "StartEach", "EndEach", "End", "seed", "maximum depth"})
+"""What a sub-L-system may not set: lsys3d keeps one of each for the whole grammar."""
 
 _BLOCKS = {"Start": "start", "StartEach": "start_each", "EndEach": "end_each", "End": "end"}
 

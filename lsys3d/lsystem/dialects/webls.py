@@ -110,6 +110,7 @@ def read(text: str, source: str = "<string>", **overrides) -> Grammar:
     section = "rules"
     systems = 0
     dlength = None
+    skipped: list[tuple[str, int]] = []  # unknown lines before 'axiom:', which L-System Explorer passes over
     for code, number, col in _lines(text):
         if code.startswith("#"):
             m = re.match(r"#\s*define\s+([A-Za-z_]\w*)\s+(.+)\Z", code)
@@ -163,6 +164,9 @@ def read(text: str, source: str = "<string>", **overrides) -> Grammar:
         if m:  # 'stemsize: 0.1': a variable too (L-System Explorer reads 'name: value' lines as globals)
             _settings(f"{m.group(1)} = {m.group(2)}", number, col, variables, values, fields, source)
             continue
+        if "axiom" not in fields:  # L-System Explorer's parser logs 'unrecognized statement' and goes on
+            skipped.append((code, number))
+            continue
         raise fail(f"unknown line {clip(code, 40)!r} (read as {FORMS}: settings, axiom:, derivation length:, "
                    "p1: A -> B, #define, ignore:, Start: {...})", source, number, col)  # fmt: skip
     if "axiom" not in fields:
@@ -187,8 +191,45 @@ def read(text: str, source: str = "<string>", **overrides) -> Grammar:
         fields["turtle"] = turtle
     fields["defines"] = variables
     fields.update(groups)
+    repairs = []
+    if skipped:
+        lines = ", ".join(repr(clip(code, 20)) for code, _ in skipped)
+        opener = " (a '/*' split over two lines?)" if any(code.strip() == "/" for code, _ in skipped) else ""
+        repairs.append(
+            f"{source}:{skipped[0][1]}: lines that are no statement, skipped as L-System Explorer's parser skips "
+            f"them before 'axiom:': {lines}{opener}"
+        )
+    if "axiom" in fields:
+        repair = _close_branches(fields, groups, source, where)
+        repairs += [repair] if repair else []
+    if repairs:
+        fields["repairs"] = tuple(repairs)
     fields.update(overrides)
     return Grammar(**fields, source=source, text=text, _where=where)
+
+
+def _close_branches(fields: dict, groups: dict, source: str, where: dict) -> str | None:
+    """An axiom that opens branches it never closes gets its ``]`` at the end, and the note that says so.
+
+    L-System Explorer's turtle leaves such a branch open: the string goes on drawing in it to the end,
+    as with the ``]`` at the end.  Only without contexts, whose walks the added ``]`` could change.
+    """
+    axiom, depth, level = fields["axiom"], 0, 0
+    for ch in axiom:
+        level += {"(": 1, ")": -1}.get(ch, 0)
+        if level == 0 and ch in "[]":
+            depth += 1 if ch == "[" else -1
+            if depth < 0:
+                return None  # a ']' too many: the grammar refuses it
+    contexts = any(re.search(r"[<>]", rule.split("->")[0]) for group in groups.values() for rule in group)
+    if depth <= 0 or contexts:
+        return None
+    fields["axiom"] = axiom + "]" * depth
+    line, col = where["axiom"](0)
+    return (
+        f"{source}:{line}:{col}: the axiom opens {depth} branch{'es' if depth > 1 else ''} with '[' and closes "
+        f"none: read with {']' * depth} at its end, as L-System Explorer's turtle leaves them open to the end"
+    )
 
 
 def _settings(code, number, col, variables, values, fields, source):
