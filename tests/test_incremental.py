@@ -235,3 +235,14 @@ def test_random_grammars(tmp_path_factory, a, b, l_rule, wall, seed):
     turtle = {"heading": 90, "step": 0.2}
     g = Grammar(axiom="A?P(0,0,0)B", rules=rules, angle=25, seed=seed, turtle=turtle, environment=env, source=source)
     _same_generations(g, 6, load_environment(g))
+
+
+def test_cpfg_sub_lsystem_scales_and_queries():
+    # ?(2, 0.5) halves the lengths up to its $: the drawing turtle answers such strings (it follows the scale)
+    text = (
+        "Lsystem: 1\nderivation length: 3\nAxiom: A?P(0,0,0)\nA --> F?(2,0.5)F$A\nendlsystem\nLsystem: 2\nendlsystem\n"
+    )
+    g = Grammar.from_text(text, source="plant.l")
+    _, out = _same_generations(g, 3)
+    y = [out.module(i)[1][1] for i in range(len(out)) if out.symbol(i) == "?P"]
+    assert y == pytest.approx([4.5])  # three steps of 1 + 0.5
