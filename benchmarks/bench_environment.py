@@ -6,8 +6,12 @@ Both grammars grow the same plant: apices that step forward every generation and
 open one asks the turtle where each apex is (``A(k) > ?P(x, y, z) : y < 1000``, true everywhere, so the
 plants match segment for segment) and grows on a 40 x 40 m support wall (adhesion and climbing steer every
 segment); the closed one has neither.  Each is derived and drawn ``--repeat`` times, interleaved, and the
-best times are compared; the scene's grid, sampled once per environment, is reported apart and in a
-second ratio.
+best times are compared: derivation and the turtle (the environment loaded and its grid sampled before
+the clock starts), and the pipeline's :func:`~lsys3d.pipeline.draw`, which reads the scene and samples its
+grid itself.  A third grammar adds ``?E`` at every apex and ``shadow = true`` (the plant's own shade,
+:mod:`lsys3d.turtle.shadow`) without the wall, to give what self-shadowing costs.  Both the wall-clock
+and the process's CPU time are given: on a machine shared with other jobs the CPU time is the steadier
+measure.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ import trimesh
 from lsys3d import Grammar
 from lsys3d.pipeline import GenerateOptions, draw
 from lsys3d.turtle.environment import load_environment
+from lsys3d.turtle.interpret import interpret
+from lsys3d.turtle.query import derive_answering
 
 RULES = [
     "A(k) {} : k % 8 == 0 -> F(0.05)[+(60)A(k + 1){q}][-(60)A(k + 1){q}]",
@@ -29,11 +35,13 @@ RULES = [
 ]
 
 
-def grammar(open_: bool, iterations: int, wall: str) -> Grammar:
+def grammar(open_: bool, iterations: int, wall: str, shadow: bool = False) -> Grammar:
     context = "> ?P(x, y, z)" if open_ else ""
-    q = "?P(0,0,0)" if open_ else ""
+    q = ("?P(0,0,0)?E(0,0,0)" if shadow else "?P(0,0,0)") if open_ else ""
     rules = [r.format(context, q=q) for r in RULES]
     environment = {"support": wall, "distance": 0.0, "adhesion": 0.8, "climb": 0.2, "reach": 0.5} if open_ else {}
+    if shadow:  # the plant's own shade, read by ?E (no wall: ?E's exact distances to it are not what is measured)
+        environment = {"shadow": True, "shadow_voxel": 0.5}
     if open_:
         rules = [r.replace(": k %", ": y < 1000 && k %") for r in rules]
     return Grammar(
@@ -47,6 +55,13 @@ def grammar(open_: bool, iterations: int, wall: str) -> Grammar:
     )
 
 
+def _stages(g: Grammar, env) -> tuple[int, int]:
+    """Derive (the turtle answering between the steps when asked) and draw: what the ratio measures."""
+    modules = derive_answering(g, g.iterations, g.seed, environment=env)
+    skeleton = interpret(modules, g, scene=env.scene() if env is not None else None)
+    return len(modules), len(skeleton)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
@@ -58,29 +73,43 @@ def main(argv=None) -> None:
         path = str(Path(folder) / "wall.obj")
         wall.export(path)
         plain, answered = grammar(False, args.iterations, path), grammar(True, args.iterations, path)
+        shaded = grammar(True, args.iterations, path, shadow=True)
         options = GenerateOptions()
         draw(plain, 4, 1), draw(answered, 4, 1)  # compile every kernel first
         t0 = time.perf_counter()
-        load_environment(answered).scene()
+        env = load_environment(answered)
+        env.scene()
         grid = time.perf_counter() - t0
-        best = {"plain": float("inf"), "answered": float("inf")}
+        shaded_env = load_environment(shaded)
+        shaded_env.scene()
+        best: dict[str, tuple[float, float]] = {}
         sizes = {}
+
+        def clock(key: str, run):
+            t0, c0 = time.perf_counter(), time.process_time()
+            out = run()
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            old = best.get(key, (float("inf"), float("inf")))
+            best[key] = (min(old[0], wall), min(old[1], cpu))
+            return out
+
         for _ in range(args.repeat):
-            for name, g in (("plain", plain), ("answered", answered)):
-                env = load_environment(g)
-                if env is not None:
-                    env.scene()  # sampled before the clock starts: reported above
-                t0 = time.perf_counter()
-                modules, skeleton = draw(g, g.iterations, g.seed, options)
-                best[name] = min(best[name], time.perf_counter() - t0)
-                sizes[name] = (len(modules), len(skeleton))
-    print(f"{'':24}{'modules':>10}{'segments':>10}{'seconds':>10}")
-    for name, label in (("plain", "without"), ("answered", "?P + environment")):
+            for name, g, e in (("plain", plain, None), ("answered", answered, env), ("shaded", shaded, shaded_env)):
+                sizes[name] = clock(name, lambda g=g, e=e: _stages(g, e))
+                # the pipeline's first stages: the scene read and its grid sampled too
+                clock(name + " draw", lambda g=g: draw(g, g.iterations, g.seed, options))
+    print(f"{'':20}{'modules':>10}{'segments':>10}{'seconds':>10}{'CPU s':>8}{'draw()':>9}{'CPU s':>8}")
+    for name, label in (("plain", "without"), ("answered", "?P + environment"), ("shaded", "?P ?E, shadow")):
         m, s = sizes[name]
-        print(f"{label:24}{m:>10,}{s:>10,}{best[name]:>10.3f}")
+        (w, c), (dw, dc) = best[name], best[name + " draw"]
+        print(f"{label:20}{m:>10,}{s:>10,}{w:>10.3f}{c:>8.3f}{dw:>9.3f}{dc:>8.3f}")
     print(f"scene grid (once):      {grid:.3f} s")
-    print(f"ratio (derive + turtle): {best['answered'] / best['plain']:.2f}x")
-    print(f"ratio (with the grid):   {(best['answered'] + grid) / best['plain']:.2f}x")
+    ratio = [best["answered"][k] / best["plain"][k] for k in (0, 1)]
+    ratio_draw = [best["answered draw"][k] / best["plain draw"][k] for k in (0, 1)]
+    print(f"ratio (derive + turtle): {ratio[0]:.2f}x (CPU time {ratio[1]:.2f}x)")
+    print(f"ratio (draw(), the scene read and gridded in it): {ratio_draw[0]:.2f}x (CPU time {ratio_draw[1]:.2f}x)")
+    shaded_ratio = [best["shaded"][k] / best["plain"][k] for k in (0, 1)]
+    print(f"ratio with ?E and the plant's shade: {shaded_ratio[0]:.2f}x (CPU time {shaded_ratio[1]:.2f}x)")
 
 
 if __name__ == "__main__":

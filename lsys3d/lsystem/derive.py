@@ -242,6 +242,8 @@ def derive(
         ``between(string, step) -> string``, called on the string before each step and on the last
         string (``step`` the number of steps made so far): an open L-system's environment, here the
         turtle that fills query modules (:mod:`lsys3d.turtle.query`). The string it returns goes on.
+        A ``between`` with a ``trace`` method (a :data:`Trace`) is told of every change derivation makes
+        to the string it returned, so it can re-read only what changed.
 
     Raises
     ------
@@ -305,6 +307,8 @@ def generations(
         _check_finite_start(current)
     if between is not None and trace is not None:  # its cuts and fillings are no rewriting the trace could follow
         raise DerivationError("generations: a trace cannot follow what 'between' changes in the string")
+    if between is not None:  # a between that follows the changes (to re-read only what changed) is told of them
+        trace = getattr(between, "trace", None)
     if between is not None:
         current = between(current, 0)
     yield current
@@ -1008,13 +1012,7 @@ def _step(
     new_sym = np.empty(total, dtype=np.uint8)
     new_arity = np.empty(total, dtype=np.uint8)
     new_params = np.empty(int(par_off[-1]), dtype=np.float64)
-    copy = np.flatnonzero(~matched)
-    new_sym[mod_off[copy]] = sym[copy]
-    new_arity[mod_off[copy]] = ms.arity[copy]
-    if len(params):
-        with_params = copy[ms.arity[copy] > 0]
-        lengths = ms.arity[with_params]
-        new_params[ranges(par_off[with_params], lengths)] = params[ranges(offsets[with_params], lengths)]
+    _copy_unmatched(matched, sym, ms.arity, offsets, params, mod_off, par_off, new_sym, new_arity, new_params)
 
     for prod, idx, env, draws in chosen:
         n = len(idx)
@@ -1051,6 +1049,22 @@ def _step(
         rewritten = np.flatnonzero(matched)
         produced[ranges(mod_off[rewritten], out_len[rewritten])] = True
     return ModuleString(new_sym, new_arity, new_params, plan.alphabet), produced
+
+
+@numba.njit(cache=True, nogil=True)
+def _copy_unmatched(matched, sym, arity, offsets, params, mod_off, par_off, new_sym, new_arity, new_params):
+    """Copy the modules no rule rewrote, with their parameters, to their places in the new string (one pass,
+    no index arrays: most of a long string is copied)."""
+    for i in range(sym.shape[0]):
+        if matched[i]:
+            continue
+        j = mod_off[i]
+        new_sym[j] = sym[i]
+        new_arity[j] = arity[i]
+        src = offsets[i]
+        dst = par_off[i]
+        for c in range(arity[i]):
+            new_params[dst + c] = params[src + c]
 
 
 def _consume(chosen: list, m: int) -> tuple[list, np.ndarray]:

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -44,9 +44,19 @@ def as_alphabet(names) -> tuple[str, ...]:
     if names is ASCII_ALPHABET:
         return names
     out = tuple(names)
-    if len(out) != 256 or not all(isinstance(n, str) and n for n in out):
+    try:
+        valid = _valid_alphabet(out)
+    except TypeError:  # a name that is no string (and cannot be hashed)
+        valid = False
+    if not valid:
         raise ValueError("an alphabet holds 256 names, one per symbol id")
     return ASCII_ALPHABET if out == ASCII_ALPHABET else out
+
+
+@lru_cache(maxsize=64)
+def _valid_alphabet(names: tuple) -> bool:
+    """Checked once per alphabet (every string a derivation builds carries its grammar's)."""
+    return len(names) == 256 and all(isinstance(n, str) and n for n in names)
 
 
 def format_number(x: float) -> str:

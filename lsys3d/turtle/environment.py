@@ -131,9 +131,21 @@ class EnvironmentOptions(Options):
         "", cli=False, name="env_bud", help="symbol left where the scene cut a segment (a marked bud; '': none)"
     )
 
+    shadow: bool = option(
+        False, cli=False, name="env_shadow", help="the plant shades itself: ?E's light through its own area"
+    )
+    shadow_voxel: float = option(
+        0.1, low=1e-4, cli=False, name="env_shadow_voxel", help="voxel size of the shade grid, in metres"
+    )
+    shadow_extinction: float = option(
+        0.5, low=0, high=100, cli=False, name="env_shadow_extinction", help="Beer-Lambert extinction per area density"
+    )
+
     @property
     def active(self) -> bool:
-        return bool(self.environment or self.obstacle or self.support or self.volume or self.phototropism > 0)
+        return bool(
+            self.environment or self.obstacle or self.support or self.volume or self.phototropism > 0 or self.shadow
+        )
 
     @classmethod
     def from_grammar(cls, grammar, options: EnvironmentOptions | None = None) -> EnvironmentOptions:

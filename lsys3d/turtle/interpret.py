@@ -71,7 +71,19 @@ from .commands import COMMANDS, Command, Op, SymbolTable, symbol_table
 from .options import TurtleOptions
 from .skeleton import MAX_COORDINATE, Skeleton
 
-__all__ = ["DEFAULT_MAX_SEGMENTS", "Answers", "interpret", "interpret_answering", "unit_jitter"]
+__all__ = [
+    "DEFAULT_MAX_SEGMENTS",
+    "NO_SCENE",
+    "Answers",
+    "interpret",
+    "interpret_answering",
+    "kernel_program",
+    "module_error",
+    "natural_variation",
+    "surveyed",
+    "turtle_config",
+    "unit_jitter",
+]
 
 log = logging.getLogger("lsys3d")
 
@@ -79,7 +91,7 @@ DEFAULT_MAX_SEGMENTS = 1_000_000
 """Most segments :func:`interpret` draws (about 200 bytes a segment in the turtle, far more once swept)."""
 
 
-def _module_error(modules: ModuleString, table: SymbolTable, i: int, what: str) -> InterpretError:
+def module_error(modules: ModuleString, table: SymbolTable, i: int, what: str) -> InterpretError:
     cmd = table.command(int(modules.symbols[i]))
     name = f" ({cmd.name})" if cmd else ""
     return InterpretError(f"module {i} '{modules.module_text(i, short=True)}'{name}: {what}")
@@ -97,7 +109,7 @@ def unit_jitter(rng: np.random.Generator, m: int, distribution: str) -> np.ndarr
     return z
 
 
-def _variation(
+def natural_variation(
     m: int, options: TurtleOptions, seed: int, table: SymbolTable, symbols, random_turns: int
 ) -> kernel.Variation:
     """Per-module random arrays of the natural variation; an empty array for each kind that is off."""
@@ -118,11 +130,11 @@ def _variation(
         roll = unit_jitter(generator(seed, Stream.BRANCH_ROLL), m, dist) * options.branch_roll
     if m and options.branch_drop > 0:
         drop = generator(seed, Stream.BRANCH_DROP).random(m) < options.branch_drop
-        skipped = kernel.dropped_modules(_program(table), symbols, drop)
+        skipped = kernel.dropped_modules(kernel_program(table), symbols, drop)
     return kernel.Variation(angle, length, width, roll, skipped, turn)
 
 
-def _program(table: SymbolTable) -> kernel.Program:
+def kernel_program(table: SymbolTable) -> kernel.Program:
     return kernel.Program(
         table.op,
         table.axis,
@@ -133,6 +145,64 @@ def _program(table: SymbolTable) -> kernel.Program:
         table.factor,
         table.organ,
         table.world,
+    )
+
+
+def surveyed(
+    modules: ModuleString, table: SymbolTable, program: kernel.Program, arrays: kernel.Modules, max_segments: int
+) -> tuple[np.ndarray, int]:
+    """:func:`lsys3d.turtle.kernel.survey`'s counts of each op and deepest bracket, its findings raised.
+
+    Raises
+    ------
+    InterpretError
+        A module with too many arguments, or one that is not a finite number.
+    LimitError
+        More than ``max_segments`` segments.
+    """
+    counts, max_depth, bad, why = kernel.survey(program, arrays)
+    if why == 1:
+        n = int(table.max_args[modules.symbols[bad]])
+        raise module_error(modules, table, bad, f"takes {'no argument' if n == 0 else f'at most {n} argument'}")
+    if why == 2:
+        raise module_error(modules, table, bad, "parameter is not a finite number")
+    if why == 3:
+        what = {
+            Op.FORWARD_STEPS: "takes a length >= 0 and a step > 0: nF(length, dlength[, radius])",
+            Op.TROPISM_VECTOR: "takes the tropism vector's three coordinates: @Tp(x, y, z)",
+        }[Op(table.op[modules.symbols[bad]])]
+        raise module_error(modules, table, bad, what)
+    n_seg = int(counts[Op.FORWARD])
+    if n_seg > max_segments:
+        raise LimitError(
+            f"interpret: the module string would draw up to {n_seg:,} segments, more than the limit of "
+            f"{max_segments:,}; use fewer iterations, or raise the limit (--max-segments, or max_segments=)"
+        )
+    return counts, int(max_depth)
+
+
+def turtle_config(options: TurtleOptions) -> kernel.Config:
+    """The kernel's numeric settings from the turtle's options."""
+    tx, ty, tz = options.tropism
+    return kernel.Config(
+        options.angle,
+        options.heading,
+        options.step,
+        options.width,
+        options.width_scale,
+        options.length_scale,
+        options.elasticity,
+        tx,
+        ty,
+        tz,
+        MAX_COORDINATE,
+        options.width_unit,
+        options.width_increment,
+        options.angle_scale,
+        options.bend == "angle",
+        options.length_unit,
+        options.bend == "cpfg",
+        options.elasticity_increment,
     )
 
 
@@ -241,52 +311,16 @@ def interpret_answering(
     t0 = time.perf_counter()
     m = len(modules)
     table = symbol_table(modules.alphabet, options.draw, options.move, options.leaf, commands)
-    program = _program(table)
+    program = kernel_program(table)
     arrays = kernel.Modules(modules.symbols, modules.arity, modules.offsets, modules.params)
-    counts, max_depth, bad, why = kernel.survey(program, arrays)
-    if why == 1:
-        n = int(table.max_args[modules.symbols[bad]])
-        raise _module_error(modules, table, bad, f"takes {'no argument' if n == 0 else f'at most {n} argument'}")
-    if why == 2:
-        raise _module_error(modules, table, bad, "parameter is not a finite number")
-    if why == 3:
-        what = {
-            Op.FORWARD_STEPS: "takes a length >= 0 and a step > 0: nF(length, dlength[, radius])",
-            Op.TROPISM_VECTOR: "takes the tropism vector's three coordinates: @Tp(x, y, z)",
-        }[Op(table.op[modules.symbols[bad]])]
-        raise _module_error(modules, table, bad, what)
+    counts, max_depth = surveyed(modules, table, program, arrays, max_segments)
     n_seg = int(counts[Op.FORWARD])
-    if n_seg > max_segments:
-        raise LimitError(
-            f"interpret: the module string would draw up to {n_seg:,} segments, more than the limit of "
-            f"{max_segments:,}; use fewer iterations, or raise the limit (--max-segments, or max_segments=)"
-        )
     n_poly = int(counts[Op.POLYGON_BEGIN])
     n_pts = int(counts[Op.FORWARD] + counts[Op.MOVE] + counts[Op.POLYGON_VERTEX]) if n_poly else 0
     n_leaf = int(counts[Op.LEAF])
     n_organ = int(counts[Op.ORGAN])
-    tx, ty, tz = options.tropism
-    config = kernel.Config(
-        options.angle,
-        options.heading,
-        options.step,
-        options.width,
-        options.width_scale,
-        options.length_scale,
-        options.elasticity,
-        tx,
-        ty,
-        tz,
-        MAX_COORDINATE,
-        options.width_unit,
-        options.width_increment,
-        options.angle_scale,
-        options.bend == "angle",
-        options.length_unit,
-        options.bend == "cpfg",
-        options.elasticity_increment,
-    )
-    variation = _variation(m, options, seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
+    config = turtle_config(options)
+    variation = natural_variation(m, options, seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
 
     def frames(k: int, count: int):
         return tuple(np.empty((k, 3)) for _ in range(count))
@@ -325,7 +359,7 @@ def interpret_answering(
         program, arrays, config, variation, max_depth, seg, poly, leaf, organ, query, scene or NO_SCENE
     )
     if status != kernel.OK:
-        raise _module_error(modules, table, int(bad), kernel.MESSAGES[status])
+        raise module_error(modules, table, int(bad), kernel.MESSAGES[status])
     if dropped:
         log.warning("turtle: dropped %d leaf polygon(s) with fewer than 3 distinct vertices", dropped)
 

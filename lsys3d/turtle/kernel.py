@@ -329,10 +329,8 @@ def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
     return _orthonormal(hx, hy, hz, lx, ly, lz)
 
 
-# The environment's helpers below are called, not inlined as numba IR (inline="always"): inlined, numba typed and
-# lowered _steer and the samplings in it again inside run (with _rotate_points' slice assignments, which numba
-# also compiles slowly, 9 of the 25 CPU seconds the oak's turtle took to compile); called, LLVM still inlines
-# what is small.  Only grammars with an environment call them.
+# The environment's helpers below are called, not inlined as numba IR: inlined, numba typed and lowered them again
+# inside run (9 of the oak's 25 compile CPU seconds, with _rotate_points' slice assignments); LLVM inlines them.
 @numba.njit(cache=True)
 def _sample(grid, origin, cell, x, y, z):
     """The grid's signed distance at a point: trilinear between its nodes, :data:`FAR_OUTSIDE` off the grid."""
@@ -462,10 +460,9 @@ def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hangin
     slope (climb) and toward the middle of the band it may use; a branch that was on the support and leaves
     its reach (over an edge), or with ``release`` reaches a part of it that faces up (:func:`_release`), hangs
     (``hanging`` 2; 0: never on a support, 1: on it): from there on it and the branches it bears bend down
-    and no longer adhere.  Then
-    a segment whose end would enter a solid slides along its surface (deflect) or is cut, and one that
-    ends outside the pruning volume, or farther than the set distance from the support, is cut.
-    """
+    and no longer adhere.  Then a segment whose end would enter a solid slides along its surface (deflect) or
+    is cut, and one that ends outside the pruning volume, or farther than the set distance from the support,
+    is cut."""
     o, cell, prm = scene.origin, scene.cell[0], scene.params
     photo = prm[SCENE_PHOTOTROPISM]
     if photo > 0.0:

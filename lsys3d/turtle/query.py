@@ -3,12 +3,15 @@
 L-Py's query modules (``?P``, ``?H``, ``?L``, ``?U``, ``?R``), cpfg's (``?P``, ``?H``, ``?L``, ``?U``) and
 lsys3d's own are filled with the turtle's position or frame vector where they stand, and cpfg's ``?E``
 with the environment's answer (:mod:`lsys3d.turtle.environment`), so that the rules of the next step can
-condition on them (Mech and Prusinkiewicz 1996).  Before the first step and after every step,
-:func:`answer` runs the turtle over the whole string (one pass of the numba kernel: it costs about what
-drawing the string costs, and a string is never re-derived) and writes the answers into the
-parameters.  A segment the environment cut is removed from the string with the rest of its branch,
-as ABOP's ``%`` does, and leaves the environment's ``bud`` symbol behind when one is set: what is
-cut does not go on growing.
+condition on them (Mech and Prusinkiewicz 1996).  Before the first step and after every step, an
+:class:`Answerer` runs the turtle's state over the string and writes the answers into the parameters.
+A segment the environment cut is removed from the string with the rest of its branch, as ABOP's ``%``
+does, and leaves the environment's ``bud`` symbol behind when one is set: what is cut does not go on
+growing.
+
+The pass is lean and incremental (:mod:`lsys3d.turtle.incremental`): it builds no skeleton, and after
+the first step it re-reads only what derivation changed (derivation tells it, :data:`lsys3d.lsystem.derive.Trace`),
+starting from the states it recorded; the answers are bit for bit those of a pass over the whole string.
 
 The turtle reads the string as derived (without the homomorphism rules) and without the natural
 variation's branch drops; queries inside a branch the environment cut are left as they were.
@@ -20,24 +23,277 @@ from __future__ import annotations
 import numpy as np
 
 from ..lsystem import dialects
-from ..lsystem.derive import DEFAULT_MAX_MODULES, cut_mask, derive
+from ..lsystem.derive import CUT, DEFAULT_MAX_MODULES, cut_mask, derive
 from ..lsystem.grammar import Grammar
 from ..lsystem.modules import ModuleString
-from .commands import Command, Op, symbol_table
+from . import incremental, kernel
+from .commands import Command, Op, SymbolTable, symbol_table
 from .environment import Environment
-from .interpret import DEFAULT_MAX_SEGMENTS, interpret_answering
+from .interpret import (
+    DEFAULT_MAX_SEGMENTS,
+    NO_SCENE,
+    interpret_answering,
+    kernel_program,
+    module_error,
+    natural_variation,
+    surveyed,
+    turtle_config,
+)
 from .kernel import FAR_OUTSIDE
 from .options import TurtleOptions
+from .shadow import shade
 
-__all__ = ["answer", "asks_turtle", "derive_answering"]
+__all__ = ["Answerer", "answer", "asks_turtle", "derive_answering"]
 
 _SLICES = {"P": (0, 1.0), "H": (3, 1.0), "L": (6, 1.0), "U": (9, 1.0), "R": (6, -1.0)}
+_POLYGON_OPS = (Op.POLYGON_BEGIN, Op.POLYGON_END, Op.POLYGON_VERTEX)
+_WHOLE = np.zeros(0, np.int64)  # an origin that says nothing: the pass reads the whole string
+_NEUTRAL = incremental.neutral_ops()
+# Commands the lean pass does not follow (cpfg's sub-L-system scales, its elasticity increment and generalized
+# cylinders): a string holding one is answered by the turtle that draws.
+_DRAWN_ONLY = (Op.SUB_LSYSTEM, Op.ELASTICITY_ADD, Op.CYLINDER_START, Op.CYLINDER_POINT, Op.CYLINDER_TANGENTS)
 
 
 def asks_turtle(grammar: Grammar, commands: tuple[Command, ...]) -> bool:
     """Whether the grammar writes a query module of this vocabulary (so derivation needs the turtle)."""
     queries = {c.symbol for c in commands if c.op == Op.QUERY}
     return bool(queries & set(grammar.written_symbols))
+
+
+class Answerer:
+    """The turtle that answers derivation between its steps (the ``between`` of
+    :func:`~lsys3d.lsystem.derive.derive`): fills the string's query modules and removes what the
+    environment cut.
+
+    Given the ``grammar`` it derives, one answerer serves one derivation: it follows derivation's changes
+    (:meth:`trace`) and its next pass re-reads only what changed (:mod:`lsys3d.turtle.incremental`).
+    Without it, every call reads the whole string.
+    """
+
+    def __init__(
+        self,
+        turtle: TurtleOptions,
+        commands: tuple[Command, ...],
+        seed: int,
+        environment: Environment | None = None,
+        *,
+        max_segments: int = DEFAULT_MAX_SEGMENTS,
+        grammar: Grammar | None = None,
+    ):
+        self.turtle = turtle.replace(branch_drop=0.0)
+        self.commands = commands
+        self.seed = seed
+        self.environment = environment
+        self.max_segments = max_segments
+        self.scene = environment.scene() if environment is not None else NO_SCENE
+        self.config = turtle_config(self.turtle)
+        self.grammar = grammar
+        o = self.turtle
+        varied = o.angle_jitter > 0 or o.length_jitter > 0 or o.width_jitter > 0 or o.branch_roll > 0
+        # the natural variation's numbers follow the index; the plant's shade changes every answer
+        self.shading = environment is not None and environment.options.shadow
+        self.follow = grammar is not None and not varied and not self.shading
+        self._tables: dict = {}
+        self._table = None  # the symbol table of the last pass
+        # origin[i]: the index, in the last pass's string, of the module i copies (-1: produced since);
+        # None: unknown; empty: the last pass's string itself, its modules unchanged
+        self.origin: np.ndarray | None = None
+        self._records = None  # the last pass's string's symbols, and the states it recorded (positions, states)
+
+    def _compiled(self, alphabet) -> tuple[SymbolTable, kernel.Program, np.ndarray, bool]:
+        found = self._tables.get(alphabet)
+        if found is None:
+            t = self.turtle
+            table = symbol_table(alphabet, t.draw, t.move, t.leaf, self.commands)
+            recorded = np.zeros(256, np.bool_)  # the symbols a rule may rewrite: their states are kept
+            follow = False
+            g = self.grammar
+            if self.follow:
+                code = {ch: i for i, ch in enumerate(alphabet) if ch != "\0"}
+
+                def op_of(symbol: str) -> Op:
+                    return Op(int(table.op[code[symbol]])) if symbol in code else Op.NONE
+
+                follow = incremental.follows(g, op_of)
+                for prod in (*g.productions, *g.decomposition_productions):
+                    if prod.predecessor.symbol in code:
+                        recorded[code[prod.predecessor.symbol]] = True
+                if g.cut_symbol and g.cut_symbol in code:
+                    recorded[code[g.cut_symbol]] = True
+            found = (table, kernel_program(table), recorded, follow)
+            self._tables[alphabet] = found
+        return found
+
+    def trace(self, kind, symbols, new_symbols, rewritten, lengths, persisting) -> None:
+        """Follow one change derivation made to the string (:data:`lsys3d.lsystem.derive.Trace`)."""
+        if self.origin is None:
+            return
+        if kind == CUT:
+            if self._table is None or _removes_polygons(self._table, symbols, rewritten):
+                self.origin = None
+            else:
+                self.origin = incremental.follow_cut(self.origin, rewritten)
+        else:
+            self.origin = incremental.follow_production(self.origin, rewritten, lengths)
+
+    def __call__(self, modules: ModuleString, step: int = 0) -> ModuleString:
+        """The string with its query modules filled and the branches the environment cut removed."""
+        table, program, recorded, follow = self._compiled(modules.alphabet)
+        self._table = table
+        arrays = kernel.Modules(modules.symbols, modules.arity, modules.offsets, modules.params)
+        counts, max_depth = surveyed(modules, table, program, arrays, self.max_segments)
+        m = len(modules)
+        origin, records = self.origin, self._records
+        if not follow or counts[Op.RANDOM_TURN] or origin is None or records is None:
+            origin, records = _WHOLE, None
+        elif not len(origin):  # derivation changed nothing
+            origin = np.arange(m) if len(records[0]) == m else None
+        if origin is None or (len(origin) and len(origin) != m):
+            origin, records = _WHOLE, None
+        variation = natural_variation(m, self.turtle, self.seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
+        args = (modules, table, program, arrays, max_depth, variation, recorded, counts)
+        if any(counts[op] for op in _DRAWN_ONLY) or self.turtle.bend == "cpfg":  # the turtle that draws them
+            follow = False
+            found = self._full_pass(modules)
+        else:
+            found = self._pass(*args, origin, records)
+            if found is None:  # a change the records cannot follow: the whole string
+                found = self._pass(*args, _WHOLE, None)
+        query_module, query_state, cut, positions, states, deposits = found
+        out, origin = _written(modules, table, query_module, query_state, cut, self.environment, deposits)
+        self._records = (modules.symbols, positions, states) if follow else None
+        self.origin = origin if follow else None
+        return out
+
+    def _full_pass(self, modules):
+        """The answers from the turtle that draws (:func:`~lsys3d.turtle.interpret.interpret_answering`): for
+        the commands the lean pass does not follow (:data:`_DRAWN_ONLY`, cpfg's bend after each move)."""
+        skeleton, found = interpret_answering(
+            modules,
+            self.turtle,
+            self.seed,
+            max_segments=self.max_segments,
+            commands=self.commands,
+            scene=None if self.environment is None else self.scene,
+        )
+        deposits = None
+        if self.shading:
+            mid = 0.5 * (skeleton.start + skeleton.end)
+            area = np.linalg.norm(skeleton.end - skeleton.start, axis=1) * skeleton.width_start
+            leaves = np.column_stack([skeleton.leaf_position, skeleton.leaf_size**2])
+            deposits = np.concatenate([np.column_stack([mid, area]), leaves])
+        return found.module, found.state, found.cut, _WHOLE, np.zeros((0, incremental.STATE)), deposits
+
+    def _pass(self, modules, table, program, arrays, max_depth, variation, recorded, counts, origin, records):
+        n_query = int(counts[Op.QUERY])
+        query_module = np.empty(n_query, np.int64)
+        query_state = np.empty((n_query, 12))
+        cut = np.empty(int(counts[Op.FORWARD]) if self.environment is not None else 0, np.int64)
+        n_records = int(np.count_nonzero(recorded[modules.symbols])) + len(cut)  # rewritable modules, cut segments
+        positions = np.empty(n_records, np.int64)
+        states = np.empty((n_records, incremental.STATE))
+        found = np.zeros(4, np.int64)
+        n_area = int(counts[Op.FORWARD] + counts[Op.LEAF]) if self.shading else 0
+        deposits = np.empty((n_area, 4))
+        if records is None:
+            old_symbols, old_positions, old_states = modules.symbols[:0], _WHOLE, states[:0]
+        else:
+            old_symbols, old_positions, old_states = records
+        status, bad = incremental.answer_pass(
+            program,
+            arrays,
+            self.config,
+            variation,
+            max_depth,
+            self.scene,
+            recorded,
+            _NEUTRAL,
+            origin,
+            old_symbols,
+            old_positions,
+            old_states,
+            len(old_positions),
+            query_module,
+            query_state,
+            cut,
+            positions,
+            states,
+            found,
+            deposits,
+        )
+        if status == incremental.FOLLOW_LOST:
+            return None
+        if status != kernel.OK:
+            raise module_error(modules, table, int(bad), kernel.MESSAGES[status])
+        n_query, n_cut, n_rec, n_dep = (int(c) for c in found)
+        return (
+            query_module[:n_query],
+            query_state[:n_query],
+            cut[:n_cut],
+            positions[:n_rec],
+            states[:n_rec],
+            deposits[:n_dep] if self.shading else None,
+        )
+
+
+def _removes_polygons(table: SymbolTable, symbols: np.ndarray, keep: np.ndarray) -> bool:
+    return bool(np.isin(table.op[symbols[~keep]], _POLYGON_OPS).any())
+
+
+def _written(
+    modules, table, query_module, query_state, cut, environment, deposits=None
+) -> tuple[ModuleString, np.ndarray | None]:
+    """The string with the answers written and the cut branches removed, and where its modules came from
+    (:attr:`Answerer.origin`: empty when no module was removed; -1 for a bud; None when a polygon was cut).
+    With ``deposits`` (the plant's area, :mod:`lsys3d.turtle.shadow`), ``?E``'s light is shaded by it."""
+    params = modules.params
+    if len(query_module):
+        params = params.copy()
+        codes = modules.symbols[query_module]
+        offsets = modules.offsets[query_module]
+        arity = modules.arity[query_module].astype(np.int64)
+        for code in np.unique(codes).tolist():
+            cmd = table.command(code)
+            sel = codes == code
+            state = query_state[sel]
+            if cmd.query == "E":
+                if environment is not None:
+                    values = environment.probe(state[:, :3])
+                    if deposits is not None:
+                        values[:, 2] *= shade(deposits, state[:, :3], environment.options)
+                else:  # nothing blocks, no surface near, full light
+                    values = np.tile([0.0, FAR_OUTSIDE, 1.0], (len(state), 1))
+                slots = (0, 1, 2)
+            else:
+                first, sign = _SLICES[cmd.query]
+                values = sign * state[:, first : first + 3]
+                slots = cmd.world
+            for j, slot in enumerate(slots):
+                has = arity[sel] > slot
+                params[offsets[sel][has] + slot] = values[has, j]
+    symbols, arity_all = modules.symbols, modules.arity
+    if not len(cut):
+        out = modules if params is modules.params else ModuleString(symbols, arity_all, params, modules.alphabet)
+        return out, _WHOLE
+    keep = cut_mask(table.op[symbols] == Op.PUSH, table.op[symbols] == Op.POP, cut)
+    bud = environment.options.bud if environment is not None else ""
+    code = modules.code(bud) if bud else -1
+    origin = np.arange(len(modules))
+    removes_polygons = _removes_polygons(table, symbols, keep)
+    if code >= 0:  # the cut module becomes the bud, without parameters
+        symbols = symbols.copy()
+        arity_all = arity_all.copy()
+        symbols[cut] = code
+        keep[cut] = True
+        drop = np.zeros(len(modules), bool)
+        drop[cut] = True
+        params = params[np.repeat(keep & ~drop, modules.arity.astype(np.int64))]
+        arity_all[cut] = 0
+        origin[cut] = -1
+    else:
+        params = params[np.repeat(keep, modules.arity.astype(np.int64))]
+    out = ModuleString(symbols[keep], arity_all[keep], params, modules.alphabet)
+    return out, None if removes_polygons else origin[keep]
 
 
 def answer(
@@ -62,57 +318,7 @@ def answer(
     >>> str(out)
     'FFF+?P(0,3,0)?H(-1,0,0)'
     """
-    scene = environment.scene() if environment is not None else None
-    _, found = interpret_answering(
-        modules, turtle.replace(branch_drop=0.0), seed, max_segments=max_segments, commands=commands, scene=scene
-    )
-    table = symbol_table(modules.alphabet, turtle.draw, turtle.move, turtle.leaf, commands)
-    params = modules.params
-    if len(found.module):
-        params = params.copy()
-        codes = modules.symbols[found.module]
-        offsets = modules.offsets[found.module]
-        arity = modules.arity[found.module].astype(np.int64)
-        for code in np.unique(codes).tolist():
-            cmd = table.command(code)
-            sel = codes == code
-            state = found.state[sel]
-            if cmd.query == "E":
-                if environment is not None:
-                    values = environment.probe(state[:, :3])
-                else:  # nothing blocks, no surface near, full light
-                    values = np.tile([0.0, FAR_OUTSIDE, 1.0], (len(state), 1))
-                slots = (0, 1, 2)
-            else:
-                first, sign = _SLICES[cmd.query]
-                values = sign * state[:, first : first + 3]
-                slots = cmd.world
-            for j, slot in enumerate(slots):
-                has = arity[sel] > slot
-                params[offsets[sel][has] + slot] = values[has, j]
-    symbols, arity_all = modules.symbols, modules.arity
-    keep = None
-    if len(found.cut):
-        is_open = table.op[symbols] == Op.PUSH
-        is_close = table.op[symbols] == Op.POP
-        keep = cut_mask(is_open, is_close, found.cut)
-        bud = environment.options.bud if environment is not None else ""
-        code = modules.code(bud) if bud else -1
-        if code >= 0:  # the cut module becomes the bud, without parameters
-            symbols = symbols.copy()
-            arity_all = arity_all.copy()
-            symbols[found.cut] = code
-            keep[found.cut] = True
-            drop = np.zeros(len(modules), bool)
-            drop[found.cut] = True
-            params = params[np.repeat(keep & ~drop, modules.arity.astype(np.int64))]
-            arity_all[found.cut] = 0
-        else:
-            params = params[np.repeat(keep, modules.arity.astype(np.int64))]
-        symbols, arity_all = symbols[keep], arity_all[keep]
-    if params is modules.params and keep is None:
-        return modules
-    return ModuleString(symbols, arity_all, params, modules.alphabet)
+    return Answerer(turtle, commands, seed, environment, max_segments=max_segments)(modules)
 
 
 def derive_answering(
@@ -138,7 +344,5 @@ def derive_answering(
         return derive(grammar, iterations, seed, max_modules=max_modules)
     turtle = turtle or TurtleOptions.from_grammar(grammar)
 
-    def between(ms: ModuleString, step: int) -> ModuleString:
-        return answer(ms, turtle, commands, seed, environment, max_segments=max_segments)
-
+    between = Answerer(turtle, commands, seed, environment, max_segments=max_segments, grammar=grammar)
     return derive(grammar, iterations, seed, max_modules=max_modules, between=between)
