@@ -33,6 +33,7 @@ SMOKE = {
     "bench_readers.py": ["--quick"],
     "bench_turtle.py": ["-n", "4", "--repeat", "1"],
     "bench_union_scale.py": ["--plant", "3", "--no-fern", "--compare", "0", "--no-naive"],
+    "compile_profile.py": ["--top", "5", "--", "generate", "koch", "-o", "koch.glb"],  # warm: nothing compiled
     "dense_census.py": [str(BENCHMARKS.parent / "tests/corpus/lpy/real/abop_chap1_lsystem1.4.lpy")],
     "profile_memory.py": ["koch", "-n", "2"],
 }

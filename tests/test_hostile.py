@@ -58,7 +58,7 @@ from lsys3d.exchange import atomic
 from lsys3d.golden import golden
 from lsys3d.mesh.sweep import DEFAULT_MAX_TRIANGLES, sweep
 from lsys3d.mesh.union.union import union
-from lsys3d.pipeline import GenerateOptions
+from lsys3d.pipeline import GenerateOptions, draw
 from lsys3d.turtle import DEFAULT_MAX_SEGMENTS, interpret
 
 derive_module = importlib.import_module("lsys3d.lsystem.derive")  # lsys3d.derive is the function
@@ -482,23 +482,24 @@ def test_overflow_names_the_rule_parameter_and_module():
 
 # ---------------------------------------------------------------- limits: defaults, and each one can be raised
 def test_defaults_leave_every_preset_a_hundredfold_headroom():
-    """How the defaults were chosen: at least 100x what the largest bundled preset needs at its own iterations."""
+    """How the defaults were chosen: at least 100x what the largest bundled plant needs at its own iterations,
+    grown as it is grown; the scene presets (a hedge, a wall of ivy: many plants) at least 30x."""
     assert GenerateOptions().limits.max_segments == DEFAULT_MAX_SEGMENTS
     assert GenerateOptions().limits.max_triangles == DEFAULT_MAX_TRIANGLES
-    most = {"modules": 0, "segments": 0, "triangles": 0}
+    most = {group: {"modules": 0, "segments": 0, "triangles": 0} for group in ("plant", "scene")}
     for name in lsys3d.list_presets():
         g = lsys3d.load_preset(name)
-        modules = lsys3d.derive(g)
-        skeleton = interpret(modules, g)
+        modules, skeleton = draw(g, g.iterations, g.seed)
         tubes = sweep(skeleton)
-        most = {
-            "modules": max(most["modules"], len(modules) + derive_module.PARAMETER_COST * len(modules.params)),
-            "segments": max(most["segments"], len(skeleton)),
-            "triangles": max(most["triangles"], len(tubes.faces)),
-        }
-    assert most["modules"] * 100 <= lsys3d.DEFAULT_MAX_MODULES
-    assert most["segments"] * 100 <= DEFAULT_MAX_SEGMENTS
-    assert most["triangles"] * 100 <= DEFAULT_MAX_TRIANGLES
+        m = most["scene" if g.group == "scene" else "plant"]
+        m["modules"] = max(m["modules"], len(modules) + derive_module.PARAMETER_COST * len(modules.params))
+        m["segments"] = max(m["segments"], len(skeleton))
+        m["triangles"] = max(m["triangles"], len(tubes.faces))
+    for group, factor in (("plant", 100), ("scene", 30)):
+        m = most[group]
+        assert m["modules"] * factor <= lsys3d.DEFAULT_MAX_MODULES, group
+        assert m["segments"] * factor <= DEFAULT_MAX_SEGMENTS, group
+        assert m["triangles"] * factor <= DEFAULT_MAX_TRIANGLES, group
 
 
 def test_each_limit_can_be_raised(monkeypatch):

@@ -141,7 +141,11 @@ def test_the_benchmark_plant_on_a_wall(tmp_path):
 def test_the_scene_presets(name):
     g = load_preset(name)
     counted, _ = _same_generations(g, g.iterations, load_environment(g))
-    assert counted.followed > 0
+    t = TurtleOptions.from_grammar(g)
+    if t.angle_jitter or t.length_jitter or t.width_jitter or t.branch_roll:  # tree-wall's natural variation:
+        assert counted.followed == 0  # its numbers follow each module's index, so every pass reads it all
+    else:
+        assert counted.followed > 0
 
 
 def test_queries_without_an_environment_and_a_side_branch_that_ends():
