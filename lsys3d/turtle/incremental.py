@@ -33,11 +33,36 @@ import numpy as np
 
 from ..lsystem.grammar import Grammar
 from .commands import Op
-from .kernel import (
+from .kernel import (  # numba sees the ops as these plain integers, declared once in kernel.py
+    _ANGLE_FACTOR,
     _AXIS_H,
     _AXIS_L,
+    _ELASTICITY,
+    _FORWARD,
+    _FORWARD_STEPS,
     _INSTANCE,
+    _LEAF,
+    _LENGTH,
+    _MATERIAL,
+    _MOVE,
+    _NONE,
+    _ORGAN,
+    _POLYGON_BEGIN,
+    _POLYGON_END,
+    _POLYGON_VERTEX,
+    _POP,
+    _PUSH,
+    _QUERY,
+    _RANDOM_TURN,
+    _ROLL_HORIZONTAL,
+    _ROTATE,
     _SURFACE,
+    _TROPISM,
+    _TROPISM_VECTOR,
+    _TURN_AROUND,
+    _WIDTH,
+    _WIDTH_ADD,
+    _WIDTH_FACTOR,
     MAX_POLYGON_DEPTH,
     _bend,
     _cos_sin,
@@ -56,31 +81,6 @@ whether the branch hangs from a support, bracket depth, open polygons."""
 FOLLOW_LOST = -1
 """:func:`answer_pass`'s status when a change cannot be followed from the last pass: run it over the whole string."""
 
-_NONE = int(Op.NONE)
-_FORWARD = int(Op.FORWARD)
-_MOVE = int(Op.MOVE)
-_ROTATE = int(Op.ROTATE)
-_TURN_AROUND = int(Op.TURN_AROUND)
-_ROLL_HORIZONTAL = int(Op.ROLL_HORIZONTAL)
-_PUSH = int(Op.PUSH)
-_POP = int(Op.POP)
-_WIDTH = int(Op.WIDTH)
-_MATERIAL = int(Op.MATERIAL)
-_LENGTH = int(Op.LENGTH)
-_POLYGON_BEGIN = int(Op.POLYGON_BEGIN)
-_POLYGON_VERTEX = int(Op.POLYGON_VERTEX)
-_POLYGON_END = int(Op.POLYGON_END)
-_LEAF = int(Op.LEAF)
-_ORGAN = int(Op.ORGAN)
-_WIDTH_ADD = int(Op.WIDTH_ADD)
-_WIDTH_FACTOR = int(Op.WIDTH_FACTOR)
-_ANGLE_FACTOR = int(Op.ANGLE_FACTOR)
-_RANDOM_TURN = int(Op.RANDOM_TURN)
-_TROPISM = int(Op.TROPISM)
-_ELASTICITY = int(Op.ELASTICITY)
-_FORWARD_STEPS = int(Op.FORWARD_STEPS)
-_TROPISM_VECTOR = int(Op.TROPISM_VECTOR)
-_QUERY = int(Op.QUERY)
 
 _NEUTRAL = (Op.NONE, Op.QUERY, Op.LEAF, Op.ORGAN)
 """Ops that leave the turtle's state as it was (a module of these rewritten away changes nothing after it)."""
