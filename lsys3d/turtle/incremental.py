@@ -73,7 +73,16 @@ from .kernel import (  # numba sees the ops as these plain integers, declared on
     _steps,
 )
 
-__all__ = ["FOLLOW_LOST", "STATE", "answer_pass", "follow_cut", "follow_production", "follows", "neutral_ops"]
+__all__ = [
+    "FOLLOW_LOST",
+    "STATE",
+    "answer_pass",
+    "carries_out",
+    "follow_cut",
+    "follow_production",
+    "follows",
+    "neutral_ops",
+]
 
 STATE = 22
 """Numbers in a recorded state: position, H, L, U (12), width, step, angle, elasticity, tropism vector (3),
@@ -85,6 +94,17 @@ FOLLOW_LOST = -1
 _NEUTRAL = (Op.NONE, Op.QUERY, Op.LEAF, Op.ORGAN)
 """Ops that leave the turtle's state as it was (a module of these rewritten away changes nothing after it)."""
 _STRUCTURAL = (Op.PUSH, Op.POP, Op.POLYGON_BEGIN, Op.POLYGON_END)
+
+
+_CARRIED_OUT = np.zeros(len(Op), np.bool_)  # the ops answer_pass steps through; a new Op is drawn until it does
+_CARRIED_OUT[[int(o) for o in Op if o <= Op.QUERY]] = True  # NONE .. QUERY (the ops after it came later)
+
+
+def carries_out(counts: np.ndarray, turtle) -> bool:
+    """Whether :func:`answer_pass` carries out a string of these op ``counts`` (``kernel.survey``'s) as the turtle
+    that draws would: no op it does not step through (cpfg's sub-L-system scales, ``_``, generalized cylinders,
+    or any op added to :class:`Op` after ``QUERY``), and not cpfg's bend after each move."""
+    return not counts[~_CARRIED_OUT].any() and turtle.bend != "cpfg"
 
 
 def neutral_ops() -> np.ndarray:

@@ -49,9 +49,6 @@ _SLICES = {"P": (0, 1.0), "H": (3, 1.0), "L": (6, 1.0), "U": (9, 1.0), "R": (6, 
 _POLYGON_OPS = (Op.POLYGON_BEGIN, Op.POLYGON_END, Op.POLYGON_VERTEX)
 _WHOLE = np.zeros(0, np.int64)  # an origin that says nothing: the pass reads the whole string
 _NEUTRAL = incremental.neutral_ops()
-# Commands the lean pass does not follow (cpfg's sub-L-system scales, its elasticity increment and generalized
-# cylinders): a string holding one is answered by the turtle that draws.
-_DRAWN_ONLY = (Op.SUB_LSYSTEM, Op.ELASTICITY_ADD, Op.CYLINDER_START, Op.CYLINDER_POINT, Op.CYLINDER_TANGENTS)
 
 
 def asks_turtle(grammar: Grammar, commands: tuple[Command, ...]) -> bool:
@@ -152,7 +149,7 @@ class Answerer:
             origin, records = _WHOLE, None
         variation = natural_variation(m, self.turtle, self.seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
         args = (modules, table, program, arrays, max_depth, variation, recorded, counts)
-        if any(counts[op] for op in _DRAWN_ONLY) or self.turtle.bend == "cpfg":  # the turtle that draws them
+        if not incremental.carries_out(counts, self.turtle):  # the turtle that draws them answers
             follow = False
             found = self._full_pass(modules)
         else:
@@ -167,7 +164,7 @@ class Answerer:
 
     def _full_pass(self, modules):
         """The answers from the turtle that draws (:func:`~lsys3d.turtle.interpret.interpret_answering`): for
-        the commands the lean pass does not follow (:data:`_DRAWN_ONLY`, cpfg's bend after each move)."""
+        the strings the lean pass does not carry out (:func:`lsys3d.turtle.incremental.carries_out`)."""
         skeleton, found = interpret_answering(
             modules,
             self.turtle,
