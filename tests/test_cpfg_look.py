@@ -80,7 +80,8 @@ def test_textured_surfaces_draws_its_leaves_with_the_maple_texture_and_three_sca
     0.75 times as long along the heading (sy) as it is along up (sz)."""
     grammar = lsys3d.Grammar.from_file(TEXTURED)
     assert grammar.repairs == ()
-    assert grammar.surfaces == {"l": {"model": "leaf.s", "scale": 1.0, "precision": [8, 4], "texels": "surface"}}
+    leaf = {"model": "leaf.s", "scale": 1.0, "precision": [8, 4], "end_point": True, "texels": "surface"}
+    assert grammar.surfaces == {"l": leaf}  # END POINT is not CONTACT POINT: cpfg moves the turtle after ~l
     assert grammar.materials["255"]["texture"] == "maple.png"
     with caplog.at_level(logging.WARNING, logger="lsys3d"):
         _, skeleton = draw(grammar, grammar.iterations, 0, lsys3d.GenerateOptions.from_flat(strict=True))
@@ -183,3 +184,18 @@ def test_three_scales_of_a_surface(tmp_path):
     first, second = lengths / lengths[:, :1]
     assert np.allclose(first, [1, 3, 2]) and np.allclose(second, [1, 1, 1])
     assert np.allclose(lengths[1, 0] / lengths[0, 0], 2.0)
+
+
+def test_a_surface_that_moves_cpfg_turtle_is_named_where_it_matters(tmp_path, caplog):
+    """leaf.s's END POINT (0, 0, 0) is not its CONTACT POINT (0.02, -1.66, 0): cpfg moves the turtle there after
+    ~l (patches.c determine_end_point), lsys3d does not.  Last in its branch (TexturedSurfaces) that changes
+    nothing; followed by a module of the branch, a warning (--strict: an error) names it."""
+    shutil.copy(REAL / "leaf.s", tmp_path / "leaf.s")
+    quiet = lsys3d.Grammar.from_file(_model(tmp_path, "F [~l(1)] F", "surface: l leaf.s 1 8 4\n"))
+    with caplog.at_level(logging.WARNING, logger="lsys3d"):
+        draw(quiet, 0, 0)
+    assert not caplog.records, caplog.text
+    moved = lsys3d.Grammar.from_file(_model(tmp_path, "F ~l(1) F", "surface: l leaf.s 1 8 4\n"))
+    with pytest.raises(GrammarError) as info:
+        draw(moved, 0, 0, lsys3d.GenerateOptions.from_flat(strict=True))
+    assert "end point of the surface after '~l'" in str(info.value) and "\n" not in str(info.value)

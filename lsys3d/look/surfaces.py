@@ -20,7 +20,8 @@ any other name is a named surface (ABOP's and L-Py's ``~name``, see
 * a vlab surface file (cpfg's bicubic patches, :mod:`lsys3d.look.patches`):
   ``{ model = "leaf.s", scale = 1, precision = [8, 4], texels = "surface" }``,
   at its own size times ``scale`` (cpfg's view file's ``surface: l leaf.s 1 8 4``
-  writes it so for a cpfg file), with cpfg's texture coordinates;
+  writes it so for a cpfg file), with cpfg's texture coordinates (``end_point = true``: cpfg moves the
+  turtle to the surface's end point after it, which lsys3d names in a warning where it matters);
 * a card: ``{ card = "leaf.png", width = w, alpha_cutoff = 0.5 }``: one quad,
   length 1 along ``+z`` and ``w`` wide (default: the image's aspect ratio),
   showing the image (stem at the bottom of the picture, tip at the top), cut
@@ -89,7 +90,7 @@ MODEL_SUFFIXES = (".glb", ".obj", ".ply", ".stl")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]{0,63}\Z")
 _MODEL_KEYS = ("model", "rotate", "scale", "normalize")
 _CARD_KEYS = ("card", "width", "alpha_cutoff")
-_PATCH_KEYS = ("model", "scale", "precision", "texels")  # a vlab surface (.s): lsys3d.look.patches
+_PATCH_KEYS = ("model", "scale", "precision", "texels", "end_point")  # a vlab surface (.s): lsys3d.look.patches
 MAX_PATCH_BYTES = 1 << 20
 """Largest vlab surface file (``.s``) read, in bytes."""
 
@@ -305,7 +306,9 @@ def _surface(name: str, entry, folder: Path, where: str) -> Surface:
 
 def _patch_surface(name: str, entry, folder: Path, where: str) -> Surface:
     """A vlab surface file (``{ model = "leaf.s", scale = 1, precision = [8, 4], texels = "surface" }``), at its
-    own size times ``scale`` as cpfg's view file sizes it (:mod:`lsys3d.look.patches`)."""
+    own size times ``scale`` as cpfg's view file sizes it (:mod:`lsys3d.look.patches`).  ``end_point = true``
+    says that cpfg moves the turtle to the surface's end point after it, which lsys3d does not (a warning
+    names it where a module of the branch follows: :func:`lsys3d.turtle.selections.surface_findings`)."""
     size = _number(entry.get("scale", 1.0), where, 1e-6, 1e6, "scale")
     precision = entry.get("precision", (0, 0))
     ok = isinstance(precision, (list, tuple)) and len(precision) == 2
@@ -314,6 +317,8 @@ def _patch_surface(name: str, entry, folder: Path, where: str) -> Surface:
             f"{where}: precision must be two whole numbers [s, t] in [0, {MAX_PRECISION}] (0: the file's), "
             f"not {clip(repr(precision))}"
         )
+    if not isinstance(entry.get("end_point", False), bool):
+        raise OptionsError(f"{where}: end_point must be true or false (whether cpfg moves the turtle after it)")
     path = resolve(folder, entry["model"], f"{where}: model")
     data = read_file(path, MAX_PATCH_BYTES, "surface file", "lsys3d.look.surfaces.MAX_PATCH_BYTES")
     try:

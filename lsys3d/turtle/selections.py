@@ -27,7 +27,7 @@ from ..lsystem.modules import ModuleString
 from .commands import Organ
 from .skeleton import Skeleton
 
-__all__ = ["selections"]
+__all__ = ["selections", "surface_findings"]
 
 
 def _code(shown: ModuleString, name: str) -> int | None:
@@ -103,3 +103,30 @@ def _texture_before(shown: ModuleString, code: int, read: set[int]):
             state = stack.pop()
         index[k] = state
     return (at, index) if any_set else None
+
+
+def surface_findings(grammar, shown: ModuleString, skeleton: Skeleton) -> list[str]:
+    """What cpfg draws that lsys3d does not, after a surface: cpfg moves the turtle to a surface's end point
+    (``patches.c``: ``determine_end_point``; the ``[surfaces]`` entry's ``end_point``), lsys3d leaves it at
+    the surface's base.  One line when a module other than ``]`` follows such a surface in the string."""
+    moving = {
+        name
+        for name, entry in (grammar.surfaces or {}).items()
+        if isinstance(entry, Mapping) and entry.get("end_point")
+    }
+    if not moving or not skeleton.n_organs:
+        return []
+    pop = _code(shown, "]")
+    followed = set()
+    for module, name in zip(skeleton.organ_module.tolist(), skeleton.organ_name.tolist(), strict=True):
+        surface = name[1:] if name.startswith("~") else name
+        nxt = module + 1
+        if surface in moving and nxt < len(shown) and int(shown.symbols[nxt]) != pop:
+            followed.add(surface)
+    if not followed:
+        return []
+    names = ", ".join(f"'~{n}'" for n in sorted(followed))
+    return [
+        f"{grammar.source}: cpfg moves the turtle to the end point of the surface after {names} (its file's END "
+        "POINT); lsys3d leaves it where the surface stands, so what follows in the branch is drawn from there"
+    ]

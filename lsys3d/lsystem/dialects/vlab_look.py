@@ -126,7 +126,28 @@ def _surface(rest: str, folder: Path) -> tuple[str, dict] | None:
     except FileRefused:
         return None  # cpfg: access() fails, the surface is not defined (lsys3d then warns of the organ)
     size = size if size > 0 else 1.0  # cpfg's read: a size <= 0 is 1
-    return words[0], {"model": words[1], "scale": size, "precision": [max(0, p) for p in precision]}
+    entry = {"model": words[1], "scale": size, "precision": [max(0, p) for p in precision]}
+    if _moves(folder / words[1]):
+        entry["end_point"] = True
+    return words[0], entry
+
+
+_POINT = r"X:\s*([-+.\deE]+)\s*Y:\s*([-+.\deE]+)\s*Z:\s*([-+.\deE]+)"
+
+
+def _moves(path: Path) -> bool:
+    """Whether cpfg moves the turtle after drawing the surface: its ``END POINT`` is not its ``CONTACT POINT``
+    (``patches.c``: ``determine_end_point``).  A file that does not say is left to the surface's reader."""
+    try:
+        text = read_text(path)
+    except GrammarError:
+        return False
+    contact = re.search(r"CONTACT POINT\s*" + _POINT, text)
+    end = re.search(r"END POINT\s*" + _POINT, text)
+    try:
+        return bool(contact and end and [float(v) for v in contact.groups()] != [float(v) for v in end.groups()])
+    except ValueError:
+        return False
 
 
 def _texture(rest: str, folder: Path) -> tuple[tuple[str, bool, float, bool] | None, str]:
