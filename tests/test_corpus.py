@@ -167,7 +167,7 @@ def test_the_fresh_sample_is_counted_honestly():
     # generalized cylinders, while loops in a rule's block): JumpingLamp, Lilac, WeepingBirch, Ring and
     # Horneophyton match, and Sedge's leaf and sedge ('_' drawn); TexturedSurfaces and Ridley read with a
     # warning (@Tx, ~l's scales; @!)
-    assert (outcomes.count("match"), outcomes.count("warns"), outcomes.count("refused")) == (30, 6, 0), outcomes
+    assert (outcomes.count("match"), outcomes.count("warns"), outcomes.count("refused")) == (31, 5, 0), outcomes
 
 
 def shedding_model(steps: int = 320) -> tuple[int, int, int, int]:
@@ -295,6 +295,8 @@ def test_each_gathered_file_reads_unmodified_and_matches(name, caplog, tmp_path)
         assert skeleton.n_polygons == expected["polygons"]
     if "organs" in expected:
         assert skeleton.n_organs == expected["organs"]
+    if "sides" in expected:  # the sides the grammar sets (cpfg's @!) of the segments drawn
+        assert sorted(set(skeleton.sides.tolist())) == expected["sides"]
     if "warns" in expected:
         from lsys3d.pipeline import draw
 
@@ -316,10 +318,10 @@ def test_strict_refuses_what_a_reader_repaired(name):
 
 
 def test_strict_turns_a_fresh_files_warning_into_an_error():
-    """GeneralizedCylinder reads with a warning (its generalized cylinders are not drawn); --strict refuses it."""
+    """Tropisms reads with a warning (its contour, @#, is not drawn); --strict refuses it."""
     from lsys3d.pipeline import draw
 
-    grammar = lsys3d.Grammar.from_file(CORPUS / "cpfg/real/manual-GeneralizedCylinder-fractal.l")
+    grammar = lsys3d.Grammar.from_file(CORPUS / "cpfg/real/manual-Tropisms-lsystem.l")
     with pytest.raises(GrammarError) as info:
         draw(grammar, grammar.iterations, 0, lsys3d.GenerateOptions.from_flat(strict=True))
     assert "does not draw" in str(info.value) and "--strict" in str(info.value) and "\n" not in str(info.value)
