@@ -261,3 +261,17 @@ def test_the_tropisms_model_reads_its_view_file(tmp_path):
     assert len(bent_skeleton) == len(skeleton)
     # the orthotropism T = (0, 1, 0) of strength 0.3 turns the axis up: its tip rises above the straight one's
     assert bent_skeleton.end[:, 1].max() > skeleton.end[:, 1].max() + 0.5
+
+
+def test_a_tropism_the_view_file_does_not_give_is_named(tmp_path, caplog):
+    import logging
+
+    from lsys3d.pipeline import draw
+
+    (tmp_path / "t.l").write_text("Lsystem: 1\nAxiom: @Ts(1, 0.2) F @Ts(4, 1) @Ti(0) F\nendlsystem\n")
+    (tmp_path / "t.v").write_text(VIEW)
+    grammar = lsys3d.Grammar.from_file(tmp_path / "t.l")
+    with caplog.at_level(logging.WARNING, logger="lsys3d"):
+        draw(grammar, 0, 0)
+    found = [r.getMessage() for r in caplog.records if "tropisms the view file does not give" in r.getMessage()]
+    assert len(found) == 1 and "(it gives 3:" in found[0] and "@Ti(0), @Ts(4) change nothing" in found[0], found
