@@ -106,3 +106,13 @@ def test_the_view_files_sides_are_the_turtles_at_first(tmp_path, line, sides):
     grammar = lsys3d.Grammar.from_file(tmp_path / "t.l")
     sk = interpret(interpretation(grammar, lsys3d.derive(grammar)), grammar)
     assert sk.sides.tolist() == [sides, 5, sides] and sk.organ_sides.tolist() == [sides]
+
+
+def test_the_form_stage_carries_the_sides_to_its_pieces():
+    """A curved segment split into pieces keeps its sides in each (lsys3d.turtle.form)."""
+    from lsys3d.turtle.form import FormOptions, form
+
+    sk = _skeleton("F @!(5) F F [ +F @!(11) F ] F")
+    curved = form(sk, FormOptions(enabled=True, gnarl=40.0, max_substep_length=0.25), seed=1)
+    assert len(curved) > len(sk)
+    assert np.array_equal(curved.sides, sk.sides[np.searchsorted(sk.module, curved.module)])
