@@ -122,6 +122,13 @@ class Skeleton:
         When each leaf instance starts to unfold and when it is unfolded.
     organ_birth, organ_mature : (o,) float64
         The same for each organ.
+
+    Sides (only when the grammar sets them: cpfg's ``@!``, :mod:`lsys3d.turtle.sides`; None otherwise):
+
+    sides : (n,) int32
+        The sides of each segment's tube, 0 where the grammar set none (the sweep's ``sides`` then).
+    organ_sides : (o,) int32
+        The sides of each sphere and disc (cpfg's slices), 0 where the grammar set none (the organs' options).
     """
 
     start: np.ndarray
@@ -164,6 +171,8 @@ class Skeleton:
     organ_birth: np.ndarray | None = None
     organ_mature: np.ndarray | None = None
     growth_function: np.ndarray | None = None
+    sides: np.ndarray | None = None
+    organ_sides: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.start.shape[0])

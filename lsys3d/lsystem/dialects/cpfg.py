@@ -77,8 +77,12 @@ COMMANDS_CPFG = (
     _rot("-", "turn right", Axis.U, -1, "Turn right around U."),
     _rot("&", "pitch down", Axis.L, -1, "Pitch down around L."),
     _rot("^", "pitch up", Axis.L, +1, "Pitch up around L."),
-    _rot("\\", "roll left", Axis.H, -1, "Roll left around H."),
-    _rot("/", "roll right", Axis.H, +1, "Roll right around H."),
+    # cpfg's frame has H x L = -U (interpret.c starts it at H = (0, 1, 0), L = (-1, 0, 0), U = (0, 0, -1)); lsys3d's
+    # U is its -U, so cpfg's '/' (change_dir(left, up): L toward cpfg's U) turns L away from lsys3d's U
+    _rot(
+        "\\", "roll left", Axis.H, +1, "Roll left around H: L toward lsys3d's U (cpfg's -U: its frame has H x L = -U)."
+    ),
+    _rot("/", "roll right", Axis.H, -1, "Roll right around H: L toward lsys3d's -U (cpfg's U)."),
     Command("|", "turn around", Op.TURN_AROUND, "", 0, "Turn around 180 degrees around U."),
     Command("@v", "roll to vertical", Op.ROLL_HORIZONTAL, "", 0, "Roll around H so that U is closest to up."),
     Command(
@@ -218,6 +222,62 @@ COMMANDS_CPFG = (
         "The factors of the tangents into (`a`) and out of (`b`, default `a`) the control points that follow "
         "(times the distance between two points; 1.2 at first).",
     ),
+    Command(
+        "@!",
+        "sides",
+        Op.SIDES,
+        "n",
+        1,
+        "The sides of the tubes, generalized cylinders, spheres and discs that follow (cpfg's blackbox.c: the "
+        "turtle's `cylinder_sides`, at least 3; 8 without a parameter): a sphere becomes cpfg's `n` slices by "
+        "`n / 2 + 1` stacks, a disc `n` sides.",
+    ),
+    Command(
+        "@Ts",
+        "set tropism",
+        Op.MOVEMENT_ELASTICITY,
+        "n, e",
+        2,
+        "Set the elasticity of tropism `n` (the view file's `tropism:` and `torque:` lines, from 1) to `e` "
+        "(0 without it); a number the view file does not have changes nothing, as in cpfg.",
+        sign=0,
+    ),
+    Command(
+        "@Ti",
+        "raise tropism",
+        Op.MOVEMENT_ELASTICITY,
+        "n, d",
+        2,
+        "Add `d` (default: its `S:` increment) to the elasticity of tropism `n`.",
+    ),
+    Command(
+        "@Td",
+        "lower tropism",
+        Op.MOVEMENT_ELASTICITY,
+        "n, d",
+        2,
+        "Take `d` (default: its `S:` increment) from the elasticity of tropism `n`.",
+        sign=-1,
+    ),
+    Command(
+        "@Tf",
+        "keep frame",
+        Op.MOVEMENT_FRAME,
+        "",
+        0,
+        "The turtle's frame now is the one the tropisms carry U from (cpfg's blackbox.c: a roll made since the "
+        "last `F` is kept, not undone by the next bend).",
+    ),
+    Command(
+        "@Tp",
+        "untwist",
+        Op.MOVEMENT_FRAME,
+        "",
+        0,
+        "U carried from the frame of the last `F` (or `@Tf`) along the smallest rotation to the heading now: "
+        "the rolls made since undone (cpfg's turtle.c `adjust_up_and_left`).",
+        sign=-1,
+    ),
     *queries("PHLU"),  # cpfg's world is lsys3d's: Y up
     ENVIRONMENT_QUERY,
 )
@@ -236,19 +296,13 @@ UNSUPPORTED = frozenset(
         "@b",
         "@H",
         "@#",
-        "@Tf",
         "@S",
         "@Ms",
         "@Me",
         "@Mc",
         "@P",
         "@J",
-        "@Tp",
-        # the rest of cpfg's blackbox.c: cylinder sides, tropisms, patches, objects, bounded circles, cuts
-        "@!",
-        "@Ts",
-        "@Ti",
-        "@Td",
+        # the rest of cpfg's blackbox.c: patches, objects, bounded circles, cuts
         "@I",
         "@PS",
         "@PC",
