@@ -558,3 +558,27 @@ def test_an_error_in_a_local_variable_names_it():
     g = Grammar(axiom="A(0)", rules=["A(x) : {y = 1 / x} y > 0 -> B"])
     with pytest.raises(DerivationError, match="division by zero in local variable 'y' for module A"):
         lsys3d.derive(g, 1)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.text(alphabet="[]AB+", max_size=40), st.sets(st.sampled_from("[]AB+"), max_size=3))
+def test_the_right_context_walk_lands_where_the_tables_say(text, ignore):
+    """The short walk a right context of plain modules takes (no tables made) agrees with the tables, unmatched
+    brackets and ignored symbols included; past its budget it says so."""
+    from lsys3d.lsystem.derive import _skip_tables, _walk_right
+
+    symbols = np.frombuffer(text.encode(), np.uint8)
+    ignored = np.zeros(256, np.bool_)
+    ignored[[ord(c) for c in ignore]] = True
+    starts = np.arange(len(symbols) + 1, dtype=np.int64)
+    found, done = _walk_right(symbols, ignored, starts, 10**6)
+    assert done
+    assert found.tolist() == _skip_tables(symbols, ignored)[1].tolist()
+    if "[" in text and "[" not in ignore:
+        assert not _walk_right(symbols, ignored, starts, 0)[1]  # a branch to step over costs more than 0
+
+
+def test_a_right_context_past_a_long_branch_matches_as_before():
+    """A right context behind a branch longer than the walk's budget: the tables answer, the same string results."""
+    g = Grammar(axiom="A[" + "F" * 6000 + "]B(2)", rules=["A > B(x) -> C(x)"])
+    assert str(derive(g, 1)).startswith("C(2)[")

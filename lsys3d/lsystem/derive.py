@@ -722,21 +722,78 @@ def _skip_tables(symbols, ignored):
     return left, right, kept, close
 
 
+@numba.njit(cache=True, nogil=True)
+def _walk_right(symbols, ignored, starts, budget):
+    """:func:`_skip_tables`' ``right[p]`` for each ``p`` of ``starts`` (``<= m``), walked: ignored symbols and whole
+    ``[...]`` branches stepped over.  Gives up (False) after ``budget`` modules walked in all."""
+    m = symbols.shape[0]
+    out = np.empty(starts.shape[0], np.int64)
+    work = 0
+    for k in range(starts.shape[0]):
+        p = starts[k]
+        while p < m:
+            s = symbols[p]
+            if s == _OPEN:  # to the module after its ']' (the first where the depth is back to 0), or m
+                depth = 1
+                q = p + 1
+                while q < m and depth > 0:
+                    c = symbols[q]
+                    if c == _OPEN:
+                        depth += 1
+                    elif c == _CLOSE:
+                        depth -= 1
+                    q += 1
+                work += q - p
+                p = q if depth == 0 else m
+            elif ignored[s]:
+                p += 1
+                work += 1
+            else:
+                break
+            if work > budget:
+                return out, False
+        out[k] = p
+    return out, True
+
+
 class _Context:
     """Context matching on one bracketed string (ABOP section 1.8), for all candidate modules at once."""
 
     def __init__(self, plan: _Plan, ms: ModuleString):
         ignored = np.zeros(256, np.bool_)
         ignored[list(plan.ignore)] = True
+        self.ignored = ignored
         self.ms = ms
         self.m = len(ms)
         self.code = plan.code
-        self.left_of, self.right_of, self.kept, self.close = _skip_tables(ms.symbols, ignored)
+        self._tables: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         # cpfg's ring L-systems: a walk that runs off one end of the string goes on from the other
         self.ring = bool(plan.grammar.ring) and self.m > 0
         # cpfg: ']' in a right context is the next ']' (past ignored symbols and whole branches), and '=' skips
         # the rest of the branch up to it (RconDiff); elsewhere ']' alone skips the rest of the branch
         self.skip = dialects.get(plan.grammar.dialect).notation.branch_skip
+
+    @property
+    def tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`_skip_tables` of the string, made when a walk first needs them (a right context of plain
+        modules seldom does: :meth:`_right_of`)."""
+        if self._tables is None:
+            self._tables = _skip_tables(self.ms.symbols, self.ignored)
+        return self._tables
+
+    left_of = property(lambda self: self.tables[0])
+    right_of = property(lambda self: self.tables[1])
+    kept = property(lambda self: self.tables[2])
+    close = property(lambda self: self.tables[3])
+
+    def _right_of(self, j: np.ndarray) -> np.ndarray:
+        """``right_of[j]``: walked from each of ``j`` while the walks stay short (a query module right after
+        its apex), else from the tables."""
+        if self._tables is None:
+            found, done = _walk_right(self.ms.symbols, self.ignored, j, 16 * len(j) + 4096)
+            if done:
+                return found
+        return self.right_of[j]
 
     def _bind(self, j: np.ndarray, ok: np.ndarray, pm: PatternModule, values: list) -> None:
         """Narrow ``ok`` to the candidates whose module ``j`` is ``pm``; append its parameters to ``values``."""
@@ -785,7 +842,7 @@ class _Context:
                 if pm.symbol != "]":  # cpfg's '=': the ']' that follows it in the pattern is this one
                     j = j - 1
             else:
-                j = self.right_of[j]
+                j = self._right_of(j)
                 if self.ring:
                     j = np.where(j >= m, self.right_of[0], j)
                 ok &= j < m  # the end of the string, or of a branch, has no right context

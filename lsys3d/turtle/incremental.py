@@ -78,10 +78,12 @@ __all__ = [
     "STATE",
     "answer_pass",
     "carries_out",
+    "count_marked",
     "follow_cut",
     "follow_production",
     "follows",
     "neutral_ops",
+    "write_answers",
 ]
 
 STATE = 22
@@ -164,6 +166,15 @@ def follow_production(origin, rewritten, lengths):
 def follow_cut(origin: np.ndarray, keep: np.ndarray) -> np.ndarray:
     """The origins after a cut that kept the modules ``keep`` (a mask of the old string)."""
     return np.flatnonzero(keep) if not len(origin) else origin[keep]
+
+
+@numba.njit(cache=True, nogil=True)
+def count_marked(symbols, marked):
+    """How many of ``symbols`` ``marked`` (a ``(256,) bool`` by symbol id) marks: one pass, no mask built."""
+    n = 0
+    for s in symbols:
+        n += marked[s]
+    return n
 
 
 @numba.njit(cache=True)
@@ -613,3 +624,25 @@ def answer_pass(
             return FOLLOW_LOST, m
         return 4, poly_open[n_poly - 1]
     return 0, -1
+
+
+@numba.njit(cache=True, nogil=True)
+def write_answers(params, symbols, offsets, arity, query_module, query_state, first, sign, slots):
+    """Write the answers of the query modules the turtle reads without the environment into ``params``.
+
+    Row ``r`` of ``query_state`` (position, H, L, U) is the state at module ``query_module[r]``; a symbol
+    ``s`` answers ``sign[s]`` times the three numbers from ``first[s]`` into its parameters ``slots[s]`` (those
+    it has), or nothing when ``first[s] < 0`` (``?E``: the environment answers it).
+    """
+    for r in range(query_module.shape[0]):
+        i = query_module[r]
+        s = symbols[i]
+        f = first[s]
+        if f < 0:
+            continue
+        base = offsets[i]
+        a = arity[i]
+        for j in range(3):
+            slot = slots[s, j]
+            if a > slot:
+                params[base + slot] = sign[s] * query_state[r, f + j]
