@@ -582,3 +582,36 @@ def test_a_right_context_past_a_long_branch_matches_as_before():
     """A right context behind a branch longer than the walk's budget: the tables answer, the same string results."""
     g = Grammar(axiom="A[" + "F" * 6000 + "]B(2)", rules=["A > B(x) -> C(x)"])
     assert str(derive(g, 1)).startswith("C(2)[")
+
+
+_PIECES = {"A": (65, ()), "B(1)": (66, (1.0,)), "B(2,3)": (66, (2.0, 3.0)), "C": (67, ()), "[": (91, ()), "]": (93, ())}
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(st.sampled_from([*_PIECES, "+"]), max_size=30),
+    st.lists(st.sampled_from(["B(x{k})", "B(x{k},y{k})", "C", "*", "+"]), min_size=1, max_size=3),
+    st.sets(st.sampled_from("+C"), max_size=2),
+)
+def test_a_plain_right_context_matches_as_the_tables_do(pieces, pattern, ignore):
+    """The compiled match of a right context of plain modules gives what the tables' walk gives (which
+    candidates match, and the values bound for those that do), unbalanced brackets included."""
+    from lsys3d.lsystem.derive import _Context, _Plan
+
+    rule = f"A > {''.join(p.format(k=k) for k, p in enumerate(pattern))} -> A"
+    g = Grammar(axiom="A", rules=[rule], ignore="".join(sorted(ignore)))
+    plan = _Plan(g)
+    found = [_PIECES.get(p, (43, ())) for p in pieces]
+    ms = ModuleString(
+        np.array([c for c, _ in found], np.uint8),
+        np.array([len(v) for _, v in found], np.uint8),
+        np.array([x for _, v in found for x in v], np.float64),
+    )
+    sel = np.flatnonzero(ms.symbols == ord("A"))
+    pool = plan.pools_by_code[ord("A")][0]
+    fast = _Context(plan, ms).right(sel, pool.right)
+    slow_context = _Context(plan, ms)
+    slow_context.tables  # made first: the walk through the tables
+    slow = slow_context.right(sel, pool.right)
+    assert fast[0].tolist() == slow[0].tolist()
+    assert [v[fast[0]].tolist() for v in fast[1]] == [v[slow[0]].tolist() for v in slow[1]]

@@ -723,37 +723,76 @@ def _skip_tables(symbols, ignored):
 
 
 @numba.njit(cache=True, nogil=True)
-def _walk_right(symbols, ignored, starts, budget):
-    """:func:`_skip_tables`' ``right[p]`` for each ``p`` of ``starts`` (``<= m``), walked: ignored symbols and whole
-    ``[...]`` branches stepped over.  Gives up (False) after ``budget`` modules walked in all."""
+def _landing(symbols, ignored, p):
+    """:func:`_skip_tables`' ``right[p]`` walked (``p <= m``): ignored symbols and whole ``[...]`` branches stepped
+    over (a ``[`` without its ``]`` ends the walk at ``m``); and how many modules the walk passed."""
     m = symbols.shape[0]
+    work = 0
+    while p < m:
+        s = symbols[p]
+        if s == _OPEN:  # to the module after its ']' (the first where the depth is back to 0), or m
+            depth = 1
+            q = p + 1
+            while q < m and depth > 0:
+                c = symbols[q]
+                if c == _OPEN:
+                    depth += 1
+                elif c == _CLOSE:
+                    depth -= 1
+                q += 1
+            work += q - p
+            p = q if depth == 0 else m
+        elif ignored[s]:
+            p += 1
+            work += 1
+        else:
+            break
+    return p, work
+
+
+@numba.njit(cache=True, nogil=True)
+def _walk_right(symbols, ignored, starts, budget):
+    """:func:`_landing` from each of ``starts``; gives up (False) once more than ``budget`` modules were walked."""
     out = np.empty(starts.shape[0], np.int64)
     work = 0
     for k in range(starts.shape[0]):
-        p = starts[k]
-        while p < m:
-            s = symbols[p]
-            if s == _OPEN:  # to the module after its ']' (the first where the depth is back to 0), or m
-                depth = 1
-                q = p + 1
-                while q < m and depth > 0:
-                    c = symbols[q]
-                    if c == _OPEN:
-                        depth += 1
-                    elif c == _CLOSE:
-                        depth -= 1
-                    q += 1
-                work += q - p
-                p = q if depth == 0 else m
-            elif ignored[s]:
-                p += 1
-                work += 1
-            else:
-                break
-            if work > budget:
-                return out, False
-        out[k] = p
+        out[k], walked = _landing(symbols, ignored, starts[k])
+        work += walked
+        if work > budget:
+            return out, False
     return out, True
+
+
+@numba.njit(cache=True, nogil=True)
+def _right_plain(symbols, arity, offsets, params, ignored, starts, codes, arities, n_values, budget):
+    """A right context of plain modules (``codes``, -1 for ``*``, with ``arities``) matched after each of
+    ``starts``: which match, and the values of the pattern's formals (rows), as :meth:`_Context.right` finds
+    them.  Gives up (False) once its walks (:func:`_landing`) passed more than ``budget`` modules."""
+    m = symbols.shape[0]
+    n = starts.shape[0]
+    ok = np.ones(n, np.bool_)
+    values = np.zeros((n_values, n))
+    work = 0
+    for c in range(n):
+        j = starts[c]
+        v = 0
+        for k in range(codes.shape[0]):
+            p, walked = _landing(symbols, ignored, min(j, m))
+            work += walked
+            if work > budget:
+                return ok, values, False
+            if p >= m or symbols[p] == _CLOSE:
+                ok[c] = False
+                break
+            if codes[k] >= 0:
+                if symbols[p] != codes[k] or arity[p] != arities[k]:
+                    ok[c] = False
+                    break
+                for q in range(arities[k]):
+                    values[v + q, c] = params[offsets[p] + q]
+                v += arities[k]
+            j = p + 1
+    return ok, values, True
 
 
 class _Context:
@@ -825,6 +864,17 @@ class _Context:
     def right(self, sel: np.ndarray, pattern) -> tuple[np.ndarray, list[np.ndarray]]:
         """Which modules ``sel`` have the right context ``pattern`` (``[`` and ``]`` allowed), and its values."""
         m = self.m
+        if self._tables is None and not self.ring and all(pm.symbol not in ("[", "]", self.skip) for pm in pattern):
+            # plain modules (a query module after its apex): one compiled walk, while the walks stay short
+            codes = np.array([-1 if pm.symbol == "*" else self.code[pm.symbol] for pm in pattern], np.int64)
+            arities = np.array([0 if pm.symbol == "*" else len(pm.formals) for pm in pattern], np.int64)
+            ms = self.ms
+            ok, values, done = _right_plain(
+                ms.symbols, ms.arity, ms.offsets, ms.params, self.ignored, sel + 1, codes, arities,
+                int(arities.sum()), 16 * len(sel) + 4096,
+            )  # fmt: skip
+            if done:
+                return ok, list(values)
         ok = np.ones(len(sel), np.bool_)
         j = sel + 1
         values: list = []
@@ -1080,6 +1130,10 @@ def _step(
             new_sym[pos] = plan.code[smod.symbol]
             new_arity[pos] = len(smod.args)
             for expr in smod.args:
+                if expr.op == "num":  # a number (?P(0, 0, 0)): written as evaluate would give it, without the tree walk
+                    new_params[first_param + p] = expr.value
+                    p += 1
+                    continue
                 try:
                     values = expr.evaluate(env, n, finite=False, random=draws)  # checked below, all at once
                 except EvalError as exc:

@@ -100,13 +100,14 @@ _STRUCTURAL = (Op.PUSH, Op.POP, Op.POLYGON_BEGIN, Op.POLYGON_END)
 
 _CARRIED_OUT = np.zeros(len(Op), np.bool_)  # the ops answer_pass steps through; a new Op is drawn until it does
 _CARRIED_OUT[[int(o) for o in Op if o <= Op.QUERY]] = True  # NONE .. QUERY (the ops after it came later)
+_NOT_CARRIED_OUT = np.flatnonzero(~_CARRIED_OUT)
 
 
 def carries_out(counts: np.ndarray, turtle) -> bool:
     """Whether :func:`answer_pass` carries out a string of these op ``counts`` (``kernel.survey``'s) as the turtle
     that draws would: no op it does not step through (cpfg's sub-L-system scales, ``_``, generalized cylinders,
     or any op added to :class:`Op` after ``QUERY``), and not cpfg's bend after each move."""
-    return not counts[~_CARRIED_OUT].any() and turtle.bend != "cpfg"
+    return not counts[_NOT_CARRIED_OUT].any() and turtle.bend != "cpfg"
 
 
 def neutral_ops() -> np.ndarray:

@@ -90,7 +90,10 @@ class Answerer:
         # the natural variation's numbers follow the index; the plant's shade changes every answer
         self.shading = environment is not None and environment.options.shadow
         self.follow = grammar is not None and not varied and not self.shading
+        self.varied = varied
         self._tables: dict = {}
+        self._last: tuple | None = None  # the alphabet of the last pass (the same tuple each step) and its tables
+        self._unvaried: kernel.Variation | None = None  # no natural variation: the same empty arrays each pass
         self._table = None  # the symbol table of the last pass
         # origin[i]: the index, in the last pass's string, of the module i copies (-1: produced since);
         # None: unknown; empty: the last pass's string itself, its modules unchanged
@@ -98,6 +101,8 @@ class Answerer:
         self._records = None  # the last pass's string's symbols, and the states it recorded (positions, states)
 
     def _compiled(self, alphabet) -> tuple[SymbolTable, kernel.Program, np.ndarray, bool, tuple]:
+        if self._last is not None and self._last[0] is alphabet:  # no hashing of its 256 names each step
+            return self._last[1]
         found = self._tables.get(alphabet)
         if found is None:
             t = self.turtle
@@ -119,6 +124,7 @@ class Answerer:
                     recorded[code[g.cut_symbol]] = True
             found = (table, kernel_program(table), recorded, follow, answering(table))
             self._tables[alphabet] = found
+        self._last = (alphabet, found)
         return found
 
     def trace(self, kind, symbols, new_symbols, rewritten, lengths, persisting) -> None:
@@ -147,7 +153,14 @@ class Answerer:
             origin = np.arange(m) if len(records[0]) == m else None
         if origin is None or (len(origin) and len(origin) != m):
             origin, records = _WHOLE, None
-        variation = natural_variation(m, self.turtle, self.seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
+        if self.varied or counts[Op.RANDOM_TURN]:
+            variation = natural_variation(
+                m, self.turtle, self.seed, table, modules.symbols, int(counts[Op.RANDOM_TURN])
+            )
+        else:
+            if self._unvaried is None:
+                self._unvaried = natural_variation(0, self.turtle, self.seed, table, modules.symbols[:0], 0)
+            variation = self._unvaried
         args = (modules, table, program, arrays, max_depth, variation, recorded, counts)
         if not incremental.carries_out(counts, self.turtle):  # the turtle that draws them answers
             follow = False
