@@ -323,6 +323,9 @@ def answer_pass(
                         states[n_rec] = old_states[old_row]
                         n_rec += 1
                 i += 1
+                # the copies after it that keep their order and have no record: nothing to do (most of the string)
+                while i < m and origin[i] == origin[i - 1] + 1 and not recorded[symbols[i]]:
+                    i += 1
                 continue
             if i == 0:
                 start = -1
