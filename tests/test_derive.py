@@ -611,7 +611,7 @@ def test_a_plain_right_context_matches_as_the_tables_do(pieces, pattern, ignore)
     pool = plan.pools_by_code[ord("A")][0]
     fast = _Context(plan, ms).right(sel, pool.right)
     slow_context = _Context(plan, ms)
-    slow_context.tables  # made first: the walk through the tables
+    assert len(slow_context.tables[1]) == len(ms) + 1  # made first: the walk goes through the tables
     slow = slow_context.right(sel, pool.right)
     assert fast[0].tolist() == slow[0].tolist()
     assert [v[fast[0]].tolist() for v in fast[1]] == [v[slow[0]].tolist() for v in slow[1]]
