@@ -565,17 +565,17 @@ def test_an_error_in_a_local_variable_names_it():
 def test_the_right_context_walk_lands_where_the_tables_say(text, ignore):
     """The short walk a right context of plain modules takes (no tables made) agrees with the tables, unmatched
     brackets and ignored symbols included; past its budget it says so."""
-    from lsys3d.lsystem.derive import _skip_tables, _walk_right
+    from lsys3d.lsystem.walks import skip_tables, walk_right
 
     symbols = np.frombuffer(text.encode(), np.uint8)
     ignored = np.zeros(256, np.bool_)
     ignored[[ord(c) for c in ignore]] = True
     starts = np.arange(len(symbols) + 1, dtype=np.int64)
-    found, done = _walk_right(symbols, ignored, starts, 10**6)
+    found, done = walk_right(symbols, ignored, starts, 10**6)
     assert done
-    assert found.tolist() == _skip_tables(symbols, ignored)[1].tolist()
+    assert found.tolist() == skip_tables(symbols, ignored)[1].tolist()
     if "[" in text and "[" not in ignore:
-        assert not _walk_right(symbols, ignored, starts, 0)[1]  # a branch to step over costs more than 0
+        assert not walk_right(symbols, ignored, starts, 0)[1]  # a branch to step over costs more than 0
 
 
 def test_a_right_context_past_a_long_branch_matches_as_before():

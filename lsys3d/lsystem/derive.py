@@ -55,6 +55,7 @@ from .expr import NOT_FINITE, STEP, EvalError, RandomDraws
 from .grammar import Grammar, PatternModule, Production
 from .modules import ModuleString
 from .rules import MAX_LOOP, _flat
+from .walks import right_plain, skip_tables, walk_right
 
 __all__ = [
     "DEFAULT_MAX_MODULES",
@@ -658,143 +659,6 @@ def _derive_d0l(plan: _Plan, n: int, growth: _Growth) -> ModuleString:
 
 
 # ---------------------------------------------------------------- general engine
-@numba.njit(cache=True, nogil=True)
-def _skip_tables(symbols, ignored):
-    """Where a context walk lands from each position of a bracketed string, in one pass each way.
-
-    ``ignored[code]`` is True for symbols in the grammar's ignore set.  Each
-    table has an extra last entry (index ``m``) for a walk that starts past
-    the end.  An unmatched ``[`` or ``]`` ends a walk (no context).
-
-    Returns
-    -------
-    left : (m + 1,) int64
-        The module a left-context walk finds starting at ``p`` and going left:
-        ignored symbols and ``[`` (into the parent) are stepped over, a
-        ``[...]`` lateral branch ending at ``p`` is skipped; -1 if none.
-    right : (m + 1,) int64
-        The module a right-context walk finds starting at ``p``: ignored
-        symbols and whole ``[...]`` branches are skipped; ``m`` if none.
-    kept : (m + 1,) int64
-        The first position at or after ``p`` whose symbol is not ignored.
-    close : (m + 1,) int64
-        The ``]`` that ends the branch holding ``p`` (nested branches
-        skipped); ``m`` if the branch runs to the end.
-    """
-    m = symbols.shape[0]
-    match = np.full(m, -1, np.int64)
-    stack = np.empty(m, np.int64)
-    top = 0
-    for i in range(m):
-        s = symbols[i]
-        if s == _OPEN:
-            stack[top] = i
-            top += 1
-        elif s == _CLOSE and top > 0:
-            top -= 1
-            match[i] = stack[top]
-            match[stack[top]] = i
-    left = np.empty(m + 1, np.int64)
-    for p in range(m):
-        s = symbols[p]
-        if s == _CLOSE:
-            j = match[p]
-            left[p] = left[j - 1] if j > 0 else -1
-        elif s == _OPEN or ignored[s]:
-            left[p] = left[p - 1] if p > 0 else -1
-        else:
-            left[p] = p
-    left[m] = left[m - 1] if m > 0 else -1
-    right = np.empty(m + 1, np.int64)
-    kept = np.empty(m + 1, np.int64)
-    close = np.empty(m + 1, np.int64)
-    right[m] = kept[m] = close[m] = m
-    for p in range(m - 1, -1, -1):
-        s = symbols[p]
-        j = match[p]
-        kept[p] = kept[p + 1] if ignored[s] else p
-        if s == _OPEN:
-            right[p] = right[j + 1] if j >= 0 else m
-            close[p] = close[j + 1] if j >= 0 else m
-        else:
-            right[p] = right[p + 1] if ignored[s] else p
-            close[p] = p if s == _CLOSE else close[p + 1]
-    return left, right, kept, close
-
-
-@numba.njit(cache=True, nogil=True)
-def _landing(symbols, ignored, p):
-    """:func:`_skip_tables`' ``right[p]`` walked (``p <= m``): ignored symbols and whole ``[...]`` branches stepped
-    over (a ``[`` without its ``]`` ends the walk at ``m``); and how many modules the walk passed."""
-    m = symbols.shape[0]
-    work = 0
-    while p < m:
-        s = symbols[p]
-        if s == _OPEN:  # to the module after its ']' (the first where the depth is back to 0), or m
-            depth = 1
-            q = p + 1
-            while q < m and depth > 0:
-                c = symbols[q]
-                if c == _OPEN:
-                    depth += 1
-                elif c == _CLOSE:
-                    depth -= 1
-                q += 1
-            work += q - p
-            p = q if depth == 0 else m
-        elif ignored[s]:
-            p += 1
-            work += 1
-        else:
-            break
-    return p, work
-
-
-@numba.njit(cache=True, nogil=True)
-def _walk_right(symbols, ignored, starts, budget):
-    """:func:`_landing` from each of ``starts``; gives up (False) once more than ``budget`` modules were walked."""
-    out = np.empty(starts.shape[0], np.int64)
-    work = 0
-    for k in range(starts.shape[0]):
-        out[k], walked = _landing(symbols, ignored, starts[k])
-        work += walked
-        if work > budget:
-            return out, False
-    return out, True
-
-
-@numba.njit(cache=True, nogil=True)
-def _right_plain(symbols, arity, offsets, params, ignored, starts, codes, arities, n_values, budget):
-    """A right context of plain modules (``codes``, -1 for ``*``, with ``arities``) matched after each of
-    ``starts``: which match, and the values of the pattern's formals (rows), as :meth:`_Context.right` finds
-    them.  Gives up (False) once its walks (:func:`_landing`) passed more than ``budget`` modules."""
-    m = symbols.shape[0]
-    n = starts.shape[0]
-    ok = np.ones(n, np.bool_)
-    values = np.zeros((n_values, n))
-    work = 0
-    for c in range(n):
-        j = starts[c]
-        v = 0
-        for k in range(codes.shape[0]):
-            p, walked = _landing(symbols, ignored, min(j, m))
-            work += walked
-            if work > budget:
-                return ok, values, False
-            if p >= m or symbols[p] == _CLOSE:
-                ok[c] = False
-                break
-            if codes[k] >= 0:
-                if symbols[p] != codes[k] or arity[p] != arities[k]:
-                    ok[c] = False
-                    break
-                for q in range(arities[k]):
-                    values[v + q, c] = params[offsets[p] + q]
-                v += arities[k]
-            j = p + 1
-    return ok, values, True
-
-
 class _Context:
     """Context matching on one bracketed string (ABOP section 1.8), for all candidate modules at once."""
 
@@ -814,10 +678,10 @@ class _Context:
 
     @property
     def tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:func:`_skip_tables` of the string, made when a walk first needs them (a right context of plain
-        modules seldom does: :meth:`_right_of`)."""
+        """:func:`~lsys3d.lsystem.walks.skip_tables` of the string, made when a walk first needs them (a right
+        context of plain modules seldom does: :meth:`right`, :meth:`_right_of`)."""
         if self._tables is None:
-            self._tables = _skip_tables(self.ms.symbols, self.ignored)
+            self._tables = skip_tables(self.ms.symbols, self.ignored)
         return self._tables
 
     left_of = property(lambda self: self.tables[0])
@@ -829,7 +693,7 @@ class _Context:
         """``right_of[j]``: walked from each of ``j`` while the walks stay short (a query module right after
         its apex), else from the tables."""
         if self._tables is None:
-            found, done = _walk_right(self.ms.symbols, self.ignored, j, 16 * len(j) + 4096)
+            found, done = walk_right(self.ms.symbols, self.ignored, j, 16 * len(j) + 4096)
             if done:
                 return found
         return self.right_of[j]
@@ -869,7 +733,7 @@ class _Context:
             codes = np.array([-1 if pm.symbol == "*" else self.code[pm.symbol] for pm in pattern], np.int64)
             arities = np.array([0 if pm.symbol == "*" else len(pm.formals) for pm in pattern], np.int64)
             ms = self.ms
-            ok, values, done = _right_plain(
+            ok, values, done = right_plain(
                 ms.symbols, ms.arity, ms.offsets, ms.params, self.ignored, sel + 1, codes, arities,
                 int(arities.sum()), 16 * len(sel) + 4096,
             )  # fmt: skip
