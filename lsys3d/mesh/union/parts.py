@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...arrays import offsets as _offsets
+from ...arrays import sort_between
 from ...compiling import kernel
 from ...errors import GeometryError
 from ..mesh import Mesh
@@ -294,7 +295,7 @@ def _closed_edges(faces, nverts, near, use_near, like):  # pragma: no cover - co
     for v in range(nverts):
         lo, hi = start[v], start[v + 1]
         if hi - lo > 16:
-            far[lo:hi] = np.sort(far[lo:hi])
+            sort_between(far, lo, hi)
             for i in range(lo + 1, hi):
                 if far[i] == far[i - 1]:
                     return False
