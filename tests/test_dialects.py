@@ -71,6 +71,8 @@ CPFG = {
     # generalized cylinders (blackbox.c, general.c): @Gs starts, @Gc and @Ge set control points, @Gt tangents
     "@Gs": Op.CYLINDER_START, "@Gc": Op.CYLINDER_POINT, "@Ge": (Op.CYLINDER_POINT, Axis.NONE, -1),
     "@Gt": Op.CYLINDER_TANGENTS,
+    # blackbox.c: @Tx(n) selects a texture (turtle state, read after the turtle: lsys3d.turtle.selections)
+    "@Tx": Op.NONE,
 }  # fmt: skip
 # Lparser: lparser.txt (L. Lapre), the symbol table reproduced in the Lparser ports
 LPARSER = {

@@ -243,6 +243,7 @@ def organs(
     hierarchy: Hierarchy | None = None,
     attributes=None,
     max_triangles: int = DEFAULT_MAX_TRIANGLES,
+    scale=None,
 ) -> Organs:
     """Build the organs recorded by the turtle, from plain arrays.
 
@@ -272,6 +273,9 @@ def organs(
         Which attributes (default all).
     max_triangles : int
         Most triangles of the organs baked in place.
+    scale : (k, 3) float, optional
+        Each organ's scale along left, up and heading relative to ``size`` (cpfg's ``~l(sx, sy, sz)``);
+        default uniform.
 
     Raises
     ------
@@ -296,16 +300,20 @@ def organs(
     material = np.zeros(k, np.int32) if material is None else np.asarray(material, np.int32).reshape(-1)
     shapes = {"position": (position.shape, (k, 3)), "frame": (frame.shape, (k, 3, 3))}
     shapes |= {"size": (size.shape, (k,)), "material": (material.shape, (k,))}
+    axes = np.ones((k, 3)) if scale is None else np.asarray(scale, np.float64)
+    shapes["scale"] = (axes.shape, (k, 3))
     for name, (got, want) in shapes.items():
         if got != want:
             raise GeometryError(f"organs: {name} has shape {got}, expected {want} (one per organ)")
-    if not (np.isfinite(position).all() and np.isfinite(frame).all() and np.isfinite(size).all()):
+    finite = np.isfinite(position).all() and np.isfinite(frame).all() and np.isfinite(size).all()
+    if not (finite and np.isfinite(axes).all()):
         raise GeometryError("organs: a position, frame or size is not a finite number")
     keep = size > 0
     if not keep.all():
         log.info("organs: %d of size 0 left out", int((~keep).sum()))
     idx = np.flatnonzero(keep)
     kind, position, frame, size, material = kind[idx], position[idx], frame[idx], size[idx], material[idx]
+    axes = axes[idx]
     instance_attributes = {}
     if hierarchy is not None:
         seg = None if segment is None else np.asarray(segment, np.int64).reshape(-1)[idx]
@@ -334,7 +342,7 @@ def organs(
         log.info("organs: no [surfaces] model for %s: drawn as the leaf", ", ".join(repr(f) for f in sorted(fallbacks)))
 
     transforms = np.zeros((len(idx), 4, 4))
-    transforms[:, :3, :3] = frame * size[:, None, None]
+    transforms[:, :3, :3] = frame * (size[:, None] * axes)[:, None, :]
     transforms[:, :3, 3] = position
     transforms[:, 3, 3] = 1.0
     counts = np.bincount(which, minlength=len(prototypes))
@@ -400,4 +408,5 @@ def skeleton_organs(
         hierarchy=hierarchy,
         attributes=attributes,
         max_triangles=max_triangles,
+        scale=skeleton.organ_scale,
     )

@@ -28,6 +28,7 @@ from ..lsystem.grammar import Grammar
 from ..lsystem.modules import ModuleString
 from ..options import Options, option
 from .commands import BUILT_IN_ORGANS
+from .selections import surface_findings
 from .skeleton import Skeleton, organ_names
 
 __all__ = ["Checks", "check", "findings"]
@@ -104,6 +105,7 @@ def findings(grammar: Grammar, shown: ModuleString, skeleton: Skeleton, table) -
                 f"{grammar.source}: organs with no [surfaces] model, drawn as the leaf: "
                 f"{printable(', '.join(repr(m) for m in missing))} (give each a [surfaces] entry of that name)"
             )
+    out += surface_findings(grammar, shown, skeleton)  # cpfg's surfaces that move the turtle
     width = _width_finding(grammar, skeleton)
     if width:
         out.append(width)

@@ -203,6 +203,7 @@ def turtle_config(options: TurtleOptions) -> kernel.Config:
         options.length_unit,
         options.bend == "cpfg",
         options.elasticity_increment,
+        options.polygon_edges,
     )
 
 

@@ -63,6 +63,7 @@ Config = namedtuple(
         "length_unit",
         "bend_after",
         "elasticity_increment",
+        "polygon_edges",
     ],
 )
 Variation = namedtuple("Variation", ["angle", "length", "width", "roll", "skipped", "turn"])
@@ -658,6 +659,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     bend = tx != 0.0 or ty != 0.0 or tz != 0.0
     by_angle = config.bend_angle
     after = config.bend_after  # cpfg's tropism: the frame bends after each move, not before
+    edges = config.polygon_edges  # moves inside a polygon draw segments too (L-System Explorer's turtle)
     elasticity_increment = config.elasticity_increment
     # cpfg's generalized cylinder (@Gs, @Gc, @Ge): on or off, the last control point (position, heading,
     # width, its tangent parameter) and the tangent parameters of the turtle (@Gt)
@@ -752,11 +754,9 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             qz = pz + hz * length
             if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):  # NaN fails too
                 return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-            if poly_open >= 0:
-                if program.vertex[sym]:
-                    n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
-                last = -1
-            elif code == _FORWARD:
+            if poly_open >= 0 and program.vertex[sym]:
+                n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
+            if code == _FORWARD and (poly_open < 0 or edges):
                 s_ = n_seg
                 _put(seg.start, s_, px, py, pz)
                 _put(seg.end, s_, qx, qy, qz)

@@ -94,6 +94,11 @@ class TurtleOptions(Options):
         "angle between H and T (PlantGL's turtle, L-Py's default), `\"cpfg\"` after each move, H toward U by the "
         "angle whose sine is e (T.U) and toward L by the one whose sine is e (T.L) (cpfg's view-file tropism)",
     )
+    polygon_edges: bool = option(
+        False,
+        help="moves inside a polygon draw segments too (L-System Explorer's turtle draws every F and G; cpfg's "
+        "and ABOP's draw the polygon alone)",
+    )
     angle_jitter: float = option(0.0, low=0, help="random change of each rotation angle, up to this many degrees")
     length_jitter: float = option(0.0, low=0, help="random relative change of each step, up to this fraction")
     width_jitter: float = option(0.0, low=0, help="random relative change of each segment's width, up to this fraction")

@@ -107,6 +107,9 @@ class Skeleton:
     organ_name : (o,) str
         The name of that module as written (``@O``, ``~l``, ``J``): a surface's or an
         instance's name, kept so that the mesh stages need not keep the string.
+    organ_scale : (o, 3) float64 or None
+        Each organ's scale along left, up and heading relative to ``organ_size`` (cpfg's
+        ``~l(sx, sy, sz)``: ``(1, sz / sx, sy / sx)``, :mod:`lsys3d.turtle.selections`); None: uniform.
 
     Times (only when the plant's development was asked for: :func:`lsys3d.turtle.timing.timed`; None
     otherwise), in the plant's time of :mod:`lsys3d.lsystem.ages`:
@@ -153,6 +156,7 @@ class Skeleton:
     organ_segment: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     organ_module: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     organ_name: np.ndarray = field(default_factory=lambda: np.zeros(0, "U1"))
+    organ_scale: np.ndarray | None = None
     birth: np.ndarray | None = None
     mature: np.ndarray | None = None
     leaf_birth: np.ndarray | None = None

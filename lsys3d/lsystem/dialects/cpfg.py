@@ -23,7 +23,7 @@ from ...turtle.commands import ENVIRONMENT_QUERY, Axis, Command, Op, Organ, quer
 from ..expr import MAX_ARRAY, ExprSyntaxError, Syntax, constant_array, parse_expression
 from ..grammar import MAX_PARAMETERS, Grammar, read_text
 from ..splines import to_table
-from . import vlab
+from . import vlab, vlab_look
 from .common import Dialect, Notation, fail, line_where
 from .macros import Macro, MacroError, expand, parse_definition
 
@@ -156,13 +156,23 @@ COMMANDS_CPFG = (
         "~",
         "surface",
         Op.ORGAN,
-        "s",
-        1,
-        "`~c(s)`: the predefined surface `c`, scaled by `s`: an organ. cpfg's `~c(sx, sy, sz)` scales it "
-        "by three factors; lsys3d by `sx` (a warning names the module).",
+        "sx, sy, sz",
+        3,
+        "`~c(s)`: the predefined surface `c` (the view file's `surface: c file.s size`), scaled by `s`: an "
+        "organ. `~c(sx, sy, sz)` scales it by `sx` along left, `sy` along the heading, `sz` along up "
+        "(lsys3d.turtle.selections).",
         organ=Organ.SURFACE,
         prefix=True,
-        ignored=("sy", "sz"),
+    ),
+    Command(
+        "@Tx",
+        "texture",
+        Op.NONE,
+        "n",
+        1,
+        "Select the view file's `n`-th texture (`texture: F: file.png ...`) for the cylinders and surfaces "
+        "that follow (none: `@Tx` or an `n` that names no texture read); `[` and `]` keep it "
+        "(lsys3d.turtle.selections).",
     ),
     Command(
         "_",
@@ -215,7 +225,6 @@ COMMANDS_CPFG = (
 UNSUPPORTED = frozenset(
     [
         "@Gr",
-        "@Tx",
         "@M",
         "@m",
         "@R",
@@ -520,6 +529,8 @@ class _Reader:
             fields["splines"] = to_table(view.functions, view.curves)
         if view.turtle():
             fields["turtle"] = view.turtle()
+        if folder is not None:  # the view file's surfaces and textures (@Tx)
+            fields.update(vlab_look.read_look(path).fields())
         if folder is not None and "angle" not in overrides:
             angle, missing = _view_angle(path)
             if angle is not None:
