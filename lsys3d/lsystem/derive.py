@@ -44,10 +44,10 @@ from collections import Counter, deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from ..arrays import ranges
+from ..compiling import kernel
 from ..errors import DerivationError, LimitError, clip
 from ..streams import Stream, hashed_uniform, rule_generator
 from . import dialects, sequences
@@ -491,7 +491,7 @@ def _passes(
     return ms
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def cut_mask(is_open, is_close, starts):
     """The modules kept when each of ``starts`` removes itself and the rest of its branch (up to its ``]``):
     ABOP's ``%``, and the turtle's cuts by an environment (:mod:`lsys3d.turtle.query`).  ``is_open`` and
@@ -1026,7 +1026,7 @@ def _step(
     return ModuleString(new_sym, new_arity, new_params, plan.alphabet), produced
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _copy_unmatched(matched, sym, arity, offsets, params, mod_off, par_off, new_sym, new_arity, new_params):
     """Copy the modules no rule rewrote, with their parameters, to their places in the new string (one pass,
     no index arrays: most of a long string is copied)."""

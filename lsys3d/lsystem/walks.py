@@ -9,15 +9,16 @@ every step) and give up past a budget, so a long walk still costs one pass over 
 
 from __future__ import annotations
 
-import numba
 import numpy as np
+
+from ..compiling import kernel
 
 __all__ = ["landing", "right_plain", "skip_tables", "walk_right"]
 
 _OPEN, _CLOSE = ord("["), ord("]")
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def skip_tables(symbols, ignored):
     """Where a context walk lands from each position of a bracketed string, in one pass each way.
 
@@ -81,7 +82,7 @@ def skip_tables(symbols, ignored):
     return left, right, kept, close
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def landing(symbols, ignored, p):
     """:func:`skip_tables`' ``right[p]`` walked (``p <= m``): ignored symbols and whole ``[...]`` branches stepped
     over (a ``[`` without its ``]`` ends the walk at ``m``); and how many modules the walk passed."""
@@ -109,7 +110,7 @@ def landing(symbols, ignored, p):
     return p, work
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def walk_right(symbols, ignored, starts, budget):
     """:func:`landing` from each of ``starts``; gives up (False) once more than ``budget`` modules were walked."""
     out = np.empty(starts.shape[0], np.int64)
@@ -122,7 +123,7 @@ def walk_right(symbols, ignored, starts, budget):
     return out, True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def right_plain(symbols, arity, offsets, params, ignored, starts, codes, arities, n_values, budget):
     """A right context of plain modules (``codes``, -1 for ``*``, with ``arities``) matched after each of
     ``starts``: which match, and the values of the pattern's formals (rows), as :meth:`_Context.right` finds

@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from ..compiling import inner, kernel
 from ..lsystem.grammar import Grammar
 from .commands import Op
 from .kernel import (  # numba sees the ops as these plain integers, declared once in kernel.py
@@ -140,7 +140,7 @@ def follows(grammar: Grammar, op_of) -> bool:
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def follow_production(origin, rewritten, lengths):
     """The new string's origins after a production step (``origin`` empty: the old string was the last pass's).
 
@@ -170,7 +170,7 @@ def follow_cut(origin: np.ndarray, keep: np.ndarray) -> np.ndarray:
     return np.flatnonzero(keep) if not len(origin) else origin[keep]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def count_marked(symbols, marked):
     """How many of ``symbols`` ``marked`` (a ``(256,) bool`` by symbol id) marks: one pass, no mask built."""
     n = 0
@@ -179,7 +179,7 @@ def count_marked(symbols, marked):
     return n
 
 
-@numba.njit(cache=True)
+@inner()
 def _neutral_range(program, neutral, old_symbols, a, b):
     """Whether the old modules ``a:b`` leave the state as it was: neutral ops, and closed branches."""
     depth = 0
@@ -196,7 +196,7 @@ def _neutral_range(program, neutral, old_symbols, a, b):
     return depth == 0
 
 
-@numba.njit(cache=True)
+@inner()
 def _find(positions, count, j):
     """The row of ``positions[:count]`` (sorted) that holds ``j``, or -1."""
     k = np.searchsorted(positions[:count], j)
@@ -205,7 +205,7 @@ def _find(positions, count, j):
     return -1
 
 
-@numba.njit(cache=True, inline="always")
+@inner(inline="always")
 def _deposit(deposits, n, px, py, pz, qx, qy, qz, area):
     """Record an area the plant casts shade with, at the middle of P and Q."""
     row = deposits[n]
@@ -213,13 +213,13 @@ def _deposit(deposits, n, px, py, pz, qx, qy, qz, area):
     return n + 1
 
 
-@numba.njit(cache=True, inline="always")
+@inner(inline="always")
 def _same(a, b):
     """Equal, and the same zero (a -0.0 and a 0.0 can part ways later: atan2, copysign)."""
     return a == b and (a != 0.0 or math.copysign(1.0, a) == math.copysign(1.0, b))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def answer_pass(
     program,
     modules,
@@ -631,7 +631,7 @@ def answer_pass(
     return 0, -1
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def write_answers(params, symbols, offsets, arity, query_module, query_state, first, sign, slots):
     """Write the answers of the query modules the turtle reads without the environment into ``params``.
 

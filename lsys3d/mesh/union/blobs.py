@@ -44,10 +44,10 @@ from __future__ import annotations
 import logging
 import time
 
-import numba
 import numpy as np
 
 from ...arrays import components, local_index, ranges
+from ...compiling import kernel
 from ...errors import OptionsError
 from ..mesh import Mesh
 from ..sweep import Tubes
@@ -121,7 +121,7 @@ def _cap_plane(normal: np.ndarray, point: np.ndarray) -> np.ndarray:
     return np.concatenate([normal, -np.einsum("ij,ij->i", normal, point)[:, None]], axis=1)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _fill(values, nearest, corner, origin, h, band, lo, hi, which, a, b, ra, rb, ta, tb):  # pragma: no cover
     """Samples of one block (``values`` from grid index ``corner``): the least distance of its capsules ``which``,
     and which capsule is nearest (``nearest``, -1 beyond the band).  Whether the surface passes the block."""
@@ -172,7 +172,7 @@ def _fill(values, nearest, corner, origin, h, band, lo, hi, which, a, b, ra, rb,
     return lowest < 0.0 < highest
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _nearest_spans(local, faces, nearest):  # pragma: no cover - compiled
     """For each face of one block (vertices ``local`` in the block's cells): the nearest capsule of the sample
     nearest its centre (one of its corners' samples when that one is beyond every band)."""
@@ -199,7 +199,7 @@ def _nearest_spans(local, faces, nearest):  # pragma: no cover - compiled
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _wall_faces(
     centre, span, ring, tube_of_ring, points, point_offsets, sides, ring_offsets, face_offsets
 ):  # pragma: no cover

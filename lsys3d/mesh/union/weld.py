@@ -6,11 +6,11 @@ from __future__ import annotations
 import logging
 from dataclasses import replace
 
-import numba
 import numpy as np
 
 from ...arrays import first_equal_row as _first_equal_row
 from ...arrays import isin, row_hash, unique
+from ...compiling import inner, kernel
 from ..mesh import Mesh, crumbs, face_normals
 from .parts import _closed, _corner_rows, _kept_faces
 
@@ -59,7 +59,7 @@ def _repair_corners(mesh: Mesh) -> None:
         normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad] + normals.dtype.type(0.0)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _mend_corners(normals, uv, bad):  # pragma: no cover - compiled
     """One pass of :func:`_repair_corners`: mark in ``bad`` the corners whose normal is not finite or zero, make
     the other normals' -0.0 0.0 and non-finite uv 0, in place; whether any corner is bad."""
@@ -123,7 +123,7 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
     return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _welded_faces(faces, point):  # pragma: no cover - compiled
     """The faces on the welded points ``point[faces]`` without those that collapse, and which faces are kept.
 
@@ -161,7 +161,7 @@ def _owners(keys: np.ndarray, dirty: np.ndarray) -> np.ndarray:
     return owner
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _weld_cells(v32):  # pragma: no cover - compiled
     """The vertices' cells of trimesh's 1e-8 weld grid, ``np.round(v32.astype(np.float64) * 1e8).astype(np.int64)``
     in one pass (no (v, 3) float64 temporaries): numpy's rounding, half to even."""
@@ -171,7 +171,7 @@ def _weld_cells(v32):  # pragma: no cover - compiled
     return out
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@inner(nogil=True, inline="always")
 def _weld_cell(v32, i):  # pragma: no cover - compiled
     """Vertex ``i``'s cell of the 1e-8 grid, as numpy rounds it (half to even)."""
     return (
