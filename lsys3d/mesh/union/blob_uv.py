@@ -32,7 +32,7 @@ import numpy as np
 from ...arrays import ranges
 from ..sweep import Tubes
 
-BOX_LENGTH = 2.0
+BOX_LENGTH = 4.0
 """A tube of a blob whose axis is shorter than this many widths gets the box projection."""
 
 
