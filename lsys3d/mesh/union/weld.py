@@ -98,19 +98,22 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
     mesh = held.pop()
     _repair_corners(mesh)
     vertices, faces, normals, uv, source = mesh.vertices, mesh.faces, mesh.normals, mesh.uv, mesh.face_source
+    box = mesh.face_box_uv  # (a blob's box projection, carried face by face)
     del mesh
     v32 = vertices.astype(np.float32)
     v32 += np.float32(0.0)  # -0.0 and 0.0 are one position
     owner = _first_equal_row(v32.view(np.int32))
     first = owner == np.arange(len(v32))
     if first.all():  # no two vertices share a float32 position
-        return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
+        return _separate_float32(
+            Mesh(vertices, faces, normals, uv, face_source=source, face_box_uv=box), float32_unique=True
+        )
     renumber = np.cumsum(first) - 1  # the points numbered in their first appearance
     welded, keep = _welded_faces(faces, renumber[owner])
     merged = np.zeros(int(first.sum()), bool)  # the points that several vertices became
     merged[renumber[owner[~first]]] = True
     if not _closed(welded, int(first.sum()), merged):
-        return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source))
+        return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source, face_box_uv=box))
     # one array at a time: the old ones go as soon as they are replaced
     faces = welded
     del welded
@@ -120,7 +123,10 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
         normals = _corner_rows(normals, keep)
         uv = _corner_rows(uv, keep)
         source = None if source is None else source[keep]
-    return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
+        box = None if box is None else box[keep]
+    return _separate_float32(
+        Mesh(vertices, faces, normals, uv, face_source=source, face_box_uv=box), float32_unique=True
+    )
 
 
 @kernel(nogil=True)
