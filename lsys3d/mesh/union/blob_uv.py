@@ -26,10 +26,10 @@ vertices, reads it back per tube (:func:`tube_density`).
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from ...arrays import ranges
+from ...compiling import kernel
 from ..sweep import Tubes
 
 BOX_LENGTH = 4.0
@@ -84,7 +84,7 @@ def box_uv(points: np.ndarray, faces: np.ndarray, density: np.ndarray, uv: np.nd
     return uv
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _box(points, faces, which, density, uv):  # pragma: no cover - compiled
     """:func:`box_uv`, a face at a time (in float64, stored once)."""
     for i in which:
