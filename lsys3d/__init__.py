@@ -12,6 +12,7 @@ import importlib
 import importlib.machinery
 from typing import TYPE_CHECKING
 
+from . import cachelock
 from .errors import (
     BatchError,
     DerivationError,
@@ -27,6 +28,8 @@ from .errors import (
     SeedWarning,
 )
 from .version import __version__
+
+cachelock.install()  # two processes compiling one kernel at once must not mix up numba's cache entries
 
 # Where each public name lives.  ``import lsys3d`` loads only the errors and the version; a name's module is
 # imported the first time the name is used (``lsys3d.generate`` loads the pipeline, numba and all), so a

@@ -73,6 +73,7 @@ from .turtle.diagnostics import Checks, check
 from .turtle.environment import EnvironmentOptions, load_environment
 from .turtle.hierarchy import hierarchy
 from .turtle.query import asks_turtle, derive_answering
+from .turtle.selections import selections
 from .turtle.skeleton import Skeleton
 from .turtle.timing import timed
 
@@ -415,6 +416,8 @@ def draw(
                 grammar, modules, ages, seed, table=timing, max_modules=limits.max_modules, iterations=iterations
             )
         skeleton = interpret(shown, turtle, seed=seed, max_segments=limits.max_segments, commands=commands, scene=scene)
+        if grammar.dialect == "cpfg":  # cpfg's texture selection (@Tx) and ~l's three scales
+            skeleton = selections(skeleton, shown, grammar.materials)
         return shown, skeleton
 
     shown, skeleton = run_stage("interpret", turtle_stage, progress=progress)

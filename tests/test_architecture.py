@@ -47,6 +47,7 @@ SHARED = {
     "lsys3d.images",
     "lsys3d.noise",
     "lsys3d.compiling",
+    "lsys3d.cachelock",
     # The turtle's command table (symbol, name, kind, arguments): the vocabulary the dialects (lsystem) declare
     # their own rows of. It imports nothing of lsys3d.
     "lsys3d.turtle.commands",

@@ -58,7 +58,9 @@ LPY = {
 CPFG = {
     "F": Op.FORWARD, "f": Op.MOVE, "G": Op.FORWARD, "g": Op.MOVE,
     "+": (Op.ROTATE, U, +1), "-": (Op.ROTATE, U, -1), "&": (Op.ROTATE, L, -1), "^": (Op.ROTATE, L, +1),
-    "\\": (Op.ROTATE, H, -1), "/": (Op.ROTATE, H, +1), "|": Op.TURN_AROUND, "@v": Op.ROLL_HORIZONTAL,
+    # the rolls as cpfg's interpret.c turns (change_dir: '/' L toward cpfg's U, which is lsys3d's -U: cpfg's
+    # frame starts at H = (0, 1, 0), L = (-1, 0, 0), U = (0, 0, -1); tests/test_cpfg_tropisms.py checks the path)
+    "\\": (Op.ROTATE, H, +1), "/": (Op.ROTATE, H, -1), "|": Op.TURN_AROUND, "@v": Op.ROLL_HORIZONTAL,
     "[": Op.PUSH, "]": Op.POP, "{": Op.POLYGON_BEGIN, ".": Op.POLYGON_VERTEX, "}": Op.POLYGON_END,
     ";": Op.MATERIAL, ",": Op.MATERIAL, "#": Op.WIDTH_ADD, "!": Op.WIDTH_ADD, "@O": Op.ORGAN, "@c": Op.ORGAN,
     "@o": Op.ORGAN, "~l": Op.ORGAN,
@@ -71,6 +73,13 @@ CPFG = {
     # generalized cylinders (blackbox.c, general.c): @Gs starts, @Gc and @Ge set control points, @Gt tangents
     "@Gs": Op.CYLINDER_START, "@Gc": Op.CYLINDER_POINT, "@Ge": (Op.CYLINDER_POINT, Axis.NONE, -1),
     "@Gt": Op.CYLINDER_TANGENTS,
+    # blackbox.c: @Tx(n) selects a texture (turtle state, read after the turtle: lsys3d.turtle.selections)
+    "@Tx": Op.NONE,
+    # blackbox.c: @! the cylinders' sides, @Ts/@Ti/@Td a movement's elasticity (set, +, -), @Tf keeps the frame,
+    # @Tp carries U from it
+    "@!": Op.SIDES, "@Ts": (Op.MOVEMENT_ELASTICITY, Axis.NONE, 0), "@Ti": (Op.MOVEMENT_ELASTICITY, Axis.NONE, +1),
+    "@Td": (Op.MOVEMENT_ELASTICITY, Axis.NONE, -1), "@Tf": (Op.MOVEMENT_FRAME, Axis.NONE, +1),
+    "@Tp": (Op.MOVEMENT_FRAME, Axis.NONE, -1),
 }  # fmt: skip
 # Lparser: lparser.txt (L. Lapre), the symbol table reproduced in the Lparser ports
 LPARSER = {

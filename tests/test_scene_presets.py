@@ -155,13 +155,45 @@ def test_scene_is_written_under_a_root_child_named_scene_gltf(tmp_path):
     assert len(scene) == 1
     (post,) = [doc["nodes"][c] for c in scene[0]["children"]]
     assert post["name"] == "support_post" and "translation" not in post  # in the plant's coordinates
+    (primitive,) = doc["meshes"][post["mesh"]]["primitives"]
+    look = doc["materials"][primitive["material"]]  # a matte grey, not glTF's default (a rough metal)
+    assert look["name"] == "scene" and look["pbrMetallicRoughness"]["metallicFactor"] == 0
     report = validators.validate_gltf(path)
     assert validators.gltf_issues(report, 0) == [] and validators.gltf_issues(report, 1) == []
 
 
+def test_a_pruning_volume_is_written_as_a_translucent_guide(tmp_path):
+    import json
+    import struct
+
+    import validators
+    from pxr import Usd, UsdGeom, UsdShade
+
+    hedge = lsys3d.generate("topiary", iterations=3, union=False)
+    path = lsys3d.export(hedge, tmp_path / "hedge.glb", ExportOptions(scene=True))
+    data = path.read_bytes()
+    (length,) = struct.unpack("<I", data[12:16])
+    doc = json.loads(data[20 : 20 + length])
+    (box,) = [n for n in doc["nodes"] if n["name"].startswith("volume_")]
+    (primitive,) = doc["meshes"][box["mesh"]]["primitives"]
+    look = doc["materials"][primitive["material"]]
+    assert look["alphaMode"] == "BLEND" and look["pbrMetallicRoughness"]["baseColorFactor"][3] < 0.5
+    report = validators.validate_gltf(path)
+    assert validators.gltf_issues(report, 0) == [] and validators.gltf_issues(report, 1) == []
+
+    path = lsys3d.export(hedge, tmp_path / "hedge.usda", ExportOptions(scene=True))
+    stage = Usd.Stage.Open(str(path))
+    (box,) = [p for p in stage.Traverse() if p.GetName().startswith("volume_")]
+    assert UsdGeom.Imageable(box).GetPurposeAttr().Get() == UsdGeom.Tokens.guide  # renderers leave it out
+    material, _ = UsdShade.MaterialBindingAPI(box).ComputeBoundMaterial()
+    shader = UsdShade.Shader(stage.GetPrimAtPath(material.GetPath().AppendChild("PreviewSurface")))
+    assert shader.GetInput("opacity").Get() < 0.5
+    assert validators.usd_problems(path) == []
+
+
 def test_scene_is_written_under_a_root_child_named_scene_usd(tmp_path):
     import validators
-    from pxr import Usd, UsdGeom
+    from pxr import Usd, UsdGeom, UsdShade
 
     path = lsys3d.export(_tree_with_scene(), tmp_path / "vine.usda", ExportOptions(scene=True, up_axis="Z"))
     stage = Usd.Stage.Open(str(path))
@@ -169,6 +201,8 @@ def test_scene_is_written_under_a_root_child_named_scene_usd(tmp_path):
     mesh = UsdGeom.Mesh(stage.GetPrimAtPath(root.AppendPath("scene/support_post")))
     points = np.asarray(mesh.GetPointsAttr().Get())
     assert points[:, 2].max() == pytest.approx(2.4, abs=1e-5)  # the post's 2.4 m, Z up like the plant
+    material, _ = UsdShade.MaterialBindingAPI(mesh.GetPrim()).ComputeBoundMaterial()
+    assert material and material.GetPath().name == "scene"
     assert validators.usd_problems(path) == []
 
 

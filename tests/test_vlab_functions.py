@@ -293,6 +293,23 @@ def test_ridley_places_its_primordia_as_cpfg_does():
     assert [p[0] for s, p in modules if s == ";"] == [c for _, _, c, _, _ in primordia]
 
 
+def test_ridley_spheres_have_cpfgs_sides():
+    """Each primordium's @!(no_poly): cpfg's blackbox.c keeps (int) no_poly, at least 3, for the sphere after it."""
+    from lsys3d.look.organs import skeleton_organs
+    from lsys3d.lsystem.derive import interpretation
+    from lsys3d.turtle import interpret
+
+    primordia, _ = ridley_model()
+    want = [max(3, int(sides)) for _, _, _, sides, _ in primordia]
+    grammar = lsys3d.Grammar.from_file(REAL / "manual-Ridley-spiral.l")
+    skeleton = interpret(interpretation(grammar, lsys3d.derive(grammar)), grammar)
+    assert skeleton.organ_sides.tolist() == want
+    built = skeleton_organs(skeleton)
+    # gluSphere(slices n, stacks n / 2 + 1): 2 n (stacks - 1) triangles each
+    faces = {p.name: len(p.mesh.faces) for p in built.prototypes}
+    assert sum(faces[f"sphere-{n}"] for n in want) == sum(2 * n * (n // 2) for n in want)
+
+
 def test_a_while_loop_in_a_rules_block_runs_for_each_module_apart(monkeypatch):
     text = (
         "Lsystem: 1\nderivation length: 1\nAxiom: A(3) A(4) A(0)\n"

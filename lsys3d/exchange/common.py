@@ -18,6 +18,7 @@ from ..arrays import first_equal_row, isin, unique
 from ..errors import ExportError
 from ..images import Image
 from ..look.attributes import ATTRIBUTES
+from ..look.materials import Material
 from ..mesh.mesh import Mesh
 from ..options import Options, option
 
@@ -78,9 +79,18 @@ class ExportOptions(Options):
         return UNITS[self.units]
 
 
+SCENE_MATERIAL = Material("scene", (0.50, 0.50, 0.48, 1.0), roughness=0.9)
+"""What a scene's obstacles and supports look like in the file (``--scene``): a matte light grey, so that
+walls and posts read as the set a plant is placed against (glTF's default material is a rough metal)."""
+
+SCENE_VOLUME = Material("scene_volume", (0.35, 0.55, 0.35, 0.15), roughness=1.0, double_sided=True)
+"""A pruning volume's look: a faint translucent green, a guide around the plant it shapes, not a solid that
+hides it (USD also gives it the purpose ``guide``: viewports draw it on request, renderers leave it out)."""
+
+
 def scene_meshes(tree, options: ExportOptions, where: str) -> tuple:
     """The scene meshes to write with ``tree`` (``options.scene``): ``(name, (n, 3) points in the file's frame,
-    (f, 3) faces)`` each, named uniquely; empty without ``--scene``.
+    (f, 3) faces, role, material)`` each, named uniquely; empty without ``--scene``.
 
     Raises
     ------
@@ -101,7 +111,8 @@ def scene_meshes(tree, options: ExportOptions, where: str) -> tuple:
         while name in seen:
             name += f"_{k}"
         seen.add(name)
-        out.append((name, np.asarray(m.vertices, np.float64) @ frame.T, np.asarray(m.faces, np.int64)))
+        look = SCENE_VOLUME if m.role == "volume" else SCENE_MATERIAL
+        out.append((name, np.asarray(m.vertices, np.float64) @ frame.T, np.asarray(m.faces, np.int64), m.role, look))
     return tuple(out)
 
 

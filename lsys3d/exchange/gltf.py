@@ -607,12 +607,15 @@ class _Gather:
         if not meshes:
             return
         children = []
-        for name, points, faces in meshes:
+        for name, points, faces, _, look in meshes:
             position = self.buf.accessor(to_float32(points, f"scene {name}", self.where), bounds=True)
             indices = self.buf.accessor(faces.reshape(-1).astype(np.uint32), target=ELEMENT_ARRAY_BUFFER)
-            self.meshes.append(
-                {"name": name, "primitives": [{"attributes": {"POSITION": position}, "indices": indices}]}
-            )
+            primitive = {
+                "attributes": {"POSITION": position},
+                "indices": indices,
+                "material": self.gather_material(look),
+            }
+            self.meshes.append({"name": name, "primitives": [primitive]})
             self.nodes.append({"name": name, "mesh": len(self.meshes) - 1})
             children.append(len(self.nodes) - 1)
         self.nodes.append({"name": "scene", "children": children})

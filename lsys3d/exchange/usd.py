@@ -370,13 +370,19 @@ def _author_scene(stage: Usd.Stage, prim: Usd.Prim, tree: Tree, options: ExportO
         return
     root = f"{prim.GetPath().pathString}/scene"
     UsdGeom.Xform.Define(stage, root)
-    for name, points, faces in meshes:
+    looks = _Looks(stage, f"{root}/Looks")
+    for name, points, faces, role, look in meshes:
         mesh = UsdGeom.Mesh.Define(stage, f"{root}/{name}")
         mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points.astype(np.float32)))
         mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32)))
         mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.reshape(-1).astype(np.int32)))
         mesh.CreateExtentAttr(_extent(points))
         mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        if look.double_sided:
+            mesh.CreateDoubleSidedAttr(True)
+        if role == "volume":  # the shape the plant was pruned to: a guide, not a solid of the set
+            mesh.CreatePurposeAttr(UsdGeom.Tokens.guide)
+        UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(looks.get(look))
 
 
 def _author_levels(

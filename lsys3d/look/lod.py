@@ -226,6 +226,8 @@ def prune(skeleton: Skeleton, fraction: float) -> Skeleton:
     fields = {name: getattr(skeleton, name)[kept] for name in _SEGMENT_FIELDS}
     if skeleton.birth is not None:  # the plant's development (lsys3d.turtle.timing)
         fields.update(birth=skeleton.birth[kept], mature=skeleton.mature[kept])
+    if skeleton.sides is not None:  # the grammar's sides (cpfg's @!)
+        fields.update(sides=skeleton.sides[kept])
     return replace(skeleton, parent=new_parent, **fields)
 
 

@@ -62,6 +62,7 @@ __all__ = [
     "organs",
     "skeleton_organs",
     "sphere",
+    "uv_sphere",
 ]
 
 log = logging.getLogger("lsys3d")
@@ -129,6 +130,47 @@ def sphere(subdivisions: int = 1) -> Mesh:
     return Mesh(v * 0.5, f, normals, uv)
 
 
+def uv_sphere(slices: int) -> Mesh:
+    """cpfg's sphere of ``@!(slices)``: OpenGL's ``gluSphere`` of diameter 1, ``slices`` around the ``z`` axis and
+    ``slices // 2 + 1`` stacks from pole to pole, ``2 slices (stacks - 1)`` triangles, smooth normals.
+
+    >>> m = uv_sphere(7)
+    >>> len(m.faces), m.is_watertight, round(float(np.linalg.norm(m.vertices, axis=1).max()), 6)
+    (42, True, 0.5)
+    """
+    stacks = slices // 2 + 1
+    theta = np.pi * np.arange(1, stacks) / stacks  # from the +z pole: the rings between the poles
+    phi = 2 * np.pi * np.arange(slices) / slices
+    ring = np.stack(
+        [
+            np.outer(np.sin(theta), np.cos(phi)),
+            np.outer(np.sin(theta), np.sin(phi)),
+            np.repeat(np.cos(theta), slices).reshape(-1, slices),
+        ],
+        axis=2,
+    ).reshape(-1, 3)
+    v = np.concatenate([[[0.0, 0.0, 1.0]], ring, [[0.0, 0.0, -1.0]]])
+    i = np.arange(slices)
+    j = (i + 1) % slices
+    south = len(v) - 1
+    faces = [np.stack([np.zeros(slices, np.int64), 1 + i, 1 + j], axis=1)]  # the +z cap, counter-clockwise outside
+    for r in range(stacks - 2):
+        a, b = 1 + r * slices, 1 + (r + 1) * slices
+        faces.append(np.stack([a + i, b + i, b + j], axis=1))
+        faces.append(np.stack([a + i, b + j, a + j], axis=1))
+    last = 1 + (stacks - 2) * slices
+    faces.append(np.stack([np.full(slices, south), last + j, last + i], axis=1))
+    f = np.concatenate(faces).astype(np.int64)
+    if (np.einsum("ij,ij->i", face_normals(v, f), v[f].mean(axis=1)) < 0).any():  # pragma: no cover
+        raise AssertionError("uv_sphere: a face turns inward")
+    u = (np.arctan2(v[:, 1], v[:, 0]) / (2 * np.pi)) % 1.0
+    lat = np.arcsin(np.clip(v[:, 2], -1, 1)) / np.pi + 0.5
+    uv = np.stack([u, lat], axis=1)[f]
+    uv[:, 1:, 0] = uv[:, :1, 0] + (uv[:, 1:, 0] - uv[:, :1, 0] + 0.5) % 1.0 - 0.5
+    uv[uv[:, :, 0].min(axis=1) < 0, :, 0] += 1.0
+    return Mesh(v * 0.5, f, v[f], uv)
+
+
 def disc(sides: int = 16) -> Mesh:
     """A disc of diameter 1 centred at the origin in the ``x``-``z`` plane, facing ``+y``: ``sides`` triangles.
 
@@ -167,12 +209,37 @@ BUILT_IN = tuple(BUILT_IN_ORGANS.values())
 """The organs with built-in prototypes (a ``[surfaces]`` entry of the same name replaces one)."""
 
 
-def _built_in(name: str, options: OrganOptions) -> Mesh:
+def _built_in(name: str, options: OrganOptions, sides: int = 0) -> Mesh:
+    """The built-in prototype ``name``; ``sides`` > 0: the grammar's (cpfg's ``@!``) for a sphere or disc."""
     if name == "sphere":
-        return sphere(options.sphere_subdivisions)
+        return uv_sphere(sides) if sides else sphere(options.sphere_subdivisions)
     if name in ("disc", "circle"):
-        return disc(options.disc_sides)
+        return disc(sides or options.disc_sides)
     return box()
+
+
+_ROUND = ("sphere", "disc", "circle")
+"""The built-in organs a grammar's sides (cpfg's ``@!``) tessellate; their prototype is named ``sphere-12``."""
+
+
+def _with_sides(kind: np.ndarray, sides) -> np.ndarray:
+    """Each round organ's name with the grammar's sides (``sphere-12``): one prototype per number of sides."""
+    if sides is None:
+        return kind
+    sides = np.asarray(sides, np.int64).reshape(-1)
+    if sides.shape != kind.shape:
+        raise GeometryError(f"organs: sides has shape {sides.shape}, expected {kind.shape} (one per organ)")
+    round_ = np.isin(kind, _ROUND) & (sides > 0)
+    if not round_.any():
+        return kind
+    named = np.char.add(np.char.add(kind, "-"), sides.astype(str))
+    return np.where(round_, named, kind)
+
+
+def _split_sides(name: str) -> tuple[str, int]:
+    """``sphere-12`` -> (``sphere``, 12); any other name -> (name, 0)."""
+    base, _, n = name.rpartition("-")
+    return (base, int(n)) if base in _ROUND and n.isdigit() else (name, 0)
 
 
 # ---------------------------------------------------------------- organs
@@ -243,6 +310,8 @@ def organs(
     hierarchy: Hierarchy | None = None,
     attributes=None,
     max_triangles: int = DEFAULT_MAX_TRIANGLES,
+    scale=None,
+    sides=None,
 ) -> Organs:
     """Build the organs recorded by the turtle, from plain arrays.
 
@@ -272,6 +341,13 @@ def organs(
         Which attributes (default all).
     max_triangles : int
         Most triangles of the organs baked in place.
+    scale : (k, 3) float, optional
+        Each organ's scale along left, up and heading relative to ``size`` (cpfg's ``~l(sx, sy, sz)``);
+        default uniform.
+    sides : (k,) int, optional
+        The grammar's sides of each organ (cpfg's ``@!``; 0: the options'): a sphere of ``n`` sides is
+        cpfg's ``n`` slices by ``n // 2 + 1`` stacks (:func:`uv_sphere`), a disc or circle ``n`` sides; its
+        prototype is named ``sphere-n`` (a ``[surfaces]`` entry ``sphere`` replaces it all the same).
 
     Raises
     ------
@@ -288,7 +364,7 @@ def organs(
     (['disc', 'sphere'], [1, 0, 1], [16, 160])
     """
     options = options or OrganOptions()
-    kind = np.asarray(kind, dtype=str).reshape(-1)
+    kind = _with_sides(np.asarray(kind, dtype=str).reshape(-1), sides)
     k = len(kind)
     position = np.asarray(position, np.float64)
     frame = np.asarray(frame, np.float64)
@@ -296,16 +372,20 @@ def organs(
     material = np.zeros(k, np.int32) if material is None else np.asarray(material, np.int32).reshape(-1)
     shapes = {"position": (position.shape, (k, 3)), "frame": (frame.shape, (k, 3, 3))}
     shapes |= {"size": (size.shape, (k,)), "material": (material.shape, (k,))}
+    axes = np.ones((k, 3)) if scale is None else np.asarray(scale, np.float64)
+    shapes["scale"] = (axes.shape, (k, 3))
     for name, (got, want) in shapes.items():
         if got != want:
             raise GeometryError(f"organs: {name} has shape {got}, expected {want} (one per organ)")
-    if not (np.isfinite(position).all() and np.isfinite(frame).all() and np.isfinite(size).all()):
+    finite = np.isfinite(position).all() and np.isfinite(frame).all() and np.isfinite(size).all()
+    if not (finite and np.isfinite(axes).all()):
         raise GeometryError("organs: a position, frame or size is not a finite number")
     keep = size > 0
     if not keep.all():
         log.info("organs: %d of size 0 left out", int((~keep).sum()))
     idx = np.flatnonzero(keep)
     kind, position, frame, size, material = kind[idx], position[idx], frame[idx], size[idx], material[idx]
+    axes = axes[idx]
     instance_attributes = {}
     if hierarchy is not None:
         seg = None if segment is None else np.asarray(segment, np.int64).reshape(-1)[idx]
@@ -315,11 +395,12 @@ def organs(
     prototypes, fallbacks = [], []
     leaf = surfaces.leaf if surfaces is not None else None
     for name in names.tolist():
-        surface = surfaces.get(name) if surfaces is not None else None
+        base, n_sides = _split_sides(name)
+        surface = surfaces.get(base) if surfaces is not None else None
         if surface is not None:
             mesh, card = surface.mesh, surface
-        elif name in BUILT_IN:
-            mesh, card = _built_in(name, options), None
+        elif base in BUILT_IN:
+            mesh, card = _built_in(base, options, n_sides), None
         else:  # a named surface without a model: drawn as the leaf (ABOP's predefined surfaces are leaves, petals)
             fallbacks.append(name)  # with the leaf materials, a leaf card's texture among them (with_cards)
             mesh, card = (leaf.mesh if leaf is not None else default_leaf()), None
@@ -334,7 +415,7 @@ def organs(
         log.info("organs: no [surfaces] model for %s: drawn as the leaf", ", ".join(repr(f) for f in sorted(fallbacks)))
 
     transforms = np.zeros((len(idx), 4, 4))
-    transforms[:, :3, :3] = frame * size[:, None, None]
+    transforms[:, :3, :3] = frame * (size[:, None] * axes)[:, None, :]
     transforms[:, :3, 3] = position
     transforms[:, 3, 3] = 1.0
     counts = np.bincount(which, minlength=len(prototypes))
@@ -400,4 +481,6 @@ def skeleton_organs(
         hierarchy=hierarchy,
         attributes=attributes,
         max_triangles=max_triangles,
+        scale=skeleton.organ_scale,
+        sides=skeleton.organ_sides,
     )

@@ -17,6 +17,11 @@ any other name is a named surface (ABOP's and L-Py's ``~name``, see
   at most :data:`MAX_MODEL_BYTES` bytes and :data:`MAX_MODEL_TRIANGLES`
   triangles), or a table ``{ model = ..., rotate = [x, y, z], scale = s,
   normalize = true }``;
+* a vlab surface file (cpfg's bicubic patches, :mod:`lsys3d.look.patches`):
+  ``{ model = "leaf.s", scale = 1, precision = [8, 4], texels = "surface" }``,
+  at its own size times ``scale`` (cpfg's view file's ``surface: l leaf.s 1 8 4``
+  writes it so for a cpfg file), with cpfg's texture coordinates (``end_point = true``: cpfg moves the
+  turtle to the surface's end point after it, which lsys3d names in a warning where it matters);
 * a card: ``{ card = "leaf.png", width = w, alpha_cutoff = 0.5 }``: one quad,
   length 1 along ``+z`` and ``w`` wide (default: the image's aspect ratio),
   showing the image (stem at the bottom of the picture, tip at the top), cut
@@ -59,6 +64,7 @@ from ..images import Image, read_image
 from ..lsystem.grammar import table_error
 from ..mesh.mesh import Mesh
 from .materials import Material, MaterialTable
+from .patches import MAX_PRECISION, read_patches
 
 __all__ = [
     "MAX_MODEL_BYTES",
@@ -84,6 +90,9 @@ MODEL_SUFFIXES = (".glb", ".obj", ".ply", ".stl")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]{0,63}\Z")
 _MODEL_KEYS = ("model", "rotate", "scale", "normalize")
 _CARD_KEYS = ("card", "width", "alpha_cutoff")
+_PATCH_KEYS = ("model", "scale", "precision", "texels", "end_point")  # a vlab surface (.s): lsys3d.look.patches
+MAX_PATCH_BYTES = 1 << 20
+"""Largest vlab surface file (``.s``) read, in bytes."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -258,7 +267,8 @@ def _surface(name: str, entry, folder: Path, where: str) -> Surface:
         raise OptionsError(
             f'{where}: expected a model file ("leaf.glb"), or a table {{ model = ... }} or {{ card = ... }}'
         )
-    keys = _CARD_KEYS if "card" in entry else _MODEL_KEYS
+    patch = str(entry.get("model", "")).lower().endswith(".s")
+    keys = _CARD_KEYS if "card" in entry else _PATCH_KEYS if patch else _MODEL_KEYS
     unknown = sorted(set(entry) - set(keys))
     if unknown:
         kind = "a card" if "card" in entry else "a model"
@@ -277,6 +287,8 @@ def _surface(name: str, entry, folder: Path, where: str) -> Surface:
             return Surface(name, card(width), image, cutoff, image.source)
         if "model" not in entry:
             raise OptionsError(f"{where}: a table needs 'model' (a file) or 'card' (an image)")
+        if patch:
+            return _patch_surface(name, entry, folder, where)
         rotate = entry.get("rotate", (0.0, 0.0, 0.0))
         if not isinstance(rotate, (list, tuple)) or len(rotate) != 3:
             raise OptionsError(f"{where}: rotate must be 3 angles in degrees [x, y, z], not {clip(repr(rotate))}")
@@ -290,6 +302,31 @@ def _surface(name: str, entry, folder: Path, where: str) -> Surface:
     except AssetError as exc:
         text = str(exc)
         raise OptionsError(text if text.startswith(where) else f"{where}: {text}") from None
+
+
+def _patch_surface(name: str, entry, folder: Path, where: str) -> Surface:
+    """A vlab surface file (``{ model = "leaf.s", scale = 1, precision = [8, 4], texels = "surface" }``), at its
+    own size times ``scale`` as cpfg's view file sizes it (:mod:`lsys3d.look.patches`).  ``end_point = true``
+    says that cpfg moves the turtle to the surface's end point after it, which lsys3d does not (a warning
+    names it where a module of the branch follows: :func:`lsys3d.turtle.selections.surface_findings`)."""
+    size = _number(entry.get("scale", 1.0), where, 1e-6, 1e6, "scale")
+    precision = entry.get("precision", (0, 0))
+    ok = isinstance(precision, (list, tuple)) and len(precision) == 2
+    if not ok or not all(isinstance(p, int) and not isinstance(p, bool) and 0 <= p <= MAX_PRECISION for p in precision):
+        raise OptionsError(
+            f"{where}: precision must be two whole numbers [s, t] in [0, {MAX_PRECISION}] (0: the file's), "
+            f"not {clip(repr(precision))}"
+        )
+    if not isinstance(entry.get("end_point", False), bool):
+        raise OptionsError(f"{where}: end_point must be true or false (whether cpfg moves the turtle after it)")
+    path = resolve(folder, entry["model"], f"{where}: model")
+    data = read_file(path, MAX_PATCH_BYTES, "surface file", "lsys3d.look.surfaces.MAX_PATCH_BYTES")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise AssetError(f"{clip(str(path), 100)}: a vlab surface file is text, and this is not UTF-8") from None
+    mesh = read_patches(text, clip(str(path), 100), size, precision[0], precision[1], entry.get("texels", "surface"))
+    return Surface(name, mesh, source=str(path))
 
 
 def surface_table(grammar) -> SurfaceTable:

@@ -67,6 +67,9 @@ class Op(IntEnum):
     CYLINDER_START = 27  # start a generalized cylinder: its first control point (cpfg's @Gs)
     CYLINDER_POINT = 28  # a control point: the tube from the last one to here (@Gc; Command.sign -1 ends it: @Ge)
     CYLINDER_TANGENTS = 29  # the tangent factors of the control points that follow (cpfg's @Gt)
+    SIDES = 30  # the sides of the tubes and the round organs that follow (cpfg's @!): read after the kernel's pass
+    MOVEMENT_ELASTICITY = 31  # cpfg's @Ts (sign 0: set), @Ti (+1), @Td (-1): the elasticity of movement n
+    MOVEMENT_FRAME = 32  # cpfg's @Tf: the frame the movements carry U from is the turtle's now
 
 
 N_OPS = len(Op)

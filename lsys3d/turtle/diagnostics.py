@@ -27,7 +27,9 @@ from ..lsystem import dialects
 from ..lsystem.grammar import Grammar
 from ..lsystem.modules import ModuleString
 from ..options import Options, option
-from .commands import BUILT_IN_ORGANS
+from .commands import BUILT_IN_ORGANS, Op
+from .options import TurtleOptions
+from .selections import surface_findings
 from .skeleton import Skeleton, organ_names
 
 __all__ = ["Checks", "check", "findings"]
@@ -104,10 +106,38 @@ def findings(grammar: Grammar, shown: ModuleString, skeleton: Skeleton, table) -
                 f"{grammar.source}: organs with no [surfaces] model, drawn as the leaf: "
                 f"{printable(', '.join(repr(m) for m in missing))} (give each a [surfaces] entry of that name)"
             )
+    out += surface_findings(grammar, shown, skeleton)  # cpfg's surfaces that move the turtle
+    movements = _movement_finding(grammar, shown, table, present)
+    if movements:
+        out.append(movements)
     width = _width_finding(grammar, skeleton)
     if width:
         out.append(width)
     return out
+
+
+def _movement_finding(grammar: Grammar, shown: ModuleString, table, present) -> str | None:
+    """cpfg's ``@Ts(n, ...)``, ``@Ti``, ``@Td`` of a tropism the view file does not give: nothing, as in cpfg (which
+    says "Movement index out of range!"), named."""
+    codes = [c for c in present if (cmd := table.command(c)) is not None and cmd.op == Op.MOVEMENT_ELASTICITY]
+    if not codes:
+        return None
+    given = len(TurtleOptions.from_grammar(grammar).tropisms) // 7
+    at = np.flatnonzero(np.isin(shown.symbols, codes) & (shown.arity > 0))
+    numbers = np.trunc(shown.params[shown.offsets[at]] - 1.0)
+    bad = sorted(
+        {
+            f"{shown.alphabet[c]}({n + 1:g})"
+            for c, n in zip(shown.symbols[at], numbers, strict=True)
+            if not 0 <= n < given
+        }
+    )
+    if not bad:
+        return None
+    return (
+        f"{grammar.source}: cpfg tropisms the view file does not give (it gives {given}: its 'tropism:' and "
+        f"'torque:' lines): {printable(', '.join(bad[:5]))}{' ...' if len(bad) > 5 else ''} change nothing, as in cpfg"
+    )
 
 
 def _width_finding(grammar: Grammar, skeleton: Skeleton) -> str | None:

@@ -777,6 +777,7 @@ def form(
         order=skeleton.order[seg],
         material=skeleton.material[seg],
         module=skeleton.module[seg],
+        sides=None if skeleton.sides is None else skeleton.sides[seg],
         polygon_points=polygon_points,
         leaf_position=leaf_position,
         leaf_heading=leaf_heading,

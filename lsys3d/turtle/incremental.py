@@ -103,8 +103,9 @@ _CARRIED_OUT[[int(o) for o in Op if o <= Op.QUERY]] = True  # NONE .. QUERY (the
 def carries_out(counts: np.ndarray, turtle) -> bool:
     """Whether :func:`answer_pass` carries out a string of these op ``counts`` (``kernel.survey``'s) as the turtle
     that draws would: no op it does not step through (cpfg's sub-L-system scales, ``_``, generalized cylinders,
-    or any op added to :class:`Op` after ``QUERY``), and not cpfg's bend after each move."""
-    return not counts[~_CARRIED_OUT].any() and turtle.bend != "cpfg"
+    or any op added to :class:`Op` after ``QUERY``), and not cpfg's bend after each move nor its newer tropisms
+    (``tropisms``: they bend before each move whether or not the string switches them)."""
+    return not counts[~_CARRIED_OUT].any() and turtle.bend != "cpfg" and not turtle.tropisms
 
 
 def neutral_ops() -> np.ndarray:

@@ -69,6 +69,7 @@ from ..streams import Stream, generator
 from . import kernel
 from .commands import COMMANDS, Command, Op, SymbolTable, symbol_table
 from .options import TurtleOptions
+from .sides import sides_in_force, with_sides
 from .skeleton import MAX_COORDINATE, Skeleton
 
 __all__ = [
@@ -203,7 +204,17 @@ def turtle_config(options: TurtleOptions) -> kernel.Config:
         options.length_unit,
         options.bend == "cpfg",
         options.elasticity_increment,
+        options.polygon_edges,
+        movement_rows(options.tropisms),
     )
+
+
+def movement_rows(tropisms) -> np.ndarray:
+    """``(m, 8)``: cpfg's movements (``TurtleOptions.tropisms``, 7 numbers each) as the kernel reads them
+    (:data:`lsys3d.turtle.bending.MOVEMENT_COLUMNS`: the angle as its cosine and sine)."""
+    rows = np.asarray(tropisms, np.float64).reshape(-1, 7)
+    gamma = np.radians(rows[:, 4])
+    return np.column_stack([rows[:, :4], np.cos(gamma), np.sin(gamma), rows[:, 5:]])
 
 
 NO_SCENE = kernel.Scene(np.zeros(3), np.ones(1), *(np.zeros((0, 0, 0)),) * 3, np.zeros(0))
@@ -401,6 +412,17 @@ def interpret_answering(
         organ_module=organ.module[:n_organ],
         organ_name=np.array([modules.symbol(i) for i in organ.module[:n_organ]], dtype=str).reshape(n_organ),
     )
+    if counts[Op.SIDES] or options.cylinder_sides:  # cpfg's @! and view file: the tessellation, not the path
+        in_force = sides_in_force(
+            program.op,
+            modules.symbols,
+            modules.arity,
+            modules.offsets,
+            modules.params,
+            max_depth,
+            options.cylinder_sides,
+        )
+        skeleton = with_sides(skeleton, in_force)
     log.debug(
         "interpret: %d modules -> %d segments, %d polygons, %d leaves, %d organs in %.3f s",
         m,

@@ -17,6 +17,17 @@ from collections import namedtuple
 import numba
 import numpy as np
 
+from .bending import (
+    _bend,
+    _bend_after,
+    _cos_sin,
+    _orthonormal,
+    _pair,
+    _rotate,
+    carry_up,
+    movement_adjust,
+    movement_elasticity,
+)
 from .commands import N_OPS, Axis, Op, Organ
 from .skeleton import MAX_COORDINATE
 
@@ -63,6 +74,8 @@ Config = namedtuple(
         "length_unit",
         "bend_after",
         "elasticity_increment",
+        "polygon_edges",
+        "movements",
     ],
 )
 Variation = namedtuple("Variation", ["angle", "length", "width", "roll", "skipped", "turn"])
@@ -121,6 +134,8 @@ _FORWARD_STEPS = int(Op.FORWARD_STEPS)
 _TROPISM_VECTOR = int(Op.TROPISM_VECTOR)
 _QUERY = int(Op.QUERY)
 _SUB_LSYSTEM = int(Op.SUB_LSYSTEM)
+_MOVEMENT_ELASTICITY = int(Op.MOVEMENT_ELASTICITY)
+_MOVEMENT_FRAME = int(Op.MOVEMENT_FRAME)
 _AXIS_U = int(Axis.U)
 _AXIS_L = int(Axis.L)
 _AXIS_H = int(Axis.H)
@@ -167,51 +182,6 @@ MESSAGES = {
     13: f"more than {MAX_SUB_LSYSTEMS} sub-L-systems open at once (lsys3d.turtle.kernel.MAX_SUB_LSYSTEMS)",
     14: "a sub-L-system's scale (the s of ?(n, s)) must be a finite number > 0",
 }
-
-
-@numba.njit(cache=True)
-def _pair(ax, ay, az, bx, by, bz, c, s):
-    """Rotate a frame pair in its plane: a toward b by the angle with cos c, sin s."""
-    return ax * c + bx * s, ay * c + by * s, az * c + bz * s, bx * c - ax * s, by * c - ay * s, bz * c - az * s
-
-
-@numba.njit(cache=True)
-def _orthonormal(hx, hy, hz, lx, ly, lz):
-    """Re-orthonormalise a nearly orthonormal H, L and return H, L, U = H x L.
-
-    Keeps rounding from piling up over millions of turns.  The inputs are unit
-    vectors to within rounding, so one Newton step ``v * (3 - v.v) / 2`` normalises
-    them to full precision without a square root or a division.
-    """
-    n = 1.5 - 0.5 * (hx * hx + hy * hy + hz * hz)
-    hx *= n
-    hy *= n
-    hz *= n
-    d = lx * hx + ly * hy + lz * hz
-    lx -= d * hx
-    ly -= d * hy
-    lz -= d * hz
-    n = 1.5 - 0.5 * (lx * lx + ly * ly + lz * lz)
-    lx *= n
-    ly *= n
-    lz *= n
-    return hx, hy, hz, lx, ly, lz, hy * lz - hz * ly, hz * lx - hx * lz, hx * ly - hy * lx
-
-
-@numba.njit(cache=True)
-def _cos_sin(degrees):
-    """Cosine and sine of an angle in degrees, exact for multiples of 90 (so +(90) and heading 90 are exact)."""
-    r = degrees % 360.0
-    if r == 0.0:
-        return 1.0, 0.0
-    if r == 90.0:
-        return 0.0, 1.0
-    if r == 180.0:
-        return -1.0, 0.0
-    if r == 270.0:
-        return 0.0, -1.0
-    a = math.radians(degrees)
-    return math.cos(a), math.sin(a)
 
 
 @numba.njit(cache=True)
@@ -265,68 +235,11 @@ def _steps(length, dlength):
 
 
 @numba.njit(cache=True)
-def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
-    """Bend H toward T about H x T: by e |H x T| radians (ABOP 2.8), or (``by_angle``) by e times the angle
-    between H and T (PlantGL's Turtle::_tendTo, which turns about U by e pi when H is opposite T).
-    Unchanged when H is along T."""
-    cx = hy * tz - hz * ty
-    cy = hz * tx - hx * tz
-    cz = hx * ty - hy * tx
-    norm = math.sqrt(cx * cx + cy * cy + cz * cz)
-    if norm <= 1e-12:
-        if by_angle and hx * tx + hy * ty + hz * tz < 0.0:
-            c, s = math.cos(e * math.pi), math.sin(e * math.pi)
-            return _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, np.int64(_AXIS_U), c, s)
-        return hx, hy, hz, lx, ly, lz, ux, uy, uz
-    a = e * (math.atan2(norm, hx * tx + hy * ty + hz * tz) if by_angle else norm)
-    kx, ky, kz = cx / norm, cy / norm, cz / norm
-    c, s = math.cos(a), math.sin(a)
-    # Rodrigues: v' = v c + (k x v) s + k (k.v)(1 - c), for H and L
-    d = (kx * hx + ky * hy + kz * hz) * (1.0 - c)
-    nhx = hx * c + (ky * hz - kz * hy) * s + kx * d
-    nhy = hy * c + (kz * hx - kx * hz) * s + ky * d
-    nhz = hz * c + (kx * hy - ky * hx) * s + kz * d
-    d = (kx * lx + ky * ly + kz * lz) * (1.0 - c)
-    nlx = lx * c + (ky * lz - kz * ly) * s + kx * d
-    nly = ly * c + (kz * lx - kx * lz) * s + ky * d
-    nlz = lz * c + (kx * ly - ky * lx) * s + kz * d
-    return _orthonormal(nhx, nhy, nhz, nlx, nly, nlz)
-
-
-@numba.njit(cache=True)
 def _rings(has_arg, arg):
     """The pieces of a generalized cylinder's connection: ``@Gc(n)``'s n (at least 1), else the default."""
     if not has_arg:
         return CYLINDER_RINGS
     return max(1, min(MAX_RINGS, int(arg)))
-
-
-@numba.njit(cache=True)
-def _bend_after(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e):
-    """cpfg's tropism after a move (interpret.c ``bend``): H turns toward U by the angle whose sine is
-    e (T.U), then toward L by the angle whose sine is e (T.L) (sines held to [-1, 1])."""
-    s = min(1.0, max(-1.0, e * (tx * ux + ty * uy + tz * uz)))
-    c = math.sqrt(1.0 - s * s)
-    nhx, nhy, nhz = c * hx + s * ux, c * hy + s * uy, c * hz + s * uz
-    ux, uy, uz = c * ux - s * hx, c * uy - s * hy, c * uz - s * hz
-    s = min(1.0, max(-1.0, e * (tx * lx + ty * ly + tz * lz)))
-    c = math.sqrt(1.0 - s * s)
-    hx, hy, hz = c * nhx + s * lx, c * nhy + s * ly, c * nhz + s * lz
-    lx, ly, lz = c * lx - s * nhx, c * ly - s * nhy, c * lz - s * nhz
-    return _orthonormal(hx, hy, hz, lx, ly, lz)
-
-
-@numba.njit(cache=True)
-def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
-    """Rotate the frame about one of its own axes by the angle with cos c and sin s (already signed)."""
-    if axis == _AXIS_U:  # turn: H toward L
-        hx, hy, hz, lx, ly, lz = _pair(hx, hy, hz, lx, ly, lz, c, s)
-    elif axis == _AXIS_L:  # pitch: H toward U
-        hx, hy, hz, ux, uy, uz = _pair(hx, hy, hz, ux, uy, uz, c, s)
-        lx, ly, lz = uy * hz - uz * hy, uz * hx - ux * hz, ux * hy - uy * hx
-    else:  # roll: L toward U
-        lx, ly, lz, ux, uy, uz = _pair(lx, ly, lz, ux, uy, uz, c, s)
-    return _orthonormal(hx, hy, hz, lx, ly, lz)
 
 
 # The environment's helpers below are called, not inlined as numba IR: inlined, numba typed and lowered them again
@@ -658,7 +571,12 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     bend = tx != 0.0 or ty != 0.0 or tz != 0.0
     by_angle = config.bend_angle
     after = config.bend_after  # cpfg's tropism: the frame bends after each move, not before
+    edges = config.polygon_edges  # moves inside a polygon draw segments too (L-System Explorer's turtle)
     elasticity_increment = config.elasticity_increment
+    # cpfg's movements (bending.py): their elasticities in this branch, and the frame they carry U from
+    n_mov = config.movements.shape[0]
+    mov_e = config.movements[:, 6].copy()
+    stack_m = np.empty((max_depth, n_mov + 6))
     # cpfg's generalized cylinder (@Gs, @Gc, @Ge): on or off, the last control point (position, heading,
     # width, its tangent parameter) and the tangent parameters of the turtle (@Gt)
     cyl_on = 0.0
@@ -688,6 +606,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     hz = 0.0
     lx, ly, lz = -hy, hx, 0.0
     ux, uy, uz = 0.0, 0.0, 1.0
+    phx, phy, phz, pux, puy, puz = hx, hy, hz, ux, uy, uz
     material = 0
     last = -1  # parent of the next segment
     anchor = -1  # last segment drawn in this state, for branch order
@@ -731,6 +650,10 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
         has_arg = arity[i] > 0
         arg = params[offsets[i]] if has_arg else 0.0
         if code in (_FORWARD, _MOVE):
+            if n_mov:
+                hx, hy, hz, lx, ly, lz, ux, uy, uz, phx, phy, phz, pux, puy, puz = movement_adjust(
+                    config.movements, mov_e, hx, hy, hz, lx, ly, lz, ux, uy, uz, phx, phy, phz, pux, puy, puz
+                )
             if elasticity != 0.0 and bend and not after:
                 hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
                     hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
@@ -752,11 +675,9 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             qz = pz + hz * length
             if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):  # NaN fails too
                 return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-            if poly_open >= 0:
-                if program.vertex[sym]:
-                    n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
-                last = -1
-            elif code == _FORWARD:
+            if poly_open >= 0 and program.vertex[sym]:
+                n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
+            if code == _FORWARD and (poly_open < 0 or edges):
                 s_ = n_seg
                 _put(seg.start, s_, px, py, pz)
                 _put(seg.end, s_, qx, qy, qz)
@@ -793,6 +714,18 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                 hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend_after(
                     hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity
                 )
+            if code == _FORWARD:  # cpfg's F and G: the frame the movements carry U from
+                phx, phy, phz, pux, puy, puz = hx, hy, hz, ux, uy, uz
+        elif code == _MOVEMENT_ELASTICITY:  # cpfg's @Ts(n, e), @Ti(n, d), @Td(n, d)
+            if has_arg:
+                more = arity[i] > 1
+                movement_elasticity(
+                    config.movements, mov_e, program.sign[sym], arg, more, params[offsets[i] + 1] if more else 0.0
+                )
+        elif code == _MOVEMENT_FRAME and program.sign[sym] > 0:  # cpfg's @Tf: the turtle's frame is the one kept
+            phx, phy, phz, pux, puy, puz = hx, hy, hz, ux, uy, uz
+        elif code == _MOVEMENT_FRAME:  # cpfg's @Tp: U carried from the frame kept (no twist since the last F)
+            hx, hy, hz, lx, ly, lz, ux, uy, uz = carry_up(hx, hy, hz, ux, uy, uz, phx, phy, phz, pux, puy, puz)
         elif code == _FORWARD_STEPS:  # L-Py's nF(length, dlength[, radius]): PlantGL's Turtle::nF
             # each step is the FORWARD above, with its length (kept apart: a loop there slows every F)
             dlength = params[offsets[i] + 1]
@@ -1052,6 +985,11 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             stack_i[depth, 2] = anchor
             stack_i[depth, 3] = hanging
             stack_i[depth, 4] = cyl_last
+            row = stack_m[depth]
+            for k in range(n_mov):
+                row[k] = mov_e[k]
+            row[n_mov], row[n_mov + 1], row[n_mov + 2] = phx, phy, phz
+            row[n_mov + 3], row[n_mov + 4], row[n_mov + 5] = pux, puy, puz
             depth += 1
             if roll_branch:  # the branch starts rolled about H; the saved state is not
                 c, s = _cos_sin(variation.roll[i])
@@ -1085,6 +1023,11 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             anchor = stack_i[depth, 2]
             hanging = stack_i[depth, 3]
             cyl_last = stack_i[depth, 4]
+            row = stack_m[depth]
+            for k in range(n_mov):
+                mov_e[k] = row[k]
+            phx, phy, phz = row[n_mov], row[n_mov + 1], row[n_mov + 2]
+            pux, puy, puz = row[n_mov + 3], row[n_mov + 4], row[n_mov + 5]
         elif code in (_WIDTH, _WIDTH_ADD, _WIDTH_FACTOR):
             if code == _WIDTH:
                 width = arg * width_unit if has_arg else width * width_scale

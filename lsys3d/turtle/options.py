@@ -87,12 +87,34 @@ class TurtleOptions(Options):
     elasticity_increment: float = option(
         0.0, help="what cpfg's `_` adds to the elasticity (the view file's `elasticity increment:`)"
     )
+    tropisms: tuple[float, ...] = option(
+        (),
+        kind="vector",
+        cli=False,
+        help="cpfg's tropisms and twists (the view file's `tropism:` and `torque:` lines), 7 numbers each: kind (0 "
+        "a tropism, 1 a twist), T's x, y, z (its length the intensity), the angle to T (degrees), the elasticity "
+        "and its increment; before each move they bend the frame, and `@Ts(n, e)`, `@Ti(n)`, `@Td(n)` set, raise "
+        "and lower the n-th's elasticity (docs/dialects/cpfg.md)",
+    )
+    cylinder_sides: int = option(
+        0,
+        low=0,
+        high=1024,
+        cli=False,
+        help="the sides of the tubes, spheres and discs where no cpfg `@!(n)` sets them (cpfg's view file: "
+        "`contour sides:`, `polygonization level:`); 0: the sweep's `sides` and the organs' own",
+    )
     bend: str = option(
         "abop",
         choices=BENDS,
         help='how the elasticity bends: `"abop"` by e\\|H x T\\| radians (ABOP 2.8), `"angle"` by e times the '
         "angle between H and T (PlantGL's turtle, L-Py's default), `\"cpfg\"` after each move, H toward U by the "
         "angle whose sine is e (T.U) and toward L by the one whose sine is e (T.L) (cpfg's view-file tropism)",
+    )
+    polygon_edges: bool = option(
+        False,
+        help="moves inside a polygon draw segments too (L-System Explorer's turtle draws every F and G; cpfg's "
+        "and ABOP's draw the polygon alone)",
     )
     angle_jitter: float = option(0.0, low=0, help="random change of each rotation angle, up to this many degrees")
     length_jitter: float = option(0.0, low=0, help="random relative change of each step, up to this fraction")
@@ -111,6 +133,13 @@ class TurtleOptions(Options):
     def __post_init__(self):
         super().__post_init__()
         _check_symbols(self.draw, self.move, self.leaf)
+        rows = self.tropisms
+        if len(rows) % 7 or any(kind not in (0.0, 1.0) for kind in rows[::7]):
+            raise OptionsError(
+                "TurtleOptions.tropisms: 7 numbers a tropism (kind 0 or 1, x, y, z, angle, elasticity, increment), "
+                f"not {len(rows)} numbers"
+                + ("" if len(rows) % 7 else " with a kind other than 0 (a tropism) or 1 (a twist)")
+            )
 
     @classmethod
     def from_grammar(cls, grammar: Grammar, overrides: Mapping | None = None, **more) -> TurtleOptions:

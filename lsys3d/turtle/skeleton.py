@@ -107,6 +107,9 @@ class Skeleton:
     organ_name : (o,) str
         The name of that module as written (``@O``, ``~l``, ``J``): a surface's or an
         instance's name, kept so that the mesh stages need not keep the string.
+    organ_scale : (o, 3) float64 or None
+        Each organ's scale along left, up and heading relative to ``organ_size`` (cpfg's
+        ``~l(sx, sy, sz)``: ``(1, sz / sx, sy / sx)``, :mod:`lsys3d.turtle.selections`); None: uniform.
 
     Times (only when the plant's development was asked for: :func:`lsys3d.turtle.timing.timed`; None
     otherwise), in the plant's time of :mod:`lsys3d.lsystem.ages`:
@@ -119,6 +122,13 @@ class Skeleton:
         When each leaf instance starts to unfold and when it is unfolded.
     organ_birth, organ_mature : (o,) float64
         The same for each organ.
+
+    Sides (only when the grammar sets them: cpfg's ``@!``, :mod:`lsys3d.turtle.sides`; None otherwise):
+
+    sides : (n,) int32
+        The sides of each segment's tube, 0 where the grammar set none (the sweep's ``sides`` then).
+    organ_sides : (o,) int32
+        The sides of each sphere and disc (cpfg's slices), 0 where the grammar set none (the organs' options).
     """
 
     start: np.ndarray
@@ -153,6 +163,7 @@ class Skeleton:
     organ_segment: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     organ_module: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     organ_name: np.ndarray = field(default_factory=lambda: np.zeros(0, "U1"))
+    organ_scale: np.ndarray | None = None
     birth: np.ndarray | None = None
     mature: np.ndarray | None = None
     leaf_birth: np.ndarray | None = None
@@ -160,6 +171,8 @@ class Skeleton:
     organ_birth: np.ndarray | None = None
     organ_mature: np.ndarray | None = None
     growth_function: np.ndarray | None = None
+    sides: np.ndarray | None = None
+    organ_sides: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.start.shape[0])

@@ -23,7 +23,7 @@ from ...turtle.commands import ENVIRONMENT_QUERY, Axis, Command, Op, Organ, quer
 from ..expr import MAX_ARRAY, ExprSyntaxError, Syntax, constant_array, parse_expression
 from ..grammar import MAX_PARAMETERS, Grammar, read_text
 from ..splines import to_table
-from . import vlab
+from . import vlab, vlab_look
 from .common import Dialect, Notation, fail, line_where
 from .macros import Macro, MacroError, expand, parse_definition
 
@@ -77,8 +77,12 @@ COMMANDS_CPFG = (
     _rot("-", "turn right", Axis.U, -1, "Turn right around U."),
     _rot("&", "pitch down", Axis.L, -1, "Pitch down around L."),
     _rot("^", "pitch up", Axis.L, +1, "Pitch up around L."),
-    _rot("\\", "roll left", Axis.H, -1, "Roll left around H."),
-    _rot("/", "roll right", Axis.H, +1, "Roll right around H."),
+    # cpfg's frame has H x L = -U (interpret.c starts it at H = (0, 1, 0), L = (-1, 0, 0), U = (0, 0, -1)); lsys3d's
+    # U is its -U, so cpfg's '/' (change_dir(left, up): L toward cpfg's U) turns L away from lsys3d's U
+    _rot(
+        "\\", "roll left", Axis.H, +1, "Roll left around H: L toward lsys3d's U (cpfg's -U: its frame has H x L = -U)."
+    ),
+    _rot("/", "roll right", Axis.H, -1, "Roll right around H: L toward lsys3d's -U (cpfg's U)."),
     Command("|", "turn around", Op.TURN_AROUND, "", 0, "Turn around 180 degrees around U."),
     Command("@v", "roll to vertical", Op.ROLL_HORIZONTAL, "", 0, "Roll around H so that U is closest to up."),
     Command(
@@ -156,13 +160,23 @@ COMMANDS_CPFG = (
         "~",
         "surface",
         Op.ORGAN,
-        "s",
-        1,
-        "`~c(s)`: the predefined surface `c`, scaled by `s`: an organ. cpfg's `~c(sx, sy, sz)` scales it "
-        "by three factors; lsys3d by `sx` (a warning names the module).",
+        "sx, sy, sz",
+        3,
+        "`~c(s)`: the predefined surface `c` (the view file's `surface: c file.s size`), scaled by `s`: an "
+        "organ. `~c(sx, sy, sz)` scales it by `sx` along left, `sy` along the heading, `sz` along up "
+        "(lsys3d.turtle.selections).",
         organ=Organ.SURFACE,
         prefix=True,
-        ignored=("sy", "sz"),
+    ),
+    Command(
+        "@Tx",
+        "texture",
+        Op.NONE,
+        "n",
+        1,
+        "Select the view file's `n`-th texture (`texture: F: file.png ...`) for the cylinders and surfaces "
+        "that follow (none: `@Tx` or an `n` that names no texture read); `[` and `]` keep it "
+        "(lsys3d.turtle.selections).",
     ),
     Command(
         "_",
@@ -208,6 +222,62 @@ COMMANDS_CPFG = (
         "The factors of the tangents into (`a`) and out of (`b`, default `a`) the control points that follow "
         "(times the distance between two points; 1.2 at first).",
     ),
+    Command(
+        "@!",
+        "sides",
+        Op.SIDES,
+        "n",
+        1,
+        "The sides of the tubes, generalized cylinders, spheres and discs that follow (cpfg's blackbox.c: the "
+        "turtle's `cylinder_sides`, at least 3; 8 without a parameter): a sphere becomes cpfg's `n` slices by "
+        "`n / 2 + 1` stacks, a disc `n` sides.",
+    ),
+    Command(
+        "@Ts",
+        "set tropism",
+        Op.MOVEMENT_ELASTICITY,
+        "n, e",
+        2,
+        "Set the elasticity of tropism `n` (the view file's `tropism:` and `torque:` lines, from 1) to `e` "
+        "(0 without it); a number the view file does not have changes nothing, as in cpfg.",
+        sign=0,
+    ),
+    Command(
+        "@Ti",
+        "raise tropism",
+        Op.MOVEMENT_ELASTICITY,
+        "n, d",
+        2,
+        "Add `d` (default: its `S:` increment) to the elasticity of tropism `n`.",
+    ),
+    Command(
+        "@Td",
+        "lower tropism",
+        Op.MOVEMENT_ELASTICITY,
+        "n, d",
+        2,
+        "Take `d` (default: its `S:` increment) from the elasticity of tropism `n`.",
+        sign=-1,
+    ),
+    Command(
+        "@Tf",
+        "keep frame",
+        Op.MOVEMENT_FRAME,
+        "",
+        0,
+        "The turtle's frame now is the one the tropisms carry U from (cpfg's blackbox.c: a roll made since the "
+        "last `F` is kept, not undone by the next bend).",
+    ),
+    Command(
+        "@Tp",
+        "untwist",
+        Op.MOVEMENT_FRAME,
+        "",
+        0,
+        "U carried from the frame of the last `F` (or `@Tf`) along the smallest rotation to the heading now: "
+        "the rolls made since undone (cpfg's turtle.c `adjust_up_and_left`).",
+        sign=-1,
+    ),
     *queries("PHLU"),  # cpfg's world is lsys3d's: Y up
     ENVIRONMENT_QUERY,
 )
@@ -215,7 +285,6 @@ COMMANDS_CPFG = (
 UNSUPPORTED = frozenset(
     [
         "@Gr",
-        "@Tx",
         "@M",
         "@m",
         "@R",
@@ -227,19 +296,13 @@ UNSUPPORTED = frozenset(
         "@b",
         "@H",
         "@#",
-        "@Tf",
         "@S",
         "@Ms",
         "@Me",
         "@Mc",
         "@P",
         "@J",
-        "@Tp",
-        # the rest of cpfg's blackbox.c: cylinder sides, tropisms, patches, objects, bounded circles, cuts
-        "@!",
-        "@Ts",
-        "@Ti",
-        "@Td",
+        # the rest of cpfg's blackbox.c: patches, objects, bounded circles, cuts
         "@I",
         "@PS",
         "@PC",
@@ -520,6 +583,8 @@ class _Reader:
             fields["splines"] = to_table(view.functions, view.curves)
         if view.turtle():
             fields["turtle"] = view.turtle()
+        if folder is not None:  # the view file's surfaces and textures (@Tx)
+            fields.update(vlab_look.read_look(path).fields())
         if folder is not None and "angle" not in overrides:
             angle, missing = _view_angle(path)
             if angle is not None:

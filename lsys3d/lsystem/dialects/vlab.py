@@ -11,7 +11,12 @@ cpfg reads the view file (``plant.v`` beside ``plant.l``) for its drawing settin
   (:mod:`lsys3d.lsystem.splines`);
 - ``tropism direction: x,y,z``, ``initial elasticity: e`` and ``elasticity increment: d``: cpfg's tropism,
   which bends the turtle after each move (the grammar's ``[turtle]`` ``tropism``, ``elasticity``,
-  ``elasticity_increment`` and ``bend = "cpfg"``; ``_`` adds the increment, ``_(e)`` sets it).
+  ``elasticity_increment`` and ``bend = "cpfg"``; ``_`` adds the increment, ``_(e)`` sets it);
+- ``tropism: T: x y z A: gamma E: e S: d I: i`` and ``torque: T: x y z E: e S: d``: cpfg's newer tropisms
+  and twists (its movements.c), numbered from 1 in the file's order, which ``@Ts(n, e)``, ``@Ti(n, d)``
+  and ``@Td(n, d)`` switch (the grammar's ``[turtle]`` ``tropisms``: :mod:`lsys3d.turtle.bending`);
+- ``contour sides: n`` and ``polygonization level: k`` (``2^(k + 1)`` sides): the sides of the tubes,
+  spheres and discs where no ``@!`` sets them (the grammar's ``[turtle]`` ``cylinder_sides``).
 
 Every file is read as data (:func:`lsys3d.external.inside`: only files of the model's own folder).
 """
@@ -41,16 +46,22 @@ class View:
     tropism: tuple[float, float, float] | None = None
     elasticity: float = 0.0
     elasticity_increment: float = 0.0
+    tropisms: tuple[float, ...] = ()  # cpfg's movements: 7 numbers each (TurtleOptions.tropisms)
+    cylinder_sides: int = 0  # contour sides: / polygonization level: (0: none given)
 
     def turtle(self) -> dict:
-        """The grammar's ``[turtle]`` entries of cpfg's tropism (none without a tropism that bends)."""
+        """The grammar's ``[turtle]`` entries of cpfg's tropisms (the old one only when it bends)."""
+        out: dict = {"tropisms": list(self.tropisms)} if self.tropisms else {}
+        if self.cylinder_sides:
+            out["cylinder_sides"] = self.cylinder_sides
         if self.tropism is None or (self.elasticity == 0 and self.elasticity_increment == 0):
-            return {}
+            return out
         return {
             "tropism": list(self.tropism),
             "elasticity": self.elasticity,
             "elasticity_increment": self.elasticity_increment,
             "bend": "cpfg",
+            **out,
         }
 
 
@@ -61,7 +72,8 @@ def strip_comments(text: str) -> str:
 
 
 _LINE = re.compile(
-    r"(?P<key>function set|function|curve|tropism direction|initial elasticity|elasticity increment)\s*:\s*"
+    r"(?P<key>function set|function|curve|tropism direction|initial elasticity|elasticity increment|tropism|torque"
+    r"|contour sides|polygonization level)\s*:\s*"
     r"(?P<rest>.*)\Z"
 )
 
@@ -84,6 +96,7 @@ def read_view(path: Path) -> View:
     curves: list[Curve] = []
     names: dict[str, int] = {}
     settings: dict = {}
+    movements: list[float] = []
     for number, raw in enumerate(strip_comments(text).split("\n"), start=1):
         m = _LINE.match(raw.strip())
         if m is None:
@@ -115,6 +128,18 @@ def read_view(path: Path) -> View:
             else:  # cpfg's ReadFunctionSet: the set replaces the functions read before it
                 functions = list(read_function_set(content, source))
                 names = {f.name: i + 1 for i, f in enumerate(functions)}
+        elif key in ("contour sides", "polygonization level"):
+            values = _numbers(rest, 1)
+            if not values or values[0] != int(values[0]) or not -1 <= values[0] <= 1024:
+                raise fail(f"{key}: expects a whole number, not {clip(rest, 40)!r}")
+            # interpret.c: the sides, or 2^(level + 1) (rint), at least 3; lsys3d holds them to 1,024 as @!
+            n = int(values[0]) if key == "contour sides" else min(1024, round(2.0 ** (values[0] + 1)))
+            settings["cylinder_sides"] = min(1024, max(3, n))
+        elif key in ("tropism", "torque"):
+            row = _movement(rest, key == "torque")
+            if isinstance(row, str):
+                raise fail(f"{key}: {row}")
+            movements += row
         elif key == "tropism direction":
             values = _numbers(rest, 3)
             length = math.sqrt(sum(v * v for v in values)) if values else 0.0
@@ -126,7 +151,57 @@ def read_view(path: Path) -> View:
             if not values:
                 raise fail(f"{key}: expects a number, not {clip(rest, 40)!r}")
             settings["elasticity" if key == "initial elasticity" else "elasticity_increment"] = values[0]
-    return View(tuple(functions), tuple(curves), names, **settings)
+    return View(tuple(functions), tuple(curves), names, **settings, tropisms=tuple(movements))
+
+
+def _movement(text: str, twist: bool) -> list[float] | str:
+    """One of cpfg's movements (movements.c ``read_movement``) as ``TurtleOptions.tropisms``' seven numbers, or
+    what is wrong with it.
+
+    ``T: x y z`` its vector (made a unit vector), ``I: i`` scales it (the scale held to [-1, 1]), ``A: gamma``
+    its angle, ``E: e`` the initial elasticity, ``S: d`` the increment; cpfg leaves out a line it cannot read
+    (so the numbers of the ones after it change): lsys3d refuses it.
+
+    >>> _movement("T: 0.0  1.0 0.0  A:90", False)
+    [0.0, 0.0, 1.0, 0.0, 90.0, 0.0, 0.0]
+    >>> _movement("T: 0 2 0 I: 0.5 E: 0.1", True)
+    [1.0, 0.0, 0.5, 0.0, 0.0, 0.1, 0.0]
+    """
+    words = [w for w in re.split(r"[\s,:]+", text) if w]
+    vector, scale, gamma, elasticity, increment = None, 0.0, 0.0, 0.0, 0.0
+    i = 0
+    try:
+        while i < len(words):
+            letter = words[i][0]
+            if letter == "T":
+                vector = [float(w) for w in words[i + 1 : i + 4]]
+                length = math.sqrt(sum(v * v for v in vector))
+                if len(vector) != 3 or not length > 0 or not math.isfinite(length):
+                    return f"T: expects three numbers not all 0, not {clip(' '.join(words[i + 1 : i + 4]), 40)!r}"
+                scale = 1.0 / length
+                i += 4
+                continue
+            if letter not in "IAES" or i + 1 >= len(words):
+                return f"unknown or incomplete entry {clip(words[i], 20)!r} (cpfg reads T:, I:, A:, E:, S:)"
+            value = float(words[i + 1])
+            if not math.isfinite(value):
+                return f"{letter}: expects a number, not {clip(words[i + 1], 20)!r}"
+            if letter == "I":
+                scale = max(-1.0, min(1.0, scale * value))
+            elif letter == "A":
+                gamma = value
+            elif letter == "E":
+                elasticity = value
+            else:
+                increment = value
+            i += 2
+    except ValueError:
+        return f"expects numbers after T:, I:, A:, E:, S:, not {clip(text, 40)!r}"
+    if vector is None:
+        return "expects its vector (T: x y z)"
+    if scale == 0:
+        return "its intensity (I:) is 0"
+    return [1.0 if twist else 0.0, *(v * scale for v in vector), gamma, elasticity, increment]
 
 
 def _numbers(text: str, count: int) -> list[float] | None:

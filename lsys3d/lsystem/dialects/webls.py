@@ -19,7 +19,8 @@ The settings are variables the rules may read (``&(delta/2)``); ``delta`` (or ``
 ``stemsize`` the branch diameter, ``step`` the step length, ``n`` (or ``iterations``) the derivation length
 when no ``derivation length:`` line gives it; ``view`` (the camera) is read and left.  A setting that is
 no number (a JavaScript array or object, a function) is refused in one line.  The modules are cpfg's
-(the tools copy its turtle), so the grammar's dialect is ``cpfg``.
+(the tools copy its turtle), so the grammar's dialect is ``cpfg``, with one difference L-System Explorer's
+turtle makes: every ``F`` and ``G`` draws, inside a polygon too (``[turtle] polygon_edges = true``).
 
 :func:`recognise` tells this form by content: settings written with ``;`` or that the older ABOP-like
 form does not write (``stemsize = 0.1``), or a ``/* ... */`` comment, next to an ``axiom:`` line.
@@ -182,13 +183,14 @@ def read(text: str, source: str = "<string>", **overrides) -> Grammar:
         if key in values:
             fields["angle"] = values[key]
             break
-    turtle = {}
+    # L-System Explorer's turtle draws every F and G, in a polygon too (interpret.js: turtle.forward -> draw,
+    # turtle3d.js: drawImmediate whenever the pen is down); its polygons take F's ends and '.' as vertices
+    turtle: dict = {"polygon_edges": True}
     if "stemsize" in values:
         turtle["width"] = values["stemsize"]
     if "step" in values:
         turtle["step"] = values["step"]
-    if turtle:
-        fields["turtle"] = turtle
+    fields["turtle"] = turtle
     fields["defines"] = variables
     fields.update(groups)
     repairs = []

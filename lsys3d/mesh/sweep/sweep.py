@@ -76,6 +76,14 @@ def _check_finite(skeleton: Skeleton) -> None:
         )
 
 
+def _runs(chain: np.ndarray, seg: np.ndarray, sides: np.ndarray | None) -> np.ndarray:
+    """The runs of segments a merge may join: each chain, cut where the grammar's sides (cpfg's ``@!``) change."""
+    if sides is None or len(chain) < 2:
+        return chain
+    cut = (chain[1:] != chain[:-1]) | (sides[seg[1:]] != sides[seg[:-1]])
+    return np.concatenate([[0], np.cumsum(cut)]).astype(chain.dtype)
+
+
 def sweep(
     skeleton: Skeleton,
     options: SweepOptions | None = None,
@@ -159,7 +167,17 @@ def sweep(
     tv0 = tv1 - rate * length * _inverse_mean(0.5 * w0, 0.5 * w1)
     k = len(seg)
     if opt.merge_deviation > 0 and k > 1:
-        group = _merge_groups(chain, p0, p1, v0, v1, w0, w1, opt.merge_deviation, 1e-9 * (np.abs(p1).max() + 1.0))
+        group = _merge_groups(
+            _runs(chain, seg, skeleton.sides),
+            p0,
+            p1,
+            v0,
+            v1,
+            w0,
+            w1,
+            opt.merge_deviation,
+            1e-9 * (np.abs(p1).max() + 1.0),
+        )
         if group[-1] + 1 < k:
             first = np.flatnonzero(np.concatenate([[True], group[1:] != group[:-1]]))
             last = np.append(first[1:] - 1, k - 1)
@@ -191,6 +209,8 @@ def sweep(
     # a displaced ring reaches out to (1 + bark_displacement) r: mitre planes must not cross inside that
     fold = r_joint * (1.0 + opt.bark_displacement) * tan_half > 0.5 * np.minimum(length[:-1], length[1:])
     split = same & (gap | bend | fold)
+    if skeleton.sides is not None:  # the grammar's sides (cpfg's @!) change: a new piece, a new number of sides
+        split |= same & (skeleton.sides[seg[1:]] != skeleton.sides[seg[:-1]])
     extend = np.where(split & ~gap, r_joint * np.minimum(tan_half, 1.0), 0.0)
     first = np.ones(k, bool)
     first[1:] = ~same | split
@@ -276,6 +296,9 @@ def sweep(
     stretch, bend_dir, ring_piece = stretch[sel], bend_dir[sel], ring_piece[sel]
     chain_of_piece = chain[piece_start]
     sides_of_piece = chain_sides[chain_of_piece]
+    if skeleton.sides is not None:
+        own = skeleton.sides[seg[piece_start]].astype(np.int64)
+        sides_of_piece = np.where(own > 0, own, sides_of_piece)
     rows = (center, tangent, axis_a, width, v, tv, stretch, bend_dir, ring_piece)
     if opt.elbow_angle < 180.0:
         rows = _insert_rings(*_elbows(opt, *rows), *rows)
