@@ -8,10 +8,14 @@ plants match segment for segment) and grows on a 40 x 40 m support wall (adhesio
 segment); the closed one has neither.  Each is derived and drawn ``--repeat`` times, interleaved, and the
 best times are compared: derivation and the turtle (the environment loaded and its grid sampled before
 the clock starts), and the pipeline's :func:`~lsys3d.pipeline.draw`, which reads the scene and samples its
-grid itself.  A third grammar adds ``?E`` at every apex and ``shadow = true`` (the plant's own shade,
-:mod:`lsys3d.turtle.shadow`) without the wall, to give what self-shadowing costs.  Both the wall-clock
-and the process's CPU time are given: on a machine shared with other jobs the CPU time is the steadier
-measure.
+grid itself (the process's grid cache cleared before each such run), and ``draw()`` once more with the
+grid kept from the run before (a scene drawn again in the same process, as the editor and levels of detail
+do: :func:`lsys3d.turtle.environment.clear_grid_cache` not called).  A third grammar adds ``?E`` at every
+apex and ``shadow = true`` (the plant's own shade, :mod:`lsys3d.turtle.shadow`) without the wall, to give
+what self-shadowing costs, and a fourth is the open one with its query modules rewritten away each step
+(``?P(x, y, z) ->``: the apex writes a new one, so they do not pile up behind it) to show what the piling
+costs.  Both the wall-clock and the process's CPU time are given: on a machine shared
+with other jobs the CPU time is the steadier measure.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ import trimesh
 
 from lsys3d import Grammar
 from lsys3d.pipeline import GenerateOptions, draw
-from lsys3d.turtle.environment import load_environment
+from lsys3d.turtle.environment import clear_grid_cache, load_environment
 from lsys3d.turtle.interpret import interpret
 from lsys3d.turtle.query import derive_answering
 
@@ -35,7 +39,7 @@ RULES = [
 ]
 
 
-def grammar(open_: bool, iterations: int, wall: str, shadow: bool = False) -> Grammar:
+def grammar(open_: bool, iterations: int, wall: str, shadow: bool = False, consumed: bool = False) -> Grammar:
     context = "> ?P(x, y, z)" if open_ else ""
     q = ("?P(0,0,0)?E(0,0,0)" if shadow else "?P(0,0,0)") if open_ else ""
     rules = [r.format(context, q=q) for r in RULES]
@@ -44,6 +48,8 @@ def grammar(open_: bool, iterations: int, wall: str, shadow: bool = False) -> Gr
         environment = {"shadow": True, "shadow_voxel": 0.5}
     if open_:
         rules = [r.replace(": k %", ": y < 1000 && k %") for r in rules]
+    if consumed:
+        rules.append("?P(x, y, z) ->")
     return Grammar(
         axiom="^(90)f(0.05)&(90)A(1)" + q,
         rules=rules,
@@ -74,8 +80,10 @@ def main(argv=None) -> None:
         wall.export(path)
         plain, answered = grammar(False, args.iterations, path), grammar(True, args.iterations, path)
         shaded = grammar(True, args.iterations, path, shadow=True)
+        consumed = grammar(True, args.iterations, path, consumed=True)
         options = GenerateOptions()
         draw(plain, 4, 1), draw(answered, 4, 1)  # compile every kernel first
+        clear_grid_cache()
         t0 = time.perf_counter()
         env = load_environment(answered)
         env.scene()
@@ -94,22 +102,34 @@ def main(argv=None) -> None:
             return out
 
         for _ in range(args.repeat):
-            for name, g, e in (("plain", plain, None), ("answered", answered, env), ("shaded", shaded, shaded_env)):
+            runs = (("plain", plain, None), ("answered", answered, env), ("shaded", shaded, shaded_env))
+            for name, g, e in (*runs, ("consumed", consumed, env)):
                 sizes[name] = clock(name, lambda g=g, e=e: _stages(g, e))
                 # the pipeline's first stages: the scene read and its grid sampled too
+                clear_grid_cache()
                 clock(name + " draw", lambda g=g: draw(g, g.iterations, g.seed, options))
-    print(f"{'':20}{'modules':>10}{'segments':>10}{'seconds':>10}{'CPU s':>8}{'draw()':>9}{'CPU s':>8}")
-    for name, label in (("plain", "without"), ("answered", "?P + environment"), ("shaded", "?P ?E, shadow")):
+                # and again, the grid kept in the process from the run before
+                clock(name + " cached", lambda g=g: draw(g, g.iterations, g.seed, options))
+    print(
+        f"{'':20}{'modules':>10}{'segments':>10}{'seconds':>10}{'CPU s':>8}{'draw()':>9}{'CPU s':>8}"
+        f"{'cached':>9}{'CPU s':>8}"
+    )
+    labels = (("plain", "without"), ("answered", "?P + environment"), ("shaded", "?P ?E, shadow"))
+    for name, label in (*labels, ("consumed", "?P rewritten away")):
         m, s = sizes[name]
-        (w, c), (dw, dc) = best[name], best[name + " draw"]
-        print(f"{label:20}{m:>10,}{s:>10,}{w:>10.3f}{c:>8.3f}{dw:>9.3f}{dc:>8.3f}")
+        (w, c), (dw, dc), (cw, cc) = best[name], best[name + " draw"], best[name + " cached"]
+        print(f"{label:20}{m:>10,}{s:>10,}{w:>10.3f}{c:>8.3f}{dw:>9.3f}{dc:>8.3f}{cw:>9.3f}{cc:>8.3f}")
     print(f"scene grid (once):      {grid:.3f} s")
     ratio = [best["answered"][k] / best["plain"][k] for k in (0, 1)]
     ratio_draw = [best["answered draw"][k] / best["plain draw"][k] for k in (0, 1)]
     print(f"ratio (derive + turtle): {ratio[0]:.2f}x (CPU time {ratio[1]:.2f}x)")
     print(f"ratio (draw(), the scene read and gridded in it): {ratio_draw[0]:.2f}x (CPU time {ratio_draw[1]:.2f}x)")
+    ratio_kept = [best["answered cached"][k] / best["plain cached"][k] for k in (0, 1)]
+    print(f"ratio (draw(), the grid kept from the run before): {ratio_kept[0]:.2f}x (CPU time {ratio_kept[1]:.2f}x)")
     shaded_ratio = [best["shaded"][k] / best["plain"][k] for k in (0, 1)]
     print(f"ratio with ?E and the plant's shade: {shaded_ratio[0]:.2f}x (CPU time {shaded_ratio[1]:.2f}x)")
+    consumed_ratio = [best["consumed"][k] / best["plain"][k] for k in (0, 1)]
+    print(f"ratio, ?P rewritten away each step: {consumed_ratio[0]:.2f}x (CPU time {consumed_ratio[1]:.2f}x)")
 
 
 if __name__ == "__main__":

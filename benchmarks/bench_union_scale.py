@@ -2,7 +2,7 @@
 
     python benchmarks/bench_union_scale.py [--plant 5 6 7 8 9] [--fern] [--repeat 1]
         [--compare 7] [--no-naive] [--blender .venv-bpy/bin/python] [--hostile] [--no-cleanup-too]
-        [--dense] [--dense-only] [--extra=--union-simplify=0.25]
+        [--dense] [--dense-only] [--only NAME] [--volume] [--extra=--union-blobs=0.25]
 
 Each run is its own process (``lsys3d -v generate``), timed from outside, its
 peak resident memory read with ``getrusage(RUSAGE_CHILDREN)`` by a wrapper
@@ -29,7 +29,9 @@ one of its union workers).  Cases:
   grammar files that draw more than 20k segments, most shorter than their
   width; where they come from: ``benchmarks/dense/README.md``), each full
   against its soup, with the time of every stage and the peak RSS;
-  ``--dense-only`` runs that set alone;
+  ``--dense-only`` runs that set alone, ``--only TEXT`` the cases whose name
+  holds the text, ``--volume`` also prints the volume of each full run's bark
+  (trimesh, from its ``.glb``);
 * ``--hostile``: the pathological unions of issue 18 (500 parallel
   overlapping branches, 1,000 branches from one point, 5,000 coincident
   branches): the time each takes to finish or to be refused.
@@ -86,6 +88,7 @@ DENSE = [
     ("lpy barnsleyfern3", ROOT / "tests/corpus/lpy/real/02-fractals_barnsleyfern3.lpy", None),
     ("lpy peanocurve n=4", ROOT / "tests/corpus/lpy/real/02-fractals_peanocurve.lpy", 4),
     ("webls param-004 n=14", ROOT / "benchmarks/dense/webls/parametric-param-004.ls", 14),
+    ("nylki tree25d n=7", ROOT / "benchmarks/dense/nylki/tree25d.toml", 7),
 ]
 DENSE_LIMIT = "--max-union-pairs=100000000"  # the real ferns cross the default refusal (400,000 pairs)
 
@@ -184,7 +187,16 @@ def gib(nbytes: float) -> str:
 STAGES = ("derive", "interpret", "sweep", "union", "cleanup", "export")
 
 
-def full_vs_soup(rows, repeat: int, tmp: Path, extra: tuple[str, ...] = (), stages: bool = False):
+def bark_volume(glb: Path) -> float:
+    """The enclosed volume of the bark of a ``.glb`` (its largest mesh by faces: the leaves are separate meshes)."""
+    import trimesh
+
+    scene = trimesh.load(glb, force="scene")
+    meshes = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh)]
+    return float(max(meshes, key=lambda m: len(m.faces)).volume)
+
+
+def full_vs_soup(rows, repeat: int, tmp: Path, extra: tuple[str, ...] = (), stages: bool = False, volume: bool = False):
     print(
         f"{'case':<24} {'segments':>9} {'faces':>10} {'full s':>7} {'union s':>8} {'cleanup s':>9} {'soup s':>7}"
         f" {'full/soup':>9} {'RSS full':>9} {'RSS soup':>9}"
@@ -206,6 +218,8 @@ def full_vs_soup(rows, repeat: int, tmp: Path, extra: tuple[str, ...] = (), stag
         )
         if stages:
             print("    stages, s: " + "  ".join(f"{k} {full['stages'][k]:.2f}" for k in STAGES if k in full["stages"]))
+        if volume:
+            print(f"    volume of the bark: {bark_volume(out):.6g}")
     return table
 
 
@@ -345,6 +359,8 @@ def main(argv=None):
     ap.add_argument("--no-cleanup-too", dest="raw", action="store_true", help="also run each case without the cleanup")
     ap.add_argument("--dense", action="store_true", help="also the set of real dense grammars (issue 34)")
     ap.add_argument("--dense-only", action="store_true", help="the set of real dense grammars alone")
+    ap.add_argument("--only", help="run only the cases whose name contains this text (with --dense-only)")
+    ap.add_argument("--volume", action="store_true", help="also print the volume of each full run's bark")
     ap.add_argument("--extra", action="append", default=[], help="an option given to every full run (repeatable)")
     args = ap.parse_args(argv)
     print(f"{os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}")
@@ -354,7 +370,9 @@ def main(argv=None):
         plant.write_text(PLANT)
         fern.write_text(FERN)
         if args.dense_only:
-            full_vs_soup([(*row, DENSE_LIMIT) for row in DENSE], args.repeat, tmp, tuple(args.extra), stages=True)
+            chosen = [row for row in DENSE if args.only is None or args.only in row[0]]
+            rows = [(*row, DENSE_LIMIT) for row in chosen]
+            full_vs_soup(rows, args.repeat, tmp, tuple(args.extra), stages=True, volume=args.volume)
             return
         rows = [(f"plant n={n}", plant, n) for n in args.plant]
         if args.dense:
@@ -363,7 +381,7 @@ def main(argv=None):
             rows.append(("fern", fern, None))
         if args.raw:
             rows = [r for row in rows for r in (row, (f"{row[0]} --no-cleanup", *row[1:], "--no-cleanup"))]
-        table = full_vs_soup(rows, args.repeat, tmp, tuple(args.extra), stages=args.dense)
+        table = full_vs_soup(rows, args.repeat, tmp, tuple(args.extra), stages=args.dense, volume=args.volume)
         growth(table)
         if args.compare:
             compare(plant, args.compare, args.repeat, args.naive, args.blender, tmp)

@@ -111,3 +111,67 @@ def test_a_blob_beside_a_cluster_that_keeps_the_boolean(fern):
     assert mesh.volume == pytest.approx(alone[0].volume + alone[1].volume, rel=1e-9)
     # the fork's faces name the fork's tube faces, after the fern's
     assert (mesh.face_source >= len(fern.faces)).sum() == len(alone[1].faces)
+
+
+def _uv_continuity(mesh, which):
+    """Share of the edges between two faces of ``which`` whose two corners have the same uv on both faces."""
+    faces = mesh.faces[which]
+    uv = mesh.uv[which]
+    rows = {}
+    same = total = 0
+    for f in range(len(faces)):
+        for j in range(3):
+            a, b = int(faces[f, j]), int(faces[f, (j + 1) % 3])
+            key = (min(a, b), max(a, b))
+            mine = {a: uv[f, j], b: uv[f, (j + 1) % 3]}
+            if key in rows:
+                other = rows.pop(key)
+                total += 1
+                same += all(np.allclose(mine[v], other[v], atol=1e-5) for v in key)
+            else:
+                rows[key] = mine
+    return same / max(total, 1)
+
+
+def test_the_crowd_takes_a_box_projection_and_the_stems_their_chart(fern):
+    from lsys3d.mesh.union.blob_uv import BOX_LENGTH
+
+    mesh = union(fern, UnionOptions(blobs=0.25, max_pairs=10**8, workers=1))
+    boxed = mesh.face_box_uv > 0
+    assert 0.2 < boxed.mean() < 1.0  # the apices' crowd, not the long tubes
+    # the long tubes' faces keep their chart: the tube of each unboxed face is at least BOX_LENGTH widths long
+    tube, _ = fern.face_kinds(mesh.face_source[~boxed])
+    first = fern.ring_offsets[tube]
+    last = first + fern.rings[tube] - 1
+    length = np.linalg.norm(fern.ring_center[last] - fern.ring_center[first], axis=1)
+    assert (length > 0.5 * BOX_LENGTH * 2 * fern.ring_radius[first]).mean() > 0.95
+    # the texture runs on across the crowd: most edges inside it join equal uv, where each face's own nearest
+    # tube's chart (what the blobs gave before) joins few
+    chart = fern.corner_uv(mesh.face_source, mesh.vertices, mesh.faces, np.empty(mesh.uv.shape, np.float32))
+    charted = lsys3d.Mesh(mesh.vertices, mesh.faces, mesh.normals, chart)
+    box, before = _uv_continuity(mesh, boxed), _uv_continuity(charted, boxed)
+    assert box > 0.8 and before < 0.6, (box, before)
+    # texels as square as the tubes': a face's uv area is its area times density^2, foreshortened by at most 1/sqrt(3)
+    tri, uv = mesh.vertices[mesh.faces[boxed]], mesh.uv[boxed].astype(np.float64)
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    e1, e2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+    uv_area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    ratio = uv_area / (area * mesh.face_box_uv[boxed].astype(np.float64) ** 2)
+    big = area > np.median(area) * 0.1
+    assert (ratio[big] > 1 / np.sqrt(3) - 1e-3).all() and (ratio[big] < 1 + 1e-3).all()
+
+
+def test_the_cleanup_keeps_the_box_projection(monkeypatch):
+    import lsys3d.mesh.union.blob_uv as blob_uv
+
+    options = {"iterations": 8, "union_blobs": 0.25, "max_union_pairs": 10**8}
+    plain = lsys3d.generate(FERN, cleanup=False, **options).bark
+    assert plain.face_box_uv is not None and (plain.face_box_uv > 0).mean() > 0.2
+    # the cleanup remakes every uv from the face sources: the crowd's faces get the box projection again
+    cleaned = lsys3d.generate(FERN, **options).bark
+    assert np.isfinite(cleaned.uv).all()
+    monkeypatch.setattr(blob_uv, "BOX_LENGTH", 0.0)  # every tube its own chart, as before
+    charted = lsys3d.generate(FERN, **options).bark
+    np.testing.assert_array_equal(cleaned.faces, charted.faces)  # the uv alone differs
+    everything = np.arange(len(cleaned.faces))
+    assert _uv_continuity(cleaned, everything) > _uv_continuity(charted, everything) + 0.05

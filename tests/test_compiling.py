@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import ast
+import importlib
 import json
 import os
+import pkgutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -182,3 +186,76 @@ def test_a_first_run_compiles_the_cleanup_in_a_helper_and_writes_the_same_bytes(
     assert compiled and not [m for m in compiled if m.startswith(precompile.OWN)]
     subprocess.run([sys.executable, "-m", "lsys3d", "generate", "-q", "-o", str(warm)], check=True)
     assert cold.read_bytes() == warm.read_bytes()
+
+
+def _kernel_decorated(fn: ast.FunctionDef) -> str | None:
+    """``"inner"`` or ``"kernel"`` for a function compiled by numba (lsys3d.compiling's decorators, or the
+    remesh package's names for them), None for a plain function."""
+    for decorator in fn.decorator_list:
+        text = ast.unparse(decorator)
+        if text.startswith(("inner(", "_leaf_inner", "_inline_inner")):
+            return "inner"
+        if text.startswith(("kernel(", "_leaf", "_inline", "numba.njit", "njit")):
+            return "kernel"
+    return None
+
+
+def _python_names(tree: ast.AST) -> set[str]:
+    """The names that code outside kernels mentions (as a name or an attribute): what Python may call."""
+    names: set[str] = set()
+
+    def visit(node: ast.AST, in_kernel: bool) -> None:
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            in_kernel = in_kernel or _kernel_decorated(node) is not None
+        elif not in_kernel and isinstance(node, ast.Name):
+            names.add(node.id)
+        elif not in_kernel and isinstance(node, ast.Attribute):
+            names.add(node.attr)
+        for child in ast.iter_child_nodes(node):
+            visit(child, in_kernel)
+
+    visit(tree, False)
+    return names
+
+
+def test_no_python_code_names_a_kernel_compiled_for_kernels_only():
+    """An ``inner`` kernel has no CPython wrapper: the package, its tests, benchmarks and tools call it only from
+    other kernels (a name shared with a plain function counts too: rename one of them)."""
+    root = Path(compiling.__file__).parent.parent
+    sources = [p for d in ("lsys3d", "tests", "benchmarks", "tools") for p in (root / d).rglob("*.py")]
+    trees = {p: ast.parse(p.read_text(encoding="utf-8")) for p in sources}
+    inner = {
+        node.name: p.relative_to(root)
+        for p, tree in trees.items()
+        for node in ast.walk(tree)
+        if isinstance(node, ast.FunctionDef) and _kernel_decorated(node) == "inner"
+    }
+    assert len(inner) > 50
+    named = set().union(*(_python_names(tree) for tree in trees.values()))
+    assert {name: str(path) for name, path in inner.items() if name in named} == {}
+
+
+def test_a_kernel_compiled_for_kernels_only_raises_when_python_calls_it():
+    from lsys3d.mesh.remesh import halfedge
+
+    name = "_nxt"  # (by its name: the test above finds no Python code naming an inner kernel)
+    nxt = getattr(halfedge, name)
+    assert isinstance(nxt, compiling.InnerKernel)
+    with pytest.raises(TypeError, match=r"halfedge\._nxt: compiled for other kernels only"):
+        nxt(4)
+
+
+def test_every_kernel_is_compiled_without_the_wrappers_it_does_not_need():
+    """Every kernel of the package comes from :func:`compiling.kernel` or :func:`compiling.inner`: no C-function
+    wrapper, and no CPython wrapper for the kernels only kernels call."""
+    import lsys3d
+
+    root = Path(lsys3d.__file__).parent
+    for info in pkgutil.walk_packages([str(root)], "lsys3d."):
+        if not info.name.startswith(("lsys3d.blender", "lsys3d.edit")) and not info.name.endswith("__main__"):
+            importlib.import_module(info.name)
+    found = compiling.kernels()
+    assert len(found) > 150
+    assert [k.py_func.__qualname__ for k in found if not k.targetoptions.get("no_cfunc_wrapper")] == []
+    inner = [k for k in found if isinstance(k, compiling.InnerKernel)]
+    assert inner and all(k.targetoptions.get("no_cpython_wrapper") for k in inner)

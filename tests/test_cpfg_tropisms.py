@@ -16,7 +16,7 @@ from lsys3d.turtle import interpret
 
 
 # ---------------------------------------------------------------- cpfg's turtle, written out again
-def _cross(a, b):
+def _cross3(a, b):
     return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 
 
@@ -58,7 +58,7 @@ class CpfgTurtle:
         self.segments = []  # (start, end, H, L, U) of each F
 
     def adjust_up_and_left(self):  # turtle.c
-        rot = _cross(self.h, self.ph)
+        rot = _cross3(self.h, self.ph)
         n = math.sqrt(_dot(rot, rot))
         if n > 0.000001:
             self.u = list(self.pu)
@@ -67,7 +67,7 @@ class CpfgTurtle:
             if _dot(self.h, self.ph) < 0:
                 angle = math.pi * 0.5 - angle
             self.u = _rot_by_quat(self.u, _quat(angle, [r / n for r in rot]))
-        self.l = _cross(self.h, self.u)
+        self.l = _cross3(self.h, self.u)
 
     def movement_adjust(self):  # movements.c
         if not self.movements:
@@ -81,13 +81,13 @@ class CpfgTurtle:
             c, s = math.cos(math.radians(gamma)), math.sin(math.radians(gamma))
             des = [des[k] + c * e * t[k] for k in range(3)]
             if s != 0.0:
-                vec = _cross(self.h, t)
+                vec = _cross3(self.h, t)
                 n = math.sqrt(_dot(vec, vec))
                 if n < 0.0000001:
                     vec, n = list(self.l), 1.0
-                vec2 = _cross(t, vec)
+                vec2 = _cross3(t, vec)
                 des = [des[k] + e * s / n * vec2[k] for k in range(3)]
-        rot = _cross(self.h, des)
+        rot = _cross3(self.h, des)
         n = math.sqrt(_dot(rot, rot))
         if n >= 0.000001:  # adjust_by_orthotropism
             n2 = min(n, 1.0)
@@ -96,15 +96,15 @@ class CpfgTurtle:
         if any(twist):
             w = math.sqrt(_dot(twist, twist))
             v2 = [x / w for x in twist]
-            vec = _cross(self.h, v2)
+            vec = _cross3(self.h, v2)
             if _dot(vec, vec) > 0.00000001:
-                des = [x * w for x in _cross(vec, self.h)]
-                vec = _cross(self.u, des)  # rotate_to_vector
+                des = [x * w for x in _cross3(vec, self.h)]
+                vec = _cross3(self.u, des)  # rotate_to_vector
                 n = math.sqrt(_dot(vec, vec))
                 if n >= 0.0000001:
                     n2 = min(n, 1.0)
                     self.u = _rot_by_quat(self.u, _quat(n2 * 0.5, [x / n for x in vec]))
-                    self.l = _cross(self.h, self.u)
+                    self.l = _cross3(self.h, self.u)
                 self.ph, self.pu = list(self.h), list(self.u)
 
     def change_dir(self, a, b, sin, cos):  # interpret.c: a turns toward b

@@ -558,3 +558,60 @@ def test_an_error_in_a_local_variable_names_it():
     g = Grammar(axiom="A(0)", rules=["A(x) : {y = 1 / x} y > 0 -> B"])
     with pytest.raises(DerivationError, match="division by zero in local variable 'y' for module A"):
         lsys3d.derive(g, 1)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.text(alphabet="[]AB+", max_size=40), st.sets(st.sampled_from("[]AB+"), max_size=3))
+def test_the_right_context_walk_lands_where_the_tables_say(text, ignore):
+    """The short walk a right context of plain modules takes (no tables made) agrees with the tables, unmatched
+    brackets and ignored symbols included; past its budget it says so."""
+    from lsys3d.lsystem.walks import skip_tables, walk_right
+
+    symbols = np.frombuffer(text.encode(), np.uint8)
+    ignored = np.zeros(256, np.bool_)
+    ignored[[ord(c) for c in ignore]] = True
+    starts = np.arange(len(symbols) + 1, dtype=np.int64)
+    found, done = walk_right(symbols, ignored, starts, 10**6)
+    assert done
+    assert found.tolist() == skip_tables(symbols, ignored)[1].tolist()
+    if "[" in text and "[" not in ignore:
+        assert not walk_right(symbols, ignored, starts, 0)[1]  # a branch to step over costs more than 0
+
+
+def test_a_right_context_past_a_long_branch_matches_as_before():
+    """A right context behind a branch longer than the walk's budget: the tables answer, the same string results."""
+    g = Grammar(axiom="A[" + "F" * 6000 + "]B(2)", rules=["A > B(x) -> C(x)"])
+    assert str(derive(g, 1)).startswith("C(2)[")
+
+
+_PIECES = {"A": (65, ()), "B(1)": (66, (1.0,)), "B(2,3)": (66, (2.0, 3.0)), "C": (67, ()), "[": (91, ()), "]": (93, ())}
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(st.sampled_from([*_PIECES, "+"]), max_size=30),
+    st.lists(st.sampled_from(["B(x{k})", "B(x{k},y{k})", "C", "*", "+"]), min_size=1, max_size=3),
+    st.sets(st.sampled_from("+C"), max_size=2),
+)
+def test_a_plain_right_context_matches_as_the_tables_do(pieces, pattern, ignore):
+    """The compiled match of a right context of plain modules gives what the tables' walk gives (which
+    candidates match, and the values bound for those that do), unbalanced brackets included."""
+    from lsys3d.lsystem.derive import _Context, _Plan
+
+    rule = f"A > {''.join(p.format(k=k) for k, p in enumerate(pattern))} -> A"
+    g = Grammar(axiom="A", rules=[rule], ignore="".join(sorted(ignore)))
+    plan = _Plan(g)
+    found = [_PIECES.get(p, (43, ())) for p in pieces]
+    ms = ModuleString(
+        np.array([c for c, _ in found], np.uint8),
+        np.array([len(v) for _, v in found], np.uint8),
+        np.array([x for _, v in found for x in v], np.float64),
+    )
+    sel = np.flatnonzero(ms.symbols == ord("A"))
+    pool = plan.pools_by_code[ord("A")][0]
+    fast = _Context(plan, ms).right(sel, pool.right)
+    slow_context = _Context(plan, ms)
+    assert len(slow_context.tables[1]) == len(ms) + 1  # made first: the walk goes through the tables
+    slow = slow_context.right(sel, pool.right)
+    assert fast[0].tolist() == slow[0].tolist()
+    assert [v[fast[0]].tolist() for v in fast[1]] == [v[slow[0]].tolist() for v in slow[1]]

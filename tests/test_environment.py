@@ -231,6 +231,31 @@ def test_same_bytes_with_an_environment(tmp_path):
     assert s1.end.tobytes() == s2.end.tobytes()
 
 
+def test_a_scene_drawn_again_reuses_its_grid_bytes_for_bytes(tmp_path, monkeypatch):
+    """The distance grids are kept for the process by the meshes' content and the grid's options: a second
+    environment of the same file is not sampled again and gets the same bytes as a fresh sampling; another
+    resolution or a changed file is sampled anew; the grid handed out is a copy."""
+    from lsys3d.turtle import environment
+
+    wall = _box(tmp_path, "wall", (-2, 0, -0.2), (2, 3, 0))
+    g = Grammar(axiom="A", environment={"support": wall, "distance": 0.1}, source=str(tmp_path / "g.toml"))
+    environment.clear_grid_cache()
+    sampled = []
+    real = environment._signed_distance
+    monkeypatch.setattr(environment, "_signed_distance", lambda *a: sampled.append(1) or real(*a))
+    first = load_environment(g).scene().support
+    first[0, 0, 0] = 123.0  # the caller's copy: the cache keeps its own
+    again = load_environment(g).scene().support
+    assert len(sampled) == 1
+    environment.clear_grid_cache()
+    fresh = load_environment(g).scene().support
+    assert len(sampled) == 2 and again.tobytes() == fresh.tobytes()
+    load_environment(g.replace(environment={"support": wall, "distance": 0.1, "resolution": 32})).scene()
+    _box(tmp_path, "wall", (-2, 0, -0.3), (2, 3, 0))
+    load_environment(g).scene()
+    assert len(sampled) == 4
+
+
 def test_environment_file_takes_roles_from_mesh_names(tmp_path):
     scene = trimesh.Scene()
     support = trimesh.creation.box(extents=(4, 3, 0.2))

@@ -11,10 +11,10 @@ import logging
 import re
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
 from ..arrays import first_equal_row, isin, unique
+from ..compiling import kernel
 from ..errors import ExportError
 from ..images import Image
 from ..look.attributes import ATTRIBUTES
@@ -237,7 +237,7 @@ def _first_use_order(corner_v: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarr
     return old_of_new[:used], new_of_old
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _first_uses(corner_v, new_of_old, old_of_new):  # pragma: no cover - compiled
     """Number the vertices in the order ``corner_v`` first uses them (into both maps); how many are used."""
     k = 0
@@ -367,7 +367,7 @@ def _split(points, corner_v, normals, uv, colors=None):
     return split_index, split_points, split_normals, split_uv, split_colors, vertex_of_split
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _others(corner_v, n, normal_bits, uv_bits):  # pragma: no cover - compiled
     """:func:`_split`'s representative (last) corner of each point, the corners whose normal or uv bits differ
     from their point's representative's, and those corners' rows of point, normal and uv bits (``uv_bits``
@@ -403,7 +403,7 @@ def _others(corner_v, n, normal_bits, uv_bits):  # pragma: no cover - compiled
     return rep, extra, keys
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _number_others(owner, extra, n, split_index):  # pragma: no cover - compiled
     """Number the distinct combinations of the corners ``extra`` (``owner``: each one's first equal row) from
     ``n`` in the order of their first corners, into ``split_index``; those first corners."""

@@ -38,9 +38,9 @@ from dataclasses import replace
 from pathlib import Path
 from urllib.parse import quote
 
-import numba
 import numpy as np
 
+from ..compiling import kernel
 from ..errors import ExportError
 from ..images import Image
 from ..look.attributes import branch_table, gltf_attributes
@@ -171,7 +171,7 @@ def _bounds(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return low, high
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _column_bounds(rows):  # pragma: no cover - compiled
     """:func:`_bounds` in one pass: the bounds and, per column, whether numpy has to say."""
     n, w = rows.shape

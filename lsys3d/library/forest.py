@@ -30,9 +30,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numba
 import numpy as np
 
+from ..compiling import inner, kernel
 from ..errors import ForestError, OptionsError
 from ..exchange.atomic import check_target
 from ..exchange.forest import write_forest_glb, write_forest_usd
@@ -153,7 +153,7 @@ class Scatter:
         return t
 
 
-@numba.njit(cache=True, inline="always")
+@inner(inline="always")
 def _uniform(seed, i, j):
     """A uniform double in [0, 1) from (seed, i, j): splitmix64 of a counter, the same in every process."""
     z = np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(i) * np.uint64(0xD1B54A32D192ED03)
@@ -164,7 +164,7 @@ def _uniform(seed, i, j):
     return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _place(order, radius, spacing, width, depth, seed, attempts, cell, overlap, steps, step_attempts):
     """Dart throwing with a grid of ``cell``-sized buckets; returns positions, each one's overlap, how many fit.
 

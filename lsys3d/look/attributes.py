@@ -22,10 +22,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from ..arrays import offsets
+from ..compiling import kernel
 from ..mesh.mesh import Mesh
 from ..options import Options, option
 from ..turtle.hierarchy import Hierarchy
@@ -224,7 +224,7 @@ def _grid(lo: np.ndarray, hi: np.ndarray, points: np.ndarray):
     return origin, cell, dims, key[starts], np.append(starts, len(key)), box
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _match(points, origin, cell, dims, keys, key_offsets, boxes, lo, hi, a, b, w0, w1, depth, surface, tolerance):
     """Per point: the chosen segment (-1: none within reach) and the point's parameter along it (see nearest_branch)."""
     n = points.shape[0]

@@ -44,10 +44,10 @@ from collections import Counter, deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from ..arrays import ranges
+from ..compiling import kernel
 from ..errors import DerivationError, LimitError, clip
 from ..streams import Stream, hashed_uniform, rule_generator
 from . import dialects, sequences
@@ -55,6 +55,7 @@ from .expr import NOT_FINITE, STEP, EvalError, RandomDraws
 from .grammar import Grammar, PatternModule, Production
 from .modules import ModuleString
 from .rules import MAX_LOOP, _flat
+from .walks import right_plain, skip_tables, walk_right
 
 __all__ = [
     "DEFAULT_MAX_MODULES",
@@ -490,7 +491,7 @@ def _passes(
     return ms
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def cut_mask(is_open, is_close, starts):
     """The modules kept when each of ``starts`` removes itself and the rest of its branch (up to its ``]``):
     ABOP's ``%``, and the turtle's cuts by an environment (:mod:`lsys3d.turtle.query`).  ``is_open`` and
@@ -658,85 +659,44 @@ def _derive_d0l(plan: _Plan, n: int, growth: _Growth) -> ModuleString:
 
 
 # ---------------------------------------------------------------- general engine
-@numba.njit(cache=True, nogil=True)
-def _skip_tables(symbols, ignored):
-    """Where a context walk lands from each position of a bracketed string, in one pass each way.
-
-    ``ignored[code]`` is True for symbols in the grammar's ignore set.  Each
-    table has an extra last entry (index ``m``) for a walk that starts past
-    the end.  An unmatched ``[`` or ``]`` ends a walk (no context).
-
-    Returns
-    -------
-    left : (m + 1,) int64
-        The module a left-context walk finds starting at ``p`` and going left:
-        ignored symbols and ``[`` (into the parent) are stepped over, a
-        ``[...]`` lateral branch ending at ``p`` is skipped; -1 if none.
-    right : (m + 1,) int64
-        The module a right-context walk finds starting at ``p``: ignored
-        symbols and whole ``[...]`` branches are skipped; ``m`` if none.
-    kept : (m + 1,) int64
-        The first position at or after ``p`` whose symbol is not ignored.
-    close : (m + 1,) int64
-        The ``]`` that ends the branch holding ``p`` (nested branches
-        skipped); ``m`` if the branch runs to the end.
-    """
-    m = symbols.shape[0]
-    match = np.full(m, -1, np.int64)
-    stack = np.empty(m, np.int64)
-    top = 0
-    for i in range(m):
-        s = symbols[i]
-        if s == _OPEN:
-            stack[top] = i
-            top += 1
-        elif s == _CLOSE and top > 0:
-            top -= 1
-            match[i] = stack[top]
-            match[stack[top]] = i
-    left = np.empty(m + 1, np.int64)
-    for p in range(m):
-        s = symbols[p]
-        if s == _CLOSE:
-            j = match[p]
-            left[p] = left[j - 1] if j > 0 else -1
-        elif s == _OPEN or ignored[s]:
-            left[p] = left[p - 1] if p > 0 else -1
-        else:
-            left[p] = p
-    left[m] = left[m - 1] if m > 0 else -1
-    right = np.empty(m + 1, np.int64)
-    kept = np.empty(m + 1, np.int64)
-    close = np.empty(m + 1, np.int64)
-    right[m] = kept[m] = close[m] = m
-    for p in range(m - 1, -1, -1):
-        s = symbols[p]
-        j = match[p]
-        kept[p] = kept[p + 1] if ignored[s] else p
-        if s == _OPEN:
-            right[p] = right[j + 1] if j >= 0 else m
-            close[p] = close[j + 1] if j >= 0 else m
-        else:
-            right[p] = right[p + 1] if ignored[s] else p
-            close[p] = p if s == _CLOSE else close[p + 1]
-    return left, right, kept, close
-
-
 class _Context:
     """Context matching on one bracketed string (ABOP section 1.8), for all candidate modules at once."""
 
     def __init__(self, plan: _Plan, ms: ModuleString):
         ignored = np.zeros(256, np.bool_)
         ignored[list(plan.ignore)] = True
+        self.ignored = ignored
         self.ms = ms
         self.m = len(ms)
         self.code = plan.code
-        self.left_of, self.right_of, self.kept, self.close = _skip_tables(ms.symbols, ignored)
+        self._tables: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         # cpfg's ring L-systems: a walk that runs off one end of the string goes on from the other
         self.ring = bool(plan.grammar.ring) and self.m > 0
         # cpfg: ']' in a right context is the next ']' (past ignored symbols and whole branches), and '=' skips
         # the rest of the branch up to it (RconDiff); elsewhere ']' alone skips the rest of the branch
         self.skip = dialects.get(plan.grammar.dialect).notation.branch_skip
+
+    @property
+    def tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`~lsys3d.lsystem.walks.skip_tables` of the string, made when a walk first needs them (a right
+        context of plain modules seldom does: :meth:`right`, :meth:`_right_of`)."""
+        if self._tables is None:
+            self._tables = skip_tables(self.ms.symbols, self.ignored)
+        return self._tables
+
+    left_of = property(lambda self: self.tables[0])
+    right_of = property(lambda self: self.tables[1])
+    kept = property(lambda self: self.tables[2])
+    close = property(lambda self: self.tables[3])
+
+    def _right_of(self, j: np.ndarray) -> np.ndarray:
+        """``right_of[j]``: walked from each of ``j`` while the walks stay short (a query module right after
+        its apex), else from the tables."""
+        if self._tables is None:
+            found, done = walk_right(self.ms.symbols, self.ignored, j, 16 * len(j) + 4096)
+            if done:
+                return found
+        return self.right_of[j]
 
     def _bind(self, j: np.ndarray, ok: np.ndarray, pm: PatternModule, values: list) -> None:
         """Narrow ``ok`` to the candidates whose module ``j`` is ``pm``; append its parameters to ``values``."""
@@ -768,6 +728,17 @@ class _Context:
     def right(self, sel: np.ndarray, pattern) -> tuple[np.ndarray, list[np.ndarray]]:
         """Which modules ``sel`` have the right context ``pattern`` (``[`` and ``]`` allowed), and its values."""
         m = self.m
+        if self._tables is None and not self.ring and all(pm.symbol not in ("[", "]", self.skip) for pm in pattern):
+            # plain modules (a query module after its apex): one compiled walk, while the walks stay short
+            codes = np.array([-1 if pm.symbol == "*" else self.code[pm.symbol] for pm in pattern], np.int64)
+            arities = np.array([0 if pm.symbol == "*" else len(pm.formals) for pm in pattern], np.int64)
+            ms = self.ms
+            ok, values, done = right_plain(
+                ms.symbols, ms.arity, ms.offsets, ms.params, self.ignored, sel + 1, codes, arities,
+                int(arities.sum()), 16 * len(sel) + 4096,
+            )  # fmt: skip
+            if done:
+                return ok, list(values)
         ok = np.ones(len(sel), np.bool_)
         j = sel + 1
         values: list = []
@@ -785,7 +756,7 @@ class _Context:
                 if pm.symbol != "]":  # cpfg's '=': the ']' that follows it in the pattern is this one
                     j = j - 1
             else:
-                j = self.right_of[j]
+                j = self._right_of(j)
                 if self.ring:
                     j = np.where(j >= m, self.right_of[0], j)
                 ok &= j < m  # the end of the string, or of a branch, has no right context
@@ -1023,6 +994,10 @@ def _step(
             new_sym[pos] = plan.code[smod.symbol]
             new_arity[pos] = len(smod.args)
             for expr in smod.args:
+                if expr.op == "num":  # a number (?P(0, 0, 0)): written as evaluate would give it, without the tree walk
+                    new_params[first_param + p] = expr.value
+                    p += 1
+                    continue
                 try:
                     values = expr.evaluate(env, n, finite=False, random=draws)  # checked below, all at once
                 except EvalError as exc:
@@ -1051,7 +1026,7 @@ def _step(
     return ModuleString(new_sym, new_arity, new_params, plan.alphabet), produced
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _copy_unmatched(matched, sym, arity, offsets, params, mod_off, par_off, new_sym, new_arity, new_params):
     """Copy the modules no rule rewrote, with their parameters, to their places in the new string (one pass,
     no index arrays: most of a long string is copied)."""

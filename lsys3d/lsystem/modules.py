@@ -41,7 +41,7 @@ def as_alphabet(names) -> tuple[str, ...]:
     >>> as_alphabet("".join(ASCII_ALPHABET[:128]) + "é" + "\\0" * 127)[128]
     'é'
     """
-    if names is ASCII_ALPHABET:
+    if names is ASCII_ALPHABET or _CHECKED.get(id(names)) is names:
         return names
     out = tuple(names)
     try:
@@ -50,7 +50,17 @@ def as_alphabet(names) -> tuple[str, ...]:
         valid = False
     if not valid:
         raise ValueError("an alphabet holds 256 names, one per symbol id")
-    return ASCII_ALPHABET if out == ASCII_ALPHABET else out
+    if out == ASCII_ALPHABET:
+        return ASCII_ALPHABET
+    if out is names:  # the same tuple again (every string of a derivation): no hashing of its 256 names
+        if len(_CHECKED) >= 64:
+            _CHECKED.clear()
+        _CHECKED[id(out)] = out
+    return out
+
+
+_CHECKED: dict[int, tuple] = {}
+"""Alphabet tuples already checked, by identity (each holds its tuple, so an id is not reused while listed)."""
 
 
 @lru_cache(maxsize=64)
@@ -100,6 +110,16 @@ class ModuleString:
         """``(m + 1,) int64``: parameters of module ``i`` are ``params[offsets[i]:offsets[i+1]]``."""
         out = np.zeros(len(self) + 1, dtype=np.int64)
         np.cumsum(self.arity, out=out[1:])
+        return out
+
+    def with_params(self, params: np.ndarray) -> ModuleString:
+        """The same modules with other parameter values (``params`` of the same length); the offsets, when
+        already computed, are kept rather than summed again."""
+        if params.shape != self.params.shape:
+            raise ValueError(f"with_params: {len(params)} parameters for a string of {len(self.params)}")
+        out = ModuleString(self.symbols, self.arity, params, self.alphabet)
+        if "offsets" in self.__dict__:
+            out.__dict__["offsets"] = self.__dict__["offsets"]
         return out
 
     def symbol(self, i: int) -> str:

@@ -20,9 +20,9 @@ walks, over the matches alone.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ..compiling import kernel
 from ..errors import DerivationError
 from .modules import ModuleString
 
@@ -61,7 +61,7 @@ def following_values(ms: ModuleString, sel: np.ndarray, following) -> list[np.nd
     return values
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _walk(starts, lengths, m):
     covered = np.zeros(m, np.bool_)
     end = 0
@@ -89,7 +89,7 @@ def resolve_overlaps(m: int, starts: np.ndarray, lengths: np.ndarray) -> np.ndar
     return _walk(starts[order].astype(np.int64), lengths[order].astype(np.int64), m)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _active(symbols, arity, offsets, params, question, dollar, main, max_nesting):
     m = symbols.shape[0]
     out = np.empty(m, np.int64)

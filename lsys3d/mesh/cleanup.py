@@ -55,6 +55,7 @@ from ..options import Options, option
 from . import remesh
 from .mesh import Mesh, crumbs
 from .sweep import Tubes
+from .union.blob_uv import box_uv, face_density, tube_density
 from .union.local import Junctions
 from .union.weld import _separate_float32  # the union's last step, kept true here
 
@@ -351,7 +352,8 @@ def clean_mesh(
                 return identity
             (points, faces, fflat, fsrc, origin), operations = cleaned  # the half-edges are gone: a third
         # the uv (in two halves) beside the flat faces, then the normals in two
-        uv = pool.submit(tube_uv, tubes, points, faces, fsrc, pool)
+        boxed = tube_density(tubes, bark.face_source, bark.face_box_uv)  # a blob's crowd: a box projection
+        uv = pool.submit(tube_uv, tubes, points, faces, fsrc, pool, boxed)
         if fflat is None:
             fflat = _flat_faces(faces, fsrc, tubes)
         normals = smooth_normals(points, faces, fflat, pool)
@@ -459,17 +461,23 @@ def _flat_faces(faces: np.ndarray, source: np.ndarray, tubes: Tubes) -> np.ndarr
     return flat
 
 
-def tube_uv(tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndarray, pool=None) -> np.ndarray:
+def tube_uv(
+    tubes: Tubes, points: np.ndarray, faces: np.ndarray, source: np.ndarray, pool=None, boxed: np.ndarray | None = None
+) -> np.ndarray:
     """Corner uv ``(f, 3, 2) float32``: each face's corners in the chart of the tube face it lies on
     (:meth:`Tubes.uv_at`, made in float64 and rounded once, as :class:`~lsys3d.mesh.mesh.Mesh` keeps them).
 
     Vertices the cleanup moved or made get the texture coordinates the tube
     itself would give them, so the texture is not dragged along.  With a
     ``pool`` (an executor), one of its threads fills the second half (the same values).
+    ``boxed`` ``(t,)``: the tubes of a blob's crowd whose faces take a box projection at that
+    density instead (:mod:`lsys3d.mesh.union.blob_uv`; 0 or None: the tube's chart).
     """
     uv = np.empty((len(faces), 3, 2), np.float32)
     source, points, faces = (np.ascontiguousarray(a) for a in (source, np.asarray(points, np.float64), faces))
     remesh.in_two(pool, tubes.corner_uv, (source, points, faces, uv), 0, len(faces) // 2, len(faces))
+    if boxed is not None:
+        box_uv(points, faces, face_density(tubes, source, boxed), uv)
     return uv
 
 

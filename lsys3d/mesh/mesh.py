@@ -61,6 +61,9 @@ class Mesh:
     attributes : dict of str to (v,) or (v, 3) float32
     face_material : (f,) int32 or None
     face_source : (f,) int64 or None
+    face_box_uv : (f,) float32 or None
+        Tiles per metre of the box projection that gives a face its uv, 0 where its uv is
+        its source tube's chart (a blob's crowd, :mod:`lsys3d.mesh.union.blob_uv`); None: no face has one.
 
     Examples
     --------
@@ -77,6 +80,7 @@ class Mesh:
     attributes: Mapping[str, np.ndarray] = field(default_factory=dict)
     face_material: np.ndarray | None = None
     face_source: np.ndarray | None = None
+    face_box_uv: np.ndarray | None = None
 
     def __post_init__(self):
         v = np.asarray(self.vertices, np.float64).reshape(-1, 3)
@@ -111,6 +115,11 @@ class Mesh:
             if s.shape != (len(f),):
                 raise ValueError(f"Mesh.face_source has shape {s.shape}, expected ({len(f)},)")
             object.__setattr__(self, "face_source", s)
+        if self.face_box_uv is not None:
+            d = np.asarray(self.face_box_uv, np.float32)
+            if d.shape != (len(f),):
+                raise ValueError(f"Mesh.face_box_uv has shape {d.shape}, expected ({len(f)},)")
+            object.__setattr__(self, "face_box_uv", d)
 
     # ---------------------------------------------------------------- construction
     @classmethod

@@ -29,9 +29,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from ..compiling import inner, kernel
 from .commands import Axis
 
 __all__ = ["MOVEMENT_COLUMNS", "TWIST", "carry_up", "movement_adjust", "movement_elasticity"]
@@ -45,13 +45,13 @@ MOVEMENT_COLUMNS = 8
 """A movement row: kind, T (x, y, z, its length the intensity), cos(gamma), sin(gamma), elasticity, increment."""
 
 
-@numba.njit(cache=True)
+@kernel()
 def _pair(ax, ay, az, bx, by, bz, c, s):
     """Rotate a frame pair in its plane: a toward b by the angle with cos c, sin s."""
     return ax * c + bx * s, ay * c + by * s, az * c + bz * s, bx * c - ax * s, by * c - ay * s, bz * c - az * s
 
 
-@numba.njit(cache=True)
+@inner()
 def _orthonormal(hx, hy, hz, lx, ly, lz):
     """Re-orthonormalise a nearly orthonormal H, L and return H, L, U = H x L.
 
@@ -74,7 +74,7 @@ def _orthonormal(hx, hy, hz, lx, ly, lz):
     return hx, hy, hz, lx, ly, lz, hy * lz - hz * ly, hz * lx - hx * lz, hx * ly - hy * lx
 
 
-@numba.njit(cache=True)
+@inner()
 def _cos_sin(degrees):
     """Cosine and sine of an angle in degrees, exact for multiples of 90 (so +(90) and heading 90 are exact)."""
     r = degrees % 360.0
@@ -90,7 +90,7 @@ def _cos_sin(degrees):
     return math.cos(a), math.sin(a)
 
 
-@numba.njit(cache=True)
+@inner()
 def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
     """Bend H toward T about H x T: by e |H x T| radians (ABOP 2.8), or (``by_angle``) by e times the angle
     between H and T (PlantGL's Turtle::_tendTo, which turns about U by e pi when H is opposite T).
@@ -119,7 +119,7 @@ def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
     return _orthonormal(nhx, nhy, nhz, nlx, nly, nlz)
 
 
-@numba.njit(cache=True)
+@inner()
 def _bend_after(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e):
     """cpfg's tropism after a move (interpret.c ``bend``): H turns toward U by the angle whose sine is
     e (T.U), then toward L by the angle whose sine is e (T.L) (sines held to [-1, 1])."""
@@ -134,7 +134,7 @@ def _bend_after(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e):
     return _orthonormal(hx, hy, hz, lx, ly, lz)
 
 
-@numba.njit(cache=True)
+@kernel()
 def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
     """Rotate the frame about one of its own axes by the angle with cos c and sin s (already signed)."""
     if axis == _AXIS_U:  # turn: H toward L
@@ -147,7 +147,7 @@ def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
     return _orthonormal(hx, hy, hz, lx, ly, lz)
 
 
-@numba.njit(cache=True)
+@kernel()
 def _turn(vx, vy, vz, kx, ky, kz, a):
     """The vector v turned about the unit axis k by a radians (Rodrigues)."""
     c, s = math.cos(a), math.sin(a)
@@ -159,13 +159,13 @@ def _turn(vx, vy, vz, kx, ky, kz, a):
     )
 
 
-@numba.njit(cache=True)
+@kernel()
 def _square(hx, hy, hz, ux, uy, uz):
     """H, L, U with L = U x H: the frame of a heading and an up vector nearly square to it."""
     return _orthonormal(hx, hy, hz, uy * hz - uz * hy, uz * hx - ux * hz, ux * hy - uy * hx)
 
 
-@numba.njit(cache=True)
+@kernel()
 def carry_up(hx, hy, hz, ux, uy, uz, phx, phy, phz, pux, puy, puz):
     """H, L, U with U the kept up vector carried along the smallest rotation from the kept heading to H (turtle.c
     ``adjust_up_and_left``: cpfg's ``@Tp``, and its tropisms after they bend H); U as it is when H is the kept one."""
@@ -179,7 +179,7 @@ def carry_up(hx, hy, hz, ux, uy, uz, phx, phy, phz, pux, puy, puz):
     return _square(hx, hy, hz, ux, uy, uz)
 
 
-@numba.njit(cache=True)
+@kernel()
 def movement_adjust(mov, e, hx, hy, hz, lx, ly, lz, ux, uy, uz, phx, phy, phz, pux, puy, puz):
     """cpfg's movements before a move (movements.c ``movement_adjust``): the frame, and the frame ``@Tf`` keeps.
 
@@ -223,7 +223,7 @@ def movement_adjust(mov, e, hx, hy, hz, lx, ly, lz, ux, uy, uz, phx, phy, phz, p
     return hx, hy, hz, lx, ly, lz, ux, uy, uz, phx, phy, phz, pux, puy, puz
 
 
-@numba.njit(cache=True)
+@kernel()
 def movement_elasticity(mov, e, sign, n, has_value, value):
     """cpfg's ``@Ts(n, v)`` (``sign`` 0: set, to 0 without ``v``), ``@Ti(n, v)`` (+1) and ``@Td(n, v)`` (-1: add or
     take ``v``, or the movement's increment): blackbox.c, movement ``n`` counted from 1; cpfg leaves a number

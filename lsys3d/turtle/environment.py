@@ -27,8 +27,10 @@ receive by a ray toward the light against the scene's meshes.
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -43,6 +45,7 @@ from ..options import Options, merge_table, option
 from . import kernel
 
 __all__ = [
+    "GRID_CACHE_SIZE",
     "MAX_SCENE_BYTES",
     "MAX_SCENE_EXTENT",
     "MAX_SCENE_TRIANGLES",
@@ -51,6 +54,7 @@ __all__ = [
     "Environment",
     "EnvironmentOptions",
     "SceneMesh",
+    "clear_grid_cache",
     "load_environment",
 ]
 
@@ -484,6 +488,42 @@ def _surface_points(mesh, spacing: float) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(points), np.concatenate(owner)
 
 
+GRID_CACHE_SIZE = 16
+"""Distance grids kept in memory for the process (:func:`_cached_distance`): a scene drawn again (the pipeline's
+``draw()`` in a loop, the editor, levels of detail, variants) is not sampled again."""
+_GRIDS: OrderedDict[bytes, np.ndarray] = OrderedDict()
+
+
+def clear_grid_cache() -> None:
+    """Forget the distance grids sampled so far in this process (the next :meth:`Environment.scene` samples)."""
+    _GRIDS.clear()
+
+
+def _cached_distance(meshes: tuple[SceneMesh, ...], origin, cell, shape, band: float, most: float) -> np.ndarray:
+    """:func:`_signed_distance`, kept by what it is computed from: the meshes' triangles and closedness, and
+    the grid (origin, cell, shape, band, most), hashed (SHA-256), so the same scene file and options give
+    the grid again, bytes for bytes, without sampling it; a copy is handed out (the turtle's arrays are its own)."""
+    h = hashlib.sha256()
+    for m in meshes:
+        h.update(b"closed" if m.closed else b"open")
+        for a in (np.ascontiguousarray(m.vertices, np.float64), np.ascontiguousarray(m.faces, np.int64)):
+            h.update(np.array(a.shape, np.int64).tobytes())
+            h.update(a.tobytes())
+    h.update(np.array([*np.asarray(origin, np.float64), cell, band, most], np.float64).tobytes())
+    h.update(np.array(shape, np.int64).tobytes())
+    key = h.digest()
+    found = _GRIDS.get(key)
+    if found is None:
+        found = _signed_distance(meshes, origin, cell, shape, band, most)
+        _GRIDS[key] = found.copy()
+        while len(_GRIDS) > GRID_CACHE_SIZE:
+            _GRIDS.popitem(last=False)
+    else:
+        _GRIDS.move_to_end(key)
+        found = found.copy()
+    return found
+
+
 def _build(env: Environment) -> kernel.Scene:
     o = env.options
     empty = np.zeros((0, 0, 0))
@@ -496,7 +536,7 @@ def _build(env: Environment) -> kernel.Scene:
     grids = {}
     for role in ROLES:
         meshes = env.role(role)
-        grids[role] = _signed_distance(meshes, origin, cell, shape, band, most) if meshes else empty
+        grids[role] = _cached_distance(meshes, origin, cell, shape, band, most) if meshes else empty
     params = np.zeros(kernel.SCENE_PARAMS)
     params[kernel.SCENE_DISTANCE] = o.distance
     params[kernel.SCENE_ADHESION] = o.adhesion

@@ -37,10 +37,10 @@ import re
 from dataclasses import dataclass, fields, replace
 from functools import partial
 
-import numba
 import numpy as np
 
 from ..arrays import dot, local_index, unit
+from ..compiling import inner, kernel
 from ..errors import LimitError, OptionsError, clip
 from ..lsystem.grammar import Grammar, table_error
 from ..noise import fbm3
@@ -272,7 +272,7 @@ def _per_order(values: tuple, order: np.ndarray, shift: int = 0) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ tree walks (parents come before children)
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _tip_counts(parent):  # pragma: no cover - compiled
     n = len(parent)
     children = np.zeros(n, np.int64)
@@ -312,7 +312,7 @@ def pipe_widths(parent: np.ndarray, tip_width: float, exponent: float) -> np.nda
     return tip_width * tip_counts(parent).astype(np.float64) ** (1.0 / exponent)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _along(parent, length, same):  # pragma: no cover - compiled
     """Distance from each segment's start to the base of its run of ``same`` segments (a parent not ``same``: 0)."""
     n = len(parent)
@@ -324,7 +324,7 @@ def _along(parent, length, same):  # pragma: no cover - compiled
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _rotation(wx, wy, wz, r):  # pragma: no cover - compiled
     """The rotation matrix of the rotation vector ``w`` (Rodrigues), into ``r``."""
     angle = math.sqrt(wx * wx + wy * wy + wz * wz)
@@ -341,7 +341,7 @@ def _rotation(wx, wy, wz, r):  # pragma: no cover - compiled
     r[2, 0], r[2, 1], r[2, 2] = z * x * t - y * s, z * y * t + x * s, c + z * z * t
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _toward(hx, hy, hz, tx, ty, tz, rate, w):  # pragma: no cover - compiled
     """Add to rotation vector ``w`` the turn of heading ``h`` toward ``t`` by ``rate`` radians (no overshoot)."""
     if rate < 0:
@@ -356,13 +356,13 @@ def _toward(hx, hy, hz, tx, ty, tz, rate, w):  # pragma: no cover - compiled
     w[2] += cz / sn * angle
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _matvec(m, v, out):  # pragma: no cover - compiled
     for a in range(3):
         out[a] = m[a, 0] * v[0] + m[a, 1] * v[1] + m[a, 2] * v[2]
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _matmul(a, b, out):  # pragma: no cover - compiled
     """``out = a @ b`` for 3x3 matrices (``out`` may not be ``a`` or ``b``)."""
     for i in range(3):
@@ -370,7 +370,7 @@ def _matmul(a, b, out):  # pragma: no cover - compiled
             out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _copy3(a, out):  # pragma: no cover - compiled
     """``out[:, :] = a`` for 3x3 matrices, as a loop (numba compiles a slice assignment much more slowly)."""
     for i in range(3):
@@ -378,7 +378,7 @@ def _copy3(a, out):  # pragma: no cover - compiled
             out[i, j] = a[i, j]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _place(
     seg, ppiece, t0, t1, offset, start, vec, heading, left, up, turn, scale, noise, grav, plagio, photo, light
 ):  # pragma: no cover - compiled

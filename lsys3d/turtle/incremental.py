@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from ..compiling import inner, kernel
 from ..lsystem.grammar import Grammar
 from .commands import Op
 from .kernel import (  # numba sees the ops as these plain integers, declared once in kernel.py
@@ -78,10 +78,12 @@ __all__ = [
     "STATE",
     "answer_pass",
     "carries_out",
+    "count_marked",
     "follow_cut",
     "follow_production",
     "follows",
     "neutral_ops",
+    "write_answers",
 ]
 
 STATE = 22
@@ -98,6 +100,7 @@ _STRUCTURAL = (Op.PUSH, Op.POP, Op.POLYGON_BEGIN, Op.POLYGON_END)
 
 _CARRIED_OUT = np.zeros(len(Op), np.bool_)  # the ops answer_pass steps through; a new Op is drawn until it does
 _CARRIED_OUT[[int(o) for o in Op if o <= Op.QUERY]] = True  # NONE .. QUERY (the ops after it came later)
+_NOT_CARRIED_OUT = np.flatnonzero(~_CARRIED_OUT)
 
 
 def carries_out(counts: np.ndarray, turtle) -> bool:
@@ -105,7 +108,7 @@ def carries_out(counts: np.ndarray, turtle) -> bool:
     that draws would: no op it does not step through (cpfg's sub-L-system scales, ``_``, generalized cylinders,
     or any op added to :class:`Op` after ``QUERY``), and not cpfg's bend after each move nor its newer tropisms
     (``tropisms``: they bend before each move whether or not the string switches them)."""
-    return not counts[~_CARRIED_OUT].any() and turtle.bend != "cpfg" and not turtle.tropisms
+    return not counts[_NOT_CARRIED_OUT].any() and turtle.bend != "cpfg" and not turtle.tropisms
 
 
 def neutral_ops() -> np.ndarray:
@@ -137,7 +140,7 @@ def follows(grammar: Grammar, op_of) -> bool:
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def follow_production(origin, rewritten, lengths):
     """The new string's origins after a production step (``origin`` empty: the old string was the last pass's).
 
@@ -167,7 +170,16 @@ def follow_cut(origin: np.ndarray, keep: np.ndarray) -> np.ndarray:
     return np.flatnonzero(keep) if not len(origin) else origin[keep]
 
 
-@numba.njit(cache=True)
+@kernel(nogil=True)
+def count_marked(symbols, marked):
+    """How many of ``symbols`` ``marked`` (a ``(256,) bool`` by symbol id) marks: one pass, no mask built."""
+    n = 0
+    for s in symbols:
+        n += marked[s]
+    return n
+
+
+@inner()
 def _neutral_range(program, neutral, old_symbols, a, b):
     """Whether the old modules ``a:b`` leave the state as it was: neutral ops, and closed branches."""
     depth = 0
@@ -184,7 +196,7 @@ def _neutral_range(program, neutral, old_symbols, a, b):
     return depth == 0
 
 
-@numba.njit(cache=True)
+@inner()
 def _find(positions, count, j):
     """The row of ``positions[:count]`` (sorted) that holds ``j``, or -1."""
     k = np.searchsorted(positions[:count], j)
@@ -193,7 +205,7 @@ def _find(positions, count, j):
     return -1
 
 
-@numba.njit(cache=True, inline="always")
+@inner(inline="always")
 def _deposit(deposits, n, px, py, pz, qx, qy, qz, area):
     """Record an area the plant casts shade with, at the middle of P and Q."""
     row = deposits[n]
@@ -201,13 +213,13 @@ def _deposit(deposits, n, px, py, pz, qx, qy, qz, area):
     return n + 1
 
 
-@numba.njit(cache=True, inline="always")
+@inner(inline="always")
 def _same(a, b):
     """Equal, and the same zero (a -0.0 and a 0.0 can part ways later: atan2, copysign)."""
     return a == b and (a != 0.0 or math.copysign(1.0, a) == math.copysign(1.0, b))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def answer_pass(
     program,
     modules,
@@ -312,6 +324,9 @@ def answer_pass(
                         states[n_rec] = old_states[old_row]
                         n_rec += 1
                 i += 1
+                # the copies after it that keep their order and have no record: nothing to do (most of the string)
+                while i < m and origin[i] == origin[i - 1] + 1 and not recorded[symbols[i]]:
+                    i += 1
                 continue
             if i == 0:
                 start = -1
@@ -614,3 +629,25 @@ def answer_pass(
             return FOLLOW_LOST, m
         return 4, poly_open[n_poly - 1]
     return 0, -1
+
+
+@kernel(nogil=True)
+def write_answers(params, symbols, offsets, arity, query_module, query_state, first, sign, slots):
+    """Write the answers of the query modules the turtle reads without the environment into ``params``.
+
+    Row ``r`` of ``query_state`` (position, H, L, U) is the state at module ``query_module[r]``; a symbol
+    ``s`` answers ``sign[s]`` times the three numbers from ``first[s]`` into its parameters ``slots[s]`` (those
+    it has), or nothing when ``first[s] < 0`` (``?E``: the environment answers it).
+    """
+    for r in range(query_module.shape[0]):
+        i = query_module[r]
+        s = symbols[i]
+        f = first[s]
+        if f < 0:
+            continue
+        base = offsets[i]
+        a = arity[i]
+        for j in range(3):
+            slot = slots[s, j]
+            if a > slot:
+                params[base + slot] = sign[s] * query_state[r, f + j]

@@ -14,9 +14,9 @@ from __future__ import annotations
 import math
 from collections import namedtuple
 
-import numba
 import numpy as np
 
+from ..compiling import inner, kernel
 from .bending import (
     _bend,
     _bend_after,
@@ -184,14 +184,14 @@ MESSAGES = {
 }
 
 
-@numba.njit(cache=True)
+@inner()
 def _put(a, k, x, y, z):
     a[k, 0] = x
     a[k, 1] = y
     a[k, 2] = z
 
 
-@numba.njit(cache=True)
+@inner()
 def _add_vertex(points, n, first, x, y, z):
     """Append a polygon vertex unless it repeats the previous one; return the new count."""
     if n > first and points[n - 1, 0] == x and points[n - 1, 1] == y and points[n - 1, 2] == z:
@@ -202,7 +202,7 @@ def _add_vertex(points, n, first, x, y, z):
     return n + 1
 
 
-@numba.njit(cache=True)
+@inner()
 def _rotate_points(points, base, start, stop):
     """Move rows ``start:stop`` to ``base`` and the rows ``base:start`` after them (a nested polygon closing)."""
     k = stop - start
@@ -221,7 +221,7 @@ def _rotate_points(points, base, start, stop):
         points[base + r, 2] = inner[r, 2]
 
 
-@numba.njit(cache=True)
+@kernel()
 def _steps(length, dlength):
     """L-Py's ``nF(length, dlength)``: (whole steps, rest, segments drawn), as PlantGL's Turtle::nF counts them.
 
@@ -234,7 +234,7 @@ def _steps(length, dlength):
     return n, rest, n + (1 if rest > STEP_EPSILON else 0)
 
 
-@numba.njit(cache=True)
+@kernel()
 def _rings(has_arg, arg):
     """The pieces of a generalized cylinder's connection: ``@Gc(n)``'s n (at least 1), else the default."""
     if not has_arg:
@@ -244,7 +244,7 @@ def _rings(has_arg, arg):
 
 # The environment's helpers below are called, not inlined as numba IR: inlined, numba typed and lowered them again
 # inside run (9 of the oak's 25 compile CPU seconds, with _rotate_points' slice assignments); LLVM inlines them.
-@numba.njit(cache=True)
+@inner()
 def _sample(grid, origin, cell, x, y, z):
     """The grid's signed distance at a point: trilinear between its nodes, :data:`FAR_OUTSIDE` off the grid."""
     nx, ny, nz = grid.shape
@@ -264,7 +264,7 @@ def _sample(grid, origin, cell, x, y, z):
     return (c00 * (1 - b) + c10 * b) * (1 - c) + (c01 * (1 - b) + c11 * b) * c
 
 
-@numba.njit(cache=True)
+@inner()
 def _sample_gradient(grid, origin, cell, x, y, z):
     """The grid's trilinear distance at a point and its gradient (the interpolant's own, from the same eight
     nodes); :data:`FAR_OUTSIDE` and a zero gradient off the grid."""
@@ -297,7 +297,7 @@ def _sample_gradient(grid, origin, cell, x, y, z):
     return d, gx, gy, gz
 
 
-@numba.njit(cache=True)
+@inner()
 def _normal(grid, origin, cell, x, y, z):
     """The unit gradient of the grid's distance at a point (the outward normal of the nearest surface)."""
     _, gx, gy, gz = _sample_gradient(grid, origin, cell, x, y, z)
@@ -307,7 +307,7 @@ def _normal(grid, origin, cell, x, y, z):
     return gx / n, gy / n, gz / n
 
 
-@numba.njit(cache=True)
+@inner()
 def _aim(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz):
     """Turn the frame by the smallest rotation that takes H to the unit vector N."""
     cx = hy * nz - hz * ny
@@ -327,7 +327,7 @@ def _aim(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz):
     return _orthonormal(nx, ny, nz, nlx, nly, nlz)
 
 
-@numba.njit(cache=True)
+@inner()
 def _blocked(scene, x, y, z):
     """How far inside a solid the point is (> 0: inside an obstacle or a solid support, or outside the volume)."""
     o, cell, prm = scene.origin, scene.cell[0], scene.params
@@ -342,7 +342,7 @@ def _blocked(scene, x, y, z):
     return worst
 
 
-@numba.njit(cache=True)
+@inner()
 def _worst_along(scene, px, py, pz, hx, hy, hz, length):
     """The deepest :func:`_blocked` along a segment, sampled every half cell and at its end, and that point."""
     n = min(64, 1 + int(2.0 * length / scene.cell[0]))
@@ -357,14 +357,14 @@ def _worst_along(scene, px, py, pz, hx, hy, hz, length):
     return worst, wx, wy, wz
 
 
-@numba.njit(cache=True)
+@inner()
 def _release(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz):
     """A climber lets go where its support faces up (``release``: over a top edge, on a ledge): H leans
     halfway out along the support's normal N, so the branch goes out over the edge before it hangs."""
     return _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz, 0.5, np.bool_(True))
 
 
-@numba.njit(cache=True)
+@inner()
 def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging):
     """The environment's say on one segment from P of this length: the new frame, whether it is cut, and
     whether the branch now hangs.
@@ -455,7 +455,7 @@ def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hangin
     return hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def probe(scene, points, out):
     """Per point: 1 where it is blocked (:func:`_blocked`) else 0, and its distance to the nearest support or
     obstacle surface (:data:`FAR_OUTSIDE` with neither)."""
@@ -471,7 +471,7 @@ def probe(scene, points, out):
         out[k, 1] = d
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def survey(program, modules):
     """One pass before drawing: how many modules of each op, deepest bracket, bad arguments.
 
@@ -517,7 +517,7 @@ def survey(program, modules):
     return counts, deepest, -1, 0
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def dropped_modules(program, symbols, drop):
     """Modules inside a dropped branch: from a ``[`` whose ``drop`` is set to its matching ``]`` (or the end)."""
     m = symbols.shape[0]
@@ -538,7 +538,7 @@ def dropped_modules(program, symbols, drop):
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, query, scene):
     """Run the turtle over the modules, writing segments, polygons, leaves and organs into the preallocated outputs.
 

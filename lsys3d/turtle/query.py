@@ -90,14 +90,19 @@ class Answerer:
         # the natural variation's numbers follow the index; the plant's shade changes every answer
         self.shading = environment is not None and environment.options.shadow
         self.follow = grammar is not None and not varied and not self.shading
+        self.varied = varied
         self._tables: dict = {}
+        self._last: tuple | None = None  # the alphabet of the last pass (the same tuple each step) and its tables
+        self._unvaried: kernel.Variation | None = None  # no natural variation: the same empty arrays each pass
         self._table = None  # the symbol table of the last pass
         # origin[i]: the index, in the last pass's string, of the module i copies (-1: produced since);
         # None: unknown; empty: the last pass's string itself, its modules unchanged
         self.origin: np.ndarray | None = None
         self._records = None  # the last pass's string's symbols, and the states it recorded (positions, states)
 
-    def _compiled(self, alphabet) -> tuple[SymbolTable, kernel.Program, np.ndarray, bool]:
+    def _compiled(self, alphabet) -> tuple[SymbolTable, kernel.Program, np.ndarray, bool, tuple]:
+        if self._last is not None and self._last[0] is alphabet:  # no hashing of its 256 names each step
+            return self._last[1]
         found = self._tables.get(alphabet)
         if found is None:
             t = self.turtle
@@ -117,8 +122,9 @@ class Answerer:
                         recorded[code[prod.predecessor.symbol]] = True
                 if g.cut_symbol and g.cut_symbol in code:
                     recorded[code[g.cut_symbol]] = True
-            found = (table, kernel_program(table), recorded, follow)
+            found = (table, kernel_program(table), recorded, follow, answering(table))
             self._tables[alphabet] = found
+        self._last = (alphabet, found)
         return found
 
     def trace(self, kind, symbols, new_symbols, rewritten, lengths, persisting) -> None:
@@ -135,7 +141,7 @@ class Answerer:
 
     def __call__(self, modules: ModuleString, step: int = 0) -> ModuleString:
         """The string with its query modules filled and the branches the environment cut removed."""
-        table, program, recorded, follow = self._compiled(modules.alphabet)
+        table, program, recorded, follow, answers = self._compiled(modules.alphabet)
         self._table = table
         arrays = kernel.Modules(modules.symbols, modules.arity, modules.offsets, modules.params)
         counts, max_depth = surveyed(modules, table, program, arrays, self.max_segments)
@@ -147,7 +153,14 @@ class Answerer:
             origin = np.arange(m) if len(records[0]) == m else None
         if origin is None or (len(origin) and len(origin) != m):
             origin, records = _WHOLE, None
-        variation = natural_variation(m, self.turtle, self.seed, table, modules.symbols, int(counts[Op.RANDOM_TURN]))
+        if self.varied or counts[Op.RANDOM_TURN]:
+            variation = natural_variation(
+                m, self.turtle, self.seed, table, modules.symbols, int(counts[Op.RANDOM_TURN])
+            )
+        else:
+            if self._unvaried is None:
+                self._unvaried = natural_variation(0, self.turtle, self.seed, table, modules.symbols[:0], 0)
+            variation = self._unvaried
         args = (modules, table, program, arrays, max_depth, variation, recorded, counts)
         if not incremental.carries_out(counts, self.turtle):  # the turtle that draws them answers
             follow = False
@@ -157,7 +170,7 @@ class Answerer:
             if found is None:  # a change the records cannot follow: the whole string
                 found = self._pass(*args, _WHOLE, None)
         query_module, query_state, cut, positions, states, deposits = found
-        out, origin = _written(modules, table, query_module, query_state, cut, self.environment, deposits)
+        out, origin = _written(modules, table, query_module, query_state, cut, self.environment, deposits, answers)
         self._records = (modules.symbols, positions, states) if follow else None
         self.origin = origin if follow else None
         return out
@@ -186,7 +199,7 @@ class Answerer:
         query_module = np.empty(n_query, np.int64)
         query_state = np.empty((n_query, 12))
         cut = np.empty(int(counts[Op.FORWARD]) if self.environment is not None else 0, np.int64)
-        n_records = int(np.count_nonzero(recorded[modules.symbols])) + len(cut)  # rewritable modules, cut segments
+        n_records = incremental.count_marked(modules.symbols, recorded) + len(cut)  # rewritable modules, cut segments
         positions = np.empty(n_records, np.int64)
         states = np.empty((n_records, incremental.STATE))
         found = np.zeros(4, np.int64)
@@ -233,44 +246,54 @@ class Answerer:
         )
 
 
+def answering(table: SymbolTable) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What :func:`lsys3d.turtle.incremental.write_answers` writes for each symbol of ``table``: the first of the
+    three state numbers (-1: ``?E``, or no query), their sign, the parameters they go to."""
+    first = np.full(256, -1, np.int64)
+    sign = np.ones(256, np.float64)
+    for code in np.flatnonzero(table.op == Op.QUERY).tolist():
+        cmd = table.command(code)
+        if cmd.query in _SLICES:
+            first[code], sign[code] = _SLICES[cmd.query]
+    return first, sign, np.ascontiguousarray(table.world, np.int64)
+
+
 def _removes_polygons(table: SymbolTable, symbols: np.ndarray, keep: np.ndarray) -> bool:
     return bool(np.isin(table.op[symbols[~keep]], _POLYGON_OPS).any())
 
 
 def _written(
-    modules, table, query_module, query_state, cut, environment, deposits=None
+    modules, table, query_module, query_state, cut, environment, deposits=None, answers=None
 ) -> tuple[ModuleString, np.ndarray | None]:
     """The string with the answers written and the cut branches removed, and where its modules came from
     (:attr:`Answerer.origin`: empty when no module was removed; -1 for a bud; None when a polygon was cut).
-    With ``deposits`` (the plant's area, :mod:`lsys3d.turtle.shadow`), ``?E``'s light is shaded by it."""
+    With ``deposits`` (the plant's area, :mod:`lsys3d.turtle.shadow`), ``?E``'s light is shaded by it;
+    ``answers`` is :func:`answering`'s of the table, when known."""
     params = modules.params
     if len(query_module):
         params = params.copy()
+        first, sign, slots = answering(table) if answers is None else answers
+        incremental.write_answers(
+            params, modules.symbols, modules.offsets, modules.arity, query_module, query_state, first, sign, slots
+        )
         codes = modules.symbols[query_module]
-        offsets = modules.offsets[query_module]
-        arity = modules.arity[query_module].astype(np.int64)
-        for code in np.unique(codes).tolist():
-            cmd = table.command(code)
-            sel = codes == code
-            state = query_state[sel]
-            if cmd.query == "E":
-                if environment is not None:
-                    values = environment.probe(state[:, :3])
-                    if deposits is not None:
-                        values[:, 2] *= shade(deposits, state[:, :3], environment.options)
-                else:  # nothing blocks, no surface near, full light
-                    values = np.tile([0.0, FAR_OUTSIDE, 1.0], (len(state), 1))
-                slots = (0, 1, 2)
-            else:
-                first, sign = _SLICES[cmd.query]
-                values = sign * state[:, first : first + 3]
-                slots = cmd.world
-            for j, slot in enumerate(slots):
-                has = arity[sel] > slot
-                params[offsets[sel][has] + slot] = values[has, j]
+        asked = first[codes] < 0  # ?E: the environment answers
+        if asked.any():
+            state = query_state[asked][:, :3]
+            if environment is not None:
+                values = environment.probe(state)
+                if deposits is not None:
+                    values[:, 2] *= shade(deposits, state, environment.options)
+            else:  # nothing blocks, no surface near, full light
+                values = np.tile([0.0, FAR_OUTSIDE, 1.0], (len(state), 1))
+            offsets = modules.offsets[query_module[asked]]
+            arity = modules.arity[query_module[asked]].astype(np.int64)
+            for slot in (0, 1, 2):
+                has = arity > slot
+                params[offsets[has] + slot] = values[has, slot]
     symbols, arity_all = modules.symbols, modules.arity
     if not len(cut):
-        out = modules if params is modules.params else ModuleString(symbols, arity_all, params, modules.alphabet)
+        out = modules if params is modules.params else modules.with_params(params)
         return out, _WHOLE
     keep = cut_mask(table.op[symbols] == Op.PUSH, table.op[symbols] == Op.POP, cut)
     bud = environment.options.bud if environment is not None else ""

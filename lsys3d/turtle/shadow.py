@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from ..compiling import kernel
 from ..errors import LimitError
 
 __all__ = ["MAX_SHADOW_VOXELS", "shade"]
@@ -28,7 +28,7 @@ MAX_SHADOW_VOXELS = 8_000_000
 """Most voxels of the shade grid (a plant larger than this many voxels of ``shadow_voxel`` is refused)."""
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _occupancy(deposits, origin, voxel, shape):
     grid = np.zeros(shape)
     for k in range(deposits.shape[0]):
@@ -39,7 +39,7 @@ def _occupancy(deposits, origin, voxel, shape):
     return grid
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _transmission(depth, origin, voxel, points, directions, out):
     """exp(-optical depth) along each point's ray through the voxels (a 3D DDA, Amanatides and Woo 1987):
     each voxel crossed adds its depth per voxel length times the length of the ray inside it; the point's own

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import numba
 import numpy as np
 
+from ..compiling import kernel
 from .commands import Op
 from .skeleton import Skeleton
 
@@ -34,7 +34,7 @@ _PUSH = int(Op.PUSH)
 _POP = int(Op.POP)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _in_force(op, symbols, arity, offsets, params, max_depth, initial):  # pragma: no cover - compiled
     m = symbols.shape[0]
     out = np.zeros(m, np.int32)

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import numba
 import numpy as np
 
+from ...compiling import kernel
 from .collapse import _rank, _try_collapse
 from .flip import _flip, _flip_ok
 from .geometry import _aspect, _aspect_xyz, _corners, _cross, _length, _normal, _normal_xyz
@@ -22,7 +22,7 @@ from .halfedge import (
     _apex,
     _dst,
     _half_edge,
-    _leaf,
+    _leaf_inner,
     _org,
     _prv,
     _valence,
@@ -53,7 +53,7 @@ class Rules(NamedTuple):
     """Stop after this many operations (a guard; never reached on sane input)."""
 
 
-@_leaf
+@_leaf_inner
 def _needs_work(he, f, rules):
     faces, p = he.faces, he.points
     a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
@@ -64,7 +64,7 @@ def _needs_work(he, f, rules):
     return _aspect(p, a, b, c) > rules.bad
 
 
-@_leaf
+@_leaf_inner
 def _push_fan(he, v, stack, queued, top, rules):
     """Queue the faces around ``v`` that need work; the new stack height."""
     h0 = he.out[v]
@@ -84,7 +84,7 @@ def _push_fan(he, v, stack, queued, top, rules):
             return top
 
 
-@_leaf
+@_leaf_inner
 def _snap(he, f, k, rules, buf_a, buf_b):
     """A cap: move its far corner ``x`` onto its edge ``k`` (``u w``) and give the face across the edge to it.
 
@@ -173,7 +173,7 @@ def _snap(he, f, k, rules, buf_a, buf_b):
     return x
 
 
-@_leaf
+@_leaf_inner
 def _split_fan(he, f, order, lengths, rules, spawned):
     """A needle of a seam's fan: split its longest edge that leaves the seam ``step`` scales from it; the vertex or -1.
 
@@ -200,7 +200,7 @@ def _split_fan(he, f, order, lengths, rules, spawned):
     return -1
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def clean(he, rules, region, side, own, spawned):
     """Remove the needles and caps of ``he`` by local operations; returns how many of each kind were done.
 
@@ -364,7 +364,7 @@ def halves(he: HalfEdges, width: int, region=None, skip: int = -1):
     return side, band, near, axis
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _sides(he, axis, cut, width, side, band, near):
     """:func:`halves`' passes: each face's side, the vertices with faces on both, ``width + 1`` rings more."""
     faces, p = he.faces, he.points
@@ -413,7 +413,7 @@ def _sides(he, axis, cut, width, side, band, near):
         near[v] = dist[v] <= width + 1
 
 
-@_leaf
+@_leaf_inner
 def _collapse_volume(he, h, x, y, z):
     """How far collapsing half-edge ``h`` (ends placed at ``x, y, z``) moves the surface around, on average.
 

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ...compiling import kernel
 from .geometry import _cross, _length, _normal
-from .halfedge import SEAM, _dst, _leaf, _prv
+from .halfedge import SEAM, _dst, _leaf_inner, _prv
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def collar(he, width, closeness):
     """How close each vertex is to a seam, in ``closeness`` (1 on the seam, 0 at ``width`` scales or beyond).
 
@@ -65,7 +65,7 @@ def collar(he, width, closeness):
     return n
 
 
-@_leaf
+@_leaf_inner
 def _vertex_normal(he, v):
     faces, p = he.faces, he.points
     h0 = he.out[v]
@@ -86,7 +86,7 @@ def _vertex_normal(he, v):
     return nx / n, ny / n, nz / n
 
 
-@_leaf
+@_leaf_inner
 def _fan_volume(p, faces, he, v):
     """Six times the volume of the cone from the origin over the faces around ``v``, and its gradient in ``v``."""
     h0 = he.out[v]
@@ -107,7 +107,7 @@ def _fan_volume(p, faces, he, v):
     return six, gx, gy, gz
 
 
-@_leaf
+@_leaf_inner
 def _faces_turned(he, v):
     """Whether a face around ``v`` is turned more than 80 degrees from its reference normal."""
     faces, p = he.faces, he.points
@@ -124,7 +124,7 @@ def _faces_turned(he, v):
             return False
 
 
-@_leaf
+@_leaf_inner
 def _find(parent, i):
     while parent[i] != i:
         parent[i] = parent[parent[i]]

@@ -3,12 +3,12 @@ volume given back (:func:`settle`)."""
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ...compiling import inner, kernel
 from .collar import _faces_turned, _fan_volume, _find, _vertex_normal
 from .geometry import _cross, _normal
-from .halfedge import FEATURE, LOCKED, _dst, _leaf, _prv, _valence, in_two
+from .halfedge import FEATURE, LOCKED, _dst, _leaf_inner, _prv, _valence, in_two
 
 _FAIR_SHARE_MIN = 4096
 """Collar vertices from which :func:`fair` shares its steps with a second thread."""
@@ -65,7 +65,7 @@ def fair(he, closeness, iterations, step, reach, inward, pool=None):
     return _fair_finish(he, closeness, members, start)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _fair_setup(he, closeness):
     """:func:`fair`'s collar vertices, their slots among them and their neighbours, and those (``around``)."""
     faces = he.faces
@@ -98,14 +98,14 @@ def _fair_setup(he, closeness):
     return members, slot, around[:na]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _valences(he, around, count, lo, hi):
     """``count[lo:hi]``: how many neighbours ``around[lo:hi]`` have."""
     for i in range(lo, hi):
         count[i] = _valence(he, around[i])
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _neighbours(he, around, first, nbr, lo, hi):
     """The neighbours of ``around[lo:hi]`` into ``nbr[first[i]:first[i + 1]]``."""
     for i in range(lo, hi):
@@ -115,14 +115,14 @@ def _neighbours(he, around, first, nbr, lo, hi):
             g = he.opp[_prv(g)]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _vertex_normals(he, members, normal, lo, hi):
     """``normal[lo:hi]``: the normals of ``members[lo:hi]`` (:func:`_vertex_normal`)."""
     for i in range(lo, hi):
         normal[i, 0], normal[i, 1], normal[i, 2] = _vertex_normal(he, members[i])
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _laplacians(p, around, first, nbr, lap, lo, hi):
     """One Jacobi step of :func:`fair`, first pass: the weighted Laplacian at ``around[lo:hi]``."""
     for i in range(lo, hi):
@@ -139,7 +139,7 @@ def _laplacians(p, around, first, nbr, lap, lo, hi):
         lap[i, 0], lap[i, 1], lap[i, 2] = mx / total, my / total, mz / total
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _fair_targets(he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target, lo, hi):
     """One Jacobi step of :func:`fair`, second pass: where ``members[lo:hi]`` move (into ``target``)."""
     p = he.points
@@ -177,7 +177,7 @@ def _fair_targets(he, members, slot, first, nbr, lap, normal, start, step, reach
         target[i, 0], target[i, 1], target[i, 2] = tx, ty, tz
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _fair_finish(he, closeness, members, start):
     """:func:`fair`'s end: a vertex with a face turned away goes back, the collars give their volume back;
     the vertices moved."""
@@ -228,7 +228,7 @@ def _fair_finish(he, closeness, members, start):
     return moves
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _at(p, start, slot, m, v):
     """Where vertex ``v`` was before the fairing: ``start`` for a collar vertex, else where it is."""
     j = slot[v]
@@ -237,7 +237,7 @@ def _at(p, start, slot, m, v):
     return p[v, 0], p[v, 1], p[v, 2]
 
 
-@_leaf
+@_leaf_inner
 def _collar_gain(he, slot, around, start, m, root, gained):
     """Into ``gained[root]``: six times the volume each collar's moves added (faces with a collar corner, once each)."""
     faces, p = he.faces, he.points
@@ -266,7 +266,7 @@ def _collar_gain(he, slot, around, start, m, root, gained):
                 break
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _give_back_volume(he, closeness, members, start):
     """Sink each collar along its normals by what its fairing added to the volume (see :func:`fair`).
 
@@ -330,7 +330,7 @@ def _give_back_volume(he, closeness, members, start):
             p[v, 0], p[v, 1], p[v, 2] = faired[i, 0], faired[i, 1], faired[i, 2]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def settle(he, closeness):
     """Turn the faired collars' reference normals halfway to their own normals; returns how many changed.
 

@@ -2,25 +2,25 @@
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-from .halfedge import _leaf
+from ...compiling import inner
+from .halfedge import _leaf, _leaf_inner
 
 _FLAT = 1e30  # the aspect of a triangle without area
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@_leaf
+@_leaf_inner
 def _normal_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
     return _cross(bx - ax, by - ay, bz - az, cx - ax, cy - ay, cz - az)
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _before(ax, ay, az, bx, by, bz):
     """Whether point ``a`` comes before ``b`` in lexicographic order (a tie-break that ignores vertex order)."""
     if ax != bx:
@@ -30,7 +30,7 @@ def _before(ax, ay, az, bx, by, bz):
     return az < bz
 
 
-@_leaf
+@_leaf_inner
 def _aspect_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
     """Aspect (longest edge / (2 sqrt 3 inradius)) of a triangle given by coordinates; 1e30 when flat.
 
@@ -81,17 +81,17 @@ def _corners(p, a, b, c, moved, x, y, z):
     return ax, ay, az, bx, by, bz, cx, cy, cz
 
 
-@_leaf
+@_leaf_inner
 def _aspect(p, a, b, c):
     return _aspect_xyz(p[a, 0], p[a, 1], p[a, 2], p[b, 0], p[b, 1], p[b, 2], p[c, 0], p[c, 1], p[c, 2])
 
 
-@_leaf
+@_leaf_inner
 def _normal(p, a, b, c):
     return _normal_xyz(p[a, 0], p[a, 1], p[a, 2], p[b, 0], p[b, 1], p[b, 2], p[c, 0], p[c, 1], p[c, 2])
 
 
-@_leaf
+@_leaf_inner
 def _length(p, u, w):
     return np.sqrt((p[u, 0] - p[w, 0]) ** 2 + (p[u, 1] - p[w, 1]) ** 2 + (p[u, 2] - p[w, 2]) ** 2)
 

@@ -10,8 +10,9 @@ from __future__ import annotations
 from concurrent.futures import wait
 from typing import NamedTuple
 
-import numba
 import numpy as np
+
+from ...compiling import inner, kernel
 
 SEAM = 1
 """Vertex flag: on an edge between faces of two different tubes (the boolean's intersection curve)."""
@@ -32,7 +33,8 @@ _MAX_RING = 256  # a vertex with more neighbours than this is left alone
 # The helpers that allocate nothing are compiled without numba's reference counts: with them, a call counted each
 # of the 14 arrays of a HalfEdges up on entry and down on return, atomic operations that numba could not prune
 # around the calls (any of which may raise), a fifth of the cleanup's time on abop-1.24a (measured with perf).
-_leaf = numba.njit(cache=True, nogil=True, _nrt=False)
+_leaf = kernel(nogil=True, _nrt=False)
+_leaf_inner = inner(nogil=True, _nrt=False)
 
 
 # The helpers that a collapse calls a few times each are inlined into their callers, as numba IR: a call passes
@@ -42,7 +44,8 @@ _leaf = numba.njit(cache=True, nogil=True, _nrt=False)
 # spill) and its first compilation about three times as long.  As it is, with the rare paths calling the checks
 # rather than inlining them (below), the first run of a fresh install (numba compiling every kernel: tree3d)
 # takes 46 s instead of 43 s, once.
-_inline = numba.njit(cache=True, nogil=True, _nrt=False, inline="always")
+_inline = kernel(nogil=True, _nrt=False, inline="always")
+_inline_inner = inner(nogil=True, _nrt=False, inline="always")
 # The smallest helpers (_nxt, _prv, _org, _dst, _apex, the geometry's _cross...) take no HalfEdges: they are
 # called, not inlined as IR, and LLVM inlines them where they are used.  As IR, numba typed and lowered a copy at
 # every call site: a first run compiled the cleanup's kernels about 3 CPU seconds longer (the same bytes, the
@@ -133,7 +136,7 @@ def in_two(pool, kernel, args: tuple, lo: int, middle: int, hi: int) -> tuple:
     return first, second.result()
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _leaving(faces, nv, half, head):
     """Fill the half-edges leaving each vertex ``half[start[v]:start[v + 1]]`` and their ends ``head``; start."""
     nf = len(faces)
@@ -154,7 +157,7 @@ def _leaving(faces, nv, half, head):
     return start
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _match(start, half, head, opp, lo, hi):
     """:func:`opposites` for the half-edges leaving the vertices ``lo .. hi - 1``; False if one is there twice."""
     for u in range(lo, hi):
@@ -247,7 +250,7 @@ def build(
     return he
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _lock_pinches(he, incidence, lo, hi):
     """Lock each vertex ``lo .. hi - 1`` whose faces are not one fan (two cones touching at a point): a walk
     around it meets fewer faces than it has (``incidence``)."""
@@ -285,7 +288,7 @@ def compact(he: HalfEdges, pool=None):
     return he.points[keep], faces, part, flat, source, origin, flags  # int64 whatever the half-edges' index type
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _corners_used(faces, fa, used):
     """``used[v]``: ``v`` is a corner of one of the faces ``fa``."""
     for f in fa:
@@ -294,7 +297,7 @@ def _corners_used(faces, fa, used):
         used[faces[f, 2]] = True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _compact_faces(he, fa, renumber, faces, part, flat, source, lo, hi):
     """:func:`compact`'s faces ``fa[lo:hi]``: corners renumbered, part, flatness and source."""
     for i in range(lo, hi):
@@ -306,7 +309,7 @@ def _compact_faces(he, fa, renumber, faces, part, flat, source, lo, hi):
         source[i] = he.face_source[f]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def cut_caps(faces, part, cap, ncaps):  # pragma: no cover - compiled
     """``(ncaps,) bool``: the caps (``cap``: a face's cap, -1 on a wall) that a face of another part meets along
     an edge: :func:`mark`'s ``cut`` for a closed mesh without half-edges.  Each edge of a cap face is matched
@@ -352,7 +355,7 @@ def cut_caps(faces, part, cap, ncaps):  # pragma: no cover - compiled
     return cut
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def mark(he, nf, part, cap, flat, cut):
     """Flag the vertices of seams (:data:`SEAM`: an edge between two parts) and rims (:data:`FEATURE`: between a
     flat and a curved face of one part) of the first ``nf`` faces; a cap (``cap``: its number per face, -1 on a
@@ -379,30 +382,30 @@ def mark(he, nf, part, cap, flat, cut):
                 flags[faces[f, (k + 1) % 3]] |= FEATURE
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _nxt(h):
     return h - 2 if h % 3 == 2 else h + 1
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _prv(h):
     return h + 2 if h % 3 == 0 else h - 1
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _org(faces, h):
     q = h // 3
     return faces[q, h - 3 * q]
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _dst(faces, h):
     q = h // 3
     r = h - 3 * q
     return faces[q, 0 if r == 2 else r + 1]
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _apex(faces, h):
     """The corner of ``h``'s face across from it."""
     q = h // 3
@@ -410,7 +413,7 @@ def _apex(faces, h):
     return faces[q, r - 1 if r > 0 else 2]
 
 
-@_inline
+@_inline_inner
 def _ring(he, v, buf):
     """Neighbours of ``v`` into ``buf``; their number, or -1 if more than fit."""
     h0 = he.out[v]
@@ -426,7 +429,7 @@ def _ring(he, v, buf):
             return n
 
 
-@_inline
+@_inline_inner
 def _valence(he, v, most=_MAX_RING):
     """The neighbours of ``v``, counted up to ``most + 1`` (a walk of at most that many steps): ``most`` 3 is
     enough to tell a valence of 3 or under from the rest, in four steps rather than a whole ring."""
@@ -440,7 +443,7 @@ def _valence(he, v, most=_MAX_RING):
             return n
 
 
-@_inline
+@_inline_inner
 def _half_edge(he, u, w):
     """The half-edge from ``u`` to ``w``, or -1."""
     h0 = he.out[u]

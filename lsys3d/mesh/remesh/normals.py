@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ...compiling import kernel
 from .geometry import _cross, _normal
-from .halfedge import _leaf, in_two
+from .halfedge import _leaf_inner, in_two
 
 
 def corner_normals(points, faces, flat, pool=None):
@@ -30,7 +30,7 @@ def corner_normals(points, faces, flat, pool=None):
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _vertex_normal_sums(points, faces, flat, vn, some, lo, hi):  # pragma: no cover - compiled
     """:func:`corner_normals`' unit vertex normals of the vertices ``lo:hi`` (``some``: they have one): the
     angle-weighted sum of the normals of their curved faces, face after face."""
@@ -61,7 +61,7 @@ def _vertex_normal_sums(points, faces, flat, vn, some, lo, hi):  # pragma: no co
             vn[v, 0], vn[v, 1], vn[v, 2] = vn[v, 0] / n, vn[v, 1] / n, vn[v, 2] / n
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _corner_rows(points, faces, flat, vn, some, out, lo, hi):  # pragma: no cover - compiled
     """:func:`corner_normals`' rows ``lo:hi`` of ``out``: a flat face's corners (or a corner whose vertex has no
     normal) take the face's own normal (made again: no (f, 3) array of them), the others their vertex's.
@@ -76,7 +76,7 @@ def _corner_rows(points, faces, flat, vn, some, out, lo, hi):  # pragma: no cove
                 out[f, k, 0], out[f, k, 1], out[f, k, 2] = vn[v, 0] + 0.0, vn[v, 1] + 0.0, vn[v, 2] + 0.0
 
 
-@_leaf
+@_leaf_inner
 def _unit_normal(p, a, b, c):
     """Triangle ``a b c``'s unit normal and whether it has area (+Y when it has none)."""
     nx, ny, nz = _normal(p, a, b, c)

@@ -3,18 +3,18 @@ than a height, keeping the volume."""
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ...compiling import kernel
 from .clean import _collapse_volume
 from .collapse import _collapse, _collapse_ok, _geometry_ok_called, _topology_ok_called
 from .flip import _flip, _flip_ok
 from .geometry import _aspect, _cross, _length, _normal
-from .halfedge import _MAX_RING, FEATURE, LOCKED, SEAM, _apex, _dst, _leaf, _org, _prv, _valence, in_two
+from .halfedge import _MAX_RING, FEATURE, LOCKED, SEAM, _apex, _dst, _leaf_inner, _org, _prv, _valence, in_two
 from .split import _split
 
 
-@_leaf
+@_leaf_inner
 def _flip_volume(he, h):
     """How far flipping the edge of half-edge ``h`` moves the surface, on average (see :func:`_collapse_volume`)."""
     faces, p = he.faces, he.points
@@ -61,7 +61,7 @@ def rescue(he, worst, height, flip, pool=None):
     return _rescue(he, worst, height, flip, now) if now.any() else 0
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _needs_rescue(he, worst, height, now, lo, hi):
     """Into ``now[lo:hi]``: whether :func:`rescue` has anything to do on each face (as it looks at it)."""
     faces, p = he.faces, he.points
@@ -73,7 +73,7 @@ def _needs_rescue(he, worst, height, now, lo, hi):
         now[f] = weld or not _aspect(p, a, b, c) <= worst or _low(p, a, b, c, height)
 
 
-@_leaf
+@_leaf_inner
 def _weldable(he, u, w):
     """Whether edge ``u w`` is so short that readers would weld its ends (float32, trimesh's 1e-8 grid), and
     neither end is locked."""
@@ -82,7 +82,7 @@ def _weldable(he, u, w):
     return _length(p, u, w) < weld and not ((he.flags[u] | he.flags[w]) & LOCKED)
 
 
-@_leaf
+@_leaf_inner
 def _low(p, a, b, c, height):
     """Whether triangle ``a b c`` is lower than ``height`` (twice its area over its longest edge)."""
     nx, ny, nz = _normal(p, a, b, c)
@@ -90,7 +90,7 @@ def _low(p, a, b, c, height):
     return np.sqrt(nx * nx + ny * ny + nz * nz) < height * longest
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _rescue(he, worst, height, flip, now):
     """:func:`rescue`, the faces to look at first in ``now``."""
     faces, p = he.faces, he.points
@@ -237,7 +237,7 @@ three neighbours merges into one of them), which an operation changes within one
 _NEAR_QUEUE = 1 << 14
 
 
-@_leaf
+@_leaf_inner
 def _touch_near(he, v, now, again, seen, queue):
     """Mark the faces around every vertex within :data:`_NEAR` edges of ``v`` to be looked at this round and
     the next (every face, when the neighbourhood is too large to walk)."""

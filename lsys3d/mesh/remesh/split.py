@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import numba
-
+from ...compiling import inner
 from .halfedge import FEATURE, PINNED, _apex, _dst, _leaf, _nxt, _org, _prv
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _inherit(he, f, g):
     """Face ``f`` takes what face ``g`` knows of the tube face it lies on: part, flatness, source, reference normal
     (the normal element by element: a row copy would allocate, and the helpers run without numba's runtime)."""

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ...compiling import kernel
 from .geometry import _normal_xyz
 
 
@@ -38,7 +38,7 @@ def tube_faces(points, faces, tube_points, wedge_point, tube_faces, source, rela
     return scale, original, reference
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _tube_faces(
     points, faces, tube_points, wedge_point, tube_faces, source, relative, absolute, scale, original, reference, lo, hi
 ):  # pragma: no cover - compiled

@@ -3,14 +3,14 @@ the seam's side and the mean of inverse radii the texture's v runs by."""
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from ...arrays import dot, unit
+from ...compiling import inner
 from ...turtle.skeleton import Skeleton
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _span_frame(center, tangent, axis, r0, r1):  # pragma: no cover - compiled
     """The chart's frame of the span from ring ``r0`` to ``r1``: ring ``r0``'s axis carried onto the span's
     direction by the minimal rotation (two reflections), and the direction's cross product with it."""

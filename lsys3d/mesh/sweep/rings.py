@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from ...arrays import local_index, unit
+from ...compiling import kernel
 from .frames import _inverse_mean, _reflect_transport
 
 
@@ -100,7 +100,7 @@ def _insert_rings(after, t, center, tangent, axis_a, width, v, tv, stretch, bend
     )
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _merge_groups(chain, p0, p1, v0, v1, w0, w1, deviation, gap):  # pragma: no cover - compiled
     """Group of each segment: runs of one chain whose joints stay near the straight line (SweepOptions.merge_deviation).
 
@@ -160,7 +160,7 @@ def _merge_groups(chain, p0, p1, v0, v1, w0, w1, deviation, gap):  # pragma: no 
     return group
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _ring_rows(out, old, rt, rk, rf, local, sides, offs):  # pragma: no cover - compiled
     """The ring points and wedges of :meth:`Tubes.insert_rings`, a ring at a time (no gathered temporaries).
 
@@ -212,7 +212,7 @@ def _ring_rows(out, old, rt, rk, rf, local, sides, offs):  # pragma: no cover - 
                 wedge_uv[wdest + j, c] = np.float32((1.0 - f) * np.float64(old_uv[a, c]) + f * np.float64(old_uv[b, c]))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _face_origin(out, f_off, sides, new_rings, ring_off, rings, rk, old_f_off):  # pragma: no cover - compiled
     """The face before :meth:`Tubes.insert_rings` of every face after it, a face at a time.
 

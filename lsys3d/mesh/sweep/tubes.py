@@ -5,10 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import NamedTuple
 
-import numba
 import numpy as np
 
 from ...arrays import dot, gather, local_index, offsets, unique, unit
+from ...compiling import kernel
 from ..mesh import Mesh
 from .frames import _reflect_transport
 from .rings import _face_origin, _ring_rows
@@ -358,7 +358,7 @@ def _tube_faces(faces: np.ndarray, s: int, rings: np.ndarray, wedge_start: np.nd
         _write_tube_faces(faces, s, np.asarray(rings, np.int64), wedge_start, face_start)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _write_tube_faces(faces, s, rings, wedge_start, face_start):  # pragma: no cover - compiled
     """:func:`_tube_faces`, a face at a time: no (spans, 2 s, 3) index temporaries."""
     for i in range(len(rings)):

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from ...compiling import inner, kernel
 from ...turtle.skeleton import Skeleton
 from .frames import _inverse_mean, _span_frame
 from .options import SweepOptions
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@inner(nogil=True, inline="always")
 def _face_place(face, offsets, sides, rings, t):  # pragma: no cover - compiled
     """Where tube face ``face`` lies: its tube (``t``, the tube of the face before, is tried first: the faces of
     a tube come together), its index among the tube's faces, and its end: -1 on the wall, 0 in the base's cap, 1
@@ -22,7 +22,7 @@ def _face_place(face, offsets, sides, rings, t):  # pragma: no cover - compiled
     return t, local, -1 if local < body else (1 if local >= body + sides[t] else 0)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _face_kinds(face, offsets, sides, rings, tube, cap):  # pragma: no cover - compiled
     """:meth:`Tubes.face_kinds` into ``tube`` and ``cap`` (:func:`_face_place`)."""
     t = -1
@@ -32,7 +32,7 @@ def _face_kinds(face, offsets, sides, rings, tube, cap):  # pragma: no cover - c
         cap[i] = -1 if end < 0 else 2 * t + end
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _uv_at(  # pragma: no cover - compiled
     face,
     points,

@@ -29,8 +29,10 @@ whose edge is a fraction of the width (``UnionOptions.blobs``):
 Each face's source (``Mesh.face_source``) is the wall face, on the nearest
 span (by the same distance), nearest to the face's centre: the stages after
 the union read the tube, branch and uv chart from it, so a blob's uv is the
-nearest tube's chart projected (:meth:`~lsys3d.mesh.sweep.Tubes.corner_uv`)
-and its normals are smooth everywhere (no flat caps).
+nearest tube's chart projected (:meth:`~lsys3d.mesh.sweep.Tubes.corner_uv`),
+except on the faces of its short tubes, which take a box projection
+(:mod:`lsys3d.mesh.union.blob_uv`), and its normals are smooth everywhere (no
+flat caps).
 
 The cluster's surface differs from the exact union by at most about an edge
 (the grid cannot hold detail finer than that): joints inside a tube are round
@@ -44,13 +46,14 @@ from __future__ import annotations
 import logging
 import time
 
-import numba
 import numpy as np
 
 from ...arrays import components, local_index, ranges
+from ...compiling import kernel
 from ...errors import OptionsError
 from ..mesh import Mesh
 from ..sweep import Tubes
+from .blob_uv import blob_density, box_uv, face_density
 from .parts import _closed, _no_corners
 
 log = logging.getLogger("lsys3d")
@@ -121,7 +124,7 @@ def _cap_plane(normal: np.ndarray, point: np.ndarray) -> np.ndarray:
     return np.concatenate([normal, -np.einsum("ij,ij->i", normal, point)[:, None]], axis=1)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _fill(values, nearest, corner, origin, h, band, lo, hi, which, a, b, ra, rb, ta, tb):  # pragma: no cover
     """Samples of one block (``values`` from grid index ``corner``): the least distance of its capsules ``which``,
     and which capsule is nearest (``nearest``, -1 beyond the band).  Whether the surface passes the block."""
@@ -172,7 +175,7 @@ def _fill(values, nearest, corner, origin, h, band, lo, hi, which, a, b, ra, rb,
     return lowest < 0.0 < highest
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _nearest_spans(local, faces, nearest):  # pragma: no cover - compiled
     """For each face of one block (vertices ``local`` in the block's cells): the nearest capsule of the sample
     nearest its centre (one of its corners' samples when that one is beyond every band)."""
@@ -199,7 +202,7 @@ def _nearest_spans(local, faces, nearest):  # pragma: no cover - compiled
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _wall_faces(
     centre, span, ring, tube_of_ring, points, point_offsets, sides, ring_offsets, face_offsets
 ):  # pragma: no cover
@@ -425,9 +428,11 @@ def blob_meshes(
 ) -> tuple[list[Mesh], np.ndarray]:
     """The level sets of the blob clusters (:func:`blob_clusters`) as meshes, and which tubes they replace.
 
-    Each mesh's ``face_source`` names faces of ``tubes``; with ``corners``,
-    its corner normals are the area-weighted vertex normals and its uv each
-    corner in the chart of its source face (:meth:`~lsys3d.mesh.sweep.Tubes.corner_uv`);
+    Each mesh's ``face_source`` names faces of ``tubes``, and its ``face_box_uv``
+    the box projection of the faces of its short tubes (:mod:`lsys3d.mesh.union.blob_uv`);
+    with ``corners``, its corner normals are the area-weighted vertex normals
+    and its uv each corner in the chart of its source face
+    (:meth:`~lsys3d.mesh.sweep.Tubes.corner_uv`) or in that box projection;
     without, zeros that take no memory (the cleanup makes its own).
     """
     meshes, meshed = [], np.zeros(len(tubes), bool)
@@ -436,12 +441,14 @@ def blob_meshes(
         if made is None:
             continue
         vertices, faces, source = made
+        box = face_density(tubes, source, blob_density(tubes, members))
         if corners:
             normals = _vertex_normals(vertices, faces)[faces].astype(np.float32)
             uv = tubes.corner_uv(source, vertices, faces, np.empty((len(faces), 3, 2), np.float32))
+            box_uv(vertices, faces, box, uv)
         else:
             normals, uv = _no_corners(len(faces), 3, 3), _no_corners(len(faces), 3, 2)
-        meshes.append(Mesh(vertices, faces, normals, uv, face_source=source))
+        meshes.append(Mesh(vertices, faces, normals, uv, face_source=source, face_box_uv=box))
         meshed[members] = True
     return meshes, meshed
 

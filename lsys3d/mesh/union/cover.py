@@ -39,9 +39,9 @@ from __future__ import annotations
 
 import logging
 
-import numba
 import numpy as np
 
+from ...compiling import inner, kernel
 from ..sweep import Tubes
 from .touch import Pieces
 
@@ -111,7 +111,7 @@ def covered_tubes(tubes: Tubes, pcs: Pieces, a: np.ndarray, b: np.ndarray, cover
     return dropped
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _covered(
     points,
     point_offsets,
@@ -159,7 +159,7 @@ def _covered(
     return dropped
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _within(points, p0, p1, center, tangent, inscribed, k, limit):  # pragma: no cover - compiled
     """Whether every point ``p0..p1`` is within ``limit`` of the cylinder inscribed in span ``k .. k+1``."""
     ax = center[k + 1, 0] - center[k, 0]

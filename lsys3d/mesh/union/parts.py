@@ -4,10 +4,11 @@ the tubes' faces picked by piece, temporary caps, corner attributes, and parts j
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from ...arrays import offsets as _offsets
+from ...arrays import sort_between
+from ...compiling import kernel
 from ...errors import GeometryError
 from ..mesh import Mesh
 from ..sweep import Tubes
@@ -29,7 +30,7 @@ def _corner_rows(values: np.ndarray, keep: np.ndarray) -> np.ndarray:
     return values[keep]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _faces_of(ids, nf, tube_faces, cap_faces, through):  # pragma: no cover - compiled
     """``(k, 3)`` wedge-indexed faces of the triangle ids ``ids``: tube face ``i < nf``, temporary cap ``i - nf``;
     mapped ``through`` an array (the wedges' points) unless it is empty."""
@@ -43,7 +44,7 @@ def _faces_of(ids, nf, tube_faces, cap_faces, through):  # pragma: no cover - co
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _face_pieces(face_offsets, sides, nspan, span_offsets, span_piece):  # pragma: no cover - compiled
     """``(f,)``: the piece of every tube face: a wall face's span's, a base cap's first span's, a tip cap's last.
 
@@ -66,7 +67,7 @@ def _face_pieces(face_offsets, sides, nspan, span_offsets, span_piece):  # pragm
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _cap_points(tri, fid, nf, point_of, pos, cap_faces, wedge_point, points, seam_of):  # pragma: no cover
     """Into ``seam_of`` (per tube point): the point (of ``point_of[tri]``, at ``pos``) each corner of the temporary
     cap triangles ``fid >= nf`` came back as, the triangle's corners matched by their exact positions in one of
@@ -100,7 +101,7 @@ def _cap_points(tri, fid, nf, point_of, pos, cap_faces, wedge_point, points, sea
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _free_points(ff, tube_faces, wedge_point, used):  # pragma: no cover - compiled
     """Mark in ``used`` the points of the tube faces ``ff`` (no (k, 3) gathers of their wedges and points)."""
     for f in ff:
@@ -108,7 +109,7 @@ def _free_points(ff, tube_faces, wedge_point, used):  # pragma: no cover - compi
             used[wedge_point[tube_faces[f, c]]] = True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _free_faces(ff, tube_faces, wedge_point, new_index, out):  # pragma: no cover - compiled
     """Write the tube faces ``ff`` on the stitched mesh's points (``new_index`` of each tube point) into ``out``."""
     for i in range(len(ff)):
@@ -116,7 +117,7 @@ def _free_faces(ff, tube_faces, wedge_point, new_index, out):  # pragma: no cove
             out[i, c] = new_index[wedge_point[tube_faces[ff[i], c]]]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _kept_faces(point_of, tri, keep, faces):  # pragma: no cover - compiled
     """Write ``point_of[tri[keep]]`` into the first rows of ``faces``, in one pass without the (f, 3) gather."""
     f = 0
@@ -127,7 +128,7 @@ def _kept_faces(point_of, tri, keep, faces):  # pragma: no cover - compiled
             f += 1
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _corner_attributes(props, tri, keep, normals, uv):  # pragma: no cover - compiled
     """Write the unit corner normals and the uv of the triangles ``tri[keep]`` from manifold's ``props`` into the
     first rows.
@@ -264,7 +265,7 @@ def _closed(faces: np.ndarray, nverts: int, near: np.ndarray | None = None) -> b
     return bool(_closed_edges(faces, nverts, mask, near is not None, np.zeros(0, index)))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _closed_edges(faces, nverts, near, use_near, like):  # pragma: no cover - compiled
     """:func:`_closed` by the checked edges grouped by their first end (a counting sort), without sorting keys.
 
@@ -294,7 +295,7 @@ def _closed_edges(faces, nverts, near, use_near, like):  # pragma: no cover - co
     for v in range(nverts):
         lo, hi = start[v], start[v + 1]
         if hi - lo > 16:
-            far[lo:hi] = np.sort(far[lo:hi])
+            sort_between(far, lo, hi)
             for i in range(lo + 1, hi):
                 if far[i] == far[i - 1]:
                     return False

@@ -23,12 +23,12 @@ offset, and face ids renumbered to the copy's own triangles.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
 from ...arrays import ROW_HASH_MIX, dot3, find_rows, first_equal_row, hash_word
 from ...arrays import local_index as _local_counts
 from ...arrays import offsets as _offsets
+from ...compiling import kernel
 from .booleans import Part
 
 __all__ = ["Clusters", "find", "with_copies"]
@@ -63,7 +63,7 @@ class Clusters:
         return len(self.rep)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _same_shading(wedge_normal, wedge_uv, wa, fa, wb, fb, run_of, first_tri, v_tolerance, offset):  # pragma: no cover
     """``(k,) bool``: the corners ``wa[i]`` in frame ``fa[i]`` are shaded as the corners ``wb[i]`` in frame ``fb[i]``.
 
@@ -108,7 +108,7 @@ def _same_shading(wedge_normal, wedge_uv, wa, fa, wb, fb, run_of, first_tri, v_t
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _member_keys(
     m, t, v, corners, tri_off, local_of_point, points, point, point_off, origin, frame, mix
 ):  # pragma: no cover - compiled
@@ -149,7 +149,7 @@ def _member_keys(
     return loc, size, key
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _cluster_points(corners, tri_off, npts):  # pragma: no cover - compiled
     """The points of every cluster (CSR, ascending), and each point's index among its cluster's.
 
@@ -356,7 +356,7 @@ def with_copies(cl: Clusters, tubes, out: Part, nf: int, n_caps: int) -> Part:
     return joined
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _copy_ids(out, tri, first, pos):  # pragma: no cover - compiled
     """``out[g * len(pos) + k] = tri[first[g] + pos[k]]``: each copy's own face ids, copy after copy."""
     t = len(pos)
@@ -365,7 +365,7 @@ def _copy_ids(out, tri, first, pos):  # pragma: no cover - compiled
             out[g * t + k] = tri[first[g] + pos[k]]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _place(new, rep, copy, cluster_point, points):  # pragma: no cover - compiled
     """Write the properties of ``g`` copies of one representative's output vertices, copy after copy, into ``new``.
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 import logging
 from dataclasses import replace
 
-import numba
 import numpy as np
 
 from ...arrays import dot3, isin, ranges, unique
+from ...compiling import inner, kernel
 from ...errors import GeometryError
 from ..mesh import Mesh
 from ..sweep import Tubes
@@ -30,7 +30,7 @@ def _misplaced(vertices: np.ndarray, faces: np.ndarray, source: np.ndarray, tube
     return _far_from_source(vertices, faces, source, tubes.points, tubes.wedge_point, tubes.faces, reach)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _far_from_source(vertices, faces, source, points, wedge_point, tube_faces, reach):  # pragma: no cover - compiled
     """``(f,) bool``: the centroid of face ``f`` is farther than ``reach[f]`` from tube face ``source[f]``.
 
@@ -54,7 +54,7 @@ def _far_from_source(vertices, faces, source, points, wedge_point, tube_faces, r
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _triangle_distance(p, tri):  # pragma: no cover - compiled
     """Distance of the point ``p`` (3,) from the triangle ``tri`` (3, 3)."""
     a0, a1, a2 = tri[0, 0], tri[0, 1], tri[0, 2]

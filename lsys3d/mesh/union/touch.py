@@ -36,13 +36,13 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from ...arrays import dot as _dot
 from ...arrays import dot3, unique
 from ...arrays import local_index as _local
 from ...arrays import offsets as _offsets
+from ...compiling import inner, kernel
 from ...errors import LimitError
 from ..sweep import Tubes
 
@@ -99,19 +99,19 @@ class Pieces:
         return len(self.tube)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@inner(nogil=True, inline="always")
 def _lower(have, x):  # pragma: no cover - compiled
     """A step of ``np.minimum.reduce``: NaN kept, ``x`` on a tie (so -0.0 and 0.0 come out as numpy's do)."""
     return have if (have < x or np.isnan(have)) else x
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@inner(nogil=True, inline="always")
 def _higher(have, x):  # pragma: no cover - compiled
     """A step of ``np.maximum.reduce``: NaN kept, ``x`` on a tie."""
     return have if (have > x or np.isnan(have)) else x
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _pairwise_sum(points, start, n, j):  # pragma: no cover - compiled
     """``points[start:start + n, j]`` summed as numpy's pairwise summation does (its ``add`` reductions):
     one by one below 8 values, 8 running sums up to 128, halves (at a multiple of 8) above."""
@@ -139,7 +139,7 @@ def _pairwise_sum(points, start, n, j):  # pragma: no cover - compiled
     return total
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _rings(points, point_offsets, rings, sides):  # pragma: no cover - compiled
     """Every ring, tube after tube: its first point, centre, radius (farthest point from the centre) and box.
 
@@ -179,7 +179,7 @@ def _rings(points, point_offsets, rings, sides):  # pragma: no cover - compiled
     return first, centre, radius, lo, hi
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _piece_extent(points, ring_first, ring_sides, ring_lo, ring_hi, g0, g1, p, q):  # pragma: no cover - compiled
     """Each piece's capsule radius (the farthest of the points of its rings ``g0..g1`` from the segment
     ``p q``) and box, in one pass over the points in place; the arithmetic is numpy's, in its order
@@ -265,7 +265,7 @@ def segment_distance(p1, q1, p2, q2) -> np.ndarray:
     return _segment_distances(p1, q1, p2, q2)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _segment_distances(p1, q1, p2, q2):  # pragma: no cover - compiled
     out = np.empty(len(p1))
     for i in range(len(p1)):
@@ -273,7 +273,7 @@ def _segment_distances(p1, q1, p2, q2):  # pragma: no cover - compiled
     return out
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@inner(nogil=True, inline="always")
 def _clip01(x):  # pragma: no cover - compiled
     """``np.clip(x, 0, 1)``, NaN kept."""
     if x < 0.0:
@@ -283,13 +283,13 @@ def _clip01(x):  # pragma: no cover - compiled
     return x
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(nogil=True, inline="always")
 def _at_least(x, floor):  # pragma: no cover - compiled
     """``np.maximum(x, floor)``, NaN kept."""
     return x if (x >= floor or np.isnan(x)) else floor
 
 
-@numba.njit(cache=True, nogil=True)
+@inner(nogil=True)
 def _segment_gap(p1, q1, p2, q2):  # pragma: no cover - compiled
     """Distance between the segments ``p1 q1`` and ``p2 q2`` (3,): the closest points' parameters clamped to the
     segments, as in Ericson's *Real-Time Collision Detection* 5.1.9, with numpy's rounding (dot products as
@@ -374,7 +374,7 @@ def touching(pcs: Pieces, margin: float = 0.01, max_pairs: int = DEFAULT_MAX_PAI
     return a[order], b[order]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _cell_pairs(
     key, box, owner, lo, hi, origin, cell, dims, radius, p, q, margin, reach_pad, max_pairs, first, stop
 ):  # pragma: no cover - compiled

@@ -364,6 +364,16 @@ def _joined(mesh: Mesh | None, blobs: list[Mesh]) -> Mesh:
         np.concatenate([m.normals for m in parts]),
         np.concatenate([m.uv for m in parts]),
         face_source=np.concatenate([m.face_source for m in parts]),
+        face_box_uv=_box_of(parts),
+    )
+
+
+def _box_of(parts: list[Mesh]) -> np.ndarray | None:
+    """The parts' ``face_box_uv`` as one (0 for the faces of parts without it), or None if none has it."""
+    if all(m.face_box_uv is None for m in parts):
+        return None
+    return np.concatenate(
+        [np.zeros(len(m.faces), np.float32) if m.face_box_uv is None else m.face_box_uv for m in parts]
     )
 
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 import logging
 from dataclasses import replace
 
-import numba
 import numpy as np
 
 from ...arrays import first_equal_row as _first_equal_row
 from ...arrays import isin, row_hash, unique
+from ...compiling import inner, kernel
 from ..mesh import Mesh, crumbs, face_normals
 from .parts import _closed, _corner_rows, _kept_faces
 
@@ -59,7 +59,7 @@ def _repair_corners(mesh: Mesh) -> None:
         normals[bad] = np.broadcast_to(fn[:, None, :], normals.shape)[bad] + normals.dtype.type(0.0)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _mend_corners(normals, uv, bad):  # pragma: no cover - compiled
     """One pass of :func:`_repair_corners`: mark in ``bad`` the corners whose normal is not finite or zero, make
     the other normals' -0.0 0.0 and non-finite uv 0, in place; whether any corner is bad."""
@@ -98,19 +98,22 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
     mesh = held.pop()
     _repair_corners(mesh)
     vertices, faces, normals, uv, source = mesh.vertices, mesh.faces, mesh.normals, mesh.uv, mesh.face_source
+    box = mesh.face_box_uv  # (a blob's box projection, carried face by face)
     del mesh
     v32 = vertices.astype(np.float32)
     v32 += np.float32(0.0)  # -0.0 and 0.0 are one position
     owner = _first_equal_row(v32.view(np.int32))
     first = owner == np.arange(len(v32))
     if first.all():  # no two vertices share a float32 position
-        return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
+        return _separate_float32(
+            Mesh(vertices, faces, normals, uv, face_source=source, face_box_uv=box), float32_unique=True
+        )
     renumber = np.cumsum(first) - 1  # the points numbered in their first appearance
     welded, keep = _welded_faces(faces, renumber[owner])
     merged = np.zeros(int(first.sum()), bool)  # the points that several vertices became
     merged[renumber[owner[~first]]] = True
     if not _closed(welded, int(first.sum()), merged):
-        return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source))
+        return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source, face_box_uv=box))
     # one array at a time: the old ones go as soon as they are replaced
     faces = welded
     del welded
@@ -120,10 +123,13 @@ def _weld_float32(held: list[Mesh]) -> Mesh:
         normals = _corner_rows(normals, keep)
         uv = _corner_rows(uv, keep)
         source = None if source is None else source[keep]
-    return _separate_float32(Mesh(vertices, faces, normals, uv, face_source=source), float32_unique=True)
+        box = None if box is None else box[keep]
+    return _separate_float32(
+        Mesh(vertices, faces, normals, uv, face_source=source, face_box_uv=box), float32_unique=True
+    )
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _welded_faces(faces, point):  # pragma: no cover - compiled
     """The faces on the welded points ``point[faces]`` without those that collapse, and which faces are kept.
 
@@ -161,7 +167,7 @@ def _owners(keys: np.ndarray, dirty: np.ndarray) -> np.ndarray:
     return owner
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel(nogil=True)
 def _weld_cells(v32):  # pragma: no cover - compiled
     """The vertices' cells of trimesh's 1e-8 weld grid, ``np.round(v32.astype(np.float64) * 1e8).astype(np.int64)``
     in one pass (no (v, 3) float64 temporaries): numpy's rounding, half to even."""
@@ -171,7 +177,7 @@ def _weld_cells(v32):  # pragma: no cover - compiled
     return out
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@inner(nogil=True, inline="always")
 def _weld_cell(v32, i):  # pragma: no cover - compiled
     """Vertex ``i``'s cell of the 1e-8 grid, as numpy rounds it (half to even)."""
     return (
