@@ -82,6 +82,18 @@ SUBSTITUTIONS = {
         "barnsleyfern.lpy -n 7 -o fern.glb --union-cover 0.25",
         "the fern's 10 generations take minutes (it is the dense benchmark); the flags are the point at 7",
     ),
+    "barnsleyfern.lpy -o fern.glb --union-blobs 0.25": (
+        "barnsleyfern.lpy -n 7 -o fern.glb --union-blobs 0.25",
+        "as with --union-cover: the fern's 10 generations take minutes; the blobs' flags are the point at 7",
+    ),
+    "topiary --scene -o hedge.usdc": (
+        "topiary -n 8 --scene -o hedge.usdc",
+        "the hedge's 21 generations clipped to the box cost 15 CPU s; --scene writes the box beside it at 8 (4 s)",
+    ),
+    "ivy-wall --scene -o ivy.glb": (
+        "ivy-wall -n 30 --scene -o ivy.glb",
+        "the ivy's 90 generations cost 10 CPU s; --scene writes the wall beside it at 30 (6 s)",
+    ),
     "generate tree -o tree.usda": (
         "generate tree -n 3 -o tree.usda",
         "the flat tree's union takes 5-6 s at its own 5 generations; the flags are the point",

@@ -292,10 +292,15 @@ def test_koch_counts():
 """
 
 
+#: The inner pytest runs' options: no cache folder, and none of the test environment's plugins that lsys3d's has
+#: nothing to do with (hypothesis, anyio, xdist: their imports were a third of each run's 3.4 CPU s).
+INNER = ("-p", "no:cacheprovider", "-p", "no:hypothesispytest", "-p", "no:anyio", "-p", "no:xdist")
+
+
 def _pytest(folder: Path, *args):
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTEST", "LSYS3D"))}
     return subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--rootdir", str(folder), *args, str(folder)],
+        [sys.executable, "-m", "pytest", "-q", *INNER, "--rootdir", str(folder), *args, str(folder)],
         capture_output=True,
         text=True,
         cwd=folder,
@@ -348,9 +353,9 @@ def _failure_section(lines: list[str]) -> list[str]:
 def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pytester):
     """The table first, no traceback through lsys3d's source nor a repr of the tree, at most 25 lines."""
     pytester.makepyfile(test_trees=EXAMPLE_TEST)
-    pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden").assert_outcomes(passed=1)
+    pytester.runpytest_subprocess(*INNER, "--lsys3d-update-golden").assert_outcomes(passed=1)
     changed = _tamper_everything(pytester.path / "golden" / "koch.json")
-    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    result = pytester.runpytest_subprocess(*INNER)
     result.assert_outcomes(failed=1)
     section = _failure_section(result.outlines)
     assert len(section) <= 25, "\n".join(section)
@@ -369,7 +374,7 @@ def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pyteste
     summary = next(line for line in result.outlines if line.startswith("FAILED test_trees.py::test_koch_counts"))
     assert summary.startswith("FAILED test_trees.py::test_koch_counts - /")  # with the message's start
     # --tb=long still shows the whole traceback, for whoever asks
-    long = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--tb=long")
+    long = pytester.runpytest_subprocess(*INNER, "--tb=long")
     assert "def test_koch_counts" in long.stdout.str()
 
 
@@ -385,7 +390,7 @@ def test_records_in_a_temporary_folder(tmp_path):
 @pytest.mark.slow  # three pytest runs in subprocesses
 def test_pytest_update_lists_what_it_changed(pytester):
     pytester.makepyfile(test_trees=EXAMPLE_TEST + RECORDED_IN_A_TEMPORARY_FOLDER)
-    first = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
+    first = pytester.runpytest_subprocess(*INNER, "--lsys3d-update-golden")
     first.assert_outcomes(passed=2)
     path = pytester.path / "golden" / "koch.json"
     first.stdout.fnmatch_lines(["*= lsys3d golden files updated =*", f"updated {path}: recorded (a new golden file*"])
@@ -393,12 +398,12 @@ def test_pytest_update_lists_what_it_changed(pytester):
     assert "elsewhere.json" not in first.stdout.str()
     _, recorded = read_golden(path)
     _edit(path, lambda d: d["report"]["bark"].update(faces=d["report"]["bark"]["faces"] + 6))
-    again = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
+    again = pytester.runpytest_subprocess(*INNER, "--lsys3d-update-golden")
     again.assert_outcomes(passed=2)
     faces = recorded["bark"]["faces"]
     again.stdout.fnmatch_lines([f"updated {path}: 1 key", f"  bark.faces: {faces + 6:,} -> {faces:,}  -6 (*%)"])
     assert read_golden(path)[1] == recorded
-    quiet = pytester.runpytest_subprocess("-p", "no:cacheprovider", "--lsys3d-update-golden")
+    quiet = pytester.runpytest_subprocess(*INNER, "--lsys3d-update-golden")
     # nothing changed in the project's golden files (the temporary one was recorded again), nothing listed
     assert "lsys3d golden files updated" not in quiet.stdout.str()
 

@@ -6,12 +6,12 @@ environment's grids): distances to the surface of points sampled along every seg
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
+from grown import grown as grown_tree
 from scipy.spatial import cKDTree
 
 import lsys3d
@@ -21,10 +21,11 @@ from lsys3d.pipeline import draw
 SCENES = Path(__file__).resolve().parents[1] / "assets" / "presets" / "scenes"
 
 
-@functools.cache
 def grown(name: str):
-    g = lsys3d.load_preset(name)
-    return draw(g, g.iterations, g.seed)
+    """The preset's modules and skeleton as ``draw`` gives them: those of the tree the preset tests grow once per
+    run (tests/grown.py; generate draws with the same grammar, iterations, seed and default options)."""
+    tree = grown_tree(name)
+    return tree.modules, tree.skeleton
 
 
 def _along(sk, k: int = 5) -> np.ndarray:

@@ -64,10 +64,20 @@ MAX_TRIANGLES = 150_000  # LOD0, bark and leaves
 MAX_LOD_TRIANGLES = 20_000  # one level of detail at most this
 
 
+@functools.cache
+def derived(name: str, seed: int):
+    """The preset's string at its iterations (once per process: the height, crown, seeds and fully-grown tests
+    read the same strings; the species' own seed is 0, one of the five seeds)."""
+    return derive(lsys3d.load_preset(name), seed=seed)
+
+
+@functools.cache
+def _skeleton(name: str, seed: int):
+    return interpret(derived(name, seed), lsys3d.load_preset(name), seed=seed)
+
+
 def skeleton(name: str, seed: int | None = None):
-    grammar = lsys3d.load_preset(name)
-    seed = grammar.seed if seed is None else seed
-    return interpret(derive(grammar, seed=seed), grammar, seed=seed)
+    return _skeleton(name, lsys3d.load_preset(name).seed if seed is None else seed)
 
 
 def test_the_species_are_the_presets_of_their_group():
@@ -267,5 +277,5 @@ def test_the_plant_is_fully_grown_at_its_iterations(name):
     """No apex is left unexpanded: one more generation changes nothing, whatever the seed."""
     grammar = lsys3d.load_preset(name)
     for seed in range(3):
-        grown_string = derive(grammar, seed=seed)
+        grown_string = derived(name, seed)
         assert str(derive(grammar, grammar.iterations + 1, seed=seed)) == str(grown_string)
