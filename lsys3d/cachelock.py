@@ -10,7 +10,10 @@ the index names the other signature's code, which the next process loads and cal
 (numba issue 4807, "Cache causes Segmentation Faults when generated in parallel", open).
 
 :func:`install` makes each save hold an exclusive lock (``fcntl.flock``) on one file in the cache folder,
-``lsys3d-numba.lock``, so that the save reads the index as the other processes left it.  It is installed by
+``lsys3d-numba.lock``, so that the save reads the index as the other processes left it, and each load hold
+it shared: numba writes the index before the data file it names, and after a change to a kernel's source
+(an upgrade) the data files of the old code are still there under the names the new index reuses, so a
+process loading between the two writes would run the old code.  It is installed by
 ``import lsys3d`` and costs nothing until numba is imported (an import hook patches numba's cache module
 when it is loaded).  It serialises only the saves, a few milliseconds each, not the compiling.  Without
 ``fcntl`` (Windows) nothing is locked: numba guards its own saves there (numba issue 2028).
@@ -36,18 +39,19 @@ LOCK_NAME = "lsys3d-numba.lock"
 
 
 @contextlib.contextmanager
-def locked(folder: str) -> Iterator[None]:
-    """Hold the exclusive lock of the cache folder ``folder`` (nothing when it cannot be opened)."""
+def locked(folder: str, shared: bool = False) -> Iterator[None]:
+    """Hold the lock of the cache folder ``folder``: exclusive, or ``shared`` (readers); nothing when the lock
+    file cannot be opened (a read-only folder: numba cannot save there either)."""
     if fcntl is None:
         yield
         return
     try:
         handle = open(os.path.join(folder, LOCK_NAME), "a")  # noqa: SIM115 - held across the yield
-    except OSError:  # a read-only folder: numba cannot save there either
+    except OSError:
         yield
         return
     with handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
+        fcntl.flock(handle, fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
         try:
             yield
         finally:
@@ -55,9 +59,9 @@ def locked(folder: str) -> Iterator[None]:
 
 
 def _patch(caching) -> None:
-    """Make ``caching.IndexDataCacheFile.save`` hold the folder's lock (once)."""
+    """Make ``caching.IndexDataCacheFile.save`` hold the folder's lock, and ``load`` hold it shared (once)."""
     cls = caching.IndexDataCacheFile
-    save = cls.save
+    save, load = cls.save, cls.load
     if getattr(save, "lsys3d_locked", False):
         return
 
@@ -66,8 +70,13 @@ def _patch(caching) -> None:
         with locked(self._cache_path):
             return save(self, key, data)
 
-    locked_save.lsys3d_locked = True
-    cls.save = locked_save
+    @functools.wraps(load)
+    def locked_load(self, key):
+        with locked(self._cache_path, shared=True):
+            return load(self, key)
+
+    locked_save.lsys3d_locked = locked_load.lsys3d_locked = True
+    cls.save, cls.load = locked_save, locked_load
 
 
 class _Hook(importlib.abc.MetaPathFinder):

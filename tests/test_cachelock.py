@@ -91,6 +91,64 @@ def test_two_processes_compiling_one_kernel_at_once_keep_both_cache_entries(tmp_
     assert (hits, misses) == (2, 0)  # both signatures loaded from the cache: neither entry was lost
 
 
+# The writer after an upgrade: plus_one's source changed, so numba's index of the old code is stale and the new
+# entry reuses the old data file's name; the writer holds the data back a while after writing the index.
+_WRITER = """
+import os, sys, time
+folder = sys.argv[1]
+import lsys3d  # installs the lock
+import numba.core.caching as caching
+
+save_data = caching.IndexDataCacheFile._save_data
+
+def slow_save_data(self, name, data):
+    open(os.path.join(folder, "index-written"), "w").close()
+    time.sleep(1.5)
+    save_data(self, name, data)
+
+caching.IndexDataCacheFile._save_data = slow_save_data
+sys.path.insert(0, folder)
+import racing
+print(racing.plus_one(1))
+"""
+
+# A reader that loads plus_one while the writer is between its index and its data.
+_READER_IN_BETWEEN = """
+import os, sys, time
+folder = sys.argv[1]
+if sys.argv[2] == "1":
+    import lsys3d  # installs the lock
+sys.path.insert(0, folder)
+while not os.path.exists(os.path.join(folder, "index-written")):
+    time.sleep(0.005)
+import racing
+print(racing.plus_one(1))
+"""
+
+
+@pytest.mark.slow
+def test_a_process_loading_while_another_saves_never_runs_the_old_code(tmp_path):
+    folder = tmp_path / "code"
+    folder.mkdir()
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    (folder / "racing.py").write_text(_MODULE)
+    old = subprocess.run([sys.executable, "-c", _READER, str(folder)], env=env, capture_output=True, text=True)
+    assert old.returncode == 0, old.stderr  # the old code cached: plus_one(1) == 2, for int and float
+    (folder / "racing.py").write_text(_MODULE.replace("x + 1", "x + 20 "))  # an upgrade: new source, new size
+    reader = subprocess.Popen(
+        [sys.executable, "-c", _READER_IN_BETWEEN, str(folder), "1"],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    writer = subprocess.run([sys.executable, "-c", _WRITER, str(folder)], env=env, capture_output=True, text=True)
+    out, err = reader.communicate(timeout=300)
+    assert writer.returncode == 0 and reader.returncode == 0, writer.stderr + err
+    assert writer.stdout.split() == ["21"]
+    assert out.split() == ["21"]  # the new code, loaded after the writer's data (or compiled), never the old
+
+
 def test_the_lock_is_installed_by_importing_lsys3d():
     script = textwrap.dedent(
         """
