@@ -219,6 +219,42 @@ def _same(a, b):
     return a == b and (a != 0.0 or math.copysign(1.0, a) == math.copysign(1.0, b))
 
 
+@inner(inline="always")
+def _write_state(
+    row,
+    px,
+    py,
+    pz,
+    hx,
+    hy,
+    hz,
+    lx,
+    ly,
+    lz,
+    ux,
+    uy,
+    uz,
+    width,
+    step,
+    angle,
+    elasticity,
+    tx,
+    ty,
+    tz,
+    hanging,
+    depth,
+    n_poly,
+):
+    """Write the turtle's state into ``row`` (:data:`STATE` numbers, in the order ``states`` records them)."""
+    row[0], row[1], row[2] = px, py, pz
+    row[3], row[4], row[5] = hx, hy, hz
+    row[6], row[7], row[8] = lx, ly, lz
+    row[9], row[10], row[11] = ux, uy, uz
+    row[12], row[13], row[14], row[15] = width, step, angle, elasticity
+    row[16], row[17], row[18] = tx, ty, tz
+    row[19], row[20], row[21] = hanging, depth, n_poly
+
+
 @kernel(nogil=True)
 def answer_pass(
     program,
@@ -364,13 +400,31 @@ def answer_pass(
                     row = -1 if a == 0 else _find(old_positions, old_count, a)
                     if (a == 0 or row >= 0) and _neutral_range(program, neutral, old_symbols, a, o):
                         known = initial if a == 0 else old_states[row]
-                        current[0], current[1], current[2] = px, py, pz
-                        current[3], current[4], current[5] = hx, hy, hz
-                        current[6], current[7], current[8] = lx, ly, lz
-                        current[9], current[10], current[11] = ux, uy, uz
-                        current[12], current[13], current[14], current[15] = width, step, angle, elasticity
-                        current[16], current[17], current[18] = tx, ty, tz
-                        current[19], current[20], current[21] = hanging, depth, n_poly
+                        _write_state(
+                            current,
+                            px,
+                            py,
+                            pz,
+                            hx,
+                            hy,
+                            hz,
+                            lx,
+                            ly,
+                            lz,
+                            ux,
+                            uy,
+                            uz,
+                            width,
+                            step,
+                            angle,
+                            elasticity,
+                            tx,
+                            ty,
+                            tz,
+                            hanging,
+                            depth,
+                            n_poly,
+                        )
                         same = True
                         for k in range(STATE):
                             if not _same(current[k], known[k]):
@@ -390,13 +444,31 @@ def answer_pass(
                 i += 1
                 continue
         if recorded[sym]:
-            current[0], current[1], current[2] = px, py, pz
-            current[3], current[4], current[5] = hx, hy, hz
-            current[6], current[7], current[8] = lx, ly, lz
-            current[9], current[10], current[11] = ux, uy, uz
-            current[12], current[13], current[14], current[15] = width, step, angle, elasticity
-            current[16], current[17], current[18] = tx, ty, tz
-            current[19], current[20], current[21] = hanging, depth, n_poly
+            _write_state(
+                current,
+                px,
+                py,
+                pz,
+                hx,
+                hy,
+                hz,
+                lx,
+                ly,
+                lz,
+                ux,
+                uy,
+                uz,
+                width,
+                step,
+                angle,
+                elasticity,
+                tx,
+                ty,
+                tz,
+                hanging,
+                depth,
+                n_poly,
+            )
             positions[n_rec] = i
             states[n_rec] = current
             n_rec += 1
@@ -425,13 +497,31 @@ def answer_pass(
                     if not recorded[sym]:  # the state before the cut segment: where its bud starts
                         positions[n_rec] = i
                         row = states[n_rec]
-                        row[0], row[1], row[2] = px, py, pz
-                        row[3], row[4], row[5] = h0x, h0y, h0z
-                        row[6], row[7], row[8] = l0x, l0y, l0z
-                        row[9], row[10], row[11] = u0x, u0y, u0z
-                        row[12], row[13], row[14], row[15] = width, step, angle, elasticity
-                        row[16], row[17], row[18] = tx, ty, tz
-                        row[19], row[20], row[21] = hanging0, depth, n_poly
+                        _write_state(
+                            row,
+                            px,
+                            py,
+                            pz,
+                            h0x,
+                            h0y,
+                            h0z,
+                            l0x,
+                            l0y,
+                            l0z,
+                            u0x,
+                            u0y,
+                            u0z,
+                            width,
+                            step,
+                            angle,
+                            elasticity,
+                            tx,
+                            ty,
+                            tz,
+                            hanging0,
+                            depth,
+                            n_poly,
+                        )
                         n_rec += 1
                     skipping = np.int64(1)
                     i += 1
