@@ -17,7 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..compiling import kernel
-from .commands import Op
+from .kernel import _POP, _PUSH, _SIDES  # numba sees the ops as these plain integers, declared once in kernel.py
 from .skeleton import Skeleton
 
 __all__ = ["DEFAULT_SIDES", "MAX_SIDES", "MIN_SIDES", "sides_in_force", "with_sides"]
@@ -28,10 +28,6 @@ MIN_SIDES = 3
 """Fewest sides: cpfg raises a smaller ``@!(n)`` to 3."""
 MAX_SIDES = 1024
 """Most sides (the sweep's own limit, ``SweepOptions.sides``); a larger ``@!(n)`` is held to it."""
-
-_SIDES = int(Op.SIDES)
-_PUSH = int(Op.PUSH)
-_POP = int(Op.POP)
 
 
 @kernel(nogil=True)
@@ -66,6 +62,7 @@ def sides_in_force(op: np.ndarray, symbols, arity, offsets, params, max_depth: i
 
     ``initial`` is the turtle's at the start (``TurtleOptions.cylinder_sides``: cpfg's view file).
 
+    >>> from lsys3d.turtle.commands import Op
     >>> op = np.zeros(4, np.int64); op[1], op[2], op[3] = Op.SIDES, Op.PUSH, Op.POP
     >>> symbols = np.array([1, 2, 1, 0, 3, 0]); arity = np.array([1, 0, 0, 0, 0, 0])
     >>> sides_in_force(op, symbols, arity, np.zeros(6, np.int64), np.array([5.0]), 1).tolist()
