@@ -90,6 +90,18 @@ def _cos_sin(degrees):
     return math.cos(a), math.sin(a)
 
 
+@inner(inline="always")
+def rodrigues(kx, ky, kz, c, s, vx, vy, vz):
+    """The vector v turned about the unit axis k by the angle with cos c, sin s (Rodrigues:
+    v' = v c + (k x v) s + k (k.v)(1 - c))."""
+    d = (kx * vx + ky * vy + kz * vz) * (1.0 - c)
+    return (
+        vx * c + (ky * vz - kz * vy) * s + kx * d,
+        vy * c + (kz * vx - kx * vz) * s + ky * d,
+        vz * c + (kx * vy - ky * vx) * s + kz * d,
+    )
+
+
 @inner()
 def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
     """Bend H toward T about H x T: by e |H x T| radians (ABOP 2.8), or (``by_angle``) by e times the angle
@@ -107,15 +119,8 @@ def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
     a = e * (math.atan2(norm, hx * tx + hy * ty + hz * tz) if by_angle else norm)
     kx, ky, kz = cx / norm, cy / norm, cz / norm
     c, s = math.cos(a), math.sin(a)
-    # Rodrigues: v' = v c + (k x v) s + k (k.v)(1 - c), for H and L
-    d = (kx * hx + ky * hy + kz * hz) * (1.0 - c)
-    nhx = hx * c + (ky * hz - kz * hy) * s + kx * d
-    nhy = hy * c + (kz * hx - kx * hz) * s + ky * d
-    nhz = hz * c + (kx * hy - ky * hx) * s + kz * d
-    d = (kx * lx + ky * ly + kz * lz) * (1.0 - c)
-    nlx = lx * c + (ky * lz - kz * ly) * s + kx * d
-    nly = ly * c + (kz * lx - kx * lz) * s + ky * d
-    nlz = lz * c + (kx * ly - ky * lx) * s + kz * d
+    nhx, nhy, nhz = rodrigues(kx, ky, kz, c, s, hx, hy, hz)
+    nlx, nly, nlz = rodrigues(kx, ky, kz, c, s, lx, ly, lz)
     return _orthonormal(nhx, nhy, nhz, nlx, nly, nlz)
 
 

@@ -27,6 +27,7 @@ from .bending import (
     carry_up,
     movement_adjust,
     movement_elasticity,
+    rodrigues,
 )
 from .commands import N_OPS, Axis, Op, Organ
 from .skeleton import MAX_COORDINATE
@@ -320,11 +321,7 @@ def _aim(hx, hy, hz, lx, ly, lz, ux, uy, uz, nx, ny, nz):
         if c > 0.0:
             return hx, hy, hz, lx, ly, lz, ux, uy, uz
         return _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, np.int64(_AXIS_U), -1.0, 0.0)
-    kx, ky, kz = cx / s, cy / s, cz / s
-    d = (kx * lx + ky * ly + kz * lz) * (1.0 - c)
-    nlx = lx * c + (ky * lz - kz * ly) * s + kx * d
-    nly = ly * c + (kz * lx - kx * lz) * s + ky * d
-    nlz = lz * c + (kx * ly - ky * lx) * s + kz * d
+    nlx, nly, nlz = rodrigues(cx / s, cy / s, cz / s, c, s, lx, ly, lz)
     return _orthonormal(nx, ny, nz, nlx, nly, nlz)
 
 
