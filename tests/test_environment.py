@@ -256,6 +256,26 @@ def test_a_scene_drawn_again_reuses_its_grid_bytes_for_bytes(tmp_path, monkeypat
     assert len(sampled) == 4
 
 
+def test_the_grid_cache_holds_at_most_its_bytes(tmp_path, monkeypatch):
+    """Past GRID_CACHE_BYTES the oldest grids are forgotten (a long-running process drawing many scenes), and a
+    grid larger than the whole budget is handed out but not kept."""
+    from lsys3d.turtle import environment
+
+    wall = _box(tmp_path, "wall", (-2, 0, -0.2), (2, 3, 0))
+    g = Grammar(axiom="A", environment={"support": wall, "distance": 0.1}, source=str(tmp_path / "g.toml"))
+    environment.clear_grid_cache()
+    one = load_environment(g).scene().support.nbytes
+    monkeypatch.setattr(environment, "GRID_CACHE_BYTES", 2 * one)
+    for resolution in (64, 65, 66):  # three grids of about `one` bytes each: the first is forgotten
+        load_environment(g.replace(environment={"support": wall, "distance": 0.1, "resolution": resolution})).scene()
+    assert 1 <= len(environment._GRIDS) <= 2
+    assert sum(grid.nbytes for grid in environment._GRIDS.values()) <= 2 * one
+    monkeypatch.setattr(environment, "GRID_CACHE_BYTES", 0)
+    assert load_environment(g).scene().support.nbytes == one  # still answered
+    assert len(environment._GRIDS) == 0
+    environment.clear_grid_cache()
+
+
 def test_environment_file_takes_roles_from_mesh_names(tmp_path):
     scene = trimesh.Scene()
     support = trimesh.creation.box(extents=(4, 3, 0.2))

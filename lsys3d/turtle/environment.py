@@ -45,6 +45,7 @@ from ..options import Options, merge_table, option
 from . import kernel
 
 __all__ = [
+    "GRID_CACHE_BYTES",
     "GRID_CACHE_SIZE",
     "MAX_SCENE_BYTES",
     "MAX_SCENE_EXTENT",
@@ -491,6 +492,9 @@ def _surface_points(mesh, spacing: float) -> tuple[np.ndarray, np.ndarray]:
 GRID_CACHE_SIZE = 16
 """Distance grids kept in memory for the process (:func:`_cached_distance`): a scene drawn again (the pipeline's
 ``draw()`` in a loop, the editor, levels of detail, variants) is not sampled again."""
+GRID_CACHE_BYTES = 256 * 2**20
+"""Most bytes those grids hold together (a grid at ``env_resolution`` 256 alone is 134 MB): the oldest go first,
+so a long-running process (a batch worker, the editor) drawing many scenes does not grow without bound."""
 _GRIDS: OrderedDict[bytes, np.ndarray] = OrderedDict()
 
 
@@ -516,7 +520,7 @@ def _cached_distance(meshes: tuple[SceneMesh, ...], origin, cell, shape, band: f
     if found is None:
         found = _signed_distance(meshes, origin, cell, shape, band, most)
         _GRIDS[key] = found.copy()
-        while len(_GRIDS) > GRID_CACHE_SIZE:
+        while len(_GRIDS) > GRID_CACHE_SIZE or sum(g.nbytes for g in _GRIDS.values()) > GRID_CACHE_BYTES:
             _GRIDS.popitem(last=False)
     else:
         _GRIDS.move_to_end(key)
