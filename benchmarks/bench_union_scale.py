@@ -2,7 +2,7 @@
 
     python benchmarks/bench_union_scale.py [--plant 5 6 7 8 9] [--fern] [--repeat 1]
         [--compare 7] [--no-naive] [--blender .venv-bpy/bin/python] [--hostile] [--no-cleanup-too]
-        [--dense] [--dense-only] [--only NAME] [--volume] [--extra=--union-blobs=0.25]
+        [--dense] [--dense-only] [--only NAME] [--volume] [--extra=--union-blobs=0]
 
 Each run is its own process (``lsys3d -v generate``), timed from outside, its
 peak resident memory read with ``getrusage(RUSAGE_CHILDREN)`` by a wrapper

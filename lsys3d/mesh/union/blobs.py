@@ -259,6 +259,10 @@ def level_set(tubes: Tubes, which: np.ndarray, edge: float):
 def _level_set(tubes: Tubes, which: np.ndarray, edge: float, attempt: int):
     """:func:`level_set` on the grid offset by ``SHIFTS[attempt]``; None when it fails the check."""
     marching_cubes = _marching_cubes()
+    if marching_cubes is None:
+        raise OptionsError(
+            "union_blobs: the level sets need scikit-image, a dependency of lsys3d (pip install scikit-image)"
+        )
     t0 = time.perf_counter()
     a, b, ra, rb, ta, tb, ring = spans(tubes, which)
     if not len(a):
@@ -266,6 +270,7 @@ def _level_set(tubes: Tubes, which: np.ndarray, edge: float, attempt: int):
     h, band = float(edge), BAND * float(edge)
     # flat triangles between vertices on a round wall of radius r cut inside it by h^2 / (12 r) on average
     ra, rb = ra + CHORD * h * h / ra, rb + CHORD * h * h / rb
+    tube_of_ring = np.repeat(np.arange(len(tubes)), tubes.rings)
     reach = np.maximum(ra, rb)[:, None] + band
     box_lo = np.minimum(a, b) - reach
     box_hi = np.maximum(a, b) + reach
@@ -333,7 +338,7 @@ def _level_set(tubes: Tubes, which: np.ndarray, edge: float, attempt: int):
         centre,
         span,
         ring,
-        np.repeat(np.arange(len(tubes)), tubes.rings),
+        tube_of_ring,
         tubes.points,
         tubes.point_offsets,
         tubes.sides,
@@ -353,13 +358,16 @@ def _level_set(tubes: Tubes, which: np.ndarray, edge: float, attempt: int):
 
 
 def _marching_cubes():
-    """scikit-image's ``measure.marching_cubes``: an optional dependency (the ``dense`` extra) only blobs need."""
+    """scikit-image's ``measure.marching_cubes``, or None where scikit-image does not import.
+
+    A dependency of lsys3d, imported only when a cluster is a blob: most plants have none, and Blender's
+    extension (``tools/blender_extension.py``) does not bundle scikit-image and scipy, so there the blobs go
+    through the boolean (:func:`blob_meshes` warns).
+    """
     try:
         from skimage.measure import marching_cubes
     except ImportError:
-        raise OptionsError(
-            "union_blobs: the level sets need scikit-image (pip install 'lsys3d[dense]' or scikit-image)"
-        ) from None
+        return None
     return marching_cubes
 
 
@@ -392,17 +400,19 @@ def blob_clusters(tubes: Tubes, pair_a: np.ndarray, pair_b: np.ndarray, fraction
     if not len(pair_a) or fraction <= 0:
         return []
     label = components(n, pair_a, pair_b)
-    order = np.argsort(label, kind="stable")
+    # the clusters crowded enough, from the counts alone (most trees have none: nothing more to compute)
+    size = np.bincount(label, minlength=n)
+    pairs_per = np.bincount(label[pair_a], minlength=n)
+    crowded = (size >= 2) & (2.0 * pairs_per >= OVERLAP * size)
+    if not crowded.any():
+        return []
+    mine = np.flatnonzero(crowded[label])
+    order = mine[np.argsort(label[mine], kind="stable")]
     cut = np.flatnonzero(np.diff(label[order])) + 1
-    pairs_per = np.bincount(label[pair_a], minlength=int(label.max()) + 1)
     tri = np.diff(tubes.face_offsets)
     out = []
     for members in np.split(order, cut):
-        if len(members) < 2:
-            continue
         per_tube = 2.0 * pairs_per[label[members[0]]] / len(members)
-        if per_tube < OVERLAP:
-            continue
         h = fraction * 2.0 * _thinnest(tubes, members)
         a, b, ra, rb, _, _, _ = spans(tubes, members)
         reach = (np.linalg.norm(b - a, axis=1) + 2 * np.maximum(ra, rb) + 2 * BAND * h) / h
@@ -436,7 +446,15 @@ def blob_meshes(
     without, zeros that take no memory (the cleanup makes its own).
     """
     meshes, meshed = [], np.zeros(len(tubes), bool)
-    for members in blob_clusters(tubes, pair_a, pair_b, fraction):
+    clusters = blob_clusters(tubes, pair_a, pair_b, fraction)
+    if clusters and _marching_cubes() is None:
+        log.warning(
+            "union: %d clusters of tubes would be level sets (union_blobs), but scikit-image does not import here; "
+            "they go through the boolean (slower, the exact union)",
+            len(clusters),
+        )
+        return meshes, meshed
+    for members in clusters:
         made = level_set(tubes, members, fraction * 2.0 * _thinnest(tubes, members))
         if made is None:
             continue
