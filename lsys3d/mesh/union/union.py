@@ -66,7 +66,7 @@ import manifold3d
 import numpy as np
 
 from ...arrays import gather, release_memory, unique
-from ...errors import GeometryError
+from ...errors import GeometryError, LimitError
 from ...options import Options, option
 from ..mesh import Mesh
 from ..sweep import Tubes
@@ -388,6 +388,15 @@ def _leave_out(tubes: Tubes, origin: np.ndarray, drop: np.ndarray, why: str):
     return tubes.select(~drop), origin[gather(tubes.face_offsets, np.flatnonzero(~drop))[0]]
 
 
+def _crowd_pairs(pcs, opt: UnionOptions):
+    """The pairs of pieces that may touch, up to ``COVER_PAIRS`` times ``max_pairs`` of them (for the blobs' and the
+    cover's tests, which run before the refusal); more is refused as ``max_pairs`` is (more than that many too)."""
+    try:
+        return touching(pcs, opt.margin, COVER_PAIRS * opt.max_pairs)
+    except LimitError:
+        raise too_many_pairs(opt.max_pairs) from None
+
+
 def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None], corners: bool = True):
     """Cull what adds nothing, find what may touch, refine long straight spans.
 
@@ -408,7 +417,7 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None],
     a = b = None  # the pairs of ``pcs`` that may touch, once found (up to COVER_PAIRS times max_pairs of them)
     if opt.blobs > 0:
         # the blobs are found before the refusal too: they are what makes a dense grammar's crowd
-        a, b = touching(pcs, opt.margin, COVER_PAIRS * opt.max_pairs)
+        a, b = _crowd_pairs(pcs, opt)
         pairs = _unique_pairs(pcs.tube[a], pcs.tube[b])
         blobs, meshed = blob_meshes(tubes, pairs[:, 0], pairs[:, 1], opt.blobs, corners)
         if meshed.any():
@@ -421,7 +430,7 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None],
     if opt.cover > 0:
         # what may show is found before the refusal: a dense grammar's crowd is mostly covered tubes
         if a is None:
-            a, b = touching(pcs, opt.margin, COVER_PAIRS * opt.max_pairs)
+            a, b = _crowd_pairs(pcs, opt)
         covered = covered_tubes(tubes, pcs, a, b, opt.cover)
         if covered.any():
             tubes, origin = _leave_out(tubes, origin, covered, f"within {opt.cover:g} of their width of another")
