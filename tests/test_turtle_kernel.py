@@ -18,7 +18,7 @@ IGNORED = {Op.NONE, Op.SIDES}  # the kernel skips these (sides are read after it
 
 
 def _branches(chain: ast.If):
-    """The ``if``/``elif`` tests of a chain, in order, and its last ``else`` body."""
+    """The ``if`` and its ``elif``s of a chain, in order."""
     tests = []
     while True:
         tests.append(chain)
