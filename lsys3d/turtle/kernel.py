@@ -158,10 +158,18 @@ RARE_OPS = (
     Op.POLYGON_VERTEX,
     Op.POLYGON_END,
     Op.ORGAN,
+    Op.TROPISM,
+    Op.ELASTICITY,
+    Op.ELASTICITY_ADD,
+    Op.ANGLE_FACTOR,
+    Op.LENGTH,
+    Op.TROPISM_VECTOR,
 )
 """The ops :func:`run` draws only when called with ``rare`` (:func:`rare_flag`); without it numba compiles the
-kernel without their code, and without the environment's and cpfg's movements' (about half of a first run's
-compiling of the turtle, for the many strings that need none of them)."""
+kernel without their code, and without the environment's and cpfg's movements' (less than half of a first run's
+compiling of the turtle, for the many strings that need none of them: of the bundled presets all but bush's
+polygons and the queries of the three environment scenes).  The others: F, f, the turns, [ and ], the widths,
+leaves, materials, | and $."""
 _SURFACE = int(Organ.SURFACE)
 _INSTANCE = int(Organ.INSTANCE)
 
@@ -872,21 +880,6 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                 hx, hy, hz, ux, uy, uz = -hx, -hy, -hz, -ux, -uy, -uz
             else:
                 hx, hy, hz, lx, ly, lz = -hx, -hy, -hz, -lx, -ly, -lz
-        elif code == _TROPISM:
-            e = arg if has_arg else program.factor[sym]
-            hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
-                hx, hy, hz, lx, ly, lz, ux, uy, uz, gx, gy, gz, e, np.bool_(False)
-            )
-        elif code == _ELASTICITY:
-            elasticity = arg if has_arg else 0.0
-        elif code == _ELASTICITY_ADD:
-            elasticity = arg if has_arg else elasticity + elasticity_increment
-        elif code == _ANGLE_FACTOR:
-            f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle_scale)
-            angle = angle * f ** program.sign[sym]
-            if not math.isfinite(angle):
-                return 11, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-            cos_angle, sin_angle = _cos_sin(angle)
         elif code == _ROLL_HORIZONTAL:
             # L = V x H with V = (0, 1, 0)
             norm = math.sqrt(hz * hz + hx * hx)
@@ -900,17 +893,6 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                 material = round(arg)
             else:
                 material = max(0, material + int(program.sign[sym]))
-        elif code == _LENGTH:
-            f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else length_scale)
-            step = step * f ** program.sign[sym]
-            if not (step >= 0.0 and math.isfinite(step)):
-                return 7, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-        elif code == _TROPISM_VECTOR:  # L-Py's @Tp(x, y, z), in the tool's world axes
-            base = offsets[i]
-            tx = params[base + program.world[sym, 0]]
-            ty = params[base + program.world[sym, 1]]
-            tz = params[base + program.world[sym, 2]]
-            bend = tx != 0.0 or ty != 0.0 or tz != 0.0
         elif rare is not None:  # the rare ops (RARE_OPS): compiled only for strings that hold them
             if code == _MOVEMENT_ELASTICITY:  # cpfg's @Ts(n, e), @Ti(n, d), @Td(n, d)
                 if has_arg:
@@ -1165,6 +1147,32 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                 organ.segment[n_organ] = last
                 organ.module[n_organ] = i
                 n_organ += 1
+            elif code == _TROPISM:
+                e = arg if has_arg else program.factor[sym]
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz, gx, gy, gz, e, np.bool_(False)
+                )
+            elif code == _ELASTICITY:
+                elasticity = arg if has_arg else 0.0
+            elif code == _ELASTICITY_ADD:
+                elasticity = arg if has_arg else elasticity + elasticity_increment
+            elif code == _ANGLE_FACTOR:
+                f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle_scale)
+                angle = angle * f ** program.sign[sym]
+                if not math.isfinite(angle):
+                    return 11, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                cos_angle, sin_angle = _cos_sin(angle)
+            elif code == _LENGTH:
+                f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else length_scale)
+                step = step * f ** program.sign[sym]
+                if not (step >= 0.0 and math.isfinite(step)):
+                    return 7, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+            elif code == _TROPISM_VECTOR:  # L-Py's @Tp(x, y, z), in the tool's world axes
+                base = offsets[i]
+                tx = params[base + program.world[sym, 0]]
+                ty = params[base + program.world[sym, 1]]
+                tz = params[base + program.world[sym, 2]]
+                bend = tx != 0.0 or ty != 0.0 or tz != 0.0
     query.count[0] = n_query
     query.count[1] = n_cut
     if poly_open >= 0:
