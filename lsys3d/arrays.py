@@ -50,6 +50,8 @@ __all__ = [
     "row_hash",
     "row_table",
     "same_row",
+    "search_left",
+    "search_right",
     "small_pages",
     "unique",
     "unit",
@@ -321,7 +323,7 @@ def sort_between(a, lo, hi):  # pragma: no cover - compiled
         _sift_down(a, lo, root, n)
     for end in range(n - 1, 0, -1):
         a[lo], a[lo + end] = a[lo + end], a[lo]
-        _sift_down(a, lo, 0, end)
+        _sift_down(a, lo, np.int64(0), end)  # (not the literal 0: numba would compile _sift_down again for it)
 
 
 @inner(nogil=True)
@@ -337,6 +339,39 @@ def _sift_down(a, lo, root, n):  # pragma: no cover - compiled
             return
         a[lo + root], a[lo + child] = a[lo + child], a[lo + root]
         root = child
+
+
+# np.searchsorted in a kernel makes numba compile its generic search with comparisons for floats and complex
+# numbers, for each type of array and value (a third of a CPU second each on a first run); a kernel of lsys3d
+# searches sorted integers, which these few lines do.
+
+
+@inner(nogil=True)
+def search_left(a, v):  # pragma: no cover - compiled
+    """The first index ``i`` of the ascending integers ``a`` with ``a[i] >= v`` (``len(a)`` if none): in a kernel,
+    what ``np.searchsorted(a, v)`` gives."""
+    lo, hi = 0, len(a)
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@inner(nogil=True)
+def search_right(a, v):  # pragma: no cover - compiled
+    """The first index ``i`` of the ascending integers ``a`` with ``a[i] > v`` (``len(a)`` if none): in a kernel,
+    what ``np.searchsorted(a, v, side="right")`` gives."""
+    lo, hi = 0, len(a)
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] <= v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 try:  # glibc's malloc_trim, where there is one (Linux)

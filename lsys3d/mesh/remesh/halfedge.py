@@ -33,7 +33,8 @@ _MAX_RING = 256  # a vertex with more neighbours than this is left alone
 # The helpers that allocate nothing are compiled without numba's reference counts: with them, a call counted each
 # of the 14 arrays of a HalfEdges up on entry and down on return, atomic operations that numba could not prune
 # around the calls (any of which may raise), a fifth of the cleanup's time on abop-1.24a (measured with perf).
-_leaf = kernel(nogil=True, _nrt=False)
+# Only other kernels call them, so they have no CPython wrapper either (:func:`lsys3d.compiling.inner`): one that
+# unboxes a HalfEdges' 14 arrays, compiled for nothing, was a fifteenth of the first run's compiling of the cleanup.
 _leaf_inner = inner(nogil=True, _nrt=False)
 
 
