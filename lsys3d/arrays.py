@@ -228,7 +228,9 @@ def first_equal_row(keys: np.ndarray) -> np.ndarray:
     """
     keys = np.ascontiguousarray(keys)
     if keys.dtype.kind in "iu" and keys.dtype.itemsize in (4, 8):  # equal rows are equal bits: signed or not,
-        keys = keys.view(np.int32 if keys.dtype.itemsize == 4 else np.int64)  # one compiled signature per width
+        # one compiled signature, int64: 4-byte keys (the union's weld of float32 positions) are widened, a copy,
+        # rather than numba compiling the table and the hash a second time on a first run (half a CPU second)
+        keys = keys.view(np.int32 if keys.dtype.itemsize == 4 else np.int64).astype(np.int64, copy=False)
     return row_table(keys, row_hash(keys))[1]
 
 
