@@ -50,6 +50,8 @@ __all__ = [
     "row_hash",
     "row_table",
     "same_row",
+    "search_left",
+    "search_right",
     "small_pages",
     "unique",
     "unit",
@@ -226,7 +228,9 @@ def first_equal_row(keys: np.ndarray) -> np.ndarray:
     """
     keys = np.ascontiguousarray(keys)
     if keys.dtype.kind in "iu" and keys.dtype.itemsize in (4, 8):  # equal rows are equal bits: signed or not,
-        keys = keys.view(np.int32 if keys.dtype.itemsize == 4 else np.int64)  # one compiled signature per width
+        # one compiled signature, int64: 4-byte keys (the union's weld of float32 positions) are widened, a copy,
+        # rather than numba compiling the table and the hash a second time on a first run (half a CPU second)
+        keys = keys.view(np.int32 if keys.dtype.itemsize == 4 else np.int64).astype(np.int64, copy=False)
     return row_table(keys, row_hash(keys))[1]
 
 
@@ -321,7 +325,7 @@ def sort_between(a, lo, hi):  # pragma: no cover - compiled
         _sift_down(a, lo, root, n)
     for end in range(n - 1, 0, -1):
         a[lo], a[lo + end] = a[lo + end], a[lo]
-        _sift_down(a, lo, 0, end)
+        _sift_down(a, lo, np.int64(0), end)  # (not the literal 0: numba would compile _sift_down again for it)
 
 
 @inner(nogil=True)
@@ -337,6 +341,39 @@ def _sift_down(a, lo, root, n):  # pragma: no cover - compiled
             return
         a[lo + root], a[lo + child] = a[lo + child], a[lo + root]
         root = child
+
+
+# np.searchsorted in a kernel makes numba compile its generic search with comparisons for floats and complex
+# numbers, for each type of array and value (a third of a CPU second each on a first run); a kernel of lsys3d
+# searches sorted integers, which these few lines do.
+
+
+@inner(nogil=True)
+def search_left(a, v):  # pragma: no cover - compiled
+    """The first index ``i`` of the ascending integers ``a`` with ``a[i] >= v`` (``len(a)`` if none): in a kernel,
+    what ``np.searchsorted(a, v)`` gives."""
+    lo, hi = 0, len(a)
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@inner(nogil=True)
+def search_right(a, v):  # pragma: no cover - compiled
+    """The first index ``i`` of the ascending integers ``a`` with ``a[i] > v`` (``len(a)`` if none): in a kernel,
+    what ``np.searchsorted(a, v, side="right")`` gives."""
+    lo, hi = 0, len(a)
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] <= v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 try:  # glibc's malloc_trim, where there is one (Linux)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..arrays import offsets
+from ..arrays import offsets, search_left
 from ..compiling import kernel
 from ..mesh.mesh import Mesh
 from ..options import Options, option
@@ -236,7 +236,7 @@ def _match(points, origin, cell, dims, keys, key_offsets, boxes, lo, hi, a, b, w
         cy = np.int64(np.floor((y - origin[1]) / cell))
         cz = np.int64(np.floor((z - origin[2]) / cell))
         key = (cz * dims[1] + cy) * dims[0] + cx
-        k = np.searchsorted(keys, key)
+        k = search_left(keys, key)
         if k >= keys.shape[0] or keys[k] != key:
             continue
         best = np.inf

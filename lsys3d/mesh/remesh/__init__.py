@@ -46,7 +46,6 @@ from .halfedge import (
     compact,
     cut_caps,
     in_two,
-    index_dtype,
     mark,
     opposites,
 )
@@ -72,7 +71,6 @@ __all__ = [
     "fair",
     "halves",
     "in_two",
-    "index_dtype",
     "mark",
     "opposites",
     "rescue",

@@ -10,7 +10,7 @@ import numpy as np
 from ...compiling import kernel
 from .collapse import _rank, _try_collapse
 from .flip import _flip, _flip_ok
-from .geometry import _aspect, _aspect_xyz, _corners, _cross, _length, _normal, _normal_xyz
+from .geometry import _aspect, _aspect_xyz, _cross, _length, _moved_corners, _normal, _normal_xyz
 from .halfedge import (
     _MAX_RING,
     FEATURE,
@@ -27,7 +27,7 @@ from .halfedge import (
     _prv,
     _valence,
 )
-from .split import _inherit, _split
+from .split import _inherit, _split_edge
 
 _MAX_SPAWN = 8  # splits one seam vertex's fan may make
 
@@ -145,7 +145,7 @@ def _snap(he, f, k, rules, buf_a, buf_b):
         ff = h // 3
         if ff != f:
             f0, f1, f2 = faces[ff, 0], faces[ff, 1], faces[ff, 2]
-            corners = _corners(p, f0, f1, f2, x, fx, fy, fz)
+            corners = _moved_corners(p, f0, f1, f2, x, fx, fy, fz)
             qx, qy, qz = _normal_xyz(*corners)
             r0, r1, r2 = he.reference[ff, 0], he.reference[ff, 1], he.reference[ff, 2]
             if qx * r0 + qy * r1 + qz * r2 <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
@@ -196,7 +196,7 @@ def _split_fan(he, f, order, lengths, rules, spawned):
             continue
         spawned[v] += 1
         t = rules.step * he.scale[v] / lengths[k]
-        return _split(he, 3 * f + k, t if su else 1.0 - t)
+        return _split_edge(he, 3 * f + k, t if su else 1.0 - t)
     return -1
 
 

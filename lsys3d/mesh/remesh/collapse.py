@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import _aspect, _aspect_xyz, _corners, _cross, _length, _normal, _normal_xyz
+from .geometry import _aspect, _aspect_xyz, _cross, _length, _moved_corners, _normal, _normal_xyz
 from .halfedge import (
     FEATURE,
     LOCKED,
@@ -14,7 +14,7 @@ from .halfedge import (
     _apex,
     _dst,
     _inline,
-    _leaf,
+    _leaf_inner,
     _nxt,
     _org,
     _prv,
@@ -72,7 +72,7 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
             f = g // 3
             if f != h // 3 and f != t // 3:
                 f0, f1, f2 = faces[f, 0], faces[f, 1], faces[f, 2]
-                corners = _corners(p, f0, f1, f2, v, x, y, z)
+                corners = _moved_corners(p, f0, f1, f2, v, x, y, z)
                 qx, qy, qz = _normal_xyz(*corners)
                 q = np.sqrt(qx * qx + qy * qy + qz * qz)
                 r0, r1, r2 = he.reference[f, 0], he.reference[f, 1], he.reference[f, 2]
@@ -95,13 +95,13 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
 
 # The same two checks called, not inlined, for the rare paths (:func:`_collapse_ok`, :func:`_rescue`): a copy
 # compiled into each of their call sites would cost seconds of the first compilation and buy nothing.
-_topology_ok_called = _leaf(_collapse_topology_ok.py_func)
+_topology_ok_called = _leaf_inner(_collapse_topology_ok.py_func)
 
 
-_geometry_ok_called = _leaf(_collapse_geometry_ok.py_func)
+_geometry_ok_called = _leaf_inner(_collapse_geometry_ok.py_func)
 
 
-@_leaf
+@_leaf_inner
 def _collapse_ok(he, h, x, y, z, limit, buf_a, buf_b, geometry=True):
     """Whether collapsing half-edge ``h`` (its origin into its end, placed at ``x, y, z``) is allowed.
 
@@ -113,7 +113,7 @@ def _collapse_ok(he, h, x, y, z, limit, buf_a, buf_b, geometry=True):
     return not geometry or _geometry_ok_called(he, h, x, y, z, limit)
 
 
-@_leaf
+@_leaf_inner
 def _collapse(he, h, x, y, z):
     """Collapse half-edge ``h``: its origin ``a`` merges into its end ``b``, placed at ``x, y, z``.
 
@@ -209,7 +209,7 @@ def _volume_neutral(he, h, x, y, z):
     return x + sx, y + sy, z + sz
 
 
-@_leaf
+@_leaf_inner
 def _rank(flags, v):
     """Which end of a collapse keeps its place: a rim vertex, then a tube vertex, then a seam vertex."""
     f = flags[v]
@@ -222,7 +222,7 @@ def _rank(flags, v):
     return 0
 
 
-@_leaf
+@_leaf_inner
 def _try_collapse(he, h, limit, short, buf_a, buf_b):
     """Collapse the edge of half-edge ``h`` the best way that is allowed; the kept vertex, or -1.
 

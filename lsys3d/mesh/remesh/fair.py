@@ -208,9 +208,15 @@ def _fair_finish(he, closeness, members, start):
                     g = h0
                     while True:  # its neighbours among the members (ascending) are to be looked at again
                         w = _dst(faces, g)
-                        j = np.searchsorted(members, w)
-                        if j < m and members[j] == w:
-                            dirty[j] = True
+                        lo, hi = 0, m  # w's place among the members (np.searchsorted: numba's costs a second)
+                        while lo < hi:
+                            mid = (lo + hi) >> 1
+                            if members[mid] < w:
+                                lo = mid + 1
+                            else:
+                                hi = mid
+                        if lo < m and members[lo] == w:
+                            dirty[lo] = True
                         g = he.opp[_prv(g)]
                         if g == h0:
                             break

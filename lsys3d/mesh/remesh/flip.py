@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from .geometry import _aspect, _normal, _segment_distance
-from .halfedge import FEATURE, LOCKED, _apex, _dst, _half_edge, _leaf, _nxt, _org, _prv, _valence
+from .geometry import _aspect, _edges_distance, _normal
+from .halfedge import FEATURE, LOCKED, _apex, _dst, _half_edge, _leaf_inner, _nxt, _org, _prv, _valence
 
 
-@_leaf
+@_leaf_inner
 def _flip_ok(he, h, tolerance):
     """Whether flipping the edge of half-edge ``h`` improves its two faces without changing the shape much.
 
@@ -31,7 +31,7 @@ def _flip_ok(he, h, tolerance):
     if (flags[a] | flags[b] | flags[c] | flags[d]) & LOCKED:
         return False
     # the shape first, then the walks around the vertices (most edges fail on shape: a long needle's)
-    if _segment_distance(p, a, b, c, d) > tolerance:
+    if _edges_distance(p, a, b, c, d) > tolerance:
         return False
     n0x, n0y, n0z = _normal(p, a, b, c)
     n1x, n1y, n1z = _normal(p, b, a, d)
@@ -51,7 +51,7 @@ def _flip_ok(he, h, tolerance):
     return _half_edge(he, c, d) < 0
 
 
-@_leaf
+@_leaf_inner
 def _flip(he, h):
     """Flip the edge of half-edge ``h`` (faces ``a b c`` and ``b a d`` become ``c a d`` and ``d b c``)."""
     faces, opp, out = he.faces, he.opp, he.out

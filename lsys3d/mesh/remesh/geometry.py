@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...compiling import inner
-from .halfedge import _leaf, _leaf_inner
+from .halfedge import _leaf_inner
 
 _FLAT = 1e30  # the aspect of a triangle without area
 
@@ -66,8 +66,8 @@ def _aspect_xyz(ax, ay, az, bx, by, bz, cx, cy, cz):
     return max(l0, max(l1, l2)) * s / (2.0 * np.sqrt(3.0) * area)
 
 
-@_leaf
-def _corners(p, a, b, c, moved, x, y, z):
+@_leaf_inner
+def _moved_corners(p, a, b, c, moved, x, y, z):
     """The coordinates of triangle ``a b c``, vertex ``moved`` placed at ``x y z``."""
     ax, ay, az = p[a, 0], p[a, 1], p[a, 2]
     bx, by, bz = p[b, 0], p[b, 1], p[b, 2]
@@ -96,8 +96,8 @@ def _length(p, u, w):
     return np.sqrt((p[u, 0] - p[w, 0]) ** 2 + (p[u, 1] - p[w, 1]) ** 2 + (p[u, 2] - p[w, 2]) ** 2)
 
 
-@_leaf
-def _segment_distance(p, a, b, c, d):
+@_leaf_inner
+def _edges_distance(p, a, b, c, d):
     """Distance between segments ``a b`` and ``c d``."""
     d1x, d1y, d1z = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1], p[b, 2] - p[a, 2]
     d2x, d2y, d2z = p[d, 0] - p[c, 0], p[d, 1] - p[c, 1], p[d, 2] - p[c, 2]

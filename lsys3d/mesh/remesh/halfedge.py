@@ -33,7 +33,8 @@ _MAX_RING = 256  # a vertex with more neighbours than this is left alone
 # The helpers that allocate nothing are compiled without numba's reference counts: with them, a call counted each
 # of the 14 arrays of a HalfEdges up on entry and down on return, atomic operations that numba could not prune
 # around the calls (any of which may raise), a fifth of the cleanup's time on abop-1.24a (measured with perf).
-_leaf = kernel(nogil=True, _nrt=False)
+# Only other kernels call them, so they have no CPython wrapper either (:func:`lsys3d.compiling.inner`): one that
+# unboxes a HalfEdges' 14 arrays, compiled for nothing, was a fifteenth of the first run's compiling of the cleanup.
 _leaf_inner = inner(nogil=True, _nrt=False)
 
 
@@ -55,30 +56,29 @@ _inline_inner = inner(nogil=True, _nrt=False, inline="always")
 class HalfEdges(NamedTuple):
     """A closed triangle mesh as half-edges, with room to grow (arrays are longer than the mesh).
 
-    The integer arrays but ``counts`` are of one index type (:func:`index_dtype`):
-    int32 while every half-edge fits, int64 beyond (the kernels take either).
+    The integer arrays but ``counts`` are int32 (:data:`INDEX_LIMIT`).
 
     points : (vcap, 3) float64
-    faces : (fcap, 3) int32 or int64
-    opp : (3 fcap,) int32 or int64
+    faces : (fcap, 3) int32
+    opp : (3 fcap,) int32
         The opposite half-edge of each half-edge.
-    out : (vcap,) int32 or int64
+    out : (vcap,) int32
         One half-edge leaving each vertex.
     face_alive, vertex_alive : bool
-    flags : (vcap,) int32 or int64
+    flags : (vcap,) int32
         :data:`SEAM`, :data:`FEATURE`, :data:`ORIGINAL`, :data:`LOCKED` bits.
     scale : (vcap,) float64
         The local length scale at each vertex (the side of the thinnest tube there).
-    face_part : (fcap,) int32 or int64
+    face_part : (fcap,) int32
         The part (tube) of each face; an edge between two parts is a seam.
     face_flat : (fcap,) bool
         Faces of a flat cap: an edge between a flat and a curved face is a rim.
     reference : (fcap, 3) float64
         The unit normal each face should keep (of the tube face it lies on):
         exact even for a sliver, whose own normal is noise.
-    face_source : (fcap,) int32 or int64
+    face_source : (fcap,) int32
         The input face each face descends from.
-    vertex_origin : (vcap,) int32 or int64
+    vertex_origin : (vcap,) int32
         The input vertex each vertex descends from.
     counts : (4,) int64
         Vertices and faces in use (alive or dead): the next free slots; then
@@ -102,7 +102,7 @@ class HalfEdges(NamedTuple):
     counts: np.ndarray
 
 
-def opposites(faces: np.ndarray, nv: int, pool=None, size: int = 0, dtype=np.int64) -> np.ndarray:
+def opposites(faces: np.ndarray, nv: int, pool=None, size: int = 0, dtype=np.int32) -> np.ndarray:
     """The opposite of each half-edge (-1 where none); ``[-2, ...]`` when a directed edge is used twice.
 
     Half-edges are listed by their origin (a counting sort), and each finds
@@ -111,8 +111,9 @@ def opposites(faces: np.ndarray, nv: int, pool=None, size: int = 0, dtype=np.int
     the half-edges of the second half of the vertices (the same result).
     The array is ``size`` long (at least one per half-edge: -1 after them) of ``dtype``.
     """
-    index = index_dtype(max(3 * len(faces), nv))  # int32 while it fits: half the memory
-    half, head = np.empty(3 * len(faces), index), np.empty(3 * len(faces), index)
+    if max(3 * len(faces), nv) > INDEX_LIMIT:
+        raise ValueError(f"remesh.opposites: {3 * len(faces):,} half-edges, more than int32 holds ({INDEX_LIMIT:,})")
+    half, head = np.empty(3 * len(faces), np.int32), np.empty(3 * len(faces), np.int32)
     start = _leaving(faces, nv, half, head)
     opp = np.full(max(size, 3 * len(faces)), -1, dtype)
     middle = int(np.searchsorted(start, len(head) // 2))  # about as many half-edges on either side
@@ -174,12 +175,10 @@ def _match(start, half, head, opp, lo, hi):
 
 
 INDEX_LIMIT = 2**31 - 1
-"""The largest index :class:`HalfEdges` keep as int32 (half the memory of int64); beyond it, int64."""
-
-
-def index_dtype(largest: int, limit: int = INDEX_LIMIT) -> type:
-    """The integer type of :class:`HalfEdges`' indices, given the largest number they hold: int32 up to ``limit``."""
-    return np.int32 if largest <= limit else np.int64
+"""The largest index :class:`HalfEdges` hold: they are int32 (half the memory of int64, and every kernel compiled
+for one type).  A mesh of more half-edges (715 million triangles, some 40 GB of half-edges: no union that lsys3d
+can make on a machine of today) is not cleaned: :func:`build` raises ValueError, and the cleanup leaves the
+union's bark as it was, with a warning."""
 
 
 def build(
@@ -199,16 +198,19 @@ def build(
 
     ``extra_vertices`` reserves room for splits (each adds one vertex and two
     faces).  Vertices whose faces do not form one fan are flagged
-    :data:`LOCKED`.  The indices are int32 when the half-edges, vertices, face
-    sources and parts are all at most ``index_limit`` (:data:`INDEX_LIMIT`),
-    int64 otherwise (:func:`index_dtype`).  Raises ValueError for a mesh that is not closed.
+    :data:`LOCKED`.  The indices are int32: raises ValueError when the
+    half-edges, vertices, face sources or parts are more than ``index_limit``
+    (:data:`INDEX_LIMIT`), and for a mesh that is not closed.
     """
     points = np.asarray(points, np.float64)
     faces = np.asarray(faces, np.int64)
     nv, nf = len(points), len(faces)
     vcap, fcap = nv + extra_vertices, nf + 2 * extra_vertices
     largest = max(3 * fcap, vcap, int(np.max(face_source, initial=0)), int(np.max(face_part, initial=0)))
-    index = index_dtype(largest, INDEX_LIMIT if index_limit is None else index_limit)
+    limit = INDEX_LIMIT if index_limit is None else index_limit
+    if largest > limit:
+        raise ValueError(f"remesh.build: indices up to {largest:,}, more than int32 half-edges hold ({limit:,})")
+    index = np.int32
     org = faces.reshape(-1)
     opp = opposites(faces, nv, pool, 3 * fcap, index)  # the largest array, made at its size and type
     if nf and opp[0] == -2:

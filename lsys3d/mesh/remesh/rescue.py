@@ -11,7 +11,7 @@ from .collapse import _collapse, _collapse_ok, _geometry_ok_called, _topology_ok
 from .flip import _flip, _flip_ok
 from .geometry import _aspect, _cross, _length, _normal
 from .halfedge import _MAX_RING, FEATURE, LOCKED, SEAM, _apex, _dst, _leaf_inner, _org, _prv, _valence, in_two
-from .split import _split
+from .split import _split_edge
 
 
 @_leaf_inner
@@ -215,7 +215,7 @@ def _rescue(he, worst, height, flip, now):
                 u, w = faces[f, k], faces[f, (k + 1) % 3]
                 across = he.face_part[f] != he.face_part[he.opp[g] // 3]
                 if he.flags[u] & he.flags[w] & SEAM and not ((he.flags[u] | he.flags[w]) & LOCKED):
-                    v = _split(he, g, 0.5)
+                    v = _split_edge(he, g, 0.5)
                     if v >= 0:
                         _touch_near(he, v, now, again, seen, queue)
                         he.flags[v] |= SEAM if across else 0

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ...compiling import inner
-from .halfedge import FEATURE, PINNED, _apex, _dst, _leaf, _nxt, _org, _prv
+from .halfedge import FEATURE, PINNED, _apex, _dst, _leaf_inner, _nxt, _org, _prv
 
 
 @inner(nogil=True)
@@ -17,8 +17,8 @@ def _inherit(he, f, g):
         he.reference[f, j] = he.reference[g, j]
 
 
-@_leaf
-def _split(he, h, t):
+@_leaf_inner
+def _split_edge(he, h, t):
     """Split the edge of half-edge ``h`` at ``a + t (b - a)``: one new vertex, two new faces; the vertex or -1.
 
     The new vertex's origin is the nearer end; the new faces copy their old

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...arrays import search_right
 from ...compiling import inner, kernel
 from ...turtle.skeleton import Skeleton
 from .frames import _inverse_mean, _span_frame
@@ -16,7 +17,7 @@ def _face_place(face, offsets, sides, rings, t):  # pragma: no cover - compiled
     a tube come together), its index among the tube's faces, and its end: -1 on the wall, 0 in the base's cap, 1
     in the tip's (a tube has ``2 s (rings - 1)`` wall faces, then ``s`` at its base and ``s`` at its tip)."""
     if t < 0 or not (offsets[t] <= face < offsets[t + 1]):
-        t = np.searchsorted(offsets, face, side="right") - 1
+        t = search_right(offsets, face) - 1
     local = face - offsets[t]
     body = 2 * sides[t] * (rings[t] - 1)
     return t, local, -1 if local < body else (1 if local >= body + sides[t] else 0)

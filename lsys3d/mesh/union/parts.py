@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...arrays import offsets as _offsets
-from ...arrays import sort_between
+from ...arrays import search_left, sort_between
 from ...compiling import kernel
 from ...errors import GeometryError
 from ..mesh import Mesh
@@ -310,7 +310,7 @@ def _closed_edges(faces, nverts, near, use_near, like):  # pragma: no cover - co
             lo, hi = start[b], start[b + 1]
             found = False
             if hi - lo > 16:
-                j = lo + np.searchsorted(far[lo:hi], a)
+                j = lo + search_left(far[lo:hi], a)
                 found = j < hi and far[j] == a
             else:
                 for j in range(lo, hi):

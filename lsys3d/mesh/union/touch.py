@@ -434,7 +434,8 @@ def _cell_pairs(
                 if found == cap:
                     cap *= 2
                     grown_a, grown_b = np.empty(cap, np.int64), np.empty(cap, np.int64)
-                    grown_a[:found], grown_b[:found] = out_a[:found], out_b[:found]
+                    for k in range(found):  # (not a slice copy: numba's check of its shapes compiles for a second)
+                        grown_a[k], grown_b[k] = out_a[k], out_b[k]
                     out_a, out_b = grown_a, grown_b
                 out_a[found], out_b[found] = min(u, v), max(u, v)
                 found += 1
