@@ -92,6 +92,10 @@ def run(folder: Path, cache: Path | None = None, timeout: float = 900) -> dict:
     reader.start()
     try:
         stdout, _ = proc.communicate(timeout=timeout)
+    except BaseException:  # a timeout or ^C: the child does not outlive the run
+        proc.kill()
+        proc.wait()
+        raise
     finally:
         reader.join(timeout=30)
         os.close(terminal)
