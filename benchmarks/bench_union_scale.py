@@ -2,7 +2,7 @@
 
     python benchmarks/bench_union_scale.py [--plant 5 6 7 8 9] [--fern] [--repeat 1]
         [--compare 7] [--no-naive] [--blender .venv-bpy/bin/python] [--hostile] [--no-cleanup-too]
-        [--dense] [--dense-only] [--only NAME] [--volume] [--extra=--union-blobs=0.25]
+        [--dense] [--dense-only] [--only NAME] [--volume] [--extra=--union-blobs=0]
 
 Each run is its own process (``lsys3d -v generate``), timed from outside, its
 peak resident memory read with ``getrusage(RUSAGE_CHILDREN)`` by a wrapper
@@ -37,7 +37,9 @@ one of its union workers).  Cases:
   branches): the time each takes to finish or to be refused.
 
 Every number of one table comes from the same run; ratios compare runs made
-side by side.  The machine is shared: expect +-20% between runs.
+side by side.  The machine is shared: expect +-20% between runs (the CPU
+seconds of a run, its own and its union workers', and the load average
+beside each line show how much).
 """
 
 from __future__ import annotations
@@ -99,8 +101,11 @@ WRAPPER = textwrap.dedent(
     t = time.perf_counter()
     out = subprocess.run(sys.argv[1:], capture_output=True, text=True)
     seconds = time.perf_counter() - t
-    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * (1 if sys.platform == "darwin" else 1024)
-    print(json.dumps({"seconds": seconds, "peak": peak, "code": out.returncode, "stderr": out.stderr + out.stdout}))
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    peak = usage.ru_maxrss * (1 if sys.platform == "darwin" else 1024)
+    cpu = usage.ru_utime + usage.ru_stime  # the run and its union workers
+    log = out.stderr + out.stdout
+    print(json.dumps({"seconds": seconds, "cpu": cpu, "peak": peak, "code": out.returncode, "stderr": log}))
     """
 )
 
@@ -199,7 +204,7 @@ def bark_volume(glb: Path) -> float:
 def full_vs_soup(rows, repeat: int, tmp: Path, extra: tuple[str, ...] = (), stages: bool = False, volume: bool = False):
     print(
         f"{'case':<24} {'segments':>9} {'faces':>10} {'full s':>7} {'union s':>8} {'cleanup s':>9} {'soup s':>7}"
-        f" {'full/soup':>9} {'RSS full':>9} {'RSS soup':>9}"
+        f" {'full/soup':>9} {'RSS full':>9} {'RSS soup':>9} {'CPU full':>8} {'CPU soup':>8} {'load':>5}"
     )
     table = []
     for name, grammar, n, *more in rows:
@@ -213,7 +218,8 @@ def full_vs_soup(rows, repeat: int, tmp: Path, extra: tuple[str, ...] = (), stag
         print(
             f"{name:<24} {segments:>9,} {faces:>10,} {full['seconds']:>7.2f} {full['stages'].get('union', 0):>8.2f}"
             f" {full['stages'].get('cleanup', 0):>9.2f} {soup['seconds']:>7.2f}"
-            f" {full['seconds'] / soup['seconds']:>8.1f}x {gib(full['peak']):>9} {gib(soup['peak']):>9}",
+            f" {full['seconds'] / soup['seconds']:>8.1f}x {gib(full['peak']):>9} {gib(soup['peak']):>9}"
+            f" {full['cpu']:>8.2f} {soup['cpu']:>8.2f} {os.getloadavg()[0]:>5.1f}",
             flush=True,
         )
         if stages:

@@ -32,9 +32,9 @@ def pytest_sessionstart(session):
     runs ``pytest -n auto``) this runs in the controller before it starts the workers, so the workers load the
     kernels instead of compiling them side by side (two processes writing one kernel's cache index at once
     can point it at the other's machine code).  The default tree (a species: form, leaves) and the textbook
-    tree3d take the paths most tests take, and tree3d is written as .glb and .usdc (the writers' kernels); warm,
-    this costs about three seconds.  The two trees are shared with the workers (tests/shared.py), which would
-    otherwise each grow them again.
+    tree3d take the paths most tests take, a polygon the turtle's rare ops (its kernel's second compilation), and
+    tree3d is written as .glb and .usdc (the writers' kernels); warm, this costs about three seconds.  The two
+    trees are shared with the workers (tests/shared.py), which would otherwise each grow them again.
 
     From an empty cache (a fresh clone, CI) the compiling starts with a user's first run, ``lsys3d generate``
     in a child process (tests/first_run.py): it compiles the default tree's kernels into the suite's cache
@@ -57,9 +57,13 @@ def pytest_sessionstart(session):
     from grown import grown
 
     import lsys3d
+    from lsys3d.turtle import interpret
 
     for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
         grown(preset)  # and left for the workers' tests of these presets
+    # the turtle kernel's other compilation, for strings with its rare ops (lsys3d.turtle.kernel.RARE_OPS: a polygon)
+    polygon = lsys3d.Grammar(axiom="F{.f+f+f+f}F")
+    interpret(polygon.axiom_modules, polygon)
     with tempfile.TemporaryDirectory(prefix="lsys3d-precompile-") as scratch:
         for suffix in (".glb", ".usdc"):  # the writers' kernels, which most CLI tests' subprocesses call
             lsys3d.export(grown("tree3d"), os.path.join(scratch, f"tree3d{suffix}"))

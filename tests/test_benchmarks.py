@@ -26,6 +26,7 @@ BENCHMARKS = Path(__file__).resolve().parent.parent / "benchmarks"
 
 SMOKE = {
     "bench_attributes.py": ["--preset", "koch", "--repeat", "1"],
+    "blob_presets.py": ["--only", "koch", "--repeats", "1"],
     "bench_blender_regrow.py": ["--iterations", "3", "--repeat", "1"],  # in .venv-bpy's Python (skips without)
     "bench_botany.py": ["--quick", "--presets", "grass", "foxglove", "--check"],
     "bench_batch.py": ["--seeds", "1", "--skip-dask"],  # the Dask cluster itself: test_batch.py

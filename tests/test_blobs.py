@@ -13,8 +13,6 @@ from lsys3d.mesh.union.plan import _unique_pairs
 from lsys3d.mesh.union.touch import pieces, touching
 from lsys3d.mesh.union.union import UnionOptions, union
 
-pytest.importorskip("skimage")
-
 FERN = "tests/corpus/lpy/real/02-fractals_barnsleyfern.lpy"
 
 
@@ -35,11 +33,14 @@ def tube_pairs(tubes):
     return pairs[:, 0], pairs[:, 1]
 
 
-def test_off_by_default_and_in_the_provenance_only_when_on():
-    assert UnionOptions().blobs == 0.0
-    assert "blobs" not in UnionOptions().plain()
-    assert UnionOptions(blobs=0.25).plain()["blobs"] == 0.25
-    assert UnionOptions.from_plain(UnionOptions(blobs=0.25).plain()) == UnionOptions(blobs=0.25)
+def test_on_by_default_and_always_in_the_provenance():
+    assert UnionOptions().blobs == 0.25
+    assert UnionOptions().plain()["blobs"] == 0.25
+    # off is recorded too: a file made without them reads back as made without them
+    assert UnionOptions(blobs=0).plain()["blobs"] == 0
+    for blobs in (0.0, 0.25, 0.1):
+        assert UnionOptions.from_plain(UnionOptions(blobs=blobs).plain()) == UnionOptions(blobs=blobs)
+    assert lsys3d.generate("abop-1.24a", iterations=2).provenance.options["union"]["blobs"] == 0.25
 
 
 def test_the_fern_is_a_blob_and_a_sparse_tree_is_not(fern):
@@ -66,7 +67,7 @@ def test_a_single_capsule_level_set_is_closed_and_near_the_tube():
 
 
 def test_the_union_with_blobs_is_closed_deterministic_and_near_the_exact_volume(fern):
-    exact = union(fern, UnionOptions(max_pairs=10**8))
+    exact = union(fern, UnionOptions(blobs=0, max_pairs=10**8))
     opt = UnionOptions(blobs=0.25, max_pairs=10**8, workers=1)
     first, again = union(fern, opt), union(fern, UnionOptions(blobs=0.25, max_pairs=10**8, workers=2))
     assert first.is_watertight and first.is_winding_consistent
@@ -89,11 +90,22 @@ def test_generate_with_blobs_cleans_and_exports(tmp_path):
 
 def test_a_branching_plant_has_no_blob_and_keeps_its_union():
     # the benchmark's 3D plant: its twigs are thin and its clusters overlap little, so the boolean stays
-    options = {"iterations": 4, "union_blobs": 0.25}
-    with_blobs = lsys3d.generate("tree3d", **options).bark
-    without = lsys3d.generate("tree3d", iterations=4).bark
+    with_blobs = lsys3d.generate("tree3d", iterations=4).bark
+    without = lsys3d.generate("tree3d", iterations=4, union_blobs=0).bark
     np.testing.assert_array_equal(with_blobs.vertices, without.vertices)
     np.testing.assert_array_equal(with_blobs.faces, without.faces)
+
+
+def test_the_pairs_found_for_the_blobs_are_refused_as_before():
+    # no blob: the pairs found for the blobs' test are the union's own, and over max_pairs still refused
+    from lsys3d.errors import LimitError
+
+    tubes = sweep(lsys3d.generate("tree3d", iterations=4, union=False).skeleton)
+    pairs = len(touching(pieces(tubes), 0.01, 10**9)[0])
+    for blobs in (0.0, 0.25):
+        with pytest.raises(LimitError, match=f"more than {pairs - 1:,} pairs"):
+            union(tubes, UnionOptions(blobs=blobs, max_pairs=pairs - 1, workers=1))
+        assert union(tubes, UnionOptions(blobs=blobs, max_pairs=pairs, workers=1)).is_watertight
 
 
 def test_a_blob_beside_a_cluster_that_keeps_the_boolean(fern):
@@ -175,3 +187,43 @@ def test_the_cleanup_keeps_the_box_projection(monkeypatch):
     np.testing.assert_array_equal(cleaned.faces, charted.faces)  # the uv alone differs
     everything = np.arange(len(cleaned.faces))
     assert _uv_continuity(cleaned, everything) > _uv_continuity(charted, everything) + 0.05
+
+
+def test_without_scikit_image_the_blobs_go_through_the_boolean(fern, monkeypatch, caplog):
+    # Blender's extension bundles no scikit-image: the union must still work there, as the exact boolean
+    import lsys3d.mesh.union.blobs as blobs
+    from lsys3d.errors import OptionsError
+
+    monkeypatch.setattr(blobs, "_marching_cubes", lambda: None)
+    with caplog.at_level("WARNING", logger="lsys3d"):
+        meshes, meshed = blobs.blob_meshes(fern, *tube_pairs(fern), 0.25)
+    assert meshes == [] and not meshed.any()
+    assert "scikit-image does not import" in caplog.text
+    with pytest.raises(OptionsError, match="scikit-image"):
+        level_set(fern, np.arange(len(fern)), 0.005)
+
+
+def _chain(n, step, turn_degrees, width):
+    """A skeleton of ``n`` segments ``step`` long, each turned ``turn_degrees`` from the last, in one plane."""
+    points, d, a = [np.zeros(3)], np.array([0.0, 1.0, 0.0]), np.radians(turn_degrees)
+    for _ in range(n):
+        points.append(points[-1] + step * d)
+        d = np.array([np.cos(a) * d[0] - np.sin(a) * d[1], np.sin(a) * d[0] + np.cos(a) * d[1], 0.0])
+    points = np.array(points)
+    return make_skeleton(points[:-1], points[1:], width, None, np.arange(-1, n - 1))
+
+
+def test_short_spans_keep_the_volume_of_one_long_span():
+    # a tube of 20 spans as long as its radius loses no more volume than one long span: inside it, on its inner
+    # rings, the samples keep the wall's distance (when each span was cut on both sides of every ring they fell
+    # to zero there and the wall next to every ring dented inwards: 4.5% apart at this edge)
+    edge = 0.075  # a quarter of the width, the default
+    ratios = []
+    for sk in (_chain(1, 3.0, 0, 0.3), _chain(20, 0.15, 5, 0.3)):
+        tubes = sweep(sk)
+        assert len(tubes) == 1 and (len(tubes.ring_center) > 10) == (len(sk) > 1)
+        vertices, faces, _ = level_set(tubes, np.array([0]), edge)
+        mesh = lsys3d.Mesh(vertices, faces, np.zeros((len(faces), 3, 3)), np.zeros((len(faces), 3, 2)))
+        ratios.append(mesh.volume / tubes.volumes()[0])
+    assert abs(ratios[0] - ratios[1]) < 0.015, ratios
+    assert all(abs(r - 1) < 0.03 for r in ratios), ratios

@@ -366,8 +366,9 @@ def interpret_answering(
         np.empty(int(counts[Op.FORWARD]) if scene is not None else 0, np.int64),
         np.zeros(2, np.int64),
     )
+    rare = kernel.rare_flag(counts, config, scene)  # None: numba compiles (and runs) the kernel without them
     status, bad, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped = kernel.run(
-        program, arrays, config, variation, max_depth, seg, poly, leaf, organ, query, scene or NO_SCENE
+        program, arrays, config, variation, max_depth, seg, poly, leaf, organ, query, scene or NO_SCENE, rare
     )
     if status != kernel.OK:
         raise module_error(modules, table, int(bad), kernel.MESSAGES[status])

@@ -36,6 +36,7 @@ __all__ = [
     "MAX_POLYGON_DEPTH",
     "MESSAGES",
     "OK",
+    "RARE_OPS",
     "Config",
     "LeafArrays",
     "Modules",
@@ -48,6 +49,7 @@ __all__ = [
     "Variation",
     "dropped_modules",
     "probe",
+    "rare_flag",
     "run",
     "survey",
 ]
@@ -141,6 +143,33 @@ _SIDES = int(Op.SIDES)  # read after the kernel's pass (lsys3d.turtle.sides)
 _AXIS_U = int(Axis.U)
 _AXIS_L = int(Axis.L)
 _AXIS_H = int(Axis.H)
+
+RARE_OPS = (
+    Op.MOVEMENT_ELASTICITY,
+    Op.MOVEMENT_FRAME,
+    Op.FORWARD_STEPS,
+    Op.SUB_LSYSTEM,
+    Op.QUERY,
+    Op.RANDOM_TURN,
+    Op.CYLINDER_TANGENTS,
+    Op.CYLINDER_START,
+    Op.CYLINDER_POINT,
+    Op.POLYGON_BEGIN,
+    Op.POLYGON_VERTEX,
+    Op.POLYGON_END,
+    Op.ORGAN,
+    Op.TROPISM,
+    Op.ELASTICITY,
+    Op.ELASTICITY_ADD,
+    Op.ANGLE_FACTOR,
+    Op.LENGTH,
+    Op.TROPISM_VECTOR,
+)
+"""The ops :func:`run` draws only when called with ``rare`` (:func:`rare_flag`); without it numba compiles the
+kernel without their code, and without the environment's and cpfg's movements' (less than half of a first run's
+compiling of the turtle, for the many strings that need none of them: of the bundled presets all but bush's
+polygons and the queries of the three environment scenes).  The others: F, f, the turns, [ and ], the widths,
+leaves, materials, | and $."""
 _SURFACE = int(Organ.SURFACE)
 _INSTANCE = int(Organ.INSTANCE)
 
@@ -536,12 +565,23 @@ def dropped_modules(program, symbols, drop):
     return out
 
 
+def rare_flag(counts: np.ndarray, config: Config, scene: Scene | None) -> bool | None:
+    """:func:`run`'s ``rare``: True when the string holds one of :data:`RARE_OPS` (``counts`` per op, from
+    :func:`survey`), the turtle has cpfg's movements or there is an environment; else None."""
+    if scene is not None or config.movements.shape[0] > 0 or any(counts[int(op)] for op in RARE_OPS):
+        return True
+    return None
+
+
 @kernel(nogil=True)
-def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, query, scene):
+def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, query, scene, rare):
     """Run the turtle over the modules, writing segments, polygons, leaves and organs into the preallocated outputs.
 
     ``query`` receives the state at each query module and the segments ``scene`` cut (a cut segment
     takes the rest of its branch with it: the modules up to the ``]`` that closes it are skipped).
+    ``rare`` is None for a string with none of :data:`RARE_OPS`, no environment and no movements
+    (:func:`rare_flag`): numba then compiles the kernel without their code, which it does not need
+    (and ignores those ops), else True.
 
     Returns (status, bad module, segments, polygon points, polygons, leaves, organs, dropped polygons).
     """
@@ -638,7 +678,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             continue
         if drop_branch and variation.skipped[i]:
             continue
-        if skipping > 0:
+        if rare is not None and skipping > 0:
             if code == _PUSH:
                 skipping += 1
             elif code == _POP:
@@ -648,7 +688,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
         has_arg = arity[i] > 0
         arg = params[offsets[i]] if has_arg else 0.0
         if code in (_FORWARD, _MOVE):
-            if n_mov:
+            if rare is not None and n_mov:
                 hx, hy, hz, lx, ly, lz, ux, uy, uz, phx, phy, phz, pux, puy, puz = movement_adjust(
                     config.movements, mov_e, hx, hy, hz, lx, ly, lz, ux, uy, uz, phx, phy, phz, pux, puy, puz
                 )
@@ -659,7 +699,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             length = (arg * length_unit if has_arg else step * program.scale[sym]) * sub_scale
             if jitter_length:
                 length *= variation.length[i]
-            if in_scene and code == _FORWARD and poly_open < 0:
+            if rare is not None and in_scene and code == _FORWARD and poly_open < 0:
                 hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = _steer(
                     scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging
                 )
@@ -673,7 +713,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             qz = pz + hz * length
             if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):  # NaN fails too
                 return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-            if poly_open >= 0 and program.vertex[sym]:
+            if rare is not None and poly_open >= 0 and program.vertex[sym]:
                 n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
             if code == _FORWARD and (poly_open < 0 or edges):
                 s_ = n_seg
@@ -712,117 +752,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                 hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend_after(
                     hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity
                 )
-            if code == _FORWARD:  # cpfg's F and G: the frame the movements carry U from
+            if rare is not None and code == _FORWARD:  # cpfg's F and G: the frame the movements carry U from
                 phx, phy, phz, pux, puy, puz = hx, hy, hz, ux, uy, uz
-        elif code == _MOVEMENT_ELASTICITY:  # cpfg's @Ts(n, e), @Ti(n, d), @Td(n, d)
-            if has_arg:
-                more = arity[i] > 1
-                movement_elasticity(
-                    config.movements, mov_e, program.sign[sym], arg, more, params[offsets[i] + 1] if more else 0.0
-                )
-        elif code == _MOVEMENT_FRAME and program.sign[sym] > 0:  # cpfg's @Tf: the turtle's frame is the one kept
-            phx, phy, phz, pux, puy, puz = hx, hy, hz, ux, uy, uz
-        elif code == _MOVEMENT_FRAME:  # cpfg's @Tp: U carried from the frame kept (no twist since the last F)
-            hx, hy, hz, lx, ly, lz, ux, uy, uz = carry_up(hx, hy, hz, ux, uy, uz, phx, phy, phz, pux, puy, puz)
-        elif code == _FORWARD_STEPS:  # L-Py's nF(length, dlength[, radius]): PlantGL's Turtle::nF
-            # each step is the FORWARD above, with its length (kept apart: a loop there slows every F)
-            dlength = params[offsets[i] + 1]
-            whole, rest, n_rep = _steps(arg, dlength)
-            taper = arity[i] >= 3  # the width goes from the current one to the radius given, step by step
-            w0 = width
-            w1 = params[offsets[i] + 2] * width_unit if taper else width
-            dw = (w1 - w0) / arg if taper and arg > 0.0 else 0.0
-            for k in range(n_rep):
-                if elasticity != 0.0 and bend and not after:
-                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
-                        hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
-                    )
-                length = (dlength if k < whole else rest) * length_unit
-                if jitter_length:
-                    length *= variation.length[i]
-                qx = px + hx * length
-                qy = py + hy * length
-                qz = pz + hz * length
-                if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):
-                    return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-                if poly_open >= 0:
-                    if program.vertex[sym]:
-                        n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
-                    last = -1
-                else:
-                    s_ = n_seg
-                    _put(seg.start, s_, px, py, pz)
-                    _put(seg.end, s_, qx, qy, qz)
-                    _put(seg.heading, s_, hx, hy, hz)
-                    _put(seg.left, s_, lx, ly, lz)
-                    _put(seg.up, s_, ux, uy, uz)
-                    drawn = width * variation.width[i] if jitter_width else width
-                    if not drawn <= far:
-                        return 10, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-                    seg.width_start[s_] = drawn
-                    seg.width_end[s_] = drawn
-                    if anchor >= 0:
-                        rise = depth - depth_of[anchor]
-                        order = seg.order[anchor] + (rise if rise > 0 else 0)
-                    else:
-                        order = 0
-                    seg.parent[s_] = last
-                    seg.module[s_] = i
-                    seg.order[s_] = order
-                    seg.material[s_] = material
-                    depth_of[s_] = depth
-                    if last >= 0:
-                        if first_child[last] < 0:
-                            first_child[last] = s_
-                        if same_child[last] < 0 and seg.order[last] == order:
-                            same_child[last] = s_
-                    last = s_
-                    anchor = s_
-                    n_seg += 1
-                px, py, pz = qx, qy, qz
-                if after and elasticity != 0.0 and bend:
-                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend_after(
-                        hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity
-                    )
-                if taper:  # PlantGL's F(dlength, topradius): the next width, the radius itself after the rest
-                    width = w0 + dw * dlength * (k + 1) if k < whole else w1
-                    if not (0.0 <= width <= far):
-                        return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-                    if last >= 0 and depth_of[last] == depth:
-                        seg.width_end[last] = width
-        elif code == _SUB_LSYSTEM:
-            before = sub_scale
-            if program.sign[sym] > 0:  # ?(n, s): a sub-L-system starts (a '?' without parameters is none)
-                if not has_arg:
-                    continue
-                if sub_top == MAX_SUB_LSYSTEMS:
-                    return 13, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-                sub_stack[sub_top] = sub_scale
-                sub_top += 1
-                if arity[i] >= 2:
-                    sub_scale = sub_scale * params[offsets[i] + 1]
-                if not (sub_scale > 0.0 and sub_scale <= far):
-                    return 14, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-            elif sub_top > 0:  # $: it ends (an unmatched $ changes nothing: cpfg warns and goes on)
-                sub_top -= 1
-                sub_scale = sub_stack[sub_top]
-            width = width * sub_scale / before
-            if not (0.0 <= width <= far):
-                return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-        elif code == _QUERY:
-            row = query.state[n_query]
-            row[0], row[1], row[2] = px, py, pz
-            row[3], row[4], row[5] = hx, hy, hz
-            row[6], row[7], row[8] = lx, ly, lz
-            row[9], row[10], row[11] = ux, uy, uz
-            query.module[n_query] = i
-            n_query += 1
-        elif code == _TROPISM_VECTOR:  # L-Py's @Tp(x, y, z), in the tool's world axes
-            base = offsets[i]
-            tx = params[base + program.world[sym, 0]]
-            ty = params[base + program.world[sym, 1]]
-            tz = params[base + program.world[sym, 2]]
-            bend = tx != 0.0 or ty != 0.0 or tz != 0.0
         elif code == _ROTATE:
             if jitter_angle:
                 c, s = _cos_sin((arg if has_arg else angle) + variation.angle[i])
@@ -834,118 +765,6 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             hx, hy, hz, lx, ly, lz, ux, uy, uz = _rotate(
                 hx, hy, hz, lx, ly, lz, ux, uy, uz, np.int64(program.axis[sym]), c, s
             )
-        elif code == _TURN_AROUND:  # 180 degrees about the row's axis (U: '|'; H: Lparser's '%', Houdini's '*')
-            axis = program.axis[sym]
-            if axis == _AXIS_H:
-                lx, ly, lz, ux, uy, uz = -lx, -ly, -lz, -ux, -uy, -uz
-            elif axis == _AXIS_L:
-                hx, hy, hz, ux, uy, uz = -hx, -hy, -hz, -ux, -uy, -uz
-            else:
-                hx, hy, hz, lx, ly, lz = -hx, -hy, -hz, -lx, -ly, -lz
-        elif code == _RANDOM_TURN:
-            if random_turn:
-                most = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle)
-                for k in range(3):
-                    c, s = _cos_sin(most * variation.turn[i, k])
-                    hx, hy, hz, lx, ly, lz, ux, uy, uz = _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, k + 1, c, s)
-        elif code == _TROPISM:
-            e = arg if has_arg else program.factor[sym]
-            hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
-                hx, hy, hz, lx, ly, lz, ux, uy, uz, gx, gy, gz, e, np.bool_(False)
-            )
-        elif code == _ELASTICITY:
-            elasticity = arg if has_arg else 0.0
-        elif code == _ELASTICITY_ADD:
-            elasticity = arg if has_arg else elasticity + elasticity_increment
-        elif code == _CYLINDER_TANGENTS:  # @Gt(a, b): the tangents' factors into and out of a control point
-            if has_arg:
-                tan_in = arg
-                tan_out = params[offsets[i] + 1] if arity[i] > 1 else arg
-        elif code == _CYLINDER_START or (code == _CYLINDER_POINT and cyl_on == 0.0):
-            cyl_on = 1.0  # the first control point: nothing drawn yet
-            cx0, cy0, cz0, chx, chy, chz, cw0, ct0 = px, py, pz, hx, hy, hz, width, tan_out
-            cyl_last = last
-            if code == _CYLINDER_POINT and program.sign[sym] < 0:
-                cyl_on = 0.0
-        elif code == _CYLINDER_POINT:
-            # cpfg's general.c interpolate_connection: a Hermite curve from the last control point to here,
-            # tangents the headings times the distance and the tangent parameters, the radius linear
-            dx, dy, dz = px - cx0, py - cy0, pz - cz0
-            dist = math.sqrt(dx * dx + dy * dy + dz * dz)
-            if dist >= 1e-5 and poly_open < 0:
-                rings = _rings(has_arg, arg)
-                a1, a2 = dist * ct0, dist * tan_in
-                t1x, t1y, t1z = chx * a1, chy * a1, chz * a1
-                t2x, t2y, t2z = hx * a2, hy * a2, hz * a2
-                k2x, k2y, k2z = 3 * dx - 2 * t1x - t2x, 3 * dy - 2 * t1y - t2y, 3 * dz - 2 * t1z - t2z
-                k3x, k3y, k3z = -2 * dx + t1x + t2x, -2 * dy + t1y + t2y, -2 * dz + t1z + t2z
-                ax, ay, az = cx0, cy0, cz0
-                for k in range(1, rings + 1):
-                    v = k / rings
-                    bx = cx0 + v * (t1x + v * (k2x + v * k3x))
-                    by = cy0 + v * (t1y + v * (k2y + v * k3y))
-                    bz = cz0 + v * (t1z + v * (k2z + v * k3z))
-                    if k == rings:  # the curve ends where the turtle is
-                        bx, by, bz = px, py, pz
-                    if not (abs(bx) <= far and abs(by) <= far and abs(bz) <= far):
-                        return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-                    sx, sy, sz = bx - ax, by - ay, bz - az
-                    piece = math.sqrt(sx * sx + sy * sy + sz * sz)
-                    if piece > 0.0:
-                        sx, sy, sz = sx / piece, sy / piece, sz / piece
-                    else:
-                        sx, sy, sz = hx, hy, hz
-                    d = lx * sx + ly * sy + lz * sz  # the piece's frame: L made square to it
-                    qlx, qly, qlz = lx - d * sx, ly - d * sy, lz - d * sz
-                    if qlx * qlx + qly * qly + qlz * qlz < 1e-12:
-                        d = ux * sx + uy * sy + uz * sz
-                        qlx, qly, qlz = ux - d * sx, uy - d * sy, uz - d * sz
-                    sx, sy, sz, qlx, qly, qlz, qux, quy, quz = _orthonormal(sx, sy, sz, qlx, qly, qlz)
-                    s_ = n_seg
-                    _put(seg.start, s_, ax, ay, az)
-                    _put(seg.end, s_, bx, by, bz)
-                    _put(seg.heading, s_, sx, sy, sz)
-                    _put(seg.left, s_, qlx, qly, qlz)
-                    _put(seg.up, s_, qux, quy, quz)
-                    seg.width_start[s_] = cw0 + (width - cw0) * (k - 1) / rings
-                    seg.width_end[s_] = cw0 + (width - cw0) * v
-                    if not (seg.width_start[s_] <= far and seg.width_end[s_] <= far):
-                        return 10, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-                    if anchor >= 0:
-                        rise = depth - depth_of[anchor]
-                        order = seg.order[anchor] + (rise if rise > 0 else 0)
-                    else:
-                        order = 0
-                    seg.parent[s_] = cyl_last
-                    seg.module[s_] = i
-                    seg.order[s_] = order
-                    seg.material[s_] = material
-                    depth_of[s_] = depth
-                    if cyl_last >= 0:
-                        if first_child[cyl_last] < 0:
-                            first_child[cyl_last] = s_
-                        if same_child[cyl_last] < 0 and seg.order[cyl_last] == order:
-                            same_child[cyl_last] = s_
-                    last = s_
-                    cyl_last = s_
-                    anchor = s_
-                    n_seg += 1
-                    ax, ay, az = bx, by, bz
-            cx0, cy0, cz0, chx, chy, chz, cw0, ct0 = px, py, pz, hx, hy, hz, width, tan_out
-            if program.sign[sym] < 0:  # @Ge: the cylinder ends here
-                cyl_on = 0.0
-        elif code == _ANGLE_FACTOR:
-            f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle_scale)
-            angle = angle * f ** program.sign[sym]
-            if not math.isfinite(angle):
-                return 11, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-            cos_angle, sin_angle = _cos_sin(angle)
-        elif code == _ROLL_HORIZONTAL:
-            # L = V x H with V = (0, 1, 0)
-            norm = math.sqrt(hz * hz + hx * hx)
-            if norm > 1e-12:
-                lx, ly, lz = hz / norm, 0.0, -hx / norm
-                hx, hy, hz, lx, ly, lz, ux, uy, uz = _orthonormal(hx, hy, hz, lx, ly, lz)
         elif code == _PUSH:
             row = stack_f[depth]
             row[0] = px
@@ -967,27 +786,28 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             row[16] = tx
             row[17] = ty
             row[18] = tz
-            row[19] = cyl_on
-            row[20] = cx0
-            row[21] = cy0
-            row[22] = cz0
-            row[23] = chx
-            row[24] = chy
-            row[25] = chz
-            row[26] = cw0
-            row[27] = ct0
-            row[28] = tan_in
-            row[29] = tan_out
             stack_i[depth, 0] = material
             stack_i[depth, 1] = last
             stack_i[depth, 2] = anchor
-            stack_i[depth, 3] = hanging
-            stack_i[depth, 4] = cyl_last
-            row = stack_m[depth]
-            for k in range(n_mov):
-                row[k] = mov_e[k]
-            row[n_mov], row[n_mov + 1], row[n_mov + 2] = phx, phy, phz
-            row[n_mov + 3], row[n_mov + 4], row[n_mov + 5] = pux, puy, puz
+            if rare is not None:  # the state only the rare ops change
+                row[19] = cyl_on
+                row[20] = cx0
+                row[21] = cy0
+                row[22] = cz0
+                row[23] = chx
+                row[24] = chy
+                row[25] = chz
+                row[26] = cw0
+                row[27] = ct0
+                row[28] = tan_in
+                row[29] = tan_out
+                stack_i[depth, 3] = hanging
+                stack_i[depth, 4] = cyl_last
+                row = stack_m[depth]
+                for k in range(n_mov):
+                    row[k] = mov_e[k]
+                row[n_mov], row[n_mov + 1], row[n_mov + 2] = phx, phy, phz
+                row[n_mov + 3], row[n_mov + 4], row[n_mov + 5] = pux, puy, puz
             depth += 1
             if roll_branch:  # the branch starts rolled about H; the saved state is not
                 c, s = _cos_sin(variation.roll[i])
@@ -1010,22 +830,23 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             elasticity = row[15]
             tx, ty, tz = row[16], row[17], row[18]
             bend = tx != 0.0 or ty != 0.0 or tz != 0.0
-            cyl_on = row[19]
-            cx0, cy0, cz0 = row[20], row[21], row[22]
-            chx, chy, chz = row[23], row[24], row[25]
-            cw0 = row[26]
-            ct0 = row[27]
-            tan_in, tan_out = row[28], row[29]
             material = stack_i[depth, 0]
             last = stack_i[depth, 1]
             anchor = stack_i[depth, 2]
-            hanging = stack_i[depth, 3]
-            cyl_last = stack_i[depth, 4]
-            row = stack_m[depth]
-            for k in range(n_mov):
-                mov_e[k] = row[k]
-            phx, phy, phz = row[n_mov], row[n_mov + 1], row[n_mov + 2]
-            pux, puy, puz = row[n_mov + 3], row[n_mov + 4], row[n_mov + 5]
+            if rare is not None:
+                cyl_on = row[19]
+                cx0, cy0, cz0 = row[20], row[21], row[22]
+                chx, chy, chz = row[23], row[24], row[25]
+                cw0 = row[26]
+                ct0 = row[27]
+                tan_in, tan_out = row[28], row[29]
+                hanging = stack_i[depth, 3]
+                cyl_last = stack_i[depth, 4]
+                row = stack_m[depth]
+                for k in range(n_mov):
+                    mov_e[k] = row[k]
+                phx, phy, phz = row[n_mov], row[n_mov + 1], row[n_mov + 2]
+                pux, puy, puz = row[n_mov + 3], row[n_mov + 4], row[n_mov + 5]
         elif code in (_WIDTH, _WIDTH_ADD, _WIDTH_FACTOR):
             if code == _WIDTH:
                 width = arg * width_unit if has_arg else width * width_scale
@@ -1039,66 +860,6 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                 return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
             if last >= 0 and depth_of[last] == depth:
                 seg.width_end[last] = width
-        elif code == _MATERIAL:
-            if has_arg:
-                if arg < -0.5:
-                    return 8, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-                material = round(arg)
-            else:
-                material = max(0, material + int(program.sign[sym]))
-        elif code == _LENGTH:
-            f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else length_scale)
-            step = step * f ** program.sign[sym]
-            if not (step >= 0.0 and math.isfinite(step)):
-                return 7, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-        elif code == _POLYGON_BEGIN:
-            if poly_open >= 0:  # a polygon inside a polygon: the outer one waits on the stack
-                if poly_depth + 1 == MAX_POLYGON_DEPTH:
-                    return 2, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-                poly_stack[poly_depth, 0] = poly_open
-                poly_stack[poly_depth, 1] = poly_start
-                poly_stack[poly_depth, 2] = poly_mat
-                poly_stack[poly_depth, 3] = poly_seg
-                poly_depth += 1
-            poly_open = i
-            poly_start = n_pts
-            poly_mat = material
-            poly_seg = last
-        elif code == _POLYGON_VERTEX:
-            if poly_open >= 0:
-                n_pts = _add_vertex(poly.points, n_pts, poly_start, px, py, pz)
-        elif code == _POLYGON_END:
-            if poly_open < 0:
-                return 3, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-            poly_open = -1
-            k = n_pts - poly_start
-            if k >= 2:
-                # a polygon walked back to its first vertex lists that vertex once
-                f0 = poly.points[poly_start]
-                fl = poly.points[n_pts - 1]
-                gap = abs(f0[0] - fl[0]) + abs(f0[1] - fl[1]) + abs(f0[2] - fl[2])
-                if gap <= 1e-9 * (1.0 + abs(f0[0]) + abs(f0[1]) + abs(f0[2])):
-                    n_pts -= 1
-                    k -= 1
-            if k >= 3:
-                if poly_depth > 0:  # the open polygons' points come first: move this one's before them
-                    base = poly_stack[0, 1]
-                    _rotate_points(poly.points, base, np.int64(poly_start), n_pts)  # never a literal 0: one signature
-                    for d in range(poly_depth):
-                        poly_stack[d, 1] += k
-                n_poly += 1
-                poly.offsets[n_poly] = poly.offsets[n_poly - 1] + k
-                poly.material[n_poly - 1] = poly_mat
-                poly.segment[n_poly - 1] = poly_seg
-            else:
-                n_pts = poly_start
-                dropped += 1
-            if poly_depth > 0:  # back to the polygon this one was opened in
-                poly_depth -= 1
-                poly_open = poly_stack[poly_depth, 0]
-                poly_start = poly_stack[poly_depth, 1]
-                poly_mat = poly_stack[poly_depth, 2]
-                poly_seg = poly_stack[poly_depth, 3]
         elif code == _LEAF:
             size = arg if has_arg else step
             if not (0.0 <= size <= far):
@@ -1111,24 +872,307 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             leaf.material[n_leaf] = material
             leaf.segment[n_leaf] = last
             n_leaf += 1
-        elif code == _ORGAN:
-            kind = program.organ[sym]
-            if kind in (_SURFACE, _INSTANCE):  # a scale
-                size = (arg if has_arg else 1.0) * sub_scale
-            else:  # a diameter (sphere, disc, circle, box), in width units; the width when not given
-                size = arg * width_unit if has_arg else width
-            if not (0.0 <= size <= far):
-                return 12, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
-            organ.kind[n_organ] = kind
-            _put(organ.position, n_organ, px, py, pz)
-            _put(organ.heading, n_organ, hx, hy, hz)
-            _put(organ.left, n_organ, lx, ly, lz)
-            _put(organ.up, n_organ, ux, uy, uz)
-            organ.size[n_organ] = size
-            organ.material[n_organ] = material
-            organ.segment[n_organ] = last
-            organ.module[n_organ] = i
-            n_organ += 1
+        elif code == _TURN_AROUND:  # 180 degrees about the row's axis (U: '|'; H: Lparser's '%', Houdini's '*')
+            axis = program.axis[sym]
+            if axis == _AXIS_H:
+                lx, ly, lz, ux, uy, uz = -lx, -ly, -lz, -ux, -uy, -uz
+            elif axis == _AXIS_L:
+                hx, hy, hz, ux, uy, uz = -hx, -hy, -hz, -ux, -uy, -uz
+            else:
+                hx, hy, hz, lx, ly, lz = -hx, -hy, -hz, -lx, -ly, -lz
+        elif code == _ROLL_HORIZONTAL:
+            # L = V x H with V = (0, 1, 0)
+            norm = math.sqrt(hz * hz + hx * hx)
+            if norm > 1e-12:
+                lx, ly, lz = hz / norm, 0.0, -hx / norm
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _orthonormal(hx, hy, hz, lx, ly, lz)
+        elif code == _MATERIAL:
+            if has_arg:
+                if arg < -0.5:
+                    return 8, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                material = round(arg)
+            else:
+                material = max(0, material + int(program.sign[sym]))
+        elif rare is not None:  # the rare ops (RARE_OPS): compiled only for strings that hold them
+            if code == _MOVEMENT_ELASTICITY:  # cpfg's @Ts(n, e), @Ti(n, d), @Td(n, d)
+                if has_arg:
+                    more = arity[i] > 1
+                    movement_elasticity(
+                        config.movements, mov_e, program.sign[sym], arg, more, params[offsets[i] + 1] if more else 0.0
+                    )
+            elif code == _MOVEMENT_FRAME and program.sign[sym] > 0:  # cpfg's @Tf: the turtle's frame is the one kept
+                phx, phy, phz, pux, puy, puz = hx, hy, hz, ux, uy, uz
+            elif code == _MOVEMENT_FRAME:  # cpfg's @Tp: U carried from the frame kept (no twist since the last F)
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = carry_up(hx, hy, hz, ux, uy, uz, phx, phy, phz, pux, puy, puz)
+            elif code == _FORWARD_STEPS:  # L-Py's nF(length, dlength[, radius]): PlantGL's Turtle::nF
+                # each step is the FORWARD above, with its length (kept apart: a loop there slows every F)
+                dlength = params[offsets[i] + 1]
+                whole, rest, n_rep = _steps(arg, dlength)
+                taper = arity[i] >= 3  # the width goes from the current one to the radius given, step by step
+                w0 = width
+                w1 = params[offsets[i] + 2] * width_unit if taper else width
+                dw = (w1 - w0) / arg if taper and arg > 0.0 else 0.0
+                for k in range(n_rep):
+                    if elasticity != 0.0 and bend and not after:
+                        hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
+                            hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity, by_angle
+                        )
+                    length = (dlength if k < whole else rest) * length_unit
+                    if jitter_length:
+                        length *= variation.length[i]
+                    qx = px + hx * length
+                    qy = py + hy * length
+                    qz = pz + hz * length
+                    if not (abs(qx) <= far and abs(qy) <= far and abs(qz) <= far):
+                        return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                    if poly_open >= 0:
+                        if program.vertex[sym]:
+                            n_pts = _add_vertex(poly.points, n_pts, poly_start, qx, qy, qz)
+                        last = -1
+                    else:
+                        s_ = n_seg
+                        _put(seg.start, s_, px, py, pz)
+                        _put(seg.end, s_, qx, qy, qz)
+                        _put(seg.heading, s_, hx, hy, hz)
+                        _put(seg.left, s_, lx, ly, lz)
+                        _put(seg.up, s_, ux, uy, uz)
+                        drawn = width * variation.width[i] if jitter_width else width
+                        if not drawn <= far:
+                            return 10, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                        seg.width_start[s_] = drawn
+                        seg.width_end[s_] = drawn
+                        if anchor >= 0:
+                            rise = depth - depth_of[anchor]
+                            order = seg.order[anchor] + (rise if rise > 0 else 0)
+                        else:
+                            order = 0
+                        seg.parent[s_] = last
+                        seg.module[s_] = i
+                        seg.order[s_] = order
+                        seg.material[s_] = material
+                        depth_of[s_] = depth
+                        if last >= 0:
+                            if first_child[last] < 0:
+                                first_child[last] = s_
+                            if same_child[last] < 0 and seg.order[last] == order:
+                                same_child[last] = s_
+                        last = s_
+                        anchor = s_
+                        n_seg += 1
+                    px, py, pz = qx, qy, qz
+                    if after and elasticity != 0.0 and bend:
+                        hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend_after(
+                            hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, elasticity
+                        )
+                    if taper:  # PlantGL's F(dlength, topradius): the next width, the radius itself after the rest
+                        width = w0 + dw * dlength * (k + 1) if k < whole else w1
+                        if not (0.0 <= width <= far):
+                            return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                        if last >= 0 and depth_of[last] == depth:
+                            seg.width_end[last] = width
+            elif code == _SUB_LSYSTEM:
+                before = sub_scale
+                if program.sign[sym] > 0:  # ?(n, s): a sub-L-system starts (a '?' without parameters is none)
+                    if not has_arg:
+                        continue
+                    if sub_top == MAX_SUB_LSYSTEMS:
+                        return 13, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                    sub_stack[sub_top] = sub_scale
+                    sub_top += 1
+                    if arity[i] >= 2:
+                        sub_scale = sub_scale * params[offsets[i] + 1]
+                    if not (sub_scale > 0.0 and sub_scale <= far):
+                        return 14, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                elif sub_top > 0:  # $: it ends (an unmatched $ changes nothing: cpfg warns and goes on)
+                    sub_top -= 1
+                    sub_scale = sub_stack[sub_top]
+                width = width * sub_scale / before
+                if not (0.0 <= width <= far):
+                    return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+            elif code == _QUERY:
+                row = query.state[n_query]
+                row[0], row[1], row[2] = px, py, pz
+                row[3], row[4], row[5] = hx, hy, hz
+                row[6], row[7], row[8] = lx, ly, lz
+                row[9], row[10], row[11] = ux, uy, uz
+                query.module[n_query] = i
+                n_query += 1
+            elif code == _RANDOM_TURN:
+                if random_turn:
+                    most = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle)
+                    for k in range(3):
+                        c, s = _cos_sin(most * variation.turn[i, k])
+                        hx, hy, hz, lx, ly, lz, ux, uy, uz = _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, k + 1, c, s)
+            elif code == _CYLINDER_TANGENTS:  # @Gt(a, b): the tangents' factors into and out of a control point
+                if has_arg:
+                    tan_in = arg
+                    tan_out = params[offsets[i] + 1] if arity[i] > 1 else arg
+            elif code == _CYLINDER_START or (code == _CYLINDER_POINT and cyl_on == 0.0):
+                cyl_on = 1.0  # the first control point: nothing drawn yet
+                cx0, cy0, cz0, chx, chy, chz, cw0, ct0 = px, py, pz, hx, hy, hz, width, tan_out
+                cyl_last = last
+                if code == _CYLINDER_POINT and program.sign[sym] < 0:
+                    cyl_on = 0.0
+            elif code == _CYLINDER_POINT:
+                # cpfg's general.c interpolate_connection: a Hermite curve from the last control point to here,
+                # tangents the headings times the distance and the tangent parameters, the radius linear
+                dx, dy, dz = px - cx0, py - cy0, pz - cz0
+                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if dist >= 1e-5 and poly_open < 0:
+                    rings = _rings(has_arg, arg)
+                    a1, a2 = dist * ct0, dist * tan_in
+                    t1x, t1y, t1z = chx * a1, chy * a1, chz * a1
+                    t2x, t2y, t2z = hx * a2, hy * a2, hz * a2
+                    k2x, k2y, k2z = 3 * dx - 2 * t1x - t2x, 3 * dy - 2 * t1y - t2y, 3 * dz - 2 * t1z - t2z
+                    k3x, k3y, k3z = -2 * dx + t1x + t2x, -2 * dy + t1y + t2y, -2 * dz + t1z + t2z
+                    ax, ay, az = cx0, cy0, cz0
+                    for k in range(1, rings + 1):
+                        v = k / rings
+                        bx = cx0 + v * (t1x + v * (k2x + v * k3x))
+                        by = cy0 + v * (t1y + v * (k2y + v * k3y))
+                        bz = cz0 + v * (t1z + v * (k2z + v * k3z))
+                        if k == rings:  # the curve ends where the turtle is
+                            bx, by, bz = px, py, pz
+                        if not (abs(bx) <= far and abs(by) <= far and abs(bz) <= far):
+                            return 5, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                        sx, sy, sz = bx - ax, by - ay, bz - az
+                        piece = math.sqrt(sx * sx + sy * sy + sz * sz)
+                        if piece > 0.0:
+                            sx, sy, sz = sx / piece, sy / piece, sz / piece
+                        else:
+                            sx, sy, sz = hx, hy, hz
+                        d = lx * sx + ly * sy + lz * sz  # the piece's frame: L made square to it
+                        qlx, qly, qlz = lx - d * sx, ly - d * sy, lz - d * sz
+                        if qlx * qlx + qly * qly + qlz * qlz < 1e-12:
+                            d = ux * sx + uy * sy + uz * sz
+                            qlx, qly, qlz = ux - d * sx, uy - d * sy, uz - d * sz
+                        sx, sy, sz, qlx, qly, qlz, qux, quy, quz = _orthonormal(sx, sy, sz, qlx, qly, qlz)
+                        s_ = n_seg
+                        _put(seg.start, s_, ax, ay, az)
+                        _put(seg.end, s_, bx, by, bz)
+                        _put(seg.heading, s_, sx, sy, sz)
+                        _put(seg.left, s_, qlx, qly, qlz)
+                        _put(seg.up, s_, qux, quy, quz)
+                        seg.width_start[s_] = cw0 + (width - cw0) * (k - 1) / rings
+                        seg.width_end[s_] = cw0 + (width - cw0) * v
+                        if not (seg.width_start[s_] <= far and seg.width_end[s_] <= far):
+                            return 10, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                        if anchor >= 0:
+                            rise = depth - depth_of[anchor]
+                            order = seg.order[anchor] + (rise if rise > 0 else 0)
+                        else:
+                            order = 0
+                        seg.parent[s_] = cyl_last
+                        seg.module[s_] = i
+                        seg.order[s_] = order
+                        seg.material[s_] = material
+                        depth_of[s_] = depth
+                        if cyl_last >= 0:
+                            if first_child[cyl_last] < 0:
+                                first_child[cyl_last] = s_
+                            if same_child[cyl_last] < 0 and seg.order[cyl_last] == order:
+                                same_child[cyl_last] = s_
+                        last = s_
+                        cyl_last = s_
+                        anchor = s_
+                        n_seg += 1
+                        ax, ay, az = bx, by, bz
+                cx0, cy0, cz0, chx, chy, chz, cw0, ct0 = px, py, pz, hx, hy, hz, width, tan_out
+                if program.sign[sym] < 0:  # @Ge: the cylinder ends here
+                    cyl_on = 0.0
+            elif code == _POLYGON_BEGIN:
+                if poly_open >= 0:  # a polygon inside a polygon: the outer one waits on the stack
+                    if poly_depth + 1 == MAX_POLYGON_DEPTH:
+                        return 2, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                    poly_stack[poly_depth, 0] = poly_open
+                    poly_stack[poly_depth, 1] = poly_start
+                    poly_stack[poly_depth, 2] = poly_mat
+                    poly_stack[poly_depth, 3] = poly_seg
+                    poly_depth += 1
+                poly_open = i
+                poly_start = n_pts
+                poly_mat = material
+                poly_seg = last
+            elif code == _POLYGON_VERTEX:
+                if poly_open >= 0:
+                    n_pts = _add_vertex(poly.points, n_pts, poly_start, px, py, pz)
+            elif code == _POLYGON_END:
+                if poly_open < 0:
+                    return 3, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                poly_open = -1
+                k = n_pts - poly_start
+                if k >= 2:
+                    # a polygon walked back to its first vertex lists that vertex once
+                    f0 = poly.points[poly_start]
+                    fl = poly.points[n_pts - 1]
+                    gap = abs(f0[0] - fl[0]) + abs(f0[1] - fl[1]) + abs(f0[2] - fl[2])
+                    if gap <= 1e-9 * (1.0 + abs(f0[0]) + abs(f0[1]) + abs(f0[2])):
+                        n_pts -= 1
+                        k -= 1
+                if k >= 3:
+                    if poly_depth > 0:  # the open polygons' points come first: move this one's before them
+                        base = poly_stack[0, 1]
+                        # never a literal 0: one signature
+                        _rotate_points(poly.points, base, np.int64(poly_start), n_pts)
+                        for d in range(poly_depth):
+                            poly_stack[d, 1] += k
+                    n_poly += 1
+                    poly.offsets[n_poly] = poly.offsets[n_poly - 1] + k
+                    poly.material[n_poly - 1] = poly_mat
+                    poly.segment[n_poly - 1] = poly_seg
+                else:
+                    n_pts = poly_start
+                    dropped += 1
+                if poly_depth > 0:  # back to the polygon this one was opened in
+                    poly_depth -= 1
+                    poly_open = poly_stack[poly_depth, 0]
+                    poly_start = poly_stack[poly_depth, 1]
+                    poly_mat = poly_stack[poly_depth, 2]
+                    poly_seg = poly_stack[poly_depth, 3]
+            elif code == _ORGAN:
+                kind = program.organ[sym]
+                if kind in (_SURFACE, _INSTANCE):  # a scale
+                    size = (arg if has_arg else 1.0) * sub_scale
+                else:  # a diameter (sphere, disc, circle, box), in width units; the width when not given
+                    size = arg * width_unit if has_arg else width
+                if not (0.0 <= size <= far):
+                    return 12, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                organ.kind[n_organ] = kind
+                _put(organ.position, n_organ, px, py, pz)
+                _put(organ.heading, n_organ, hx, hy, hz)
+                _put(organ.left, n_organ, lx, ly, lz)
+                _put(organ.up, n_organ, ux, uy, uz)
+                organ.size[n_organ] = size
+                organ.material[n_organ] = material
+                organ.segment[n_organ] = last
+                organ.module[n_organ] = i
+                n_organ += 1
+            elif code == _TROPISM:
+                e = arg if has_arg else program.factor[sym]
+                hx, hy, hz, lx, ly, lz, ux, uy, uz = _bend(
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz, gx, gy, gz, e, np.bool_(False)
+                )
+            elif code == _ELASTICITY:
+                elasticity = arg if has_arg else 0.0
+            elif code == _ELASTICITY_ADD:
+                elasticity = arg if has_arg else elasticity + elasticity_increment
+            elif code == _ANGLE_FACTOR:
+                f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle_scale)
+                angle = angle * f ** program.sign[sym]
+                if not math.isfinite(angle):
+                    return 11, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+                cos_angle, sin_angle = _cos_sin(angle)
+            elif code == _LENGTH:
+                f = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else length_scale)
+                step = step * f ** program.sign[sym]
+                if not (step >= 0.0 and math.isfinite(step)):
+                    return 7, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
+            elif code == _TROPISM_VECTOR:  # L-Py's @Tp(x, y, z), in the tool's world axes
+                base = offsets[i]
+                tx = params[base + program.world[sym, 0]]
+                ty = params[base + program.world[sym, 1]]
+                tz = params[base + program.world[sym, 2]]
+                bend = tx != 0.0 or ty != 0.0 or tz != 0.0
     query.count[0] = n_query
     query.count[1] = n_cut
     if poly_open >= 0:

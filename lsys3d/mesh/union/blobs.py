@@ -11,7 +11,7 @@ whose edge is a fraction of the width (``UnionOptions.blobs``):
    tapered capsule along the rings' centres, with the radius that keeps the
    area of the tube's polygon (``r sqrt(s sin(2 pi / s) / (2 pi))`` for ``s``
    sides: the volume stays the tubes'), cut flat by its ring's plane at the
-   two ends of a tube (as the tube's caps) and round at its inner joints.
+   two ends of a tube (as the tube's caps) and mitred at its inner joints (cut beyond them only).
    It is evaluated, in a compiled loop, only in the blocks of ``BLOCK``\\ :sup:`3`
    cells that some capsule reaches (a narrow band around it); further away it
    stays at the band's width.
@@ -35,9 +35,10 @@ except on the faces of its short tubes, which take a box projection
 flat caps).
 
 The cluster's surface differs from the exact union by at most about an edge
-(the grid cannot hold detail finer than that): joints inside a tube are round
-(a sphere where the exact union has the mitred ring), and a seam between two
-tubes is rounded over about one edge.  Deterministic: the same blocks, in the
+(the grid cannot hold detail finer than that): a sharp rim (a cap's edge, a
+mitre's outer corner) is cut off and a concave seam between two tubes filled
+over about one edge.  The volume: within 1.2% of the exact union's on the
+dense set at an edge of a quarter of the width (:data:`CHORD`).  Deterministic: the same blocks, in the
 same order, give the same samples and the same vertices in any process.
 """
 
@@ -69,13 +70,14 @@ SHIFTS = np.array(
 )
 """The grid's offset from the multiples of its edge, in edges: the first, the next if a level set fails the check."""
 
-CHORD = 1.0 / 6.0
+CHORD = 1.0 / 12.0
 """The wall is sampled this many ``edge^2 / radius`` further out, for the marching cubes' flat triangles.
 
-A chord of length ``h`` on a circle of radius ``r`` lies ``h^2 / (8 r)`` inside it at its middle; the
-triangles span up to a cell's diagonal.  Measured on L-Py's fern cut to 8 generations (2,187 tubes of
-radius 0.01) against the exact union: without it the level set loses 4.8% of the volume at an edge of a
-quarter of the width, 1.5% at an eighth; with it, +0.1% and -0.2%.
+A chord of length ``h`` on a circle of radius ``r`` lies ``h^2 / (8 r)`` inside it at its middle and
+``h^2 / (12 r)`` on average.  Measured at an edge of a quarter of the width against the exact union
+(``benchmarks/dense/README.md``): L-Py's barnsleyfern -0.62%, barnsleyfern3 -1.13%, nylki's tree25d +0.93%
+(1/11.5: -0.52%, -0.99%, +1.08%; 1/8: +0.54%, +0.44%, +2.65%: the denser the union, the more of its concave
+seams the triangles fill); one isolated long tube gains 0 at about 1/8.5 and loses 2% at 1/12.
 """
 
 BAND = 1.25
@@ -125,9 +127,18 @@ def _cap_plane(normal: np.ndarray, point: np.ndarray) -> np.ndarray:
 
 
 @kernel(nogil=True)
-def _fill(values, nearest, corner, origin, h, band, lo, hi, which, a, b, ra, rb, ta, tb):  # pragma: no cover
+def _fill(
+    values, nearest, corner, origin, h, band, lo, hi, which, a, b, ra, rb, ta, tb, cap_a, cap_b
+):  # pragma: no cover
     """Samples of one block (``values`` from grid index ``corner``): the least distance of its capsules ``which``,
-    and which capsule is nearest (``nearest``, -1 beyond the band).  Whether the surface passes the block."""
+    and which capsule is nearest (``nearest``, -1 beyond the band).  Whether the surface passes the block.
+
+    A capsule is cut by the planes of its two rings: by a cap's (``cap_a``, ``cap_b``: its tube's first or last
+    ring) on both sides, by an inner joint's only beyond it.  Inside, next to a joint, the distance stays the
+    wall's: cut there too, two spans of one tube would each be a few cells long and bring the samples inside
+    their shared ring near zero, and the marching cubes' vertices on the wall next to it would move inwards
+    (measured on a chain of spans as long as the radius, edge half the radius: -3.9% of the volume).
+    """
     n = values.shape[0]
     values[:] = band
     nearest[:] = -1
@@ -157,8 +168,13 @@ def _fill(values, nearest, corner, origin, h, band, lo, hi, which, a, b, ra, rb,
                     dx, dy, dz = px - t * bx, py - t * by, pz - t * bz
                     # the distance from the axis line (the wall runs on to the mitre planes), radius along it
                     d = np.sqrt(dx * dx + dy * dy + dz * dz) - (r0 + dr * min(max(t, 0.0), 1.0))
-                    d = max(d, (px + ax) * ta[s, 0] + (py + ay) * ta[s, 1] + (pz + az) * ta[s, 2] + ta[s, 3])
-                    d = max(d, (px + ax) * tb[s, 0] + (py + ay) * tb[s, 1] + (pz + az) * tb[s, 2] + tb[s, 3])
+                    # cut by its rings' planes: a cap's on both sides, an inner joint's beyond it only
+                    pa = (px + ax) * ta[s, 0] + (py + ay) * ta[s, 1] + (pz + az) * ta[s, 2] + ta[s, 3]
+                    if pa > d and (pa > 0.0 or cap_a[s]):
+                        d = pa
+                    pb = (px + ax) * tb[s, 0] + (py + ay) * tb[s, 1] + (pz + az) * tb[s, 2] + tb[s, 3]
+                    if pb > d and (pb > 0.0 or cap_b[s]):
+                        d = pb
                     if d < values[i, j, k]:
                         values[i, j, k] = d
                         nearest[i, j, k] = s
@@ -259,6 +275,10 @@ def level_set(tubes: Tubes, which: np.ndarray, edge: float):
 def _level_set(tubes: Tubes, which: np.ndarray, edge: float, attempt: int):
     """:func:`level_set` on the grid offset by ``SHIFTS[attempt]``; None when it fails the check."""
     marching_cubes = _marching_cubes()
+    if marching_cubes is None:
+        raise OptionsError(
+            "union_blobs: the level sets need scikit-image, a dependency of lsys3d (pip install scikit-image)"
+        )
     t0 = time.perf_counter()
     a, b, ra, rb, ta, tb, ring = spans(tubes, which)
     if not len(a):
@@ -266,6 +286,10 @@ def _level_set(tubes: Tubes, which: np.ndarray, edge: float, attempt: int):
     h, band = float(edge), BAND * float(edge)
     # flat triangles between vertices on a round wall of radius r cut inside it by h^2 / (12 r) on average
     ra, rb = ra + CHORD * h * h / ra, rb + CHORD * h * h / rb
+    tube_of_ring = np.repeat(np.arange(len(tubes)), tubes.rings)
+    span_tube = tube_of_ring[ring]
+    cap_a = ring == tubes.ring_offsets[span_tube]  # the span's first ring is its tube's first: a cap
+    cap_b = ring + 2 == tubes.ring_offsets[span_tube] + tubes.rings[span_tube]
     reach = np.maximum(ra, rb)[:, None] + band
     box_lo = np.minimum(a, b) - reach
     box_hi = np.maximum(a, b) + reach
@@ -296,7 +320,7 @@ def _level_set(tubes: Tubes, which: np.ndarray, edge: float, attempt: int):
     for n, blk in enumerate(blocks.tolist()):
         corner = np.array([blk // (nb[1] * nb[2]), (blk // nb[2]) % nb[1], blk % nb[2]], np.int64) * BLOCK
         mine = span_of[block_first[n] : block_first[n + 1]]
-        if not _fill(values, nearest, corner, origin, h, band, lo, hi, mine, a, b, ra, rb, ta, tb):
+        if not _fill(values, nearest, corner, origin, h, band, lo, hi, mine, a, b, ra, rb, ta, tb, cap_a, cap_b):
             continue
         v, f, _, _ = marching_cubes(values, 0.0, allow_degenerate=True)
         v, f = v.astype(np.float64), f.astype(np.int64)
@@ -333,7 +357,7 @@ def _level_set(tubes: Tubes, which: np.ndarray, edge: float, attempt: int):
         centre,
         span,
         ring,
-        np.repeat(np.arange(len(tubes)), tubes.rings),
+        tube_of_ring,
         tubes.points,
         tubes.point_offsets,
         tubes.sides,
@@ -353,13 +377,16 @@ def _level_set(tubes: Tubes, which: np.ndarray, edge: float, attempt: int):
 
 
 def _marching_cubes():
-    """scikit-image's ``measure.marching_cubes``: an optional dependency (the ``dense`` extra) only blobs need."""
+    """scikit-image's ``measure.marching_cubes``, or None where scikit-image does not import.
+
+    A dependency of lsys3d, imported only when a cluster is a blob: most plants have none, and Blender's
+    extension (``tools/blender_extension.py``) does not bundle scikit-image and scipy, so there the blobs go
+    through the boolean (:func:`blob_meshes` warns).
+    """
     try:
         from skimage.measure import marching_cubes
     except ImportError:
-        raise OptionsError(
-            "union_blobs: the level sets need scikit-image (pip install 'lsys3d[dense]' or scikit-image)"
-        ) from None
+        return None
     return marching_cubes
 
 
@@ -392,17 +419,19 @@ def blob_clusters(tubes: Tubes, pair_a: np.ndarray, pair_b: np.ndarray, fraction
     if not len(pair_a) or fraction <= 0:
         return []
     label = components(n, pair_a, pair_b)
-    order = np.argsort(label, kind="stable")
+    # the clusters crowded enough, from the counts alone (most trees have none: nothing more to compute)
+    size = np.bincount(label, minlength=n)
+    pairs_per = np.bincount(label[pair_a], minlength=n)
+    crowded = (size >= 2) & (2.0 * pairs_per >= OVERLAP * size)
+    if not crowded.any():
+        return []
+    mine = np.flatnonzero(crowded[label])
+    order = mine[np.argsort(label[mine], kind="stable")]
     cut = np.flatnonzero(np.diff(label[order])) + 1
-    pairs_per = np.bincount(label[pair_a], minlength=int(label.max()) + 1)
     tri = np.diff(tubes.face_offsets)
     out = []
     for members in np.split(order, cut):
-        if len(members) < 2:
-            continue
         per_tube = 2.0 * pairs_per[label[members[0]]] / len(members)
-        if per_tube < OVERLAP:
-            continue
         h = fraction * 2.0 * _thinnest(tubes, members)
         a, b, ra, rb, _, _, _ = spans(tubes, members)
         reach = (np.linalg.norm(b - a, axis=1) + 2 * np.maximum(ra, rb) + 2 * BAND * h) / h
@@ -436,7 +465,15 @@ def blob_meshes(
     without, zeros that take no memory (the cleanup makes its own).
     """
     meshes, meshed = [], np.zeros(len(tubes), bool)
-    for members in blob_clusters(tubes, pair_a, pair_b, fraction):
+    clusters = blob_clusters(tubes, pair_a, pair_b, fraction)
+    if clusters and _marching_cubes() is None:
+        log.warning(
+            "union: %d clusters of tubes would be level sets (union_blobs), but scikit-image does not import here; "
+            "they go through the boolean (slower, the exact union)",
+            len(clusters),
+        )
+        return meshes, meshed
+    for members in clusters:
         made = level_set(tubes, members, fraction * 2.0 * _thinnest(tubes, members))
         if made is None:
             continue

@@ -54,6 +54,7 @@ __all__ = [
     "free_stretches",
     "pieces",
     "straight_spans",
+    "too_many_pairs",
     "touching",
 ]
 
@@ -365,13 +366,18 @@ def touching(pcs: Pieces, margin: float = 0.01, max_pairs: int = DEFAULT_MAX_PAI
     args = (key, box, owner, lo, hi, origin, cell, dims, pcs.radius, pcs.p, pcs.q, margin, 1e-9 * scale, max_pairs)
     a, b, over = _cell_pairs(*args, 0, len(key))
     if over:
-        raise LimitError(
-            f"union: more than {max_pairs:,} pairs of tube pieces may touch, a crowd of branches (measured: "
-            f"about 0.1 ms of boolean work a pair, so over {max_pairs * _SECONDS_PER_PAIR:,.0f} s); use fewer, "
-            "thinner or more spread-out branches, or raise the limit (--max-union-pairs N, max_union_pairs=N)"
-        )
+        raise too_many_pairs(max_pairs)
     order = np.lexsort((b, a))
     return a[order], b[order]
+
+
+def too_many_pairs(max_pairs: int) -> LimitError:
+    """The error :func:`touching` raises when more than ``max_pairs`` pairs of pieces may touch."""
+    return LimitError(
+        f"union: more than {max_pairs:,} pairs of tube pieces may touch, a crowd of branches (measured: "
+        f"about 0.1 ms of boolean work a pair, so over {max_pairs * _SECONDS_PER_PAIR:,.0f} s); use fewer, "
+        "thinner or more spread-out branches, or raise the limit (--max-union-pairs N, max_union_pairs=N)"
+    )
 
 
 @kernel(nogil=True)

@@ -19,7 +19,7 @@ everything):
    default; :mod:`lsys3d.mesh.union.cover`), so does every tube within that
    fraction of its width of the spans of earlier tubes that stay (the
    nested short tubes of dense grammars), a bounded simplification.  With
-   ``UnionOptions.blobs`` (off by default; :mod:`lsys3d.mesh.union.blobs`), a
+   ``UnionOptions.blobs`` (on by default; :mod:`lsys3d.mesh.union.blobs`), a
    cluster of many mutually overlapping tubes is meshed as a level set
    instead, where a cost model finds that faster than the boolean, and its
    tubes leave the boolean too.
@@ -66,7 +66,7 @@ import manifold3d
 import numpy as np
 
 from ...arrays import gather, release_memory, unique
-from ...errors import GeometryError
+from ...errors import GeometryError, LimitError
 from ...options import Options, option
 from ..mesh import Mesh
 from ..sweep import Tubes
@@ -79,7 +79,7 @@ from .local import JunctionCleaner, Junctions, Touching, UnionRun, _local_union
 from .parts import _part, _to_mesh
 from .plan import _colour, _namer, _plan, _Progress, _unique_pairs, _use
 from .sources import _sourced, _true_sources
-from .touch import DEFAULT_MAX_PAIRS, buried_tubes, duplicate_tubes, free_stretches, pieces, touching
+from .touch import DEFAULT_MAX_PAIRS, buried_tubes, duplicate_tubes, free_stretches, pieces, too_many_pairs, touching
 from .weld import _drop_crumbs, _weld_float32
 
 __all__ = ["Junctions", "UnionOptions", "concatenate", "may_touch", "union", "union_cleaning_junctions"]
@@ -127,13 +127,13 @@ class UnionOptions(Options):
         "that stay (0: off; the union's surface moves by at most that much: docs/mesh.md, dense grammars)",
     )
     blobs: float = option(
-        0.0,
+        0.25,
         low=0,
         high=1,
         name="union_blobs",
         help="mesh a cluster of many mutually overlapping tubes as a level set, on a grid whose edge is this fraction "
-        "of its thinnest width, where a cost model finds that faster than the boolean (0: off; needs scikit-image; "
-        "docs/mesh.md, dense grammars)",
+        "of its thinnest width, where a cost model finds that faster than the boolean (0: off, every cluster "
+        "through the boolean; docs/mesh.md, dense grammars)",
     )
     max_pairs: int = option(
         DEFAULT_MAX_PAIRS,
@@ -146,14 +146,14 @@ class UnionOptions(Options):
     def plain(self) -> dict:
         """The options as plain data, without ``workers`` (how the work runs, not what it makes).
 
-        ``cover`` and ``blobs`` are there only when on, so files made without them keep the bytes they had before
-        they existed.
+        ``cover`` (off by default) is there only when on, so files made without it keep the bytes they had before
+        it existed.  ``blobs`` is always there (on by default since issue 34; a file made before that, without
+        the key, was made with it off).
         """
         data = super().plain()
         del data["workers"]
-        for key in ("cover", "blobs"):
-            if not getattr(self, key):
-                del data[key]
+        if not self.cover:
+            del data["cover"]
         return data
 
 
@@ -388,6 +388,15 @@ def _leave_out(tubes: Tubes, origin: np.ndarray, drop: np.ndarray, why: str):
     return tubes.select(~drop), origin[gather(tubes.face_offsets, np.flatnonzero(~drop))[0]]
 
 
+def _crowd_pairs(pcs, opt: UnionOptions):
+    """The pairs of pieces that may touch, up to ``COVER_PAIRS`` times ``max_pairs`` of them (for the blobs' and the
+    cover's tests, which run before the refusal); more is refused as ``max_pairs`` is (more than that many too)."""
+    try:
+        return touching(pcs, opt.margin, COVER_PAIRS * opt.max_pairs)
+    except LimitError:
+        raise too_many_pairs(opt.max_pairs) from None
+
+
 def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None], corners: bool = True):
     """Cull what adds nothing, find what may touch, refine long straight spans.
 
@@ -405,9 +414,10 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None],
         tubes, origin = _leave_out(tubes, origin, dup, "equal to another")
     pcs = pieces(tubes)
     blobs = []
+    a = b = None  # the pairs of ``pcs`` that may touch, once found (up to COVER_PAIRS times max_pairs of them)
     if opt.blobs > 0:
         # the blobs are found before the refusal too: they are what makes a dense grammar's crowd
-        a, b = touching(pcs, opt.margin, COVER_PAIRS * opt.max_pairs)
+        a, b = _crowd_pairs(pcs, opt)
         pairs = _unique_pairs(pcs.tube[a], pcs.tube[b])
         blobs, meshed = blob_meshes(tubes, pairs[:, 0], pairs[:, 1], opt.blobs, corners)
         if meshed.any():
@@ -416,14 +426,20 @@ def _prepare(tubes: Tubes, opt: UnionOptions, progress: Callable[[float], None],
             if not len(tubes):
                 return tubes, None, None, None, origin, blobs
             pcs = pieces(tubes)
+            a = b = None
     if opt.cover > 0:
         # what may show is found before the refusal: a dense grammar's crowd is mostly covered tubes
-        a, b = touching(pcs, opt.margin, COVER_PAIRS * opt.max_pairs)
+        if a is None:
+            a, b = _crowd_pairs(pcs, opt)
         covered = covered_tubes(tubes, pcs, a, b, opt.cover)
         if covered.any():
             tubes, origin = _leave_out(tubes, origin, covered, f"within {opt.cover:g} of their width of another")
             pcs = pieces(tubes)
-    a, b = touching(pcs, opt.margin, opt.max_pairs)
+            a = b = None
+    if a is None:
+        a, b = touching(pcs, opt.margin, opt.max_pairs)
+    elif len(a) > opt.max_pairs:  # the pairs already found (no tube left since): refused as touching refuses
+        raise too_many_pairs(opt.max_pairs)
     progress(0.04)
     buried = buried_tubes(tubes, pcs, a, b)
     if buried.any():
