@@ -10,7 +10,9 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from pathlib import Path
 
+import first_run
 import pytest
 import shared
 from hypothesis import settings
@@ -33,6 +35,11 @@ def pytest_sessionstart(session):
     tree3d take the paths most tests take, a polygon the turtle's rare ops (its kernel's second compilation), and
     tree3d is written as .glb and .usdc (the writers' kernels); warm, this costs about three seconds.  The two
     trees are shared with the workers (tests/shared.py), which would otherwise each grow them again.
+
+    From an empty cache (a fresh clone, CI) the compiling starts with a user's first run, ``lsys3d generate``
+    in a child process (tests/first_run.py): it compiles the default tree's kernels into the suite's cache
+    the way a user's first run does (the cleanup's in a helper process on the other core), and its record
+    is what tests/test_compiling.py's first-run test asserts on, instead of compiling them all once more.
     """
     if hasattr(session.config, "workerinput") or session.config.option.collectonly:
         return  # an xdist worker: the controller has compiled them
@@ -41,6 +48,12 @@ def pytest_sessionstart(session):
         run = tempfile.mkdtemp(prefix="lsys3d-tests-")
         os.environ[shared.SHARED] = run
         session.config.add_cleanup(lambda: shutil.rmtree(run, ignore_errors=True))
+    if first_run.cache_is_empty():
+        # a fresh clone: the first compiling is a user's first run, done once for real (tests/first_run.py)
+        folder = tempfile.mkdtemp(prefix="lsys3d-first-run-")
+        session.config.add_cleanup(lambda: shutil.rmtree(folder, ignore_errors=True))
+        first_run.run(Path(folder))
+        os.environ[first_run.RECORD] = str(Path(folder) / "first-run.json")
     from grown import grown
 
     import lsys3d

@@ -509,26 +509,24 @@ def test_an_unreachable_scheduler_is_one_error(tmp_path, monkeypatch):
 
 def test_a_batch_of_seeds_that_change_nothing_warns_once(tmp_path):
     """seeds = "0-2" of a grammar nothing random shapes: three copies of one plant, and one SeedWarning saying
-    so (the rule of generate and the CLI's --variants); with a jitter, none."""
+    so (the rule of generate and the CLI's --variants); with a jitter, none: one batch holding both entries
+    warns once, for the entry without the jitter."""
     import warnings
 
     from lsys3d.errors import SeedWarning
 
-    entry = '[[jobs]]\ngrammar = "abop-1.24a"\nseeds = "0-2"\nformats = ["glb"]\noptions = { iterations = 1%s }\n'
-    for extra, expected in (("", 1), (", angle_jitter = 5", 0)):
-        folder = tmp_path / str(expected)
-        folder.mkdir()
-        jobs = write_project(folder, entry % extra)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            result = batch(jobs, folder / "out", workers=1, library=False)
-        assert result.ok
-        seeds = [str(w.message) for w in caught if issubclass(w.category, SeedWarning)]
-        assert len(seeds) == expected, seeds
-        if expected:
-            assert "abop-1.24a grows the same plant from every seed" in seeds[0] and "3 variants" in seeds[0]
-            counts = [line["counts"] for line in read_manifests(folder / "out").values()]
-            assert len(counts) == 3 and counts[0] == counts[1] == counts[2]  # what it warns of
+    entry = '[[jobs]]\ngrammar = "abop-1.24a"\nseeds = "%s"\nformats = ["glb"]\noptions = { iterations = 1%s }\n'
+    jobs = write_project(tmp_path, entry % ("0-2", "") + entry % ("3-5", ", angle_jitter = 5"))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = batch(jobs, tmp_path / "out", workers=1, library=False)
+    assert result.ok and len(result.done) == 6
+    seeds = [str(w.message) for w in caught if issubclass(w.category, SeedWarning)]
+    assert len(seeds) == 1, seeds
+    assert "abop-1.24a grows the same plant from every seed" in seeds[0] and "3 variants" in seeds[0]
+    lines = read_manifests(tmp_path / "out")
+    counts = [lines[f"abop-1.24a_s{seed}"]["counts"] for seed in range(3)]
+    assert counts[0] == counts[1] == counts[2]  # what it warns of
 
 
 def test_a_worker_stop_that_lands_in_a_finalizer_is_put_off_until_after_it():
