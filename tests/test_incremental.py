@@ -272,3 +272,35 @@ def test_cpfg_elasticity_increments_cylinders_and_queries(turtle):
     _, out = _same_generations(g, 4)
     y = [out.module(i)[1][1] for i in range(len(out)) if out.symbol(i) == "?P"]
     assert len(y) == 1 and 0 < y[0] < 12
+
+
+def test_counted_ops_are_a_survey_of_each_string(monkeypatch):
+    """When the rules write no op the survey must see, the answerer counts derivation's changes instead of
+    surveying every string: its counts are the survey's, and its bracket depth at least the survey's."""
+    from lsys3d.turtle import kernel
+    from lsys3d.turtle import query as query_module
+    from lsys3d.turtle.interpret import kernel_program, surveyed
+
+    g = Grammar(
+        axiom="A(1)?P(0,0,0)",
+        rules=[
+            "A(k) > ?P(x, y, z) : y < 3 && k % 4 == 0 -> F(0.2)[+(40)A(k+1)?P(0,0,0)][-[&(30)A(k+1)]]/A(k+1)?P(0,0,0)",
+            "A(k) > ?P(x, y, z) : y < 3 && k % 4 > 0 -> F(0.2)+(uniform(-10, 10))A(k + 1)?P(0,0,0)",
+        ],
+        turtle={"heading": 90},
+    )
+    checked = []
+    call = query_module.Answerer.__call__
+
+    def checking(self, modules, step=0):
+        if self._counts is not None and self.origin is not None:
+            table = self._compiled(modules.alphabet)[0]
+            arrays = kernel.Modules(modules.symbols, modules.arity, modules.offsets, modules.params)
+            counts, depth = surveyed(modules, table, kernel_program(table), arrays, 10**9)
+            assert np.array_equal(counts, self._counts) and depth <= self._depth
+            checked.append(step)
+        return call(self, modules, step)
+
+    monkeypatch.setattr(query_module.Answerer, "__call__", checking)
+    query_module.derive_answering(g, 12, seed=3)
+    assert len(checked) == 12

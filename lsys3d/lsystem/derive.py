@@ -423,7 +423,8 @@ modules had ``symbols`` into one whose modules have ``new_symbols``.  For a cut 
 mask of the old string's modules a rule rewrote, ``lengths`` how many modules each old module became (1
 when copied), and ``persisting`` the mask of the new string's modules that continue their predecessor: in a
 successor, the first module at bracket depth 0 with the predecessor's own symbol (``F(l) -> F(l*r)``: the
-same internode, grown; ``A -> AB``: the apex stays, ``B`` is new)."""
+same internode, grown; ``A -> AB``: the apex stays, ``B`` is new).  A trace with an attribute ``persisting``
+that is False (set on the function) is given None instead: it does not read it, and the mask is not built."""
 
 
 def persisting_index(prod: Production) -> int:
@@ -670,6 +671,7 @@ class _Context:
         self.m = len(ms)
         self.code = plan.code
         self._tables: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._plain: dict = {}  # a right context of plain modules: the candidates walked from, and what was found
         # cpfg's ring L-systems: a walk that runs off one end of the string goes on from the other
         self.ring = bool(plan.grammar.ring) and self.m > 0
         # cpfg: ']' in a right context is the next ']' (past ignored symbols and whole branches), and '=' skips
@@ -730,14 +732,21 @@ class _Context:
         m = self.m
         if self._tables is None and not self.ring and all(pm.symbol not in ("[", "]", self.skip) for pm in pattern):
             # plain modules (a query module after its apex): one compiled walk, while the walks stay short
-            codes = np.array([-1 if pm.symbol == "*" else self.code[pm.symbol] for pm in pattern], np.int64)
-            arities = np.array([0 if pm.symbol == "*" else len(pm.formals) for pm in pattern], np.int64)
+            key = tuple((pm.symbol, len(pm.formals)) for pm in pattern)
+            found = self._plain.get(key)
+            if found is not None and len(found[0]) >= len(sel):  # the same walks from more modules (a rule before)
+                at = np.searchsorted(found[0], sel)
+                if len(at) and at[-1] < len(found[0]) and np.array_equal(found[0][at], sel):
+                    return found[1][at], [v[at] for v in found[2]]
+            codes = np.array([-1 if s == "*" else self.code[s] for s, _ in key], np.int64)
+            arities = np.array([0 if s == "*" else n for s, n in key], np.int64)
             ms = self.ms
             ok, values, done = right_plain(
                 ms.symbols, ms.arity, ms.offsets, ms.params, self.ignored, sel + 1, codes, arities,
                 int(arities.sum()), 16 * len(sel) + 4096,
             )  # fmt: skip
             if done:
+                self._plain[key] = (sel, ok, values)
                 return ok, list(values)
         ok = np.ones(len(sel), np.bool_)
         j = sel + 1
@@ -1013,11 +1022,13 @@ def _step(
     if not np.isfinite(total_sum) and not np.isfinite(new_params).all():
         raise _not_finite(chosen, ms, new_params, par_off, during)
     if trace is not None:
-        persisting = np.zeros(total, np.bool_)
-        for prod, idx, _, _ in chosen:
-            j = persisting_index(prod)
-            if j >= 0:
-                persisting[mod_off[idx] + j] = True
+        persisting = None
+        if getattr(trace, "persisting", True):
+            persisting = np.zeros(total, np.bool_)
+            for prod, idx, _, _ in chosen:
+                j = persisting_index(prod)
+                if j >= 0:
+                    persisting[mod_off[idx] + j] = True
         trace(keys[0], sym, new_sym, matched, out_len, persisting)
     produced = np.zeros(total if keys[0] != _PRODUCTION else 0, np.bool_)
     if keys[0] != _PRODUCTION:  # the passes after this one rewrite only what this one produced

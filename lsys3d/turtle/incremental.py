@@ -141,11 +141,12 @@ def follows(grammar: Grammar, op_of) -> bool:
 
 
 @kernel(nogil=True)
-def follow_production(origin, rewritten, lengths):
+def follow_production(origin, rewritten, lengths, op, symbols, new_symbols, counts):
     """The new string's origins after a production step (``origin`` empty: the old string was the last pass's).
 
     ``rewritten`` and ``lengths`` as :data:`lsys3d.lsystem.derive.Trace` gives them: a copied module keeps
-    its origin, a produced one gets -1.
+    its origin, a produced one gets -1.  ``counts`` (when not empty: the old string's modules of each op, by
+    ``op[symbol]``) becomes the new string's: a rewritten module's op counted out, its successor's in.
     """
     m = rewritten.shape[0]
     total = 0
@@ -153,10 +154,15 @@ def follow_production(origin, rewritten, lengths):
         total += lengths[i]
     out = np.empty(total, np.int64)
     identity = origin.shape[0] == 0
+    counting = counts.shape[0] > 0
     k = 0
     for i in range(m):
         if rewritten[i]:
+            if counting:
+                counts[op[symbols[i]]] -= 1
             for _ in range(lengths[i]):
+                if counting:
+                    counts[op[new_symbols[k]]] += 1
                 out[k] = -1
                 k += 1
         else:
@@ -277,6 +283,10 @@ def answer_pass(
     states,
     counts,
     deposits,
+    answer_first,
+    answer_sign,
+    answer_slots,
+    answered,
 ):
     """One pass of the turtle's state over the string: the state at each query module that may have changed,
     the segments the scene cuts, and the state before every module ``recorded`` marks (and every cut).
@@ -285,9 +295,12 @@ def answer_pass(
     ``old_states``, over ``old_symbols``) say what is known (module docstring).  Outputs: ``query_module``,
     ``query_state`` (position, H, L, U), ``cuts``, ``positions`` and ``states`` (:data:`STATE` numbers),
     ``deposits`` (when not empty: each segment's middle and its length x width, each leaf's place and its
-    size squared, the plant's shade of :mod:`lsys3d.turtle.shadow`); ``counts`` = [queries, cuts, records,
-    deposits].  Returns (status, bad module): :data:`lsys3d.turtle.kernel.MESSAGES`'
-    codes, or :data:`FOLLOW_LOST`.
+    size squared, the plant's shade of :mod:`lsys3d.turtle.shadow`).  With ``answered`` (not empty: a copy of the
+    parameters), the query modules that ``answer_first``, ``answer_sign`` and ``answer_slots`` answer from the
+    turtle's state (:func:`write_answers`' tables) are answered in it here, and only the others (``?E``)
+    listed in ``query_module``.
+    ``counts`` = [queries, cuts, records, deposits].  Returns (status, bad
+    module): :data:`lsys3d.turtle.kernel.MESSAGES`' codes, or :data:`FOLLOW_LOST`.
     """
     symbols, arity, offsets, params = modules
     m = symbols.shape[0]
@@ -312,6 +325,7 @@ def answer_pass(
     in_scene = scene.params.shape[0] > 0
     shading = deposits.shape[0] > 0  # the plant's own shade (lsys3d.turtle.shadow): where its area is
     n_dep = np.int64(0)
+    answering = answered.shape[0] > 0
     following = origin.shape[0] > 0
 
     initial = np.empty(STATE)
@@ -569,6 +583,24 @@ def answer_pass(
                     width = w0 + dw * dlength * (k + 1) if k < whole else w1
                     if not (0.0 <= width <= far):
                         return 6, i
+        elif code == _QUERY and answering and answer_first[sym] >= 0:  # written here (write_answers' numbers)
+            f = answer_first[sym]
+            if f == 0:
+                a0, a1, a2 = px, py, pz
+            elif f == 3:
+                a0, a1, a2 = hx, hy, hz
+            elif f == 6:
+                a0, a1, a2 = lx, ly, lz
+            else:
+                a0, a1, a2 = ux, uy, uz
+            sign = answer_sign[sym]
+            base = offsets[i]
+            if arity[i] > answer_slots[sym, 0]:
+                answered[base + answer_slots[sym, 0]] = sign * a0
+            if arity[i] > answer_slots[sym, 1]:
+                answered[base + answer_slots[sym, 1]] = sign * a1
+            if arity[i] > answer_slots[sym, 2]:
+                answered[base + answer_slots[sym, 2]] = sign * a2
         elif code == _QUERY:
             row = query_state[n_query]
             row[0], row[1], row[2] = px, py, pz

@@ -76,6 +76,7 @@ __all__ = [
     "DEFAULT_MAX_SEGMENTS",
     "NO_SCENE",
     "Answers",
+    "check_segments",
     "interpret",
     "interpret_answering",
     "kernel_program",
@@ -173,13 +174,17 @@ def surveyed(
             Op.TROPISM_VECTOR: "takes the tropism vector's three coordinates: @Tp(x, y, z)",
         }[Op(table.op[modules.symbols[bad]])]
         raise module_error(modules, table, bad, what)
-    n_seg = int(counts[Op.FORWARD])
+    check_segments(int(counts[Op.FORWARD]), max_segments)
+    return counts, int(max_depth)
+
+
+def check_segments(n_seg: int, max_segments: int) -> None:
+    """Raise :class:`~lsys3d.errors.LimitError` when a string would draw more than ``max_segments`` segments."""
     if n_seg > max_segments:
         raise LimitError(
             f"interpret: the module string would draw up to {n_seg:,} segments, more than the limit of "
             f"{max_segments:,}; use fewer iterations, or raise the limit (--max-segments, or max_segments=)"
         )
-    return counts, int(max_depth)
 
 
 def turtle_config(options: TurtleOptions) -> kernel.Config:

@@ -32,6 +32,7 @@ from .environment import Environment
 from .interpret import (
     DEFAULT_MAX_SEGMENTS,
     NO_SCENE,
+    check_segments,
     interpret_answering,
     kernel_program,
     module_error,
@@ -49,6 +50,14 @@ _SLICES = {"P": (0, 1.0), "H": (3, 1.0), "L": (6, 1.0), "U": (9, 1.0), "R": (6, 
 _POLYGON_OPS = (Op.POLYGON_BEGIN, Op.POLYGON_END, Op.POLYGON_VERTEX)
 _WHOLE = np.zeros(0, np.int64)  # an origin that says nothing: the pass reads the whole string
 _NEUTRAL = incremental.neutral_ops()
+_NO_PARAMS = np.zeros(0)
+_NO_COUNTS = np.zeros(0, np.int64)
+_NO_OPS = np.zeros(256, np.int8)
+# ops a survey must see (their count depends on parameters, or it checks their arguments) or the lean pass
+# does not carry out: a grammar that writes one is surveyed each step
+_SURVEYED = {int(o) for o in (Op.RANDOM_TURN, Op.FORWARD_STEPS, Op.TROPISM_VECTOR)} | {
+    int(o) for o in Op if o > Op.QUERY
+}
 
 
 def asks_turtle(grammar: Grammar, commands: tuple[Command, ...]) -> bool:
@@ -95,6 +104,9 @@ class Answerer:
         self._last: tuple | None = None  # the alphabet of the last pass (the same tuple each step) and its tables
         self._unvaried: kernel.Variation | None = None  # no natural variation: the same empty arrays each pass
         self._table = None  # the symbol table of the last pass
+        self._counts: np.ndarray | None = None  # the modules of each op of the string derivation has, when known
+        self._depth = 0  # and the most brackets deep it can be
+        self._nesting = 0  # the most brackets deeper one rewrite makes the string
         # origin[i]: the index, in the last pass's string, of the module i copies (-1: produced since);
         # None: unknown; empty: the last pass's string itself, its modules unchanged
         self.origin: np.ndarray | None = None
@@ -122,7 +134,10 @@ class Answerer:
                         recorded[code[prod.predecessor.symbol]] = True
                 if g.cut_symbol and g.cut_symbol in code:
                     recorded[code[g.cut_symbol]] = True
-            found = (table, kernel_program(table), recorded, follow, answering(table))
+            counted = follow and _counted(g, table, code)
+            if counted:
+                self._nesting = _nesting(g, op_of)
+            found = (table, kernel_program(table), recorded, follow, answering(table), counted)
             self._tables[alphabet] = found
         self._last = (alphabet, found)
         return found
@@ -130,21 +145,37 @@ class Answerer:
     def trace(self, kind, symbols, new_symbols, rewritten, lengths, persisting) -> None:
         """Follow one change derivation made to the string (:data:`lsys3d.lsystem.derive.Trace`)."""
         if self.origin is None:
+            self._counts = None
             return
         if kind == CUT:
+            self._counts = None
             if self._table is None or _removes_polygons(self._table, symbols, rewritten):
                 self.origin = None
             else:
                 self.origin = incremental.follow_cut(self.origin, rewritten)
         else:
-            self.origin = incremental.follow_production(self.origin, rewritten, lengths)
+            counts = self._counts if self._counts is not None else _NO_COUNTS
+            op = self._table.op if self._table is not None else _NO_OPS
+            self.origin = incremental.follow_production(
+                self.origin, rewritten, lengths, op, symbols, new_symbols, counts
+            )
+            if self._counts is not None:
+                self._depth += self._nesting
+
+    trace.persisting = False  # (derivation need not build that mask for it)
 
     def __call__(self, modules: ModuleString, step: int = 0) -> ModuleString:
         """The string with its query modules filled and the branches the environment cut removed."""
-        table, program, recorded, follow, answers = self._compiled(modules.alphabet)
+        table, program, recorded, follow, answers, counted = self._compiled(modules.alphabet)
         self._table = table
         arrays = kernel.Modules(modules.symbols, modules.arity, modules.offsets, modules.params)
-        counts, max_depth = surveyed(modules, table, program, arrays, self.max_segments)
+        if counted and self._counts is not None and self.origin is not None:
+            # derivation's changes were counted (trace): the string needs no survey (what it checks, the
+            # rules cannot write: _counted), only its limit
+            counts, max_depth = self._counts, self._depth
+            check_segments(int(counts[Op.FORWARD]), self.max_segments)
+        else:
+            counts, max_depth = surveyed(modules, table, program, arrays, self.max_segments)
         m = len(modules)
         origin, records = self.origin, self._records
         if not follow or counts[Op.RANDOM_TURN] or origin is None or records is None:
@@ -169,10 +200,15 @@ class Answerer:
             found = self._pass(*args, origin, records)
             if found is None:  # a change the records cannot follow: the whole string
                 found = self._pass(*args, _WHOLE, None)
-        query_module, query_state, cut, positions, states, deposits = found
-        out, origin = _written(modules, table, query_module, query_state, cut, self.environment, deposits, answers)
+        query_module, query_state, cut, positions, states, deposits, answered = found
+        out, origin = _written(
+            modules, table, query_module, query_state, cut, self.environment, deposits, answers, answered
+        )
         self._records = (modules.symbols, positions, states) if follow else None
         self.origin = origin if follow else None
+        # the counts of the string returned (a cut removed modules: the next pass surveys its string)
+        self._counts = counts.copy() if counted and follow and origin is not None and not len(origin) else None
+        self._depth = max_depth
         return out
 
     def _full_pass(self, modules):
@@ -192,12 +228,16 @@ class Answerer:
             area = np.linalg.norm(skeleton.end - skeleton.start, axis=1) * skeleton.width_start
             leaves = np.column_stack([skeleton.leaf_position, skeleton.leaf_size**2])
             deposits = np.concatenate([np.column_stack([mid, area]), leaves])
-        return found.module, found.state, found.cut, _WHOLE, np.zeros((0, incremental.STATE)), deposits
+        return found.module, found.state, found.cut, _WHOLE, np.zeros((0, incremental.STATE)), deposits, None
 
     def _pass(self, modules, table, program, arrays, max_depth, variation, recorded, counts, origin, records):
         n_query = int(counts[Op.QUERY])
-        query_module = np.empty(n_query, np.int64)
-        query_state = np.empty((n_query, 12))
+        # the answers from the turtle's state are written into a copy of the parameters as the pass meets them
+        answered = modules.params.copy() if n_query else _NO_PARAMS
+        first, sign, slots = self._compiled(modules.alphabet)[4]
+        listed = n_query if not len(answered) or (first[table.op == Op.QUERY] < 0).any() else 0  # (only ?E then)
+        query_module = np.empty(listed, np.int64)
+        query_state = np.empty((listed, 12))
         cut = np.empty(int(counts[Op.FORWARD]) if self.environment is not None else 0, np.int64)
         n_records = incremental.count_marked(modules.symbols, recorded) + len(cut)  # rewritable modules, cut segments
         positions = np.empty(n_records, np.int64)
@@ -230,6 +270,10 @@ class Answerer:
             states,
             found,
             deposits,
+            first,
+            sign,
+            slots,
+            answered,
         )
         if status == incremental.FOLLOW_LOST:
             return None
@@ -243,7 +287,33 @@ class Answerer:
             positions[:n_rec],
             states[:n_rec],
             deposits[:n_dep] if self.shading else None,
+            answered if len(answered) else None,
         )
+
+
+def _counted(grammar: Grammar, table: SymbolTable, code: dict) -> bool:
+    """Whether the counts of the string's ops can follow derivation (:meth:`Answerer.trace`) instead of a survey
+    each step: no rule writes an op of :data:`_SURVEYED`, or more arguments than its symbol takes (what the
+    survey checks: the parameters derivation writes are finite, it checks them itself)."""
+    for prod in (*grammar.productions, *grammar.decomposition_productions):
+        for module in prod.successor:
+            c = code.get(module.symbol)
+            op = int(table.op[c]) if c is not None else -1
+            if op < 0 or op in _SURVEYED or (op != Op.NONE and len(module.args) > int(table.max_args[c])):
+                return False
+    return True
+
+
+def _nesting(grammar: Grammar, op_of) -> int:
+    """The most brackets deep a successor goes (a bound on how much deeper one rewrite makes the string)."""
+    most = 0
+    for prod in (*grammar.productions, *grammar.decomposition_productions):
+        depth = 0
+        for module in prod.successor:
+            op = op_of(module.symbol)
+            depth += (op == Op.PUSH) - (op == Op.POP)
+            most = max(most, depth)
+    return most
 
 
 def answering(table: SymbolTable) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -263,19 +333,24 @@ def _removes_polygons(table: SymbolTable, symbols: np.ndarray, keep: np.ndarray)
 
 
 def _written(
-    modules, table, query_module, query_state, cut, environment, deposits=None, answers=None
+    modules, table, query_module, query_state, cut, environment, deposits=None, answers=None, answered=None
 ) -> tuple[ModuleString, np.ndarray | None]:
     """The string with the answers written and the cut branches removed, and where its modules came from
     (:attr:`Answerer.origin`: empty when no module was removed; -1 for a bud; None when a polygon was cut).
     With ``deposits`` (the plant's area, :mod:`lsys3d.turtle.shadow`), ``?E``'s light is shaded by it;
-    ``answers`` is :func:`answering`'s of the table, when known."""
+    ``answers`` is :func:`answering`'s of the table, when known; ``answered``, when given, the parameters with
+    the answers from the turtle's state already written (``query_module`` then lists only the others)."""
     params = modules.params
-    if len(query_module):
+    if answered is not None:
+        params = answered
+        first = (answering(table) if answers is None else answers)[0]
+    elif len(query_module):
         params = params.copy()
         first, sign, slots = answering(table) if answers is None else answers
         incremental.write_answers(
             params, modules.symbols, modules.offsets, modules.arity, query_module, query_state, first, sign, slots
         )
+    if len(query_module):
         codes = modules.symbols[query_module]
         asked = first[codes] < 0  # ?E: the environment answers
         if asked.any():
