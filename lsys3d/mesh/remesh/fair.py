@@ -208,7 +208,10 @@ def _fair_finish(he, closeness, members, start):
                     g = h0
                     while True:  # its neighbours among the members (ascending) are to be looked at again
                         w = _dst(faces, g)
-                        lo, hi = 0, m  # w's place among the members (np.searchsorted: numba's costs a second)
+                        # w's place among the members: np.searchsorted's generic search costs numba a second to
+                        # compile, and arrays.search_left is not remesh's (the first run's helper compiles only
+                        # lsys3d.mesh.remesh's kernels: precompile.OWN), so the same few lines as search_left
+                        lo, hi = 0, m
                         while lo < hi:
                             mid = (lo + hi) >> 1
                             if members[mid] < w:
