@@ -154,14 +154,8 @@ def _rotate(hx, hy, hz, lx, ly, lz, ux, uy, uz, axis, c, s):
 
 @kernel()
 def _turn(vx, vy, vz, kx, ky, kz, a):
-    """The vector v turned about the unit axis k by a radians (Rodrigues)."""
-    c, s = math.cos(a), math.sin(a)
-    d = (kx * vx + ky * vy + kz * vz) * (1.0 - c)
-    return (
-        vx * c + (ky * vz - kz * vy) * s + kx * d,
-        vy * c + (kz * vx - kx * vz) * s + ky * d,
-        vz * c + (kx * vy - ky * vx) * s + kz * d,
-    )
+    """The vector v turned about the unit axis k by a radians (:func:`rodrigues`)."""
+    return rodrigues(kx, ky, kz, math.cos(a), math.sin(a), vx, vy, vz)
 
 
 @kernel()
