@@ -30,6 +30,7 @@ import math
 
 import numpy as np
 
+from ..arrays import search_left
 from ..compiling import inner, kernel
 from ..lsystem.grammar import Grammar
 from .commands import Op
@@ -205,7 +206,7 @@ def _neutral_range(program, neutral, old_symbols, a, b):
 @inner()
 def _find(positions, count, j):
     """The row of ``positions[:count]`` (sorted) that holds ``j``, or -1."""
-    k = np.searchsorted(positions[:count], j)
+    k = search_left(positions[:count], j)
     if k < count and positions[k] == j:
         return k
     return -1
