@@ -120,14 +120,20 @@ def sphere(subdivisions: int = 1) -> Mesh:
         f = np.concatenate([np.stack(x, axis=1) for x in ((a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca))], axis=0)
     if (np.einsum("ij,ij->i", face_normals(v, f), v[f].mean(axis=1)) < 0).any():  # pragma: no cover
         raise AssertionError("sphere: a face turns inward")
+    normals = v[f]  # a unit sphere: the normal is the position
+    return Mesh(v * 0.5, f, normals, _sphere_uv(v, f))
+
+
+def _sphere_uv(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Each corner's uv on a unit sphere: longitude (``u``, 0 to 1 about ``z``) and latitude (``v``, 0 at the
+    ``-z`` pole), each triangle's ``u`` continuous from its first corner, so none spans the seam the long way
+    round."""
     u = (np.arctan2(v[:, 1], v[:, 0]) / (2 * np.pi)) % 1.0
     lat = np.arcsin(np.clip(v[:, 2], -1, 1)) / np.pi + 0.5
     uv = np.stack([u, lat], axis=1)[f]
-    # each triangle's u continuous from its first corner, so none spans the seam the long way round
     uv[:, 1:, 0] = uv[:, :1, 0] + (uv[:, 1:, 0] - uv[:, :1, 0] + 0.5) % 1.0 - 0.5
     uv[uv[:, :, 0].min(axis=1) < 0, :, 0] += 1.0
-    normals = v[f]  # a unit sphere: the normal is the position
-    return Mesh(v * 0.5, f, normals, uv)
+    return uv
 
 
 def uv_sphere(slices: int) -> Mesh:
@@ -163,12 +169,7 @@ def uv_sphere(slices: int) -> Mesh:
     f = np.concatenate(faces).astype(np.int64)
     if (np.einsum("ij,ij->i", face_normals(v, f), v[f].mean(axis=1)) < 0).any():  # pragma: no cover
         raise AssertionError("uv_sphere: a face turns inward")
-    u = (np.arctan2(v[:, 1], v[:, 0]) / (2 * np.pi)) % 1.0
-    lat = np.arcsin(np.clip(v[:, 2], -1, 1)) / np.pi + 0.5
-    uv = np.stack([u, lat], axis=1)[f]
-    uv[:, 1:, 0] = uv[:, :1, 0] + (uv[:, 1:, 0] - uv[:, :1, 0] + 0.5) % 1.0 - 0.5
-    uv[uv[:, :, 0].min(axis=1) < 0, :, 0] += 1.0
-    return Mesh(v * 0.5, f, v[f], uv)
+    return Mesh(v * 0.5, f, v[f], _sphere_uv(v, f))
 
 
 def disc(sides: int = 16) -> Mesh:
