@@ -23,6 +23,7 @@ from .halfedge import (
     _dst,
     _half_edge,
     _leaf_inner,
+    _once,
     _org,
     _prv,
     _valence,
@@ -64,7 +65,7 @@ def _needs_work(he, f, rules):
     return _aspect(p, a, b, c) > rules.bad
 
 
-@_leaf_inner
+@_once
 def _push_fan(he, v, stack, queued, top, rules):
     """Queue the faces around ``v`` that need work; the new stack height."""
     h0 = he.out[v]
@@ -173,7 +174,7 @@ def _snap(he, f, k, rules, buf_a, buf_b):
     return x
 
 
-@_leaf_inner
+@_once
 def _split_fan(he, f, order, lengths, rules, spawned):
     """A needle of a seam's fan: split its longest edge that leaves the seam ``step`` scales from it; the vertex or -1.
 

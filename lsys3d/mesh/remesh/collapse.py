@@ -13,9 +13,10 @@ from .halfedge import (
     SEAM,
     _apex,
     _dst,
-    _inline,
+    _inline_inner,
     _leaf_inner,
     _nxt,
+    _once,
     _org,
     _prv,
     _ring,
@@ -23,7 +24,7 @@ from .halfedge import (
 )
 
 
-@_inline
+@_inline_inner
 def _collapse_topology_ok(he, h, buf_a, buf_b):
     """Whether collapsing half-edge ``h`` keeps a 2-manifold: the link condition, and valences of at least three."""
     faces = he.faces
@@ -49,7 +50,7 @@ def _collapse_topology_ok(he, h, buf_a, buf_b):
     return True
 
 
-@_inline
+@_inline_inner
 def _collapse_geometry_ok(he, h, x, y, z, limit):
     """Whether the faces around half-edge ``h``'s ends, with both at ``x, y, z``, keep their side and shapes.
 
@@ -93,14 +94,6 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
     return worst_new <= limit or worst_new < worst_old
 
 
-# The same two checks called, not inlined, for the rare paths (:func:`_collapse_ok`, :func:`_rescue`): a copy
-# compiled into each of their call sites would cost seconds of the first compilation and buy nothing.
-_topology_ok_called = _leaf_inner(_collapse_topology_ok.py_func)
-
-
-_geometry_ok_called = _leaf_inner(_collapse_geometry_ok.py_func)
-
-
 @_leaf_inner
 def _collapse_ok(he, h, x, y, z, limit, buf_a, buf_b, geometry=True):
     """Whether collapsing half-edge ``h`` (its origin into its end, placed at ``x, y, z``) is allowed.
@@ -108,9 +101,9 @@ def _collapse_ok(he, h, x, y, z, limit, buf_a, buf_b, geometry=True):
     :func:`_collapse_topology_ok`, and unless ``geometry`` is off (for ends so
     close that nothing can move) :func:`_collapse_geometry_ok`.
     """
-    if not _topology_ok_called(he, h, buf_a, buf_b):
+    if not _collapse_topology_ok(he, h, buf_a, buf_b):
         return False
-    return not geometry or _geometry_ok_called(he, h, x, y, z, limit)
+    return not geometry or _collapse_geometry_ok(he, h, x, y, z, limit)
 
 
 @_leaf_inner
@@ -157,7 +150,7 @@ def _collapse(he, h, x, y, z):
     he.scale[b] = min(he.scale[a], he.scale[b])
 
 
-@_inline
+@_once
 def _volume_neutral(he, h, x, y, z):
     """Where to put the merged vertex of collapsing ``h``, near ``x, y, z``, so the enclosed volume stays.
 
