@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
 from .geometry import _aspect, _aspect_xyz, _cross, _length, _moved_corners, _normal, _normal_xyz
 from .halfedge import (
@@ -75,14 +75,14 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
                 f0, f1, f2 = faces[f, 0], faces[f, 1], faces[f, 2]
                 corners = _moved_corners(p, f0, f1, f2, v, x, y, z)
                 qx, qy, qz = _normal_xyz(*corners)
-                q = np.sqrt(qx * qx + qy * qy + qz * qz)
+                q = math.sqrt(qx * qx + qy * qy + qz * qz)
                 r0, r1, r2 = he.reference[f, 0], he.reference[f, 1], he.reference[f, 2]
                 turned = qx * r0 + qy * r1 + qz * r2
                 if turned <= 0.17 * q:
                     # turned away: allowed only for a face that was turned as far already (a fold left by the
                     # boolean must not block every collapse around it), and not further
                     ox, oy, oz = _normal(p, f0, f1, f2)
-                    o = np.sqrt(ox * ox + oy * oy + oz * oz)
+                    o = math.sqrt(ox * ox + oy * oy + oz * oz)
                     was = ox * r0 + oy * r1 + oz * r2
                     if q <= 0.0 or o <= 0.0 or was > 0.17 * o or turned / q < was / o:
                         return False
@@ -196,7 +196,7 @@ def _volume_neutral(he, h, x, y, z):
     step = (before - after) / g2
     sx, sy, sz = step * gx, step * gy, step * gz
     reach = _length(p, a, b)
-    size = np.sqrt(sx * sx + sy * sy + sz * sz)
+    size = math.sqrt(sx * sx + sy * sy + sz * sz)
     if size > reach:
         sx, sy, sz = sx * reach / size, sy * reach / size, sz * reach / size
     return x + sx, y + sy, z + sz

@@ -3,6 +3,8 @@ than a height, keeping the volume."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...compiling import kernel
@@ -25,7 +27,7 @@ def _flip_volume(he, h):
     )
     n0x, n0y, n0z = _normal(p, a, b, c)
     n1x, n1y, n1z = _normal(p, b, a, d)
-    area = np.sqrt(n0x * n0x + n0y * n0y + n0z * n0z) + np.sqrt(n1x * n1x + n1y * n1y + n1z * n1z)
+    area = math.sqrt(n0x * n0x + n0y * n0y + n0z * n0z) + math.sqrt(n1x * n1x + n1y * n1y + n1z * n1z)
     return 3.0 * abs(ex * cx + ey * cy + ez * cz) / max(area, 1e-300)
 
 
@@ -87,7 +89,7 @@ def _low(p, a, b, c, height):
     """Whether triangle ``a b c`` is lower than ``height`` (twice its area over its longest edge)."""
     nx, ny, nz = _normal(p, a, b, c)
     longest = max(_length(p, a, b), max(_length(p, b, c), _length(p, c, a)))
-    return np.sqrt(nx * nx + ny * ny + nz * nz) < height * longest
+    return math.sqrt(nx * nx + ny * ny + nz * nz) < height * longest
 
 
 @kernel(nogil=True)
