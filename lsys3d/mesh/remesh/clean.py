@@ -23,8 +23,8 @@ from .halfedge import (
     _apex,
     _dst,
     _half_edge,
+    _inline_inner_once,
     _leaf_inner,
-    _once,
     _org,
     _prv,
     _valence,
@@ -66,7 +66,7 @@ def _needs_work(he, f, rules):
     return _aspect(p, a, b, c) > rules.bad
 
 
-@_once
+@_inline_inner_once
 def _push_fan(he, v, stack, queued, top, rules):
     """Queue the faces around ``v`` that need work; the new stack height."""
     h0 = he.out[v]
@@ -177,7 +177,7 @@ def _snap(he, f, k, rules):
     return x
 
 
-@_once
+@_inline_inner_once
 def _split_fan(he, f, order, lengths, rules, spawned):
     """A needle of a seam's fan: split its longest edge that leaves the seam ``step`` scales from it; the vertex or -1.
 

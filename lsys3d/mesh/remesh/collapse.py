@@ -14,9 +14,9 @@ from .halfedge import (
     _apex,
     _dst,
     _inline_inner,
+    _inline_inner_once,
     _leaf_inner,
     _nxt,
-    _once,
     _org,
     _prv,
     _ring,
@@ -150,7 +150,7 @@ def _collapse(he, h, x, y, z):
     he.scale[b] = min(he.scale[a], he.scale[b])
 
 
-@_once
+@_inline_inner_once
 def _volume_neutral(he, h, x, y, z):
     """Where to put the merged vertex of collapsing ``h``, near ``x, y, z``, so the enclosed volume stays.
 

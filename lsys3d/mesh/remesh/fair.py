@@ -10,7 +10,7 @@ import numpy as np
 from ...compiling import inner, kernel
 from .collar import _faces_turned, _fan_volume, _find, _vertex_normal
 from .geometry import _cross, _normal
-from .halfedge import FEATURE, LOCKED, _dst, _leaf_inner, _once, _prv, _valence, in_two
+from .halfedge import FEATURE, LOCKED, _dst, _inline_inner_once, _leaf_inner, _prv, _valence, in_two
 
 _FAIR_SHARE_MIN = 4096
 """Collar vertices from which :func:`fair` shares its steps with a second thread."""
@@ -281,7 +281,7 @@ def _collar_gain(he, slot, around, start, m, root, gained):
                 break
 
 
-@_once
+@_inline_inner_once
 def _give_back_volume(he, closeness, members, start):
     """Sink each collar along its normals by what its fairing added to the volume (see :func:`fair`).
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from ...compiling import inner
-from .halfedge import _leaf_inner, _once
+from .halfedge import _inline_inner_once, _leaf_inner
 
 _FLAT = 1e30  # the aspect of a triangle without area
 
@@ -102,7 +102,7 @@ def _length(p, u, w):
     return _norm(p[u, 0] - p[w, 0], p[u, 1] - p[w, 1], p[u, 2] - p[w, 2])
 
 
-@_once
+@_inline_inner_once
 def _edges_distance(p, a, b, c, d):
     """Distance between segments ``a b`` and ``c d``."""
     d1x, d1y, d1z = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1], p[b, 2] - p[a, 2]

@@ -53,7 +53,7 @@ _inline_inner = inner(nogil=True, _nrt=False, forceinline=True)
 # of a kernel with reference counts (one that allocates), where the helper's arrays would be counted up and down
 # at every step (_fair_finish's volume pass took 30% longer with _collar_gain, _fan_volume and _faces_turned
 # inlined), nor _snap into clean (abop-1.24a's cleaning took 4% longer).
-_once = inner(nogil=True, inline="always")
+_inline_inner_once = inner(nogil=True, inline="always")
 # The smallest helpers (_nxt, _prv, _org, _dst, _apex, the geometry's _cross...) take no HalfEdges: they are
 # called, not inlined as IR, and LLVM inlines them where they are used.  As IR, numba typed and lowered a copy at
 # every call site: a first run compiled the cleanup's kernels about 3 CPU seconds longer (the same bytes, the
