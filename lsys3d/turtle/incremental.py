@@ -73,6 +73,7 @@ from .kernel import (  # numba sees the ops as these plain integers, declared on
     _steer,
     _steps,
 )
+from .steering import remember
 
 __all__ = [
     "FOLLOW_LOST",
@@ -288,6 +289,12 @@ def answer_pass(
     answer_sign,
     answer_slots,
     answered,
+    steerings,
+    first_row,
+    old_steered_at,
+    old_steered_row,
+    steered_at,
+    steered_row,
 ):
     """One pass of the turtle's state over the string: the state at each query module that may have changed,
     the segments the scene cuts, and the state before every module ``recorded`` marks (and every cut).
@@ -300,7 +307,10 @@ def answer_pass(
     parameters), the query modules that ``answer_first``, ``answer_sign`` and ``answer_slots`` answer from the
     turtle's state (:func:`write_answers`' tables) are answered in it here, and only the others (``?E``)
     listed in ``query_module``.
-    ``counts`` = [queries, cuts, records, deposits].  Returns (status, bad
+    ``steerings`` (when not empty: each steering by the scene it makes, :func:`lsys3d.turtle.steering.remember`'s
+    rows, from row ``first_row`` on), and for every segment steered now or in the last pass, in order, its module
+    (``steered_at``) and its row (``steered_row``; the last pass's: ``old_steered_at``, ``old_steered_row``).
+    ``counts`` = [queries, cuts, records, deposits, steerings, steered segments].  Returns (status, bad
     module): :data:`lsys3d.turtle.kernel.MESSAGES`' codes, or :data:`FOLLOW_LOST`.
     """
     symbols, arity, offsets, params = modules
@@ -327,6 +337,8 @@ def answer_pass(
     shading = deposits.shape[0] > 0  # the plant's own shade (lsys3d.turtle.shadow): where its area is
     n_dep = np.int64(0)
     answering = answered.shape[0] > 0
+    remembering = steered_at.shape[0] > 0
+    n_steer = n_at = old_steer = np.int64(0)
     following = origin.shape[0] > 0
 
     initial = np.empty(STATE)
@@ -367,6 +379,7 @@ def answer_pass(
             o = origin[i]
             change = o < 0 or (o != 0 if i == 0 else o != origin[i - 1] + 1)
             if not change or i == resynced:
+                first = i
                 if recorded[sym]:
                     while old_row < old_count and old_positions[old_row] < o:
                         old_row += 1
@@ -378,6 +391,14 @@ def answer_pass(
                 # the copies after it that keep their order and have no record: nothing to do (most of the string)
                 while i < m and origin[i] == origin[i - 1] + 1 and not recorded[symbols[i]]:
                     i += 1
+                if remembering:  # the steerings of the copies' segments: where the last pass found them
+                    while old_steer < old_steered_at.shape[0] and old_steered_at[old_steer] < o:
+                        old_steer += 1
+                    while old_steer < old_steered_at.shape[0] and old_steered_at[old_steer] < o + (i - first):
+                        steered_at[n_at] = old_steered_at[old_steer] - o + first
+                        steered_row[n_at] = old_steered_row[old_steer]
+                        n_at += 1
+                        old_steer += 1
                 continue
             if i == 0:
                 start = -1
@@ -503,9 +524,19 @@ def answer_pass(
                 length *= variation.length[i]
             if in_scene and code == _FORWARD and n_poly == 0:
                 hanging0 = hanging
+                shx, shy, shz, slx, sly, slz, sux, suy, suz = hx, hy, hz, lx, ly, lz, ux, uy, uz
                 hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = _steer(
                     scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging
                 )
+                if remembering:
+                    remember(
+                        steerings, first_row + n_steer, px, py, pz, shx, shy, shz, slx, sly, slz, sux, suy, suz, length,
+                        hanging0, hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging,
+                    )  # fmt: skip
+                    steered_at[n_at] = i
+                    steered_row[n_at] = first_row + n_steer
+                    n_at += 1
+                    n_steer += 1
                 if cut:
                     cuts[n_cut] = i
                     n_cut += 1
@@ -747,6 +778,8 @@ def answer_pass(
     counts[1] = n_cut
     counts[2] = n_rec
     counts[3] = n_dep
+    counts[4] = n_steer
+    counts[5] = n_at
     if running and n_poly > 0:
         if poly_open[n_poly - 1] < 0:  # opened before the change: a pass over the whole string names it
             return FOLLOW_LOST, m
