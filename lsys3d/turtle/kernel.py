@@ -31,7 +31,7 @@ from .bending import (
 )
 from .commands import N_OPS, Axis, Op, Organ
 from .skeleton import MAX_COORDINATE
-from .steering import recall
+from .steering import recall, recalled
 
 __all__ = [
     "MAX_POLYGON_DEPTH",
@@ -484,17 +484,6 @@ def _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hangin
     return hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging
 
 
-@inner(_nrt=False)
-def _steer_recalled(scene, steered, i, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging):
-    """:func:`_steer`, or its answer for module ``i`` when ``steered`` (a :data:`~.steering.Steered`) has it."""
-    r = recall(steered, i, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging)
-    if r < 0:
-        return _steer(scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging)
-    row = steered.rows[r]
-    cut = row[23] > 0.0
-    return row[14], row[15], row[16], row[17], row[18], row[19], row[20], row[21], row[22], cut, np.int64(row[24])
-
-
 @kernel(nogil=True)
 def probe(scene, points, out):
     """Per point: 1 where it is blocked (:func:`_blocked`) else 0, and its distance to the nearest support or
@@ -647,6 +636,9 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     roll_branch = variation.roll.shape[0] > 0
     drop_branch = variation.skipped.shape[0] > 0
     in_scene = scene.params.shape[0] > 0
+    if rare is not None:  # the steerings made already (steering.Steered), met in the string's order
+        memo_at, memo_row, memo_rows = rare
+    memo_k = np.int64(0)
     skipping = np.int64(0)  # > 0: inside a branch the scene cut, that many brackets deep
     hanging = np.int64(0)  # 0 free (never on a support), 1 on a support, 2 hanging: left it over an edge
     n_query = np.int64(0)
@@ -713,9 +705,16 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
             if jitter_length:
                 length *= variation.length[i]
             if rare is not None and in_scene and code == _FORWARD and poly_open < 0:
-                hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = _steer_recalled(
-                    scene, rare, i, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging
-                )
+                r, memo_k = recall(
+                    memo_at, memo_row, memo_rows, memo_k, i, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length,
+                    hanging,
+                )  # fmt: skip
+                if r >= 0:
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = recalled(memo_rows, r)
+                else:
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = _steer(
+                        scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging
+                    )
                 if cut:
                     query.cut[n_cut] = i
                     n_cut += 1

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..compiling import inner
 
-__all__ = ["MAX_ROWS", "ROW", "Steered", "SteeringMemo", "not_steered", "recall", "remember"]
+__all__ = ["MAX_ROWS", "ROW", "Steered", "SteeringMemo", "not_steered", "recall", "recalled", "remember"]
 
 IN = 14
 """Numbers that go into a steering: position, H, L, U, the segment's length, whether the branch hangs."""
@@ -39,15 +39,14 @@ ROW = IN + 11
 MAX_ROWS = 1_000_000
 """The most rows a memo keeps (200 MB); past that it forgets them and the drawing turtle steers again."""
 
-Steered = namedtuple("Steered", ["position", "row", "rows", "cursor"])
-"""The kernel's view of a memo: the modules whose steering it holds (``position (n,) int64``, increasing),
-the row of each (``row (n,) int64``) in the memo's rows (``rows (k, ROW) float64``, not copied) and where
-the drawing turtle is in them (``cursor (1,) int64``)."""
+Steered = namedtuple("Steered", ["position", "row", "rows"])
+"""The kernel's view of a memo: the modules whose steering it holds (``position (n,) int64``, increasing)
+and the row of each (``row (n,) int64``) in the memo's rows (``rows (k, ROW) float64``, not copied)."""
 
 
 def not_steered() -> Steered:
     """An empty memo: every segment is steered."""
-    return Steered(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, ROW)), np.zeros(1, np.int64))
+    return Steered(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, ROW)))
 
 
 @inner(inline="always")
@@ -57,37 +56,40 @@ def _same(a, b):
 
 
 @inner(inline="always")
-def recall(steered, i, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging):
-    """The row of ``steered``'s rows (:data:`Steered`) for module ``i`` if its inputs are exactly these, or -1.
-    The turtle asks in the string's order: the cursor only moves forward."""
-    position, at_row, rows, cursor = steered
-    k = cursor[0]
+def recall(position, at_row, rows, k, i, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging):
+    """The row of ``rows`` that holds module ``i``'s steering (:data:`Steered`'s arrays) if its inputs are
+    exactly these, else -1; and the cursor ``k`` moved up to ``i`` (the turtle asks in the string's order)."""
     n = position.shape[0]
     while k < n and position[k] < i:
         k += 1
-    cursor[0] = k
     if k == n or position[k] != i:
-        return -1
+        return -1, k
     r = at_row[k]
-    row = rows[r]
     if (
-        _same(row[0], px)
-        and _same(row[1], py)
-        and _same(row[2], pz)
-        and _same(row[3], hx)
-        and _same(row[4], hy)
-        and _same(row[5], hz)
-        and _same(row[6], lx)
-        and _same(row[7], ly)
-        and _same(row[8], lz)
-        and _same(row[9], ux)
-        and _same(row[10], uy)
-        and _same(row[11], uz)
-        and _same(row[12], length)
-        and row[13] == float(hanging)
+        _same(rows[r, 0], px)
+        and _same(rows[r, 1], py)
+        and _same(rows[r, 2], pz)
+        and _same(rows[r, 3], hx)
+        and _same(rows[r, 4], hy)
+        and _same(rows[r, 5], hz)
+        and _same(rows[r, 6], lx)
+        and _same(rows[r, 7], ly)
+        and _same(rows[r, 8], lz)
+        and _same(rows[r, 9], ux)
+        and _same(rows[r, 10], uy)
+        and _same(rows[r, 11], uz)
+        and _same(rows[r, 12], length)
+        and rows[r, 13] == float(hanging)
     ):
-        return r
-    return -1
+        return r, k
+    return -1, k
+
+
+@inner(inline="always")
+def recalled(rows, r):
+    """What row ``r`` says ``_steer`` returned: H, L, U, cut, hanging."""
+    hx, hy, hz, lx, ly, lz = rows[r, 14], rows[r, 15], rows[r, 16], rows[r, 17], rows[r, 18], rows[r, 19]
+    return hx, hy, hz, lx, ly, lz, rows[r, 20], rows[r, 21], rows[r, 22], rows[r, 23] > 0.0, np.int64(rows[r, 24])
 
 
 @inner(_nrt=False)
@@ -179,5 +181,5 @@ class SteeringMemo:
                 place = np.minimum(np.searchsorted(kept, at), max(len(kept) - 1, 0))
                 found = kept[place] == at if len(kept) else np.zeros(len(at), np.bool_)
                 at, row = copied[place[found]], row[found]
-            self._steered = Steered(at, row, self.rows, np.zeros(1, np.int64))
-        return self._steered._replace(cursor=np.zeros(1, np.int64))
+            self._steered = Steered(at, row, self.rows)
+        return self._steered
