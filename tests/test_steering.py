@@ -60,7 +60,7 @@ def _grammar(tmp_path, case: str) -> Grammar:
     )
 
 
-def _same(a, b) -> bool:
+def _same_arrays(a, b) -> bool:
     """Every array of two skeletons equal, byte for byte."""
     for field in dataclasses.fields(a):
         x, y = getattr(a, field.name), getattr(b, field.name)
@@ -79,7 +79,7 @@ def test_drawing_with_the_memo_is_drawing_without_it_byte_for_byte(tmp_path, cas
     again = interpret(modules, g, scene=scene)
     recalled = interpret(modules, g, scene=scene, steering=memo)
     assert len(again) > 50
-    assert _same(again, recalled)
+    assert _same_arrays(again, recalled)
     # every segment drawn was steered by the lean passes: the memo holds it, at its module
     steered = memo.recalled(scene)
     assert set(again.module.tolist()) <= set(steered.position.tolist())
@@ -96,7 +96,7 @@ def test_the_memo_answers_only_the_string_and_scene_it_was_made_for(tmp_path):
     derive_answering(g, environment=env, steering=memo)
     # another string: the rows at its modules' places were steered from other states, so none is taken
     other = derive(g.replace(environment={}), 25, 4)
-    assert _same(interpret(other, g, scene=scene, steering=memo), interpret(other, g, scene=scene))
+    assert _same_arrays(interpret(other, g, scene=scene, steering=memo), interpret(other, g, scene=scene))
     # another scene: nothing is recalled
     elsewhere = load_environment(g.replace(environment={"support": g.environment["support"]})).scene()
     assert len(memo.recalled(elsewhere).position) == 0
@@ -109,5 +109,26 @@ def test_pipeline_draw_gives_the_same_bytes_as_steering_twice(tmp_path):
     g = _grammar(tmp_path, "topiary")
     modules, skeleton = draw(g, g.iterations, g.seed, GenerateOptions())
     env = load_environment(g)
-    assert _same(skeleton, interpret(derive_answering(g, environment=env), g, scene=env.scene()))
+    assert _same_arrays(skeleton, interpret(derive_answering(g, environment=env), g, scene=env.scene()))
     assert str(modules) == str(derive_answering(g, environment=env))
+
+
+def test_the_turtle_kernel_compiles_its_rare_code_for_one_type(tmp_path):
+    """The memo rides in kernel.run's ``rare``: a Steered of empty arrays when there is none, so the rare
+    code (a polygon without a scene, a scene without a memo, a scene with one) is one compilation."""
+    from numba.core import types
+
+    from lsys3d.turtle import kernel
+
+    g = _grammar(tmp_path, "climber")
+    env = load_environment(g)
+    scene = env.scene()
+    memo = SteeringMemo()
+    modules = derive_answering(g, environment=env, steering=memo)
+    interpret(modules, g, scene=scene, steering=memo)
+    interpret(modules, g, scene=scene)
+    polygon = Grammar(axiom="F{.f+f+f+f}F")
+    assert len(interpret(polygon.axiom_modules, polygon)) == 2
+    rare = {signature[-1] for signature in kernel.run.signatures} - {types.none}
+    assert len(rare) == 1
+    assert [t.dtype for t in next(iter(rare)).types] == [types.int64, types.int64, types.float64]

@@ -73,7 +73,7 @@ from .kernel import (  # numba sees the ops as these plain integers, declared on
     _steer,
     _steps,
 )
-from .steering import remember
+from .steering import write_steering
 
 __all__ = [
     "FOLLOW_LOST",
@@ -306,10 +306,10 @@ def answer_pass(
     size squared, the plant's shade of :mod:`lsys3d.turtle.shadow`).  With ``answered`` (not empty: a copy of the
     parameters), the query modules that ``answer_first``, ``answer_sign`` and ``answer_slots`` answer from the
     turtle's state (:func:`write_answers`' tables) are answered in it here, and only the others (``?E``)
-    listed in ``query_module``.
-    ``steerings`` (when not empty: each steering by the scene it makes, :func:`lsys3d.turtle.steering.remember`'s
-    rows, from row ``first_row`` on), and for every segment steered now or in the last pass, in order, its module
-    (``steered_at``) and its row (``steered_row``; the last pass's: ``old_steered_at``, ``old_steered_row``).
+    listed in ``query_module``.  ``steerings`` (when not empty): each steering by the scene it makes, a row of
+    :func:`lsys3d.turtle.steering.write_steering` from row ``first_row`` on; and for every segment steered now or
+    in the last pass, in order, its module (``steered_at``) and its row (``steered_row``; the last pass's:
+    ``old_steered_at``, ``old_steered_row``).
     ``counts`` = [queries, cuts, records, deposits, steerings, steered segments].  Returns (status, bad
     module): :data:`lsys3d.turtle.kernel.MESSAGES`' codes, or :data:`FOLLOW_LOST`.
     """
@@ -529,7 +529,7 @@ def answer_pass(
                     scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging
                 )
                 if remembering:
-                    remember(
+                    write_steering(
                         steerings, first_row + n_steer, px, py, pz, shx, shy, shz, slx, sly, slz, sux, suy, suz, length,
                         hanging0, hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging,
                     )  # fmt: skip

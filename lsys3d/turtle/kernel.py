@@ -31,7 +31,7 @@ from .bending import (
 )
 from .commands import N_OPS, Axis, Op, Organ
 from .skeleton import MAX_COORDINATE
-from .steering import recall, recalled
+from .steering import recall, recalled_steering
 
 __all__ = [
     "MAX_POLYGON_DEPTH",
@@ -710,7 +710,7 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                     hanging,
                 )  # fmt: skip
                 if r >= 0:
-                    hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = recalled(memo_rows, r)
+                    hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = recalled_steering(memo_rows, r)
                 else:
                     hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = _steer(
                         scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..compiling import inner
 
-__all__ = ["MAX_ROWS", "ROW", "Steered", "SteeringMemo", "not_steered", "recall", "recalled", "remember"]
+__all__ = ["MAX_ROWS", "ROW", "Steered", "SteeringMemo", "not_steered", "recall", "recalled_steering", "write_steering"]
 
 IN = 14
 """Numbers that go into a steering: position, H, L, U, the segment's length, whether the branch hangs."""
@@ -86,14 +86,14 @@ def recall(position, at_row, rows, k, i, px, py, pz, hx, hy, hz, lx, ly, lz, ux,
 
 
 @inner(inline="always")
-def recalled(rows, r):
+def recalled_steering(rows, r):
     """What row ``r`` says ``_steer`` returned: H, L, U, cut, hanging."""
     hx, hy, hz, lx, ly, lz = rows[r, 14], rows[r, 15], rows[r, 16], rows[r, 17], rows[r, 18], rows[r, 19]
     return hx, hy, hz, lx, ly, lz, rows[r, 20], rows[r, 21], rows[r, 22], rows[r, 23] > 0.0, np.int64(rows[r, 24])
 
 
 @inner(_nrt=False)
-def remember(
+def write_steering(
     rows, n, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging, shx, shy, shz, slx, sly, slz, sux, suy,
     suz, cut, steered_hanging,
 ):  # fmt: skip
