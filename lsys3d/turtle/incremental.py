@@ -263,6 +263,23 @@ def _write_state(
     row[19], row[20], row[21] = hanging, depth, n_poly
 
 
+@inner(inline="always")
+def _is_state(
+    row, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, width, step, angle, elasticity, tx, ty, tz, hanging, depth,
+    n_poly,
+):  # fmt: skip
+    """Whether ``row`` holds this state (:func:`_write_state`'s numbers), bit for bit (:func:`_same`)."""
+    return (
+        _same(row[0], px) and _same(row[1], py) and _same(row[2], pz)
+        and _same(row[3], hx) and _same(row[4], hy) and _same(row[5], hz)
+        and _same(row[6], lx) and _same(row[7], ly) and _same(row[8], lz)
+        and _same(row[9], ux) and _same(row[10], uy) and _same(row[11], uz)
+        and _same(row[12], width) and _same(row[13], step) and _same(row[14], angle) and _same(row[15], elasticity)
+        and _same(row[16], tx) and _same(row[17], ty) and _same(row[18], tz)
+        and _same(row[19], float(hanging)) and _same(row[20], float(depth)) and _same(row[21], float(n_poly))
+    )  # fmt: skip
+
+
 @kernel(nogil=True)
 def answer_pass(
     program,
@@ -350,7 +367,6 @@ def answer_pass(
     initial[12], initial[13], initial[14], initial[15] = config.width, config.step, config.angle, config.elasticity
     initial[16], initial[17], initial[18] = config.tx, config.ty, config.tz
     initial[19] = initial[20] = initial[21] = 0.0
-    current = np.empty(STATE)
 
     n_query = n_cut = n_rec = np.int64(0)
     old_row = np.int64(0)  # the last pass's records are met in order along the copies
@@ -408,16 +424,16 @@ def answer_pass(
                     return FOLLOW_LOST, i
             last_copy = origin[i - 1] if i > 0 else np.int64(-1)
         if start >= -1:  # a turtle starts here
-            current[:] = initial if start == -1 else old_states[start]
-            px, py, pz = current[0], current[1], current[2]
-            hx, hy, hz = current[3], current[4], current[5]
-            lx, ly, lz = current[6], current[7], current[8]
-            ux, uy, uz = current[9], current[10], current[11]
-            width, step, angle, elasticity = current[12], current[13], current[14], current[15]
-            tx, ty, tz = current[16], current[17], current[18]
-            hanging = np.int64(current[19])
-            depth = int(current[20])
-            n_poly = int(current[21])
+            loaded = initial if start == -1 else old_states[start]
+            px, py, pz = loaded[0], loaded[1], loaded[2]
+            hx, hy, hz = loaded[3], loaded[4], loaded[5]
+            lx, ly, lz = loaded[6], loaded[7], loaded[8]
+            ux, uy, uz = loaded[9], loaded[10], loaded[11]
+            width, step, angle, elasticity = loaded[12], loaded[13], loaded[14], loaded[15]
+            tx, ty, tz = loaded[16], loaded[17], loaded[18]
+            hanging = np.int64(loaded[19])
+            depth = int(loaded[20])
+            n_poly = int(loaded[21])
             for k in range(min(n_poly, MAX_POLYGON_DEPTH)):
                 poly_open[k] = -1
             cos_angle, sin_angle = _cos_sin(angle)
@@ -436,37 +452,10 @@ def answer_pass(
                     row = -1 if a == 0 else _find(old_positions, old_count, a)
                     if (a == 0 or row >= 0) and _neutral_range(program, neutral, old_symbols, a, o):
                         known = initial if a == 0 else old_states[row]
-                        _write_state(
-                            current,
-                            px,
-                            py,
-                            pz,
-                            hx,
-                            hy,
-                            hz,
-                            lx,
-                            ly,
-                            lz,
-                            ux,
-                            uy,
-                            uz,
-                            width,
-                            step,
-                            angle,
-                            elasticity,
-                            tx,
-                            ty,
-                            tz,
-                            hanging,
-                            depth,
-                            n_poly,
-                        )
-                        same = True
-                        for k in range(STATE):
-                            if not _same(current[k], known[k]):
-                                same = False
-                                break
-                        if same:
+                        if _is_state(
+                            known, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, width, step, angle, elasticity, tx,
+                            ty, tz, hanging, depth, n_poly,
+                        ):  # fmt: skip
                             running = False
                             resynced = i
                             continue
@@ -481,7 +470,7 @@ def answer_pass(
                 continue
         if recorded[sym]:
             _write_state(
-                current,
+                states[n_rec],
                 px,
                 py,
                 pz,
@@ -506,7 +495,6 @@ def answer_pass(
                 n_poly,
             )
             positions[n_rec] = i
-            states[n_rec] = current
             n_rec += 1
         if code == _NONE:
             i += 1
