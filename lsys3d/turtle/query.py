@@ -107,6 +107,7 @@ class Answerer:
         self._last: tuple | None = None  # the alphabet of the last pass (the same tuple each step) and its tables
         self._unvaried: kernel.Variation | None = None  # no natural variation: the same empty arrays each pass
         self._table = None  # the symbol table of the last pass
+        self._asked: tuple | None = None  # a table, and whether the environment answers a query module of it
         self._counts: np.ndarray | None = None  # the modules of each op of the string derivation has, when known
         self._depth = 0  # and the most brackets deep it can be
         self._nesting = 0  # the most brackets deeper one rewrite makes the string
@@ -246,12 +247,18 @@ class Answerer:
             deposits = np.concatenate([np.column_stack([mid, area]), leaves])
         return found.module, found.state, found.cut, _WHOLE, np.zeros((0, incremental.STATE)), deposits, None
 
+    def _environment_asked(self, table: SymbolTable, first: np.ndarray) -> bool:
+        """Whether the alphabet has a query module the environment answers (``?E``), asked once per table."""
+        if self._asked is None or self._asked[0] is not table:
+            self._asked = (table, bool((first[table.op == Op.QUERY] < 0).any()))
+        return self._asked[1]
+
     def _pass(self, modules, table, program, arrays, max_depth, variation, recorded, counts, origin, records):
         n_query = int(counts[Op.QUERY])
         # the answers from the turtle's state are written into a copy of the parameters as the pass meets them
         answered = modules.params.copy() if n_query else _NO_PARAMS
         first, sign, slots = self._compiled(modules.alphabet)[4]
-        listed = n_query if not len(answered) or (first[table.op == Op.QUERY] < 0).any() else 0  # (only ?E then)
+        listed = n_query if not len(answered) or self._environment_asked(table, first) else 0  # (only ?E then)
         query_module = np.empty(listed, np.int64)
         query_state = np.empty((listed, 12))
         cut = np.empty(int(counts[Op.FORWARD]) if self.environment is not None else 0, np.int64)
@@ -309,7 +316,7 @@ class Answerer:
             return None
         if status != kernel.OK:
             raise module_error(modules, table, int(bad), kernel.MESSAGES[status])
-        n_query, n_cut, n_rec, n_dep, n_steer, n_at = (int(c) for c in found)
+        n_query, n_cut, n_rec, n_dep, n_steer, n_at = found.tolist()
         return (
             query_module[:n_query],
             query_state[:n_query],
