@@ -5,6 +5,7 @@ from __future__ import annotations
 import ast
 import importlib
 import json
+import os
 import pkgutil
 import re
 import subprocess
@@ -76,6 +77,9 @@ class _FakeHelper:
     def wait(self) -> None:
         self.log.append("waited")
 
+    def idle(self) -> None:
+        pass
+
 
 def test_the_main_process_waits_for_the_helper_before_compiling_one_of_its_kernels(monkeypatch):
     log = []
@@ -114,6 +118,116 @@ def test_a_failing_helper_is_waited_for_and_leaves_the_compiling_to_the_main_pro
         assert kernel(3) == 6  # waits for the helper first (the gate), then compiles it here
         assert helper.returncode not in (None, 0)
     assert compiling._helpers == []
+
+
+def _spare(log, names=("lsys3d.for_the_test.spare",)):
+    """A spare group whose compiling is only recorded in ``log``."""
+    return compiling.Spare(names, lambda: log.append("spare"), lambda: log.append("main only"))
+
+
+def test_the_first_to_claim_the_spare_kernels_is_the_only_one(tmp_path):
+    path = str(tmp_path / "spare")
+    assert compiling._claim(path)
+    assert not compiling._claim(path)  # (the other process, later)
+    assert not compiling._claim(str(tmp_path / "gone" / "spare"))  # no folder: not claimed
+    assert not compiling._claim(None)
+
+
+@pytest.mark.parametrize("claimed", [False, True])
+def test_a_helper_compiles_the_spare_kernels_after_its_own_unless_the_main_process_claimed_them(
+    tmp_path, monkeypatch, claimed
+):
+    path = tmp_path / "spare"
+    if claimed:
+        path.touch()
+    monkeypatch.setenv(compiling._CLAIM, str(path))
+    log = []
+    compiling.help_ahead(("lsys3d.for_the_test.own",), lambda: log.append("own"), _spare(log))
+    assert log == (["own"] if claimed else ["own", "spare"])  # the main-only ones never: not its to compile
+    assert path.exists()
+
+
+def _sleeping(seconds):
+    """A stand-in for subprocess.Popen that starts a process sleeping ``seconds`` instead (a helper at work)."""
+    popen = subprocess.Popen
+
+    def start(args, **kw):
+        return popen([sys.executable, "-c", f"import time; time.sleep({seconds})"], **kw)
+
+    return start
+
+
+def test_the_main_process_compiles_the_spare_kernels_while_it_waits_for_a_working_helper(monkeypatch):
+    monkeypatch.setattr(compiling.subprocess, "Popen", _sleeping(1))
+    log = []
+    with compiling.ahead("lsys3d.for_the_test_helper", ("lsys3d.for_the_test.own",), [_kernel("x")], _spare(log)):
+        compiling.wait("lsys3d.elsewhere")  # not the helper's modules: no idling
+        assert log == []
+        compiling.wait("lsys3d.for_the_test.own.x")
+        assert log == ["spare", "main only"]
+        compiling.wait("lsys3d.for_the_test.own.x")  # once
+    assert log == ["spare", "main only"]
+
+
+def test_the_main_process_waits_for_the_helper_before_compiling_a_spare_kernel_the_helper_claimed(monkeypatch):
+    monkeypatch.setattr(compiling.subprocess, "Popen", _sleeping(1))
+    log = []
+    spare = _kernel("lsys3d.for_the_test.spare")
+    with compiling.ahead(
+        "lsys3d.for_the_test_helper", ("lsys3d.for_the_test.own",), [_kernel("x")], _spare(log)
+    ) as helper:
+        assert compiling._claim(helper._claim_path)  # as the helper would, done with its own kernels
+        assert spare(2) == 4  # the gate waited for the helper first
+        assert helper.returncode == 0
+        compiling.wait("lsys3d.for_the_test.own.x")
+    assert log == []  # nothing compiled here while the helper ran: it had claimed them
+
+
+def test_the_main_process_claims_a_spare_kernel_it_compiles_first(monkeypatch):
+    monkeypatch.setattr(compiling.subprocess, "Popen", _sleeping(5))
+    spare = _kernel("lsys3d.for_the_test.spare")
+    with compiling.ahead(
+        "lsys3d.for_the_test_helper", ("lsys3d.for_the_test.own",), [_kernel("x")], _spare([])
+    ) as helper:
+        assert spare(2) == 4  # no waiting: the helper has not claimed them
+        assert helper.returncode is None and helper.spare_is_mine()
+        assert not compiling._claim(helper._claim_path)  # so the helper cannot
+        helper.process.terminate()
+
+
+_SPARE_SIGNATURES = """
+import json, sys
+import lsys3d
+from lsys3d import firstrun
+
+lsys3d.export(lsys3d.generate(lsys3d.load(lsys3d.DEFAULT_PRESET)), sys.argv[1])
+out = {}
+for table in (firstrun.SIGNATURES, firstrun.MAIN_ONLY):
+    for k, declared in table.items():
+        out[k.py_func.__qualname__] = [sorted(map(str, k.signatures)), sorted(str(tuple(s)) for s in declared)]
+print(json.dumps(out))
+"""
+
+_SPARE_ALONE = """
+from lsys3d import compiling, firstrun
+
+with compiling.only(firstrun.SPARE.names):  # as in the helper
+    firstrun.SPARE.compile()
+firstrun.SPARE.main_only()
+print("ok")
+"""
+
+
+def test_the_spare_kernels_are_compiled_for_the_signatures_the_default_tree_asks_for(tmp_path):
+    """The default tree calls the spare kernels with the signatures firstrun declares, no other; compiled alone
+    (in an empty cache) the spare ones compile nothing outside SPARE.names, as the helper needs."""
+    command = [sys.executable, "-c", _SPARE_SIGNATURES, str(tmp_path / "tree.glb")]
+    out = subprocess.run(command, capture_output=True, text=True, check=True)
+    for name, (called, declared) in json.loads(out.stdout.splitlines()[-1]).items():
+        assert called == declared, name
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", _SPARE_ALONE], capture_output=True, text=True, env=env)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
 
 
 def _no_process(*args, **kw):
