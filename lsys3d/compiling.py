@@ -11,10 +11,11 @@ cached code yet.
 (:mod:`lsys3d.mesh.precompile`: the cleanup's), and the main process loads them from there.  No kernel is
 compiled by both at once: the helper compiles only the kernels of its own modules (:func:`only` stops it at
 any other), and the main process waits for it (:func:`wait`) before it calls into those modules, and in any
-case before it would compile one of their kernels itself.  The kernels the main process needs last (a
-:class:`Spare`: :mod:`lsys3d.firstrun`'s) go to whichever process is idle first: the helper when it is done
-with its own while the main process still works, the main process when it reaches the helper's modules
-while the helper still works; the first to claim them (a file created once) compiles them all.
+case before it would compile one of their kernels itself.  The kernels the main process needs last (groups of
+them, each a :class:`Spare`: :mod:`lsys3d.firstrun`'s) go to whichever process is idle first: the helper when it
+is done with its own while the main process still works, the main process when it reaches the helper's modules
+while the helper still works; the first to claim a group (a file created once) compiles it, and both take the
+groups in the same order, one at a time.
 
 Two decorators compile every kernel with no more than it needs: :func:`kernel` (numba's ``njit``, cached,
 without the C-function wrapper nothing of lsys3d calls) for a kernel Python calls, and :func:`inner` for one
@@ -33,7 +34,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import NamedTuple
 
 import numba
@@ -208,21 +209,18 @@ class Spare(NamedTuple):
     ``names`` are the prefixes of their names (module and qualified name: every kernel ``compile`` compiles,
     the kernels it calls too), ``compile`` compiles them (numba's ``compile`` with the signatures the pipeline
     calls them with).  None of them may be a kernel the main process compiles before it reaches the helper's
-    modules (it would claim them then) or one the helper's own kernels call.  ``main_only`` compiles kernels
-    that only the main process may compile (they call kernels it compiles earlier), when it would wait for the
-    helper anyway.
+    modules (it would claim them then), one the helper's own kernels call or one of another spare group.
     """
 
     names: tuple[str, ...]
     compile: Callable[[], None]
-    main_only: Callable[[], None] | None = None
 
     def covers(self, dispatcher) -> bool:
         return _name(dispatcher).startswith(self.names)
 
 
-_CLAIM = "LSYS3D_COMPILING_SPARE"
-"""The environment variable naming the file whose creation claims the spare kernels (for the helper)."""
+_CLAIMS = "LSYS3D_COMPILING_CLAIMS"
+"""The environment variable naming the folder where a file created claims a spare group (for the helper)."""
 
 
 def _claim(path: str | None) -> bool:
@@ -236,31 +234,40 @@ def _claim(path: str | None) -> bool:
     return True
 
 
-def help_ahead(own: tuple[str, ...], run: Callable[[], None], spare: Spare | None = None) -> None:
+def help_ahead(own: tuple[str, ...], run: Callable[[], None], spares: Sequence[Spare] = ()) -> None:
     """What a helper process of :func:`ahead` runs (its module's ``__main__``): ``run()``, under :func:`only`
-    ``own``, then the ``spare`` kernels if the main process has not claimed them yet."""
+    ``own``, then each of the ``spares`` the main process has not claimed yet."""
     with only(own):
         run()
-    if spare is not None and _claim(os.environ.get(_CLAIM)):
-        with only(spare.names):
-            spare.compile()
+    folder = os.environ.get(_CLAIMS)
+    for i, spare in enumerate(spares):
+        if folder and _claim(os.path.join(folder, str(i))):
+            with only(spare.names):
+                spare.compile()
 
 
 class Helper:
     """A process compiling the kernels of the modules ``own`` into numba's cache (see :func:`ahead`), and the
-    ``spare`` ones if it claims them first (``claim``: the file whose creation claims them)."""
+    groups of ``spares`` it claims first (``claims``: the folder of the files whose creation claims them)."""
 
-    def __init__(self, module: str, own: tuple[str, ...], spare: Spare | None = None, claim: str | None = None):
+    def __init__(
+        self,
+        module: str,
+        own: tuple[str, ...],
+        spares: Sequence[Spare] = (),
+        claims: str | None = None,
+        main_only: Callable[[], None] | None = None,
+    ):
         self.module = module
         self.own = tuple(own)
-        self.spare, self._claim_path = spare, claim
-        self._spare_mine: bool | None = None  # whether this process claimed the spare kernels (None: not yet)
+        self.spares, self._claims, self._main_only = tuple(spares), claims, main_only
+        self._mine: dict[int, bool] = {}  # the spare groups claimed so far: by this process (True) or the helper
         self._idled = False
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # this lsys3d, not another install's
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
-        env.pop(_CLAIM, None)
-        if spare is not None and claim:
-            env[_CLAIM] = claim
+        env.pop(_CLAIMS, None)
+        if spares and claims:
+            env[_CLAIMS] = claims
         # a file, not a pipe: a helper with much to say never waits for the main process to read it
         self._stderr = tempfile.TemporaryFile()  # noqa: SIM115 (closed by wait)
         self.process = subprocess.Popen(
@@ -294,33 +301,34 @@ class Helper:
 
     def covers(self, dispatcher) -> bool:
         """Whether this process must wait for the helper before compiling ``dispatcher``: one of the helper's
-        own kernels, or a spare one the helper claimed (this process claims them if nobody has)."""
+        own kernels, or one of a spare group the helper claimed (this process claims the group if nobody has)."""
         if _name(dispatcher).startswith(self.own):
             return True
-        return self.spare is not None and self.spare.covers(dispatcher) and not self.spare_is_mine()
+        return any(spare.covers(dispatcher) and not self.spare_is_mine(i) for i, spare in enumerate(self.spares))
 
-    def spare_is_mine(self) -> bool:
-        """Whether this process compiles the spare kernels: it claims them unless the helper was first."""
+    def spare_is_mine(self, i: int) -> bool:
+        """Whether this process compiles the spare group ``i``: it claims it unless the helper was first."""
         with self._spare_lock:
-            if self._spare_mine is None:
-                self._spare_mine = _claim(self._claim_path)
-            return self._spare_mine
+            if i not in self._mine:
+                self._mine[i] = _claim(self._claims and os.path.join(self._claims, str(i)))
+            return self._mine[i]
 
     def idle(self) -> None:
-        """The main process has nothing to do but wait for the helper: it compiles the spare kernels meanwhile,
-        unless the helper has claimed them, and the main-only ones (nothing when the helper has ended: they are
-        compiled where they are called)."""
-        if self.spare is None or self.process.poll() is not None:
+        """The main process has nothing to do but wait for the helper: meanwhile it compiles the spare groups
+        the helper has not claimed (claiming each in turn, as the helper does when done with its own) and the
+        main-only kernels; nothing when the helper has ended (they are compiled where they are called)."""
+        if not (self.spares or self._main_only) or self.process.poll() is not None:
             return
         with self._spare_lock:  # (reentrant: the gate asks spare_is_mine while they compile)
             if self._idled:
                 return
             self._idled = True
             start = time.perf_counter()
-            if self.spare_is_mine():
-                self.spare.compile()
-            if self.spare.main_only is not None:
-                self.spare.main_only()
+            for i, spare in enumerate(self.spares):
+                if self.spare_is_mine(i):
+                    spare.compile()
+            if self._main_only is not None:
+                self._main_only()
         log.info("compiling: %.1f s compiling the spare kernels while the helper ran", time.perf_counter() - start)
 
 
@@ -352,12 +360,17 @@ def wait(module: str) -> None:
 
 @contextlib.contextmanager
 def ahead(
-    module: str, own: tuple[str, ...], entries: Iterable[CPUDispatcher], spare: Spare | None = None
+    module: str,
+    own: tuple[str, ...],
+    entries: Iterable[CPUDispatcher],
+    spares: Sequence[Spare] = (),
+    main_only: Callable[[], None] | None = None,
 ) -> Iterator[Helper | None]:
     """While the block runs, compile the kernels of the modules ``own`` in a helper process, ``python -m
     module``, if any of ``entries`` (the kernels it calls first) has no cached code: on a first run only.
-    The ``spare`` kernels go to whichever process is idle first (:class:`Spare`; the helper's module calls
-    :func:`help_ahead` with the same ones).
+    Each group of ``spares`` goes to whichever process is idle first (:class:`Spare`; the helper's module
+    calls :func:`help_ahead` with the same ones, in the same order); ``main_only`` is what this process
+    compiles while it waits for the helper (kernels that call ones it compiles before).
 
     Yields the :class:`Helper`, or None when everything is cached.  The block must call :func:`wait` before
     it calls into those modules; should it compile one of their kernels first, it waits for the helper
@@ -367,9 +380,9 @@ def ahead(
     if all(is_cached(k) for k in entries):
         yield None
         return
-    folder = tempfile.mkdtemp(prefix="lsys3d-compiling-") if spare is not None else None
+    folder = tempfile.mkdtemp(prefix="lsys3d-compiling-") if spares else None
     try:
-        helper = Helper(module, own, spare, folder and os.path.join(folder, "spare"))
+        helper = Helper(module, own, spares, folder, main_only)
     except OSError as exc:  # no process to be had: this one compiles everything, as without a helper
         log.debug("compiling: no helper %s: %s", module, exc)
         if folder:

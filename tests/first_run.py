@@ -51,7 +51,7 @@ loaded = sorted(
     for k in compiling.kernels()
     if sum(k._cache_hits.values())
     and not k.py_func.__module__.startswith(precompile.OWN)
-    and not firstrun.SPARE.covers(k)
+    and not any(spare.covers(k) for spare in firstrun.SPARES)
 )
 with open(sys.argv[2], "w") as f:
     json.dump({"code": code, "compiled": compiled, "helped": any(helped), "loaded": loaded}, f)
