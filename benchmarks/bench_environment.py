@@ -32,6 +32,7 @@ from lsys3d.pipeline import GenerateOptions, draw
 from lsys3d.turtle.environment import clear_grid_cache, load_environment
 from lsys3d.turtle.interpret import interpret
 from lsys3d.turtle.query import derive_answering
+from lsys3d.turtle.steering import SteeringMemo
 
 RULES = [
     "A(k) {} : k % 8 == 0 -> F(0.05)[+(60)A(k + 1){q}][-(60)A(k + 1){q}]",
@@ -63,8 +64,9 @@ def grammar(open_: bool, iterations: int, wall: str, shadow: bool = False, consu
 
 def _stages(g: Grammar, env) -> tuple[int, int]:
     """Derive (the turtle answering between the steps when asked) and draw: what the ratio measures."""
-    modules = derive_answering(g, g.iterations, g.seed, environment=env)
-    skeleton = interpret(modules, g, scene=env.scene() if env is not None else None)
+    steering = SteeringMemo() if env is not None else None  # as draw() does: each segment steered once
+    modules = derive_answering(g, g.iterations, g.seed, environment=env, steering=steering)
+    skeleton = interpret(modules, g, scene=env.scene() if env is not None else None, steering=steering)
     return len(modules), len(skeleton)
 
 

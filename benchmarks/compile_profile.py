@@ -1,6 +1,6 @@
 """Where a first run's compiling goes: numba's compile time per kernel, exclusive of the kernels it compiles inside.
 
-    NUMBA_CACHE_DIR=$(mktemp -d) python benchmarks/compile_profile.py [--top 40] -- generate -o /tmp/tree.glb
+    NUMBA_CACHE_DIR=$(mktemp -d) python benchmarks/compile_profile.py [--timeline] -- generate -o /tmp/tree.glb
 
 Runs ``lsys3d`` with the arguments after ``--`` in this process and prints the process's wall and CPU time,
 the CPU time of its children (the helper that compiles the cleanup's kernels on a first run,
@@ -8,12 +8,17 @@ the CPU time of its children (the helper that compiles the cleanup's kernels on 
 packages) and the kernels that took longest.  Times are CPU seconds of the compiling thread (``thread_time``), so
 they hold on a busy machine; a kernel compiled for several signatures is listed once with its count.  Point
 ``NUMBA_CACHE_DIR`` at an empty folder, or the kernels come from the cache and nothing is compiled.
+
+``--timeline`` also prints when things happen, in wall-clock seconds from the start: each stage's start and end
+with the CPU seconds the main process spent compiling in it, when the helper process started and ended, and
+how long the main process waited for it (where a first run's wall-clock time goes).
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 import resource
 import threading
 import time
@@ -28,6 +33,8 @@ class _Profile(event.Listener):
     def __init__(self):
         self.local = threading.local()
         self.rows: list[tuple[float, str]] = []
+        self.top = 0.0  # CPU seconds of the outermost compilations so far (all threads)
+        self.since: Counter = Counter()  # CPU seconds per kernel since the timeline's last stage
 
     def on_start(self, ev: event.Event) -> None:
         stack = self.local.__dict__.setdefault("stack", [])
@@ -39,8 +46,12 @@ class _Profile(event.Listener):
         spent = time.thread_time() - start
         if stack:
             stack[-1][2] += spent
+        else:
+            self.top += spent
         func = dispatcher.py_func
-        self.rows.append((spent - inner, f"{getattr(func, '__module__', '?')}.{func.__qualname__}"))
+        name = f"{getattr(func, '__module__', '?')}.{func.__qualname__}"
+        self.rows.append((spent - inner, name))
+        self.since[name] += spent - inner
 
 
 def _stage(name: str) -> str:
@@ -51,20 +62,88 @@ def _stage(name: str) -> str:
     return ".".join(parts[:3]) if parts[1] == "mesh" and len(parts) > 3 else ".".join(parts[:2])
 
 
+class _Timeline(logging.Handler):
+    """Wall-clock times of the stages (``run_stage``'s log lines), the helper's start and end and the main
+    process's waits for it, with the compile CPU seconds spent in each stage."""
+
+    def __init__(self, profile: _Profile, t0: float):
+        super().__init__(logging.INFO)
+        self.profile, self.t0, self.c0 = profile, t0, time.process_time()
+        self.events: list[tuple[float, str]] = []
+        self.mark = 0.0  # profile.top at the last stage's end
+
+    def at(self, what: str) -> None:
+        cpu = time.process_time() - self.c0
+        self.events.append((time.perf_counter() - self.t0, f"[main CPU {cpu:5.1f} s]  {what}"))
+
+    def emit(self, record: logging.LogRecord) -> None:
+        message = record.getMessage()
+        if record.name == "lsys3d" and message.startswith("compiling: waited"):
+            self.at(f"main {message[len('compiling: ') :]}")
+        elif record.name == "lsys3d" and message.endswith(" s") and len(message.split()) == 3:
+            name, seconds = message.split()[:2]
+            compiled, self.mark = self.profile.top - self.mark, self.profile.top
+            top = ", ".join(f"{k.removeprefix('lsys3d.')} {v:.2f}" for k, v in self.profile.since.most_common(6))
+            self.profile.since.clear()
+            self.at(
+                f"end {name} ({float(seconds):.2f} s wall, {compiled:.2f} CPU s compiling{': ' if top else ''}{top})"
+            )
+
+    def watch_helpers(self) -> None:
+        """Note each helper's start and end (:class:`lsys3d.compiling.Helper`, polled from a thread)."""
+        from lsys3d import compiling
+
+        start = compiling.Helper.__init__
+
+        def init(helper, *args, **kw):
+            start(helper, *args, **kw)
+            self.at(f"helper {helper.module} started")
+
+            def poll():
+                while helper.process.poll() is None:
+                    time.sleep(0.02)
+                used = resource.getrusage(resource.RUSAGE_CHILDREN)
+                cpu = used.ru_utime + used.ru_stime
+                self.at(f"helper {helper.module} ended ({helper.process.returncode}, {cpu:.1f} CPU s)")
+
+            threading.Thread(target=poll, daemon=True).start()
+
+        compiling.Helper.__init__ = init
+
+    def print(self) -> None:
+        for seconds, what in sorted(self.events):
+            print(f"{seconds:7.2f}  {what}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--top", type=int, default=30, help="kernels listed")
+    parser.add_argument("--timeline", action="store_true", help="print when each stage and the helper end")
     parser.add_argument("args", nargs=argparse.REMAINDER, help="the lsys3d command line (after --)")
     ns = parser.parse_args()
     args = ns.args[1:] if ns.args[:1] == ["--"] else ns.args
     profile = _Profile()
     event.register("numba:compile", profile)
     t0, c0 = time.perf_counter(), time.process_time()
+    timeline = _Timeline(profile, t0)
+    if ns.timeline:
+        logger = logging.getLogger("lsys3d")
+        logger.addHandler(timeline)
+        logger.setLevel(logging.INFO)  # for the stages' times, which the command line itself would not print
+        logger.propagate = False  # so its warnings only
+        warnings = logging.StreamHandler()
+        warnings.setLevel(logging.WARNING)
+        warnings.setFormatter(logging.Formatter("lsys3d: %(message)s"))
+        logger.addHandler(warnings)
+        timeline.watch_helpers()
     from lsys3d.cli import main as lsys3d_main
 
     with contextlib.suppress(SystemExit):
         lsys3d_main(args or ["generate", "-o", "tree.glb"])
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    if ns.timeline:
+        timeline.at(f"done ({profile.top - timeline.mark:.2f} CPU s compiling after the last stage)")
+        timeline.print()
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     counts = Counter(name for _, name in profile.rows)
     spent, stages = Counter(), Counter()

@@ -491,14 +491,13 @@ def _generate_siblings(args, options, export_options) -> int:
 
 def _compiling_ahead(options):
     """On a first run, the cleanup's kernels compiled by a helper process on the other core while this one
-    derives, draws, sweeps and unions (:func:`lsys3d.compiling.ahead`); nothing when they are cached or the
-    cleanup is off."""
+    derives, draws, sweeps and unions, and the last stages' by whichever is idle first
+    (:func:`lsys3d.firstrun.ahead`); nothing when they are cached or the cleanup is off."""
     if not (options.union.enabled and options.cleanup.enabled):
         return contextlib.nullcontext()
-    from . import compiling
-    from .mesh import precompile
+    from . import firstrun
 
-    return compiling.ahead(precompile.__name__, precompile.OWN, precompile.ENTRIES)
+    return firstrun.ahead()
 
 
 def _grow(grammar, iterations, seed, options, progress=None):

@@ -11,7 +11,11 @@ cached code yet.
 (:mod:`lsys3d.mesh.precompile`: the cleanup's), and the main process loads them from there.  No kernel is
 compiled by both at once: the helper compiles only the kernels of its own modules (:func:`only` stops it at
 any other), and the main process waits for it (:func:`wait`) before it calls into those modules, and in any
-case before it would compile one of their kernels itself.
+case before it would compile one of their kernels itself.  The kernels the main process needs last (groups of
+them, each a :class:`Spare`: :mod:`lsys3d.firstrun`'s) go to whichever process is idle first: the helper when it
+is done with its own while the main process still works, the main process when it reaches the helper's modules
+while the helper still works; the first to claim a group (a file created once) compiles it, and both take the
+groups in the same order, one at a time.
 
 Two decorators compile every kernel with no more than it needs: :func:`kernel` (numba's ``njit``, cached,
 without the C-function wrapper nothing of lsys3d calls) for a kernel Python calls, and :func:`inner` for one
@@ -24,12 +28,14 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from typing import NamedTuple
 
 import numba
 from numba.core import event
@@ -166,15 +172,19 @@ def _module(dispatcher) -> str:
     return getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
 
 
+def _name(dispatcher) -> str:
+    """A kernel's module and qualified name, ``lsys3d.arrays.search_left``."""
+    return f"{_module(dispatcher)}.{getattr(getattr(dispatcher, 'py_func', None), '__qualname__', '')}"
+
+
 class _Only(event.Listener):
     def __init__(self, own: tuple[str, ...]):
         self.own = own
 
     def on_start(self, ev: event.Event) -> None:
         dispatcher = ev.data["dispatcher"]
-        if _own(dispatcher) and not _module(dispatcher).startswith(self.own):
-            name = f"{_module(dispatcher)}.{dispatcher.py_func.__qualname__}"
-            raise ForeignKernel(f"lsys3d.compiling.only: {name} is not a kernel of {', '.join(self.own)}")
+        if _own(dispatcher) and not _name(dispatcher).startswith(self.own):
+            raise ForeignKernel(f"lsys3d.compiling.only: {_name(dispatcher)} is not a kernel of {', '.join(self.own)}")
 
     def on_end(self, ev: event.Event) -> None:
         pass
@@ -182,8 +192,9 @@ class _Only(event.Listener):
 
 @contextlib.contextmanager
 def only(own: tuple[str, ...]) -> Iterator[None]:
-    """Raise :class:`ForeignKernel` where numba would compile one of lsys3d's kernels outside the modules ``own``
-    (prefixes of module names): what a helper process of :func:`ahead` runs under."""
+    """Raise :class:`ForeignKernel` where numba would compile one of lsys3d's kernels outside ``own`` (prefixes of
+    module names, or of a kernel's module and qualified name): what a helper process of :func:`ahead` runs
+    under."""
     listener = _Only(tuple(own))
     event.register("numba:compile", listener)
     try:
@@ -192,14 +203,71 @@ def only(own: tuple[str, ...]) -> Iterator[None]:
         event.unregister("numba:compile", listener)
 
 
-class Helper:
-    """A process compiling the kernels of the modules ``own`` into numba's cache (see :func:`ahead`)."""
+class Spare(NamedTuple):
+    """Kernels either process of :func:`ahead` may compile: the first to claim them compiles them all.
 
-    def __init__(self, module: str, own: tuple[str, ...]):
+    ``names`` are the prefixes of their names (module and qualified name: every kernel ``compile`` compiles,
+    the kernels it calls too), ``compile`` compiles them (numba's ``compile`` with the signatures the pipeline
+    calls them with).  None of them may be a kernel the main process compiles before it reaches the helper's
+    modules (it would claim them then), one the helper's own kernels call or one of another spare group.
+    """
+
+    names: tuple[str, ...]
+    compile: Callable[[], None]
+
+    def covers(self, dispatcher) -> bool:
+        return _name(dispatcher).startswith(self.names)
+
+
+_CLAIMS = "LSYS3D_COMPILING_CLAIMS"
+"""The environment variable naming the folder where a file created claims a spare group (for the helper)."""
+
+
+def _claim(path: str | None) -> bool:
+    """Whether this process is the first to claim what the file ``path`` stands for (it creates the file)."""
+    if not path:
+        return False
+    try:
+        os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+    except OSError:  # FileExistsError: the other process was first (or the folder is gone)
+        return False
+    return True
+
+
+def help_ahead(own: tuple[str, ...], run: Callable[[], None], spares: Sequence[Spare] = ()) -> None:
+    """What a helper process of :func:`ahead` runs (its module's ``__main__``): ``run()``, under :func:`only`
+    ``own``, then each of the ``spares`` the main process has not claimed yet."""
+    with only(own):
+        run()
+    folder = os.environ.get(_CLAIMS)
+    for i, spare in enumerate(spares):
+        if folder and _claim(os.path.join(folder, str(i))):
+            with only(spare.names):
+                spare.compile()
+
+
+class Helper:
+    """A process compiling the kernels of the modules ``own`` into numba's cache (see :func:`ahead`), and the
+    groups of ``spares`` it claims first (``claims``: the folder of the files whose creation claims them)."""
+
+    def __init__(
+        self,
+        module: str,
+        own: tuple[str, ...],
+        spares: Sequence[Spare] = (),
+        claims: str | None = None,
+        main_only: Callable[[], None] | None = None,
+    ):
         self.module = module
         self.own = tuple(own)
+        self.spares, self._claims, self._main_only = tuple(spares), claims, main_only
+        self._mine: dict[int, bool] = {}  # the spare groups claimed so far: by this process (True) or the helper
+        self._idled = False
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # this lsys3d, not another install's
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
+        env.pop(_CLAIMS, None)
+        if spares and claims:
+            env[_CLAIMS] = claims
         # a file, not a pipe: a helper with much to say never waits for the main process to read it
         self._stderr = tempfile.TemporaryFile()  # noqa: SIM115 (closed by wait)
         self.process = subprocess.Popen(
@@ -211,6 +279,7 @@ class Helper:
         )
         self.returncode: int | None = None
         self._lock = threading.Lock()
+        self._spare_lock = threading.RLock()
 
     def wait(self) -> None:
         """Wait for the process to end (at once if it has); its failure is only logged: the main process
@@ -231,7 +300,36 @@ class Helper:
             log.debug("compiling: the helper %s failed (%d): %s", self.module, self.returncode, tail[0])
 
     def covers(self, dispatcher) -> bool:
-        return _module(dispatcher).startswith(self.own)
+        """Whether this process must wait for the helper before compiling ``dispatcher``: one of the helper's
+        own kernels, or one of a spare group the helper claimed (this process claims the group if nobody has)."""
+        if _name(dispatcher).startswith(self.own):
+            return True
+        return any(spare.covers(dispatcher) and not self.spare_is_mine(i) for i, spare in enumerate(self.spares))
+
+    def spare_is_mine(self, i: int) -> bool:
+        """Whether this process compiles the spare group ``i``: it claims it unless the helper was first."""
+        with self._spare_lock:
+            if i not in self._mine:
+                self._mine[i] = _claim(self._claims and os.path.join(self._claims, str(i)))
+            return self._mine[i]
+
+    def idle(self) -> None:
+        """The main process has nothing to do but wait for the helper: meanwhile it compiles the spare groups
+        the helper has not claimed (claiming each in turn, as the helper does when done with its own) and the
+        main-only kernels; nothing when the helper has ended (they are compiled where they are called)."""
+        if not (self.spares or self._main_only) or self.process.poll() is not None:
+            return
+        with self._spare_lock:  # (reentrant: the gate asks spare_is_mine while they compile)
+            if self._idled:
+                return
+            self._idled = True
+            start = time.perf_counter()
+            for i, spare in enumerate(self.spares):
+                if self.spare_is_mine(i):
+                    spare.compile()
+            if self._main_only is not None:
+                self._main_only()
+        log.info("compiling: %.1f s compiling the spare kernels while the helper ran", time.perf_counter() - start)
 
 
 _helpers: list[Helper] = []
@@ -252,16 +350,27 @@ class _Gate(event.Listener):
 
 def wait(module: str) -> None:
     """Wait for the helpers compiling the kernels of ``module`` (a module name): call it before calling into
-    the module, so its kernels come from the cache.  Nothing to wait for, mostly: returns at once."""
+    the module, so its kernels come from the cache.  Nothing to wait for, mostly: returns at once.  While a
+    helper still runs, this process compiles the spare kernels first (:meth:`Helper.idle`)."""
     for helper in list(_helpers):
         if module.startswith(helper.own):
+            helper.idle()
             helper.wait()
 
 
 @contextlib.contextmanager
-def ahead(module: str, own: tuple[str, ...], entries: Iterable[CPUDispatcher]) -> Iterator[Helper | None]:
+def ahead(
+    module: str,
+    own: tuple[str, ...],
+    entries: Iterable[CPUDispatcher],
+    spares: Sequence[Spare] = (),
+    main_only: Callable[[], None] | None = None,
+) -> Iterator[Helper | None]:
     """While the block runs, compile the kernels of the modules ``own`` in a helper process, ``python -m
     module``, if any of ``entries`` (the kernels it calls first) has no cached code: on a first run only.
+    Each group of ``spares`` goes to whichever process is idle first (:class:`Spare`; the helper's module
+    calls :func:`help_ahead` with the same ones, in the same order); ``main_only`` is what this process
+    compiles while it waits for the helper (kernels that call ones it compiles before).
 
     Yields the :class:`Helper`, or None when everything is cached.  The block must call :func:`wait` before
     it calls into those modules; should it compile one of their kernels first, it waits for the helper
@@ -271,10 +380,13 @@ def ahead(module: str, own: tuple[str, ...], entries: Iterable[CPUDispatcher]) -
     if all(is_cached(k) for k in entries):
         yield None
         return
+    folder = tempfile.mkdtemp(prefix="lsys3d-compiling-") if spares else None
     try:
-        helper = Helper(module, own)
+        helper = Helper(module, own, spares, folder, main_only)
     except OSError as exc:  # no process to be had: this one compiles everything, as without a helper
         log.debug("compiling: no helper %s: %s", module, exc)
+        if folder:
+            shutil.rmtree(folder, ignore_errors=True)
         yield None
         return
     gate = _Gate()
@@ -291,3 +403,5 @@ def ahead(module: str, own: tuple[str, ...], entries: Iterable[CPUDispatcher]) -
             helper.wait()
         finally:
             _helpers.remove(helper)
+            if folder:
+                shutil.rmtree(folder, ignore_errors=True)

@@ -75,6 +75,7 @@ from .turtle.hierarchy import hierarchy
 from .turtle.query import asks_turtle, derive_answering
 from .turtle.selections import selections
 from .turtle.skeleton import Skeleton
+from .turtle.steering import SteeringMemo
 from .turtle.timing import timed
 
 __all__ = [
@@ -375,6 +376,7 @@ def draw(
     commands = dialects.get(grammar.dialect).commands
     environment = load_environment(grammar, options.environment)
     scene = environment.scene() if environment is not None else None
+    steering = SteeringMemo() if environment is not None else None  # the segments steered while deriving
     if timing is not None and (environment is not None or asks_turtle(grammar, commands)):
         raise OptionsError(
             "GrowthOptions: the timed growth animation does not follow query modules or an environment "
@@ -392,6 +394,7 @@ def draw(
             environment=environment,
             max_modules=limits.max_modules,
             max_segments=limits.max_segments,
+            steering=steering,
             progress=progress,
         )
     else:
@@ -415,7 +418,15 @@ def draw(
             shown, ages = interpretation_ages(
                 grammar, modules, ages, seed, table=timing, max_modules=limits.max_modules, iterations=iterations
             )
-        skeleton = interpret(shown, turtle, seed=seed, max_segments=limits.max_segments, commands=commands, scene=scene)
+        skeleton = interpret(
+            shown,
+            turtle,
+            seed=seed,
+            max_segments=limits.max_segments,
+            commands=commands,
+            scene=scene,
+            steering=steering,
+        )
         if grammar.dialect == "cpfg":  # cpfg's texture selection (@Tx) and ~l's three scales
             skeleton = selections(skeleton, shown, grammar.materials)
         return shown, skeleton

@@ -22,38 +22,52 @@ settings.register_profile("fuzz", derandomize=False, max_examples=2000, print_bl
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 
-@pytest.hookimpl(tryfirst=True)
+@pytest.hookimpl(wrapper=True)
 def pytest_sessionstart(session):
     """The pipeline's kernels compiled once, in this process, before the first test.
 
     numba writes them to the package's ``__pycache__``, so the tests that run ``lsys3d`` in a subprocess (the
     CLI, batch workers) load them instead of each compiling them again, and a test that interrupts a
     subprocess does not catch it in the middle of a minute of compiling.  Under pytest-xdist (``make test``
-    runs ``pytest -n auto``) this runs in the controller before it starts the workers, so the workers load the
-    kernels instead of compiling them side by side (two processes writing one kernel's cache index at once
-    can point it at the other's machine code).  The default tree (a species: form, leaves) and the textbook
-    tree3d take the paths most tests take, a polygon the turtle's rare ops (its kernel's second compilation), and
-    tree3d is written as .glb and .usdc (the writers' kernels); warm, this costs about three seconds.  The two
-    trees are shared with the workers (tests/shared.py), which would otherwise each grow them again.
+    runs ``pytest -n auto``) this runs in the controller, so the workers load the kernels instead of compiling
+    them side by side (two processes writing one kernel's cache index at once can point it at the other's
+    machine code).  The default tree (a species: form, leaves) and the textbook tree3d take the paths most tests
+    take, a polygon the turtle's rare ops (its kernel's second compilation), and tree3d is written as .glb and
+    .usdc (the writers' kernels); warm, this costs about three seconds.  The two trees are shared with the
+    workers (tests/shared.py), which would otherwise each grow them again.
 
     From an empty cache (a fresh clone, CI) the compiling starts with a user's first run, ``lsys3d generate``
     in a child process (tests/first_run.py): it compiles the default tree's kernels into the suite's cache
     the way a user's first run does (the cleanup's in a helper process on the other core), and its record
     is what tests/test_compiling.py's first-run test asserts on, instead of compiling them all once more.
+
+    A hook wrapper: what the workers inherit (the shared folder, where the first run's record will be) is set
+    before pytest-xdist starts them, and the compiling runs after, while they start and collect the suite
+    (some 10 CPU seconds each, on the core the compiling leaves idle much of the time).  No test starts before
+    it ends: the controller hands out the first tests when this hook returns.
     """
     if hasattr(session.config, "workerinput") or session.config.option.collectonly:
-        return  # an xdist worker: the controller has compiled them
+        return (yield)  # an xdist worker: the controller compiles them
     if getattr(session.config.option, "dist", "no") != "no":
         # the folder where the workers share what one of them computed (tests/shared.py), before they start
         run = tempfile.mkdtemp(prefix="lsys3d-tests-")
         os.environ[shared.SHARED] = run
         session.config.add_cleanup(lambda: shutil.rmtree(run, ignore_errors=True))
+    folder = None
     if first_run.cache_is_empty():
         # a fresh clone: the first compiling is a user's first run, done once for real (tests/first_run.py)
-        folder = tempfile.mkdtemp(prefix="lsys3d-first-run-")
+        folder = Path(tempfile.mkdtemp(prefix="lsys3d-first-run-"))
         session.config.add_cleanup(lambda: shutil.rmtree(folder, ignore_errors=True))
-        first_run.run(Path(folder))
-        os.environ[first_run.RECORD] = str(Path(folder) / "first-run.json")
+        os.environ[first_run.RECORD] = str(folder / "first-run.json")
+    result = yield  # pytest-xdist starts the workers
+    if folder is not None:
+        first_run.run(folder)
+    _warm_up()
+    return result
+
+
+def _warm_up() -> None:
+    """The default tree and tree3d grown (and shared), a polygon drawn, tree3d written as .glb and .usdc."""
     from grown import grown
 
     import lsys3d

@@ -41,13 +41,17 @@ class Listener(event.Listener):
 event.register("numba:compile", Listener())
 from lsys3d.cli import main
 code = main(["generate", "-o", sys.argv[1]])
+from lsys3d import firstrun
 from lsys3d.mesh import precompile
 
-# the kernels this process found in the cache, leaving out the cleanup's (the helper compiled those for it)
+# the kernels this process found in the cache, leaving out the cleanup's (the helper compiled those for it) and
+# the spare ones (the helper's too, when it was the first to be idle)
 loaded = sorted(
     f"{k.py_func.__module__}.{k.py_func.__qualname__}"
     for k in compiling.kernels()
-    if sum(k._cache_hits.values()) and not k.py_func.__module__.startswith(precompile.OWN)
+    if sum(k._cache_hits.values())
+    and not k.py_func.__module__.startswith(precompile.OWN)
+    and not any(spare.covers(k) for spare in firstrun.SPARES)
 )
 with open(sys.argv[2], "w") as f:
     json.dump({"code": code, "compiled": compiled, "helped": any(helped), "loaded": loaded}, f)

@@ -32,7 +32,8 @@ STAGES = (
     "lsys3d.library",
     "lsys3d.edit",  # the editor: a server over the whole pipeline and its writers
     "lsys3d.blender",  # the Blender add-on: a plant grown into Blender's data (imports bpy; runs inside Blender)
-    {"lsys3d", "lsys3d.cli", "lsys3d.__main__", "lsys3d.testing"},  # the entry points (testing: the pytest plugin)
+    # the entry points (testing: the pytest plugin; firstrun: a first run's helper process, python -m)
+    {"lsys3d", "lsys3d.cli", "lsys3d.__main__", "lsys3d.testing", "lsys3d.firstrun"},
 )
 
 # Importable by every stage; a shared module imports only shared modules.

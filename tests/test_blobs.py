@@ -26,6 +26,26 @@ def fern():
     return sweep(sk)
 
 
+@pytest.fixture(scope="module")
+def fern_blobs(fern):
+    """The fern's union with blobs (one worker): what three tests look at, computed once per module."""
+    return union(fern, UnionOptions(blobs=0.25, max_pairs=10**8, workers=1))
+
+
+#: The fern at 8 generations through generate with blobs (what two tests grow, with and without the cleanup).
+FERN_OPTIONS = {"iterations": 8, "union_blobs": 0.25, "max_union_pairs": 10**8}
+
+
+@pytest.fixture(scope="module")
+def fern_cleaned():
+    return lsys3d.generate(FERN, **FERN_OPTIONS).bark
+
+
+@pytest.fixture(scope="module")
+def fern_plain():
+    return lsys3d.generate(FERN, cleanup=False, **FERN_OPTIONS).bark
+
+
 def tube_pairs(tubes):
     pcs = pieces(tubes)
     a, b = touching(pcs, 0.01, 10**9)
@@ -66,10 +86,9 @@ def test_a_single_capsule_level_set_is_closed_and_near_the_tube():
     assert (kind == -1).all()  # every source is a wall face: smooth normals, the wall's uv chart
 
 
-def test_the_union_with_blobs_is_closed_deterministic_and_near_the_exact_volume(fern):
+def test_the_union_with_blobs_is_closed_deterministic_and_near_the_exact_volume(fern, fern_blobs):
     exact = union(fern, UnionOptions(blobs=0, max_pairs=10**8))
-    opt = UnionOptions(blobs=0.25, max_pairs=10**8, workers=1)
-    first, again = union(fern, opt), union(fern, UnionOptions(blobs=0.25, max_pairs=10**8, workers=2))
+    first, again = fern_blobs, union(fern, UnionOptions(blobs=0.25, max_pairs=10**8, workers=2))
     assert first.is_watertight and first.is_winding_consistent
     np.testing.assert_array_equal(first.vertices, again.vertices)
     np.testing.assert_array_equal(first.faces, again.faces)
@@ -80,12 +99,10 @@ def test_the_union_with_blobs_is_closed_deterministic_and_near_the_exact_volume(
     assert (first.face_source >= 0).all() and (first.face_source < len(fern.faces)).all()
 
 
-def test_generate_with_blobs_cleans_and_exports(tmp_path):
-    tree = lsys3d.generate(FERN, iterations=8, union_blobs=0.25, max_union_pairs=10**8)
-    bark = tree.bark
+def test_generate_with_blobs_cleans_and_exports(fern_cleaned, fern_plain):
+    bark = fern_cleaned
     assert bark.is_watertight and bark.is_winding_consistent
-    plain = lsys3d.generate(FERN, iterations=8, union_blobs=0.25, max_union_pairs=10**8, cleanup=False)
-    assert plain.bark.is_watertight and plain.bark.volume == pytest.approx(bark.volume, rel=1e-6)
+    assert fern_plain.is_watertight and fern_plain.volume == pytest.approx(bark.volume, rel=1e-6)
 
 
 def test_a_branching_plant_has_no_blob_and_keeps_its_union():
@@ -108,7 +125,7 @@ def test_the_pairs_found_for_the_blobs_are_refused_as_before():
         assert union(tubes, UnionOptions(blobs=blobs, max_pairs=pairs, workers=1)).is_watertight
 
 
-def test_a_blob_beside_a_cluster_that_keeps_the_boolean(fern):
+def test_a_blob_beside_a_cluster_that_keeps_the_boolean(fern, fern_blobs):
     # the fern (a blob) and, far from it, two long branches at a fork (the boolean): one closed mesh of both
     from lsys3d.mesh.sweep.tubes import _concat
 
@@ -117,7 +134,7 @@ def test_a_blob_beside_a_cluster_that_keeps_the_boolean(fern):
     both = _concat([fern, fork])
     opt = UnionOptions(blobs=0.25, max_pairs=10**8, workers=1)
     mesh = union(both, opt)
-    alone = union(fern, opt), union(fork, opt)
+    alone = fern_blobs, union(fork, opt)
     assert mesh.is_watertight and mesh.is_winding_consistent
     assert len(mesh.faces) == len(alone[0].faces) + len(alone[1].faces)
     assert mesh.volume == pytest.approx(alone[0].volume + alone[1].volume, rel=1e-9)
@@ -126,29 +143,33 @@ def test_a_blob_beside_a_cluster_that_keeps_the_boolean(fern):
 
 
 def _uv_continuity(mesh, which):
-    """Share of the edges between two faces of ``which`` whose two corners have the same uv on both faces."""
+    """Share of the edges between two faces of ``which`` whose two corners have the same uv on both faces.
+
+    Each edge's occurrences are paired in the order of the faces (the first with the second, a third with a
+    fourth); a pair counts as the same when both ends' uv match within ``np.isclose(atol=1e-5)``.
+    """
     faces = mesh.faces[which]
     uv = mesh.uv[which]
-    rows = {}
-    same = total = 0
-    for f in range(len(faces)):
-        for j in range(3):
-            a, b = int(faces[f, j]), int(faces[f, (j + 1) % 3])
-            key = (min(a, b), max(a, b))
-            mine = {a: uv[f, j], b: uv[f, (j + 1) % 3]}
-            if key in rows:
-                other = rows.pop(key)
-                total += 1
-                same += all(np.allclose(mine[v], other[v], atol=1e-5) for v in key)
-            else:
-                rows[key] = mine
-    return same / max(total, 1)
+    a, b = faces.reshape(-1), np.roll(faces, -1, axis=1).reshape(-1)  # each face's edges (j, j + 1)
+    uv_a, uv_b = uv.reshape(-1, 2), np.roll(uv, -1, axis=1).reshape(-1, 2)
+    low, high = np.minimum(a, b), np.maximum(a, b)
+    uv_low = np.where((a >= b)[:, None], uv_b, uv_a)  # an edge from a vertex to itself: its second corner's
+    uv_high = np.where((a > b)[:, None], uv_a, uv_b)
+    order = np.lexsort((np.arange(len(low)), high, low))  # by edge, each edge's occurrences in face order
+    low, high = low[order], high[order]
+    start = np.r_[True, (low[1:] != low[:-1]) | (high[1:] != high[:-1])]
+    first = np.maximum.accumulate(np.where(start, np.arange(len(low)), 0))
+    later = np.flatnonzero((np.arange(len(low)) - first) % 2 == 1)  # the second of each pair
+    mine, other = order[later], order[later - 1]
+    same = np.isclose(uv_low[mine], uv_low[other], atol=1e-5).all(axis=1)
+    same &= np.isclose(uv_high[mine], uv_high[other], atol=1e-5).all(axis=1)
+    return int(same.sum()) / max(len(later), 1)
 
 
-def test_the_crowd_takes_a_box_projection_and_the_stems_their_chart(fern):
+def test_the_crowd_takes_a_box_projection_and_the_stems_their_chart(fern, fern_blobs):
     from lsys3d.mesh.union.blob_uv import BOX_LENGTH
 
-    mesh = union(fern, UnionOptions(blobs=0.25, max_pairs=10**8, workers=1))
+    mesh = fern_blobs
     boxed = mesh.face_box_uv > 0
     assert 0.2 < boxed.mean() < 1.0  # the apices' crowd, not the long tubes
     # the long tubes' faces keep their chart: the tube of each unboxed face is at least BOX_LENGTH widths long
@@ -173,17 +194,16 @@ def test_the_crowd_takes_a_box_projection_and_the_stems_their_chart(fern):
     assert (ratio[big] > 1 / np.sqrt(3) - 1e-3).all() and (ratio[big] < 1 + 1e-3).all()
 
 
-def test_the_cleanup_keeps_the_box_projection(monkeypatch):
+def test_the_cleanup_keeps_the_box_projection(fern_cleaned, fern_plain, monkeypatch):
     import lsys3d.mesh.union.blob_uv as blob_uv
 
-    options = {"iterations": 8, "union_blobs": 0.25, "max_union_pairs": 10**8}
-    plain = lsys3d.generate(FERN, cleanup=False, **options).bark
+    plain = fern_plain
     assert plain.face_box_uv is not None and (plain.face_box_uv > 0).mean() > 0.2
     # the cleanup remakes every uv from the face sources: the crowd's faces get the box projection again
-    cleaned = lsys3d.generate(FERN, **options).bark
+    cleaned = fern_cleaned
     assert np.isfinite(cleaned.uv).all()
     monkeypatch.setattr(blob_uv, "BOX_LENGTH", 0.0)  # every tube its own chart, as before
-    charted = lsys3d.generate(FERN, **options).bark
+    charted = lsys3d.generate(FERN, **FERN_OPTIONS).bark
     np.testing.assert_array_equal(cleaned.faces, charted.faces)  # the uv alone differs
     everything = np.arange(len(cleaned.faces))
     assert _uv_continuity(cleaned, everything) > _uv_continuity(charted, everything) + 0.05

@@ -393,7 +393,7 @@ def test_repeated_junctions_are_cleaned_once_and_copied(name):
 
 
 def test_the_pipeline_cleans_the_junctions_in_the_union_and_the_same_bytes_on_one_thread():
-    one, two = lsys3d.generate("koch", workers=1), lsys3d.generate("koch")
+    one, two = lsys3d.generate("koch", workers=1), grown("koch")  # the second: generate("koch"), shared
     for name in ("vertices", "faces", "normals", "uv", "face_source"):
         assert getattr(one.bark, name).tobytes() == getattr(two.bark, name).tobytes()
     tubes = grown_tubes("koch")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import ast
 import importlib
 import json
+import os
 import pkgutil
 import re
 import subprocess
@@ -76,6 +77,9 @@ class _FakeHelper:
     def wait(self) -> None:
         self.log.append("waited")
 
+    def idle(self) -> None:
+        pass
+
 
 def test_the_main_process_waits_for_the_helper_before_compiling_one_of_its_kernels(monkeypatch):
     log = []
@@ -114,6 +118,119 @@ def test_a_failing_helper_is_waited_for_and_leaves_the_compiling_to_the_main_pro
         assert kernel(3) == 6  # waits for the helper first (the gate), then compiles it here
         assert helper.returncode not in (None, 0)
     assert compiling._helpers == []
+
+
+def _spares(log):
+    """Two spare groups whose compiling is only recorded in ``log``."""
+    return [compiling.Spare((f"lsys3d.for_the_test.spare{i}",), lambda i=i: log.append(f"spare {i}")) for i in (0, 1)]
+
+
+def test_the_first_to_claim_a_spare_group_is_the_only_one(tmp_path):
+    path = str(tmp_path / "0")
+    assert compiling._claim(path)
+    assert not compiling._claim(path)  # (the other process, later)
+    assert not compiling._claim(str(tmp_path / "gone" / "0"))  # no folder: not claimed
+    assert not compiling._claim(None)
+
+
+@pytest.mark.parametrize("claimed", [(), ("0",), ("1",), ("0", "1")])
+def test_a_helper_compiles_the_spare_groups_after_its_own_that_the_main_process_has_not_claimed(
+    tmp_path, monkeypatch, claimed
+):
+    for name in claimed:
+        (tmp_path / name).touch()
+    monkeypatch.setenv(compiling._CLAIMS, str(tmp_path))
+    log = []
+    compiling.help_ahead(("lsys3d.for_the_test.own",), lambda: log.append("own"), _spares(log))
+    assert log == ["own"] + [f"spare {i}" for i in "01" if i not in claimed]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["0", "1"]
+
+
+def _sleeping(seconds):
+    """A stand-in for subprocess.Popen that starts a process sleeping ``seconds`` instead (a helper at work)."""
+    popen = subprocess.Popen
+
+    def start(args, **kw):
+        return popen([sys.executable, "-c", f"import time; time.sleep({seconds})"], **kw)
+
+    return start
+
+
+def _ahead(log, spares=None):
+    return compiling.ahead(
+        "lsys3d.for_the_test_helper",
+        ("lsys3d.for_the_test.own",),
+        [_kernel("x")],
+        _spares(log) if spares is None else spares,
+        lambda: log.append("main only"),
+    )
+
+
+def test_the_main_process_compiles_the_spare_groups_while_it_waits_for_a_working_helper(monkeypatch):
+    monkeypatch.setattr(compiling.subprocess, "Popen", _sleeping(1))
+    log = []
+    with _ahead(log) as helper:
+        compiling.wait("lsys3d.elsewhere")  # not the helper's modules: no idling
+        assert log == []
+        assert compiling._claim(os.path.join(helper._claims, "0"))  # as the helper would, done with its own
+        compiling.wait("lsys3d.for_the_test.own.x")
+        assert log == ["spare 1", "main only"]  # the group the helper had not claimed
+        compiling.wait("lsys3d.for_the_test.own.x")  # once
+    assert log == ["spare 1", "main only"]
+
+
+def test_the_main_process_waits_for_the_helper_before_compiling_a_spare_kernel_the_helper_claimed(monkeypatch):
+    monkeypatch.setattr(compiling.subprocess, "Popen", _sleeping(1))
+    log = []
+    spare0, spare1 = _kernel("lsys3d.for_the_test.spare0"), _kernel("lsys3d.for_the_test.spare1")
+    with _ahead(log) as helper:
+        assert compiling._claim(os.path.join(helper._claims, "1"))  # as the helper would
+        assert spare0(2) == 4  # not claimed: this process claims it and compiles it at once
+        assert helper.returncode is None and helper.spare_is_mine(0)
+        assert spare1(2) == 4  # the gate waited for the helper first
+        assert helper.returncode == 0
+        compiling.wait("lsys3d.for_the_test.own.x")
+    assert log == []  # no idling: the helper had ended
+
+
+_SPARE_SIGNATURES = """
+import json, sys
+import lsys3d
+from lsys3d import firstrun
+
+lsys3d.export(lsys3d.generate(lsys3d.load(lsys3d.DEFAULT_PRESET)), sys.argv[1])
+out = {}
+for table in (firstrun.SIGNATURES, firstrun.MAIN_ONLY):
+    for k, declared in table.items():
+        out[k.py_func.__qualname__] = [sorted(map(str, k.signatures)), sorted(str(tuple(s)) for s in declared)]
+print(json.dumps(out))
+"""
+
+_SPARE_ALONE = """
+from lsys3d import compiling, firstrun
+
+for spare in firstrun.SPARES:
+    with compiling.only(spare.names):  # as in the helper
+        spare.compile()
+print("ok")
+"""
+
+
+def test_the_spare_kernels_are_compiled_for_the_signatures_the_default_tree_asks_for(tmp_path):
+    """The default tree calls the spare kernels with the signatures firstrun declares, no other, and SIGNATURES
+    holds the kernels of SPARES; compiled alone (in an empty cache) each spare group compiles nothing outside
+    its names, as the helper needs."""
+    command = [sys.executable, "-c", _SPARE_SIGNATURES, str(tmp_path / "tree.glb")]
+    out = subprocess.run(command, capture_output=True, text=True, check=True)
+    for name, (called, declared) in json.loads(out.stdout.splitlines()[-1]).items():
+        assert called == declared, name
+    from lsys3d import firstrun
+
+    for kernel in firstrun.SIGNATURES:
+        assert [spare for spare in firstrun.SPARES if spare.covers(kernel)], kernel
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", _SPARE_ALONE], capture_output=True, text=True, env=env)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
 
 
 def _no_process(*args, **kw):

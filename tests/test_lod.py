@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from grown import grown
 
 import lsys3d
 from lsys3d.errors import LimitError, OptionsError
@@ -37,7 +38,7 @@ def test_tree3d_levels_fit_the_issue_budgets(tree3d_lods):
 
 def test_level_zero_is_the_tree(tree3d_lods):
     assert tree3d_lods.lods[0].bark is tree3d_lods.bark
-    plain = lsys3d.generate("tree3d")
+    plain = grown("tree3d")  # generate("tree3d"), grown once in the run (tests/grown.py)
     assert np.array_equal(plain.bark.faces, tree3d_lods.bark.faces)
 
 
@@ -85,7 +86,7 @@ def test_target_triangles_picks_the_richest_level_that_fits(tree3d_lods):
 
 
 def test_prune_drops_thin_chains_with_what_grows_from_them():
-    sk = lsys3d.generate("tree3d").skeleton
+    sk = grown("tree3d").skeleton
     widest = max(sk.width_start.max(), sk.width_end.max())
     pruned = prune(sk, 0.3)
     assert 0 < len(pruned) < len(sk)
@@ -97,7 +98,7 @@ def test_prune_drops_thin_chains_with_what_grows_from_them():
 
 
 def test_thinned_leaves_keep_their_area():
-    sk = lsys3d.generate("tree3d").skeleton
+    sk = grown("tree3d").skeleton
     thin = thin_leaves(sk, 0.2)
     assert 0 < thin.n_leaves < sk.n_leaves
     area = (np.asarray(sk.leaf_size) ** 2).sum()

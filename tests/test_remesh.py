@@ -36,9 +36,12 @@ def _rules(short=0.0, bad=1e9, fallback=0.0, limit=40.0):
 
 
 def _clean(he, rules):
-    """``remesh.clean`` everywhere; the operations done: collapses, flips, snaps, splits, fallback collapses."""
+    """``remesh.clean`` everywhere; the operations done: collapses, flips, snaps, splits, fallback collapses.
+
+    No region and no side, as the cleanup passes them (``lsys3d.mesh.cleanup``: an empty int8 side), so the
+    kernel is the one the pipeline compiled, not a second compilation for an int64 side."""
     nv = len(he.points)
-    return remesh.clean(he, rules, np.zeros(0, bool), np.zeros(0, np.int64), 0, np.zeros(nv, np.int64))
+    return remesh.clean(he, rules, np.zeros(0, bool), np.zeros(0, np.int8), 0, np.zeros(nv, np.int64))
 
 
 def _closed_manifold(faces: np.ndarray) -> bool:

@@ -40,7 +40,6 @@ from urllib.parse import quote
 
 import numpy as np
 
-from ..compiling import kernel
 from ..errors import ExportError
 from ..images import Image
 from ..look.attributes import branch_table, gltf_attributes
@@ -160,40 +159,13 @@ class _Buffer:
 def _bounds(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each column's least and greatest value, as ``rows.min(axis=0)`` and ``rows.max(axis=0)`` give them.
 
-    One compiled pass (numpy's reduction over an axis of three columns is
-    slow: 0.2 s for a 4.6 million-vertex bark); a column whose bound is a
-    zero (0.0 and -0.0 compare equal: which one numpy returns is its own) or
-    that holds a NaN is reduced by numpy itself.
+    Column by column (numpy's reduction over an axis of three columns is slow: 0.5 s for a 4.6
+    million-vertex bark; a column's own reduction takes a twentieth of that, as fast as a compiled pass).
     """
-    low, high, again = _column_bounds(rows)
-    for c in np.flatnonzero(again).tolist():
-        low[c], high[c] = rows[:, c].min(), rows[:, c].max()
+    columns = range(rows.shape[1])
+    low = np.array([rows[:, c].min() for c in columns], rows.dtype)
+    high = np.array([rows[:, c].max() for c in columns], rows.dtype)
     return low, high
-
-
-@kernel(nogil=True)
-def _column_bounds(rows):  # pragma: no cover - compiled
-    """:func:`_bounds` in one pass: the bounds and, per column, whether numpy has to say."""
-    n, w = rows.shape
-    low = np.empty(w, rows.dtype)
-    high = np.empty(w, rows.dtype)
-    again = np.zeros(w, np.bool_)
-    for c in range(w):
-        low[c] = rows[0, c] if n else 0
-        high[c] = low[c]
-    for i in range(n):
-        for c in range(w):
-            x = rows[i, c]
-            if x < low[c]:
-                low[c] = x
-            elif x > high[c]:
-                high[c] = x
-            elif x != x:
-                again[c] = True
-    for c in range(w):
-        if low[c] == 0 or high[c] == 0:
-            again[c] = True
-    return low, high, again
 
 
 def _indices(index: np.ndarray, n_vertices: int) -> np.ndarray:

@@ -1,24 +1,23 @@
 """The cleanup's kernels compiled ahead, in a second process, on a first run (:mod:`lsys3d.compiling`).
 
 On a first run numba compiles the cleanup's kernels (:mod:`lsys3d.mesh.remesh`) when the pipeline reaches the
-cleanup, a third of all the compiling.  ``python -m lsys3d.mesh.precompile`` compiles them meanwhile on the
-other core: it runs the cleanup's own steps (:func:`lsys3d.mesh.cleanup._half_edges`, ``_clean``,
-``remesh.compact``, ``_flat_faces``, ``smooth_normals``) on a small closed tube of two parts with a seam and
-flat caps, numpy-made, whose arrays have the types the union's bark has, so numba compiles and caches the
-signatures the real cleanup asks for; the main process then loads them from the cache.
+cleanup, a third of all the compiling.  The helper process (``python -m lsys3d.firstrun``) compiles them
+meanwhile on the other core with :func:`run`: it runs the cleanup's own steps
+(:func:`lsys3d.mesh.cleanup._half_edges`, ``_clean``, ``remesh.compact``, ``_flat_faces``, ``smooth_normals``)
+on a small closed tube of two parts with a seam and flat caps, numpy-made, whose arrays have the types the
+union's bark has, so numba compiles and caches the signatures the real cleanup asks for; the main process then
+loads them from the cache.
 
 It compiles nothing but kernels of :mod:`lsys3d.mesh.remesh` (its modules import nothing else of lsys3d):
 :data:`OWN` says so to :func:`lsys3d.compiling.ahead`, which stops this process at the first other kernel it
 would compile, and makes the main process wait for it before compiling one of these itself, so no kernel is
-ever compiled by both processes at once (numba's cache index of a kernel is read, added to and written back
-without a lock).
+ever compiled by both processes at once (twice the work).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .. import compiling
 from . import remesh
 from .cleanup import CleanupOptions, _clean, _executor, _flat_faces, _half_edges, _Surface, smooth_normals
 from .remesh.clean import _sides
@@ -130,8 +129,3 @@ def run() -> None:
         points, faces, _, _, fsrc, _, _ = remesh.compact(he, pool)
         flat = _flat_faces(faces, fsrc, tubes)
         smooth_normals(points, faces, flat, pool)
-
-
-if __name__ == "__main__":
-    with compiling.only(OWN):
-        run()

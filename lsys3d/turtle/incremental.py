@@ -73,6 +73,7 @@ from .kernel import (  # numba sees the ops as these plain integers, declared on
     _steer,
     _steps,
 )
+from .steering import write_steering
 
 __all__ = [
     "FOLLOW_LOST",
@@ -262,6 +263,23 @@ def _write_state(
     row[19], row[20], row[21] = hanging, depth, n_poly
 
 
+@inner(inline="always")
+def _is_state(
+    row, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, width, step, angle, elasticity, tx, ty, tz, hanging, depth,
+    n_poly,
+):  # fmt: skip
+    """Whether ``row`` holds this state (:func:`_write_state`'s numbers), bit for bit (:func:`_same`)."""
+    return (
+        _same(row[0], px) and _same(row[1], py) and _same(row[2], pz)
+        and _same(row[3], hx) and _same(row[4], hy) and _same(row[5], hz)
+        and _same(row[6], lx) and _same(row[7], ly) and _same(row[8], lz)
+        and _same(row[9], ux) and _same(row[10], uy) and _same(row[11], uz)
+        and _same(row[12], width) and _same(row[13], step) and _same(row[14], angle) and _same(row[15], elasticity)
+        and _same(row[16], tx) and _same(row[17], ty) and _same(row[18], tz)
+        and _same(row[19], float(hanging)) and _same(row[20], float(depth)) and _same(row[21], float(n_poly))
+    )  # fmt: skip
+
+
 @kernel(nogil=True)
 def answer_pass(
     program,
@@ -288,6 +306,12 @@ def answer_pass(
     answer_sign,
     answer_slots,
     answered,
+    steerings,
+    first_row,
+    old_steered_at,
+    old_steered_row,
+    steered_at,
+    steered_row,
 ):
     """One pass of the turtle's state over the string: the state at each query module that may have changed,
     the segments the scene cuts, and the state before every module ``recorded`` marks (and every cut).
@@ -299,8 +323,11 @@ def answer_pass(
     size squared, the plant's shade of :mod:`lsys3d.turtle.shadow`).  With ``answered`` (not empty: a copy of the
     parameters), the query modules that ``answer_first``, ``answer_sign`` and ``answer_slots`` answer from the
     turtle's state (:func:`write_answers`' tables) are answered in it here, and only the others (``?E``)
-    listed in ``query_module``.
-    ``counts`` = [queries, cuts, records, deposits].  Returns (status, bad
+    listed in ``query_module``.  ``steerings`` (when not empty): each steering by the scene it makes, a row of
+    :func:`lsys3d.turtle.steering.write_steering` from row ``first_row`` on; and for every segment steered now or
+    in the last pass, in order, its module (``steered_at``) and its row (``steered_row``; the last pass's:
+    ``old_steered_at``, ``old_steered_row``).
+    ``counts`` = [queries, cuts, records, deposits, steerings, steered segments].  Returns (status, bad
     module): :data:`lsys3d.turtle.kernel.MESSAGES`' codes, or :data:`FOLLOW_LOST`.
     """
     symbols, arity, offsets, params = modules
@@ -327,6 +354,8 @@ def answer_pass(
     shading = deposits.shape[0] > 0  # the plant's own shade (lsys3d.turtle.shadow): where its area is
     n_dep = np.int64(0)
     answering = answered.shape[0] > 0
+    remembering = steered_at.shape[0] > 0
+    n_steer = n_at = old_steer = np.int64(0)
     following = origin.shape[0] > 0
 
     initial = np.empty(STATE)
@@ -338,7 +367,6 @@ def answer_pass(
     initial[12], initial[13], initial[14], initial[15] = config.width, config.step, config.angle, config.elasticity
     initial[16], initial[17], initial[18] = config.tx, config.ty, config.tz
     initial[19] = initial[20] = initial[21] = 0.0
-    current = np.empty(STATE)
 
     n_query = n_cut = n_rec = np.int64(0)
     old_row = np.int64(0)  # the last pass's records are met in order along the copies
@@ -367,6 +395,7 @@ def answer_pass(
             o = origin[i]
             change = o < 0 or (o != 0 if i == 0 else o != origin[i - 1] + 1)
             if not change or i == resynced:
+                first = i
                 if recorded[sym]:
                     while old_row < old_count and old_positions[old_row] < o:
                         old_row += 1
@@ -378,6 +407,14 @@ def answer_pass(
                 # the copies after it that keep their order and have no record: nothing to do (most of the string)
                 while i < m and origin[i] == origin[i - 1] + 1 and not recorded[symbols[i]]:
                     i += 1
+                if remembering:  # the steerings of the copies' segments: where the last pass found them
+                    while old_steer < old_steered_at.shape[0] and old_steered_at[old_steer] < o:
+                        old_steer += 1
+                    while old_steer < old_steered_at.shape[0] and old_steered_at[old_steer] < o + (i - first):
+                        steered_at[n_at] = old_steered_at[old_steer] - o + first
+                        steered_row[n_at] = old_steered_row[old_steer]
+                        n_at += 1
+                        old_steer += 1
                 continue
             if i == 0:
                 start = -1
@@ -387,16 +424,16 @@ def answer_pass(
                     return FOLLOW_LOST, i
             last_copy = origin[i - 1] if i > 0 else np.int64(-1)
         if start >= -1:  # a turtle starts here
-            current[:] = initial if start == -1 else old_states[start]
-            px, py, pz = current[0], current[1], current[2]
-            hx, hy, hz = current[3], current[4], current[5]
-            lx, ly, lz = current[6], current[7], current[8]
-            ux, uy, uz = current[9], current[10], current[11]
-            width, step, angle, elasticity = current[12], current[13], current[14], current[15]
-            tx, ty, tz = current[16], current[17], current[18]
-            hanging = np.int64(current[19])
-            depth = int(current[20])
-            n_poly = int(current[21])
+            loaded = initial if start == -1 else old_states[start]
+            px, py, pz = loaded[0], loaded[1], loaded[2]
+            hx, hy, hz = loaded[3], loaded[4], loaded[5]
+            lx, ly, lz = loaded[6], loaded[7], loaded[8]
+            ux, uy, uz = loaded[9], loaded[10], loaded[11]
+            width, step, angle, elasticity = loaded[12], loaded[13], loaded[14], loaded[15]
+            tx, ty, tz = loaded[16], loaded[17], loaded[18]
+            hanging = np.int64(loaded[19])
+            depth = int(loaded[20])
+            n_poly = int(loaded[21])
             for k in range(min(n_poly, MAX_POLYGON_DEPTH)):
                 poly_open[k] = -1
             cos_angle, sin_angle = _cos_sin(angle)
@@ -415,37 +452,10 @@ def answer_pass(
                     row = -1 if a == 0 else _find(old_positions, old_count, a)
                     if (a == 0 or row >= 0) and _neutral_range(program, neutral, old_symbols, a, o):
                         known = initial if a == 0 else old_states[row]
-                        _write_state(
-                            current,
-                            px,
-                            py,
-                            pz,
-                            hx,
-                            hy,
-                            hz,
-                            lx,
-                            ly,
-                            lz,
-                            ux,
-                            uy,
-                            uz,
-                            width,
-                            step,
-                            angle,
-                            elasticity,
-                            tx,
-                            ty,
-                            tz,
-                            hanging,
-                            depth,
-                            n_poly,
-                        )
-                        same = True
-                        for k in range(STATE):
-                            if not _same(current[k], known[k]):
-                                same = False
-                                break
-                        if same:
+                        if _is_state(
+                            known, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, width, step, angle, elasticity, tx,
+                            ty, tz, hanging, depth, n_poly,
+                        ):  # fmt: skip
                             running = False
                             resynced = i
                             continue
@@ -460,7 +470,7 @@ def answer_pass(
                 continue
         if recorded[sym]:
             _write_state(
-                current,
+                states[n_rec],
                 px,
                 py,
                 pz,
@@ -485,7 +495,6 @@ def answer_pass(
                 n_poly,
             )
             positions[n_rec] = i
-            states[n_rec] = current
             n_rec += 1
         if code == _NONE:
             i += 1
@@ -503,9 +512,19 @@ def answer_pass(
                 length *= variation.length[i]
             if in_scene and code == _FORWARD and n_poly == 0:
                 hanging0 = hanging
+                shx, shy, shz, slx, sly, slz, sux, suy, suz = hx, hy, hz, lx, ly, lz, ux, uy, uz
                 hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging = _steer(
                     scene, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging
                 )
+                if remembering:
+                    write_steering(
+                        steerings, first_row + n_steer, px, py, pz, shx, shy, shz, slx, sly, slz, sux, suy, suz, length,
+                        hanging0, hx, hy, hz, lx, ly, lz, ux, uy, uz, cut, hanging,
+                    )  # fmt: skip
+                    steered_at[n_at] = i
+                    steered_row[n_at] = first_row + n_steer
+                    n_at += 1
+                    n_steer += 1
                 if cut:
                     cuts[n_cut] = i
                     n_cut += 1
@@ -747,6 +766,8 @@ def answer_pass(
     counts[1] = n_cut
     counts[2] = n_rec
     counts[3] = n_dep
+    counts[4] = n_steer
+    counts[5] = n_at
     if running and n_poly > 0:
         if poly_open[n_poly - 1] < 0:  # opened before the change: a pass over the whole string names it
             return FOLLOW_LOST, m

@@ -71,6 +71,7 @@ from .commands import COMMANDS, Command, Op, SymbolTable, symbol_table
 from .options import TurtleOptions
 from .sides import sides_in_force, with_sides
 from .skeleton import MAX_COORDINATE, Skeleton
+from .steering import SteeringMemo, not_steered
 
 __all__ = [
     "DEFAULT_MAX_SEGMENTS",
@@ -253,6 +254,7 @@ def interpret(
     max_segments: int = DEFAULT_MAX_SEGMENTS,
     commands: tuple[Command, ...] | None = None,
     scene: kernel.Scene | None = None,
+    steering: SteeringMemo | None = None,
 ) -> Skeleton:
     """Draw a module string with the 3D turtle.
 
@@ -289,7 +291,9 @@ def interpret(
         More than ``max_segments`` segments (the message gives the count).
 
     ``scene`` (:func:`lsys3d.turtle.environment.Environment.scene`) lets an environment steer and cut
-    the segments (``docs/environment.md``).
+    the segments (``docs/environment.md``); ``steering``, the memo the derivation that answered in the same
+    scene filled (:func:`lsys3d.turtle.query.derive_answering`), saves steering each segment again
+    (:mod:`lsys3d.turtle.steering`: the skeleton is the same).
 
     Examples
     --------
@@ -301,7 +305,9 @@ def interpret(
     >>> sk.end[1].round(6).tolist()
     [-1.0, 1.0, 0.0]
     """
-    return interpret_answering(modules, options, seed, max_segments=max_segments, commands=commands, scene=scene)[0]
+    return interpret_answering(
+        modules, options, seed, max_segments=max_segments, commands=commands, scene=scene, steering=steering
+    )[0]
 
 
 def interpret_answering(
@@ -312,6 +318,7 @@ def interpret_answering(
     max_segments: int = DEFAULT_MAX_SEGMENTS,
     commands: tuple[Command, ...] | None = None,
     scene: kernel.Scene | None = None,
+    steering: SteeringMemo | None = None,
 ) -> tuple[Skeleton, Answers]:
     """:func:`interpret`, and what the pass tells derivation: query states and cut segments (:class:`Answers`)."""
     if isinstance(options, Grammar):
@@ -371,7 +378,9 @@ def interpret_answering(
         np.empty(int(counts[Op.FORWARD]) if scene is not None else 0, np.int64),
         np.zeros(2, np.int64),
     )
-    rare = kernel.rare_flag(counts, config, scene)  # None: numba compiles (and runs) the kernel without them
+    rare = None  # numba compiles (and runs) the kernel without the rare ops: one type when it has them
+    if kernel.rare_flag(counts, config, scene):
+        rare = steering.recalled(scene) if steering is not None and scene is not None else not_steered()
     status, bad, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped = kernel.run(
         program, arrays, config, variation, max_depth, seg, poly, leaf, organ, query, scene or NO_SCENE, rare
     )

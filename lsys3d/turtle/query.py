@@ -43,6 +43,7 @@ from .interpret import (
 from .kernel import FAR_OUTSIDE
 from .options import TurtleOptions
 from .shadow import shade
+from .steering import ROW, SteeringMemo
 
 __all__ = ["Answerer", "answer", "asks_turtle", "derive_answering"]
 
@@ -58,6 +59,7 @@ _NO_OPS = np.zeros(256, np.int8)
 _SURVEYED = {int(o) for o in (Op.RANDOM_TURN, Op.FORWARD_STEPS, Op.TROPISM_VECTOR)} | {
     int(o) for o in Op if o > Op.QUERY
 }
+_NO_ROWS = np.zeros((0, ROW))  # no steerings kept
 
 
 def asks_turtle(grammar: Grammar, commands: tuple[Command, ...]) -> bool:
@@ -85,6 +87,7 @@ class Answerer:
         *,
         max_segments: int = DEFAULT_MAX_SEGMENTS,
         grammar: Grammar | None = None,
+        steering: SteeringMemo | None = None,
     ):
         self.turtle = turtle.replace(branch_drop=0.0)
         self.commands = commands
@@ -104,6 +107,7 @@ class Answerer:
         self._last: tuple | None = None  # the alphabet of the last pass (the same tuple each step) and its tables
         self._unvaried: kernel.Variation | None = None  # no natural variation: the same empty arrays each pass
         self._table = None  # the symbol table of the last pass
+        self._asked: tuple | None = None  # a table, and whether the environment answers a query module of it
         self._counts: np.ndarray | None = None  # the modules of each op of the string derivation has, when known
         self._depth = 0  # and the most brackets deep it can be
         self._nesting = 0  # the most brackets deeper one rewrite makes the string
@@ -111,6 +115,7 @@ class Answerer:
         # None: unknown; empty: the last pass's string itself, its modules unchanged
         self.origin: np.ndarray | None = None
         self._records = None  # the last pass's string's symbols, and the states it recorded (positions, states)
+        self.steering = steering if environment is not None else None  # where its steerings are kept
 
     def _compiled(self, alphabet) -> tuple[SymbolTable, kernel.Program, np.ndarray, bool, tuple]:
         if self._last is not None and self._last[0] is alphabet:  # no hashing of its 256 names each step
@@ -193,17 +198,29 @@ class Answerer:
                 self._unvaried = natural_variation(0, self.turtle, self.seed, table, modules.symbols[:0], 0)
             variation = self._unvaried
         args = (modules, table, program, arrays, max_depth, variation, recorded, counts)
+        steering, steerings = self.steering, None
         if not incremental.carries_out(counts, self.turtle):  # the turtle that draws them answers
             follow = False
             found = self._full_pass(modules)
+            if steering is not None:
+                steering.reset(self.scene)
         else:
+            if steering is not None and (not len(origin) or steering.full):
+                steering.reset(self.scene)  # a pass over the whole string: it steers every segment again
             found = self._pass(*args, origin, records)
             if found is None:  # a change the records cannot follow: the whole string
+                if steering is not None:
+                    steering.reset(self.scene)
                 found = self._pass(*args, _WHOLE, None)
+            steerings, found = found[-1], found[:-1]
         query_module, query_state, cut, positions, states, deposits, answered = found
         out, origin = _written(
             modules, table, query_module, query_state, cut, self.environment, deposits, answers, answered
         )
+        if steering is not None and steerings is not None:
+            steering.add(*steerings, origin)
+        elif steering is not None:
+            steering.add(0, _WHOLE, _WHOLE, None)  # not followed: off until a pass over the whole string
         self._records = (modules.symbols, positions, states) if follow else None
         self.origin = origin if follow else None
         # the counts of the string returned (a cut removed modules: the next pass surveys its string)
@@ -230,21 +247,35 @@ class Answerer:
             deposits = np.concatenate([np.column_stack([mid, area]), leaves])
         return found.module, found.state, found.cut, _WHOLE, np.zeros((0, incremental.STATE)), deposits, None
 
+    def _environment_asked(self, table: SymbolTable, first: np.ndarray) -> bool:
+        """Whether the alphabet has a query module the environment answers (``?E``), asked once per table."""
+        if self._asked is None or self._asked[0] is not table:
+            self._asked = (table, bool((first[table.op == Op.QUERY] < 0).any()))
+        return self._asked[1]
+
     def _pass(self, modules, table, program, arrays, max_depth, variation, recorded, counts, origin, records):
         n_query = int(counts[Op.QUERY])
         # the answers from the turtle's state are written into a copy of the parameters as the pass meets them
         answered = modules.params.copy() if n_query else _NO_PARAMS
         first, sign, slots = self._compiled(modules.alphabet)[4]
-        listed = n_query if not len(answered) or (first[table.op == Op.QUERY] < 0).any() else 0  # (only ?E then)
+        listed = n_query if not len(answered) or self._environment_asked(table, first) else 0  # (only ?E then)
         query_module = np.empty(listed, np.int64)
         query_state = np.empty((listed, 12))
         cut = np.empty(int(counts[Op.FORWARD]) if self.environment is not None else 0, np.int64)
         n_records = incremental.count_marked(modules.symbols, recorded) + len(cut)  # rewritable modules, cut segments
         positions = np.empty(n_records, np.int64)
         states = np.empty((n_records, incremental.STATE))
-        found = np.zeros(4, np.int64)
+        found = np.zeros(6, np.int64)
         n_area = int(counts[Op.FORWARD] + counts[Op.LEAF]) if self.shading else 0
         deposits = np.empty((n_area, 4))
+        memo = self.steering
+        steerings = memo.room(len(cut)) if memo is not None else None
+        remembering = steerings is not None
+        if not remembering:
+            steerings = _NO_ROWS
+        steered_at, steered_row = memo.segments(len(cut)) if remembering else (_WHOLE, _WHOLE)
+        old_at = memo.steered_at if remembering and records is not None else _WHOLE
+        old_row = memo.steered_row if remembering and records is not None else _WHOLE
         if records is None:
             old_symbols, old_positions, old_states = modules.symbols[:0], _WHOLE, states[:0]
         else:
@@ -274,12 +305,18 @@ class Answerer:
             sign,
             slots,
             answered,
+            steerings,
+            memo.count if remembering else 0,
+            old_at,
+            old_row,
+            steered_at,
+            steered_row,
         )
         if status == incremental.FOLLOW_LOST:
             return None
         if status != kernel.OK:
             raise module_error(modules, table, int(bad), kernel.MESSAGES[status])
-        n_query, n_cut, n_rec, n_dep = (int(c) for c in found)
+        n_query, n_cut, n_rec, n_dep, n_steer, n_at = found.tolist()
         return (
             query_module[:n_query],
             query_state[:n_query],
@@ -288,6 +325,7 @@ class Answerer:
             states[:n_rec],
             deposits[:n_dep] if self.shading else None,
             answered if len(answered) else None,
+            (n_steer, steered_at[:n_at], steered_row[:n_at]) if remembering else None,
         )
 
 
@@ -426,11 +464,15 @@ def derive_answering(
     environment: Environment | None = None,
     max_modules: int = DEFAULT_MAX_MODULES,
     max_segments: int = DEFAULT_MAX_SEGMENTS,
+    steering: SteeringMemo | None = None,
 ) -> ModuleString:
     """:func:`~lsys3d.lsystem.derive.derive`, with the turtle answering between the steps when it is asked.
 
     The turtle answers (:func:`answer`) when the grammar writes query modules or an environment is
     given; otherwise this is plain derivation.  ``max_segments`` limits each of the turtle's passes.
+    ``steering`` (an empty :class:`~lsys3d.turtle.steering.SteeringMemo`) receives how the environment
+    steered the segments, for :func:`~lsys3d.turtle.interpret.interpret` to draw the string without
+    steering them again (given the same ``steering`` and the environment's scene).
     """
     seed = grammar.seed if seed is None else seed
     if commands is None:
@@ -439,5 +481,7 @@ def derive_answering(
         return derive(grammar, iterations, seed, max_modules=max_modules)
     turtle = turtle or TurtleOptions.from_grammar(grammar)
 
-    between = Answerer(turtle, commands, seed, environment, max_segments=max_segments, grammar=grammar)
+    between = Answerer(
+        turtle, commands, seed, environment, max_segments=max_segments, grammar=grammar, steering=steering
+    )
     return derive(grammar, iterations, seed, max_modules=max_modules, between=between)
