@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -22,6 +23,7 @@ from .halfedge import (
     _apex,
     _dst,
     _half_edge,
+    _inline_inner_once,
     _leaf_inner,
     _org,
     _prv,
@@ -64,7 +66,7 @@ def _needs_work(he, f, rules):
     return _aspect(p, a, b, c) > rules.bad
 
 
-@_leaf_inner
+@_inline_inner_once
 def _push_fan(he, v, stack, queued, top, rules):
     """Queue the faces around ``v`` that need work; the new stack height."""
     h0 = he.out[v]
@@ -85,7 +87,7 @@ def _push_fan(he, v, stack, queued, top, rules):
 
 
 @_leaf_inner
-def _snap(he, f, k, rules, buf_a, buf_b):
+def _snap(he, f, k, rules):
     """A cap: move its far corner ``x`` onto its edge ``k`` (``u w``) and give the face across the edge to it.
 
     Topologically an edge flip of ``u w`` (``x`` joins the vertex ``d`` across
@@ -94,8 +96,10 @@ def _snap(he, f, k, rules, buf_a, buf_b):
     change shape, by at most the cap's height (under ``short`` scales).
     ``x`` takes the rank of the edge it now lies on (a tube edge, a rim, the
     seam).  Where ``x`` stands over an end of the edge (its foot in the
-    outer tenths), it merges into that end instead.  Returns the vertex left
-    (``x``, or the end), or -1 when not allowed.
+    outer tenths), it merges into that end instead: then ``-2 - h`` for the
+    caller to collapse half-edge ``h`` (:func:`_try_collapse`, not linked
+    into this helper's own code: a first run compiles it once less).
+    Returns ``x``, or -1 when not allowed.
     """
     faces, p, flags = he.faces, he.points, he.flags
     g = 3 * f + k
@@ -119,16 +123,16 @@ def _snap(he, f, k, rules, buf_a, buf_b):
         h = _half_edge(he, x, u if tt <= 0.5 else w)
         if h < 0 or _rank(flags, x) > _rank(flags, _dst(faces, h)):
             return -1
-        return _try_collapse(he, h, rules.limit, rules.short, buf_a, buf_b)
+        return -2 - h
     # a short move, or one along the faces around x (in their planes: the surface does not change)
-    if np.sqrt(dx * dx + dy * dy + dz * dz) >= rules.short * s:
+    if math.sqrt(dx * dx + dy * dy + dz * dz) >= rules.short * s:
         h0 = he.out[x]
         h = h0
         while True:
             ff = h // 3
             if ff != f:
                 nx, ny, nz = _normal(p, faces[ff, 0], faces[ff, 1], faces[ff, 2])
-                nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+                nn = math.sqrt(nx * nx + ny * ny + nz * nz)
                 if nn <= 0.0 or abs(nx * dx + ny * dy + nz * dz) > rules.flip_tolerance * s * nn:
                     return -1
             h = he.opp[_prv(h)]
@@ -148,7 +152,7 @@ def _snap(he, f, k, rules, buf_a, buf_b):
             corners = _moved_corners(p, f0, f1, f2, x, fx, fy, fz)
             qx, qy, qz = _normal_xyz(*corners)
             r0, r1, r2 = he.reference[ff, 0], he.reference[ff, 1], he.reference[ff, 2]
-            if qx * r0 + qy * r1 + qz * r2 <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
+            if qx * r0 + qy * r1 + qz * r2 <= 0.17 * math.sqrt(qx * qx + qy * qy + qz * qz):
                 return -1
             worst_old = max(worst_old, _aspect(p, f0, f1, f2))
             worst_new = max(worst_new, _aspect_xyz(*corners))
@@ -173,7 +177,7 @@ def _snap(he, f, k, rules, buf_a, buf_b):
     return x
 
 
-@_leaf_inner
+@_inline_inner_once
 def _split_fan(he, f, order, lengths, rules, spawned):
     """A needle of a seam's fan: split its longest edge that leaves the seam ``step`` scales from it; the vertex or -1.
 
@@ -250,7 +254,7 @@ def clean(he, rules, region, side, own, spawned):
             top += 1
     done = np.zeros(5, np.int64)  # collapses, flips, snaps, fan splits, fallback collapses
     rounds = 0 if everywhere else 3  # a second cleaning of a region does not look everywhere again
-    while top > 0 and done.sum() < rules.max_operations:
+    while top > 0 and done[0] + done[1] + done[2] + done[3] + done[4] < rules.max_operations:
         top -= 1
         f = stack[top]
         queued[f] = False
@@ -285,7 +289,9 @@ def clean(he, rules, region, side, own, spawned):
                     done[1] += 1
                     break
             if touched < 0:
-                touched = _snap(he, f, order[2], rules, buf_a, buf_b)
+                touched = _snap(he, f, order[2], rules)
+                if touched <= -2:  # x merges into an end of the edge
+                    touched = _try_collapse(he, -2 - touched, rules.limit, rules.short, buf_a, buf_b)
                 done[2] += touched >= 0
             if touched < 0:
                 order[0], order[2] = order[2], order[0]  # longest first
@@ -369,7 +375,7 @@ def _sides(he, axis, cut, width, side, band, near):
     """:func:`halves`' passes: each face's side, the vertices with faces on both, ``width + 1`` rings more."""
     faces, p = he.faces, he.points
     nv, nf = he.counts[0], he.counts[1]
-    reach = np.zeros(nv, np.int8)  # bit s: the vertex has a face of side s
+    reach = np.zeros(nv, np.int64)  # bit s: the vertex has a face of side s (int64: one np.zeros fewer to compile)
     for f in range(nf):
         if not he.face_alive[f]:
             continue
@@ -436,7 +442,7 @@ def _collapse_volume(he, h, x, y, z):
             u, w = faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]
             cx, cy, cz = _cross(p[u, 0], p[u, 1], p[u, 2], p[w, 0], p[w, 1], p[w, 2])
             nx, ny, nz = _normal(p, v, u, w)
-            area += np.sqrt(nx * nx + ny * ny + nz * nz)
+            area += math.sqrt(nx * nx + ny * ny + nz * nz)
             if f == h // 3 or f == t // 3:
                 if end == 0:  # the two dying faces
                     change -= p[v, 0] * cx + p[v, 1] * cy + p[v, 2] * cz

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
 from .geometry import _aspect, _aspect_xyz, _cross, _length, _moved_corners, _normal, _normal_xyz
 from .halfedge import (
@@ -13,7 +13,8 @@ from .halfedge import (
     SEAM,
     _apex,
     _dst,
-    _inline,
+    _inline_inner,
+    _inline_inner_once,
     _leaf_inner,
     _nxt,
     _org,
@@ -23,7 +24,7 @@ from .halfedge import (
 )
 
 
-@_inline
+@_inline_inner
 def _collapse_topology_ok(he, h, buf_a, buf_b):
     """Whether collapsing half-edge ``h`` keeps a 2-manifold: the link condition, and valences of at least three."""
     faces = he.faces
@@ -49,7 +50,7 @@ def _collapse_topology_ok(he, h, buf_a, buf_b):
     return True
 
 
-@_inline
+@_inline_inner
 def _collapse_geometry_ok(he, h, x, y, z, limit):
     """Whether the faces around half-edge ``h``'s ends, with both at ``x, y, z``, keep their side and shapes.
 
@@ -74,14 +75,14 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
                 f0, f1, f2 = faces[f, 0], faces[f, 1], faces[f, 2]
                 corners = _moved_corners(p, f0, f1, f2, v, x, y, z)
                 qx, qy, qz = _normal_xyz(*corners)
-                q = np.sqrt(qx * qx + qy * qy + qz * qz)
+                q = math.sqrt(qx * qx + qy * qy + qz * qz)
                 r0, r1, r2 = he.reference[f, 0], he.reference[f, 1], he.reference[f, 2]
                 turned = qx * r0 + qy * r1 + qz * r2
                 if turned <= 0.17 * q:
                     # turned away: allowed only for a face that was turned as far already (a fold left by the
                     # boolean must not block every collapse around it), and not further
                     ox, oy, oz = _normal(p, f0, f1, f2)
-                    o = np.sqrt(ox * ox + oy * oy + oz * oz)
+                    o = math.sqrt(ox * ox + oy * oy + oz * oz)
                     was = ox * r0 + oy * r1 + oz * r2
                     if q <= 0.0 or o <= 0.0 or was > 0.17 * o or turned / q < was / o:
                         return False
@@ -93,14 +94,6 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
     return worst_new <= limit or worst_new < worst_old
 
 
-# The same two checks called, not inlined, for the rare paths (:func:`_collapse_ok`, :func:`_rescue`): a copy
-# compiled into each of their call sites would cost seconds of the first compilation and buy nothing.
-_topology_ok_called = _leaf_inner(_collapse_topology_ok.py_func)
-
-
-_geometry_ok_called = _leaf_inner(_collapse_geometry_ok.py_func)
-
-
 @_leaf_inner
 def _collapse_ok(he, h, x, y, z, limit, buf_a, buf_b, geometry=True):
     """Whether collapsing half-edge ``h`` (its origin into its end, placed at ``x, y, z``) is allowed.
@@ -108,9 +101,9 @@ def _collapse_ok(he, h, x, y, z, limit, buf_a, buf_b, geometry=True):
     :func:`_collapse_topology_ok`, and unless ``geometry`` is off (for ends so
     close that nothing can move) :func:`_collapse_geometry_ok`.
     """
-    if not _topology_ok_called(he, h, buf_a, buf_b):
+    if not _collapse_topology_ok(he, h, buf_a, buf_b):
         return False
-    return not geometry or _geometry_ok_called(he, h, x, y, z, limit)
+    return not geometry or _collapse_geometry_ok(he, h, x, y, z, limit)
 
 
 @_leaf_inner
@@ -157,7 +150,7 @@ def _collapse(he, h, x, y, z):
     he.scale[b] = min(he.scale[a], he.scale[b])
 
 
-@_inline
+@_inline_inner_once
 def _volume_neutral(he, h, x, y, z):
     """Where to put the merged vertex of collapsing ``h``, near ``x, y, z``, so the enclosed volume stays.
 
@@ -203,7 +196,7 @@ def _volume_neutral(he, h, x, y, z):
     step = (before - after) / g2
     sx, sy, sz = step * gx, step * gy, step * gz
     reach = _length(p, a, b)
-    size = np.sqrt(sx * sx + sy * sy + sz * sz)
+    size = math.sqrt(sx * sx + sy * sy + sz * sz)
     if size > reach:
         sx, sy, sz = sx * reach / size, sy * reach / size, sz * reach / size
     return x + sx, y + sy, z + sz

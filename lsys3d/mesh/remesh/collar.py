@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...compiling import kernel
@@ -80,7 +82,7 @@ def _vertex_normal(he, v):
         g = he.opp[_prv(g)]
         if g == h0:
             break
-    n = np.sqrt(nx * nx + ny * ny + nz * nz)
+    n = math.sqrt(nx * nx + ny * ny + nz * nz)
     if n <= 0.0:
         return 0.0, 0.0, 0.0
     return nx / n, ny / n, nz / n
@@ -117,7 +119,7 @@ def _faces_turned(he, v):
         f = g // 3
         qx, qy, qz = _normal(p, faces[f, 0], faces[f, 1], faces[f, 2])
         r0, r1, r2 = he.reference[f, 0], he.reference[f, 1], he.reference[f, 2]
-        if qx * r0 + qy * r1 + qz * r2 <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
+        if qx * r0 + qy * r1 + qz * r2 <= 0.17 * math.sqrt(qx * qx + qy * qy + qz * qz):
             return True
         g = he.opp[_prv(g)]
         if g == h0:

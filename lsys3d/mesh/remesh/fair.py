@@ -3,12 +3,14 @@ volume given back (:func:`settle`)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...compiling import inner, kernel
 from .collar import _faces_turned, _fan_volume, _find, _vertex_normal
 from .geometry import _cross, _normal
-from .halfedge import FEATURE, LOCKED, _dst, _leaf_inner, _prv, _valence, in_two
+from .halfedge import FEATURE, LOCKED, _dst, _inline_inner_once, _leaf_inner, _prv, _valence, in_two
 
 _FAIR_SHARE_MIN = 4096
 """Collar vertices from which :func:`fair` shares its steps with a second thread."""
@@ -70,11 +72,13 @@ def _fair_setup(he, closeness):
     """:func:`fair`'s collar vertices, their slots among them and their neighbours, and those (``around``)."""
     faces = he.faces
     nv = he.counts[0]
-    member = np.zeros(nv, np.bool_)
+    chosen = np.empty(nv, np.int64)
+    m = 0
     for v in range(nv):
         if closeness[v] > 0.0 and he.vertex_alive[v] and he.out[v] >= 0 and not (he.flags[v] & (LOCKED | FEATURE)):
-            member[v] = True
-    members = np.flatnonzero(member)
+            chosen[m] = v
+            m += 1
+    members = chosen[:m]
     # the collar and its neighbours (where the Laplacian is needed)
     slot = np.full(nv, -1, np.int64)
     around = np.empty(nv, np.int64)
@@ -166,7 +170,7 @@ def _fair_targets(he, members, slot, first, nbr, lap, normal, start, step, reach
         ty = p[v, 1] - 0.5 * step * along * ny
         tz = p[v, 2] - 0.5 * step * along * nz
         ox, oy, oz = tx - start[i, 0], ty - start[i, 1], tz - start[i, 2]
-        far = np.sqrt(ox * ox + oy * oy + oz * oz)
+        far = math.sqrt(ox * ox + oy * oy + oz * oz)
         limit = reach * he.scale[v]
         if far > limit:
             tx, ty, tz = (
@@ -186,7 +190,9 @@ def _fair_finish(he, closeness, members, start):
     # a vertex with a face turned away from its surface goes back, until none is left: rounds in the members'
     # order, each seeing the reverts before it; a vertex is looked at again only once a neighbour went back
     # since it was last looked at (else it would go back no more than then: the same rounds, a fraction of the work)
-    dirty = np.ones(m, np.bool_)
+    dirty = np.empty(m, np.bool_)
+    for i in range(m):
+        dirty[i] = True
     for _ in range(10):
         reverted = 0
         for i in range(m):
@@ -202,7 +208,7 @@ def _fair_finish(he, closeness, members, start):
                 f = g // 3
                 qx, qy, qz = _normal(p, faces[f, 0], faces[f, 1], faces[f, 2])
                 r0, r1, r2 = he.reference[f, 0], he.reference[f, 1], he.reference[f, 2]
-                if qx * r0 + qy * r1 + qz * r2 <= 0.17 * np.sqrt(qx * qx + qy * qy + qz * qz):
+                if qx * r0 + qy * r1 + qz * r2 <= 0.17 * math.sqrt(qx * qx + qy * qy + qz * qz):
                     p[v, 0], p[v, 1], p[v, 2] = start[i, 0], start[i, 1], start[i, 2]
                     reverted += 1
                     g = h0
@@ -275,7 +281,7 @@ def _collar_gain(he, slot, around, start, m, root, gained):
                 break
 
 
-@inner(nogil=True)
+@_inline_inner_once
 def _give_back_volume(he, closeness, members, start):
     """Sink each collar along its normals by what its fairing added to the volume (see :func:`fair`).
 
@@ -290,7 +296,9 @@ def _give_back_volume(he, closeness, members, start):
     slot = np.full(he.counts[0], -1, np.int64)
     for i in range(m):
         slot[members[i]] = i
-    parent = np.arange(m)
+    parent = np.empty(m, np.int64)
+    for i in range(m):
+        parent[i] = i
     for i in range(m):
         h0 = he.out[members[i]]
         g = h0
@@ -360,14 +368,14 @@ def settle(he, closeness):
         if closeness[a] <= 0.0 and closeness[b] <= 0.0 and closeness[c] <= 0.0:
             continue
         qx, qy, qz = _normal(p, a, b, c)
-        q = np.sqrt(qx * qx + qy * qy + qz * qz)
+        q = math.sqrt(qx * qx + qy * qy + qz * qz)
         r0, r1, r2 = he.reference[f, 0], he.reference[f, 1], he.reference[f, 2]
         if q <= 0.0 or qx * r0 + qy * r1 + qz * r2 <= 0.17 * q:
             continue
         # halfway between the tube's and the faired face's: the later operations may turn a face at most 80
         # degrees from that, so a collar face still never turns over against its tube
         hx, hy, hz = r0 + qx / q, r1 + qy / q, r2 + qz / q
-        h = np.sqrt(hx * hx + hy * hy + hz * hz)
+        h = math.sqrt(hx * hx + hy * hy + hz * hz)
         he.reference[f, 0], he.reference[f, 1], he.reference[f, 2] = hx / h, hy / h, hz / h
         n += 1
     return n

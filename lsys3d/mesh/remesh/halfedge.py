@@ -38,15 +38,22 @@ _MAX_RING = 256  # a vertex with more neighbours than this is left alone
 _leaf_inner = inner(nogil=True, _nrt=False)
 
 
-# The helpers that a collapse calls a few times each are inlined into their callers, as numba IR: a call passes
-# the 14 arrays of a HalfEdges by value, about a hundred words pushed on the stack (numba's calling convention),
-# which was half of _try_collapse's own time (perf); inlined, the first cleaning's halves run 18% faster.  Only
-# these: inlining the callers as well (_try_collapse, _flip_ok...) made the cleaning loop slower (its registers
-# spill) and its first compilation about three times as long.  As it is, with the rare paths calling the checks
-# rather than inlining them (below), the first run of a fresh install (numba compiling every kernel: tree3d)
-# takes 46 s instead of 43 s, once.
-_inline = kernel(nogil=True, _nrt=False, inline="always")
-_inline_inner = inner(nogil=True, _nrt=False, inline="always")
+# The helpers that a collapse calls a few times each (_ring, _valence, _half_edge, the collapse's two checks) are
+# inlined into their callers by LLVM (numba's forceinline, LLVM's alwaysinline): a call passes the 14 arrays of a
+# HalfEdges by value, about a hundred words pushed on the stack (numba's calling convention), which was half of
+# _try_collapse's own time (perf); inlined, the first cleaning's halves run 18% faster.  Only these: inlining the
+# callers as well (_try_collapse, _flip_ok...) made the cleaning loop slower (its registers spill).  numba types
+# and lowers each of them once; inlined as numba IR instead (inline="always"), a copy was typed and lowered at
+# every call site, and the rare paths (_collapse_ok, _rescue) called copies compiled apart: the cleanup's first
+# compilation took about a CPU second longer, for the same speed (the same bytes).
+_inline_inner = inner(nogil=True, _nrt=False, forceinline=True)
+# A helper called from one place is compiled as part of its caller (numba IR, inline="always": typed and lowered
+# once, there) rather than as a library of its own, which LLVM would optimise and emit into machine code once for
+# itself and again for every kernel above it (numba links a callee's code into each caller's).  Not into a loop
+# of a kernel with reference counts (one that allocates), where the helper's arrays would be counted up and down
+# at every step (_fair_finish's volume pass took 30% longer with _collar_gain, _fan_volume and _faces_turned
+# inlined), nor _snap into clean (abop-1.24a's cleaning took 4% longer).
+_inline_inner_once = inner(nogil=True, inline="always")
 # The smallest helpers (_nxt, _prv, _org, _dst, _apex, the geometry's _cross...) take no HalfEdges: they are
 # called, not inlined as IR, and LLVM inlines them where they are used.  As IR, numba typed and lowered a copy at
 # every call site: a first run compiled the cleanup's kernels about 3 CPU seconds longer (the same bytes, the

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...compiling import kernel
@@ -50,12 +52,12 @@ def _vertex_normal_sums(points, faces, flat, vn, some, lo, hi):  # pragma: no co
             ex, ey, ez = points[w, 0] - points[v, 0], points[w, 1] - points[v, 1], points[w, 2] - points[v, 2]
             gx, gy, gz = points[u, 0] - points[v, 0], points[u, 1] - points[v, 1], points[u, 2] - points[v, 2]
             cx, cy, cz = _cross(ex, ey, ez, gx, gy, gz)
-            angle = np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), ex * gx + ey * gy + ez * gz)
+            angle = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ex * gx + ey * gy + ez * gz)
             vn[v, 0] += angle * fx
             vn[v, 1] += angle * fy
             vn[v, 2] += angle * fz
     for v in range(lo, hi):
-        n = np.sqrt(vn[v, 0] ** 2 + vn[v, 1] ** 2 + vn[v, 2] ** 2)
+        n = math.sqrt(vn[v, 0] * vn[v, 0] + vn[v, 1] * vn[v, 1] + vn[v, 2] * vn[v, 2])
         if not n < 1e-12:
             some[v] = True
             vn[v, 0], vn[v, 1], vn[v, 2] = vn[v, 0] / n, vn[v, 1] / n, vn[v, 2] / n
@@ -80,7 +82,7 @@ def _corner_rows(points, faces, flat, vn, some, out, lo, hi):  # pragma: no cove
 def _unit_normal(p, a, b, c):
     """Triangle ``a b c``'s unit normal and whether it has area (+Y when it has none)."""
     nx, ny, nz = _normal(p, a, b, c)
-    n = np.sqrt(nx * nx + ny * ny + nz * nz)
+    n = math.sqrt(nx * nx + ny * ny + nz * nz)
     if n > 0.0:
         return nx / n, ny / n, nz / n, True
     return 0.0, 1.0, 0.0, False

@@ -3,11 +3,13 @@ than a height, keeping the volume."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...compiling import kernel
 from .clean import _collapse_volume
-from .collapse import _collapse, _collapse_ok, _geometry_ok_called, _topology_ok_called
+from .collapse import _collapse, _collapse_geometry_ok, _collapse_ok, _collapse_topology_ok
 from .flip import _flip, _flip_ok
 from .geometry import _aspect, _cross, _length, _normal
 from .halfedge import _MAX_RING, FEATURE, LOCKED, SEAM, _apex, _dst, _leaf_inner, _org, _prv, _valence, in_two
@@ -25,7 +27,7 @@ def _flip_volume(he, h):
     )
     n0x, n0y, n0z = _normal(p, a, b, c)
     n1x, n1y, n1z = _normal(p, b, a, d)
-    area = np.sqrt(n0x * n0x + n0y * n0y + n0z * n0z) + np.sqrt(n1x * n1x + n1y * n1y + n1z * n1z)
+    area = math.sqrt(n0x * n0x + n0y * n0y + n0z * n0z) + math.sqrt(n1x * n1x + n1y * n1y + n1z * n1z)
     return 3.0 * abs(ex * cx + ey * cy + ez * cz) / max(area, 1e-300)
 
 
@@ -87,7 +89,7 @@ def _low(p, a, b, c, height):
     """Whether triangle ``a b c`` is lower than ``height`` (twice its area over its longest edge)."""
     nx, ny, nz = _normal(p, a, b, c)
     longest = max(_length(p, a, b), max(_length(p, b, c), _length(p, c, a)))
-    return np.sqrt(nx * nx + ny * ny + nz * nz) < height * longest
+    return math.sqrt(nx * nx + ny * ny + nz * nz) < height * longest
 
 
 @kernel(nogil=True)
@@ -157,10 +159,10 @@ def _rescue(he, worst, height, flip, now):
                 if he.flags[_org(faces, g)] & (LOCKED | FEATURE):
                     continue
                 # whether the edge may collapse at all does not depend on where its ends meet: asked once
-                if not _topology_ok_called(he, g, buf_a, buf_b):
+                if not _collapse_topology_ok(he, g, buf_a, buf_b):
                     continue
                 w = _dst(faces, g)
-                if _geometry_ok_called(he, g, p[w, 0], p[w, 1], p[w, 2], allowed) and (
+                if _collapse_geometry_ok(he, g, p[w, 0], p[w, 1], p[w, 2], allowed) and (
                     (_collapse_volume(he, g, p[w, 0], p[w, 1], p[w, 2])) <= budget
                 ):
                     _collapse(he, g, p[w, 0], p[w, 1], p[w, 2])
@@ -174,7 +176,7 @@ def _rescue(he, worst, height, flip, now):
                         x = p[u, 0] + t * (p[w, 0] - p[u, 0])
                         y = p[u, 1] + t * (p[w, 1] - p[u, 1])
                         z = p[u, 2] + t * (p[w, 2] - p[u, 2])
-                        if _geometry_ok_called(he, g, x, y, z, allowed) and (
+                        if _collapse_geometry_ok(he, g, x, y, z, allowed) and (
                             (_collapse_volume(he, g, x, y, z)) <= budget
                         ):
                             _collapse(he, g, x, y, z)

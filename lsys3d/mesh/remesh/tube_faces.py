@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...compiling import kernel
@@ -54,13 +56,14 @@ def _tube_faces(
             k = (j + 1) % 3
             d = 0.0
             for c in range(3):
-                d += (corner[j, c] - corner[k, c]) ** 2
-            shortest = min(shortest, np.sqrt(d))
+                e = corner[j, c] - corner[k, c]
+                d += e * e
+            shortest = min(shortest, math.sqrt(d))
         nx, ny, nz = _normal_xyz(
             corner[0, 0], corner[0, 1], corner[0, 2], corner[1, 0], corner[1, 1], corner[1, 2],
             corner[2, 0], corner[2, 1], corner[2, 2],
         )  # fmt: skip
-        n = np.sqrt(nx * nx + ny * ny + nz * nz)
+        n = math.sqrt(nx * nx + ny * ny + nz * nz)
         if n > 0.0:
             reference[f, 0], reference[f, 1], reference[f, 2] = nx / n, ny / n, nz / n
         for i in range(3):
@@ -73,7 +76,8 @@ def _tube_faces(
             for j in range(3):
                 d = 0.0
                 for c in range(3):
-                    d += (points[v, c] - corner[j, c]) ** 2
-                if np.sqrt(d) <= near:
+                    e = points[v, c] - corner[j, c]
+                    d += e * e
+                if math.sqrt(d) <= near:
                     original[v] = True
                     break
