@@ -225,3 +225,45 @@ def test_small_pages_for_the_command_line_unless_told(monkeypatch, capsys, given
     finally:
         setting._set_madvise_hugepage(before)
     assert os.environ["NUMPY_MADVISE_HUGEPAGE"] == ("0" if given is None else given)
+
+
+def test_the_program_ends_at_once_with_its_code_its_output_flushed_and_exit_handlers_run(tmp_path):
+    """``lsys3d`` (cli.run) skips Python's teardown: what it printed, its exit code and its atexit handlers
+    are all there, through a pipe (buffered) as on a terminal."""
+    from lsys3d import cli
+
+    marker = tmp_path / "atexit"
+    code = (
+        "import atexit, sys\n"
+        f"atexit.register(lambda: open({str(marker)!r}, 'w').write('ran'))\n"
+        "from lsys3d import cli\n"
+        "sys.argv = ['lsys3d', *sys.argv[1:]]\n"
+        "cli.run()\n"
+        "print('not reached')\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code, "derive", "koch", "-n", "1"], capture_output=True, text=True)
+    assert (done.returncode, done.stdout, done.stderr) == (0, "F-F++F-F\n", "")
+    assert marker.read_text() == "ran"
+    failed = subprocess.run([sys.executable, "-c", code, "derive", "no-such-preset"], capture_output=True, text=True)
+    assert failed.returncode == cli.EXIT_USER_ERROR and failed.stdout == ""
+    assert failed.stderr.startswith("lsys3d: error:")
+
+
+def test_the_program_ends_as_python_does_while_another_thread_runs(monkeypatch):
+    """A thread of the command still running (not a daemon): Python's own exit, which waits for it."""
+    import threading
+
+    from lsys3d import cli
+
+    release = threading.Event()
+    worker = threading.Thread(target=release.wait)
+    worker.start()
+    try:
+        monkeypatch.setattr(cli, "main", lambda: 3)
+        monkeypatch.setattr(cli.os, "_exit", lambda code: pytest.fail("os._exit with a thread running"))
+        with pytest.raises(SystemExit) as stop:
+            cli.run()
+        assert stop.value.code == 3
+    finally:
+        release.set()
+        worker.join()
