@@ -65,24 +65,13 @@ def recall(position, at_row, rows, k, i, px, py, pz, hx, hy, hz, lx, ly, lz, ux,
     if k == n or position[k] != i:
         return -1, k
     r = at_row[k]
-    if (
-        _same(rows[r, 0], px)
-        and _same(rows[r, 1], py)
-        and _same(rows[r, 2], pz)
-        and _same(rows[r, 3], hx)
-        and _same(rows[r, 4], hy)
-        and _same(rows[r, 5], hz)
-        and _same(rows[r, 6], lx)
-        and _same(rows[r, 7], ly)
-        and _same(rows[r, 8], lz)
-        and _same(rows[r, 9], ux)
-        and _same(rows[r, 10], uy)
-        and _same(rows[r, 11], uz)
-        and _same(rows[r, 12], length)
-        and rows[r, 13] == float(hanging)
-    ):
-        return r, k
-    return -1, k
+    inputs = (px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length)  # columns 0-12 of a row, bit for bit
+    for c in range(len(inputs)):
+        if not _same(rows[r, c], inputs[c]):
+            return -1, k
+    if rows[r, 13] != float(hanging):
+        return -1, k
+    return r, k
 
 
 @inner(inline="always")
