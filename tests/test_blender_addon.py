@@ -14,6 +14,7 @@ import zipfile
 
 import pytest
 from validators import REPO, bpy_lsys3d_env, bpy_python, in_ci, require
+from wheels import lsys3d_wheel
 
 MARK = "LSYS3D-ADDON "
 
@@ -158,6 +159,8 @@ def test_the_extension_zip_installs_in_blender(tmp_path):
             "linux-x64",
             "--out",
             str(tmp_path),
+            "--wheel",  # lsys3d's wheel, built once in the run (tests/wheels.py)
+            str(lsys3d_wheel()),
         ],
         capture_output=True,
         text=True,
