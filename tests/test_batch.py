@@ -210,9 +210,11 @@ def test_failing_jobs_do_not_stop_the_others(tmp_path):
 def test_a_killed_worker_is_replaced_and_its_job_retried(tmp_path):
     jobs = write_project(
         tmp_path,
-        # iterations 7: the job takes over a second, so that the kill half a second after its start lands in it
+        # every tree3d attempt starts in a fresh worker (the first two, and each replacement), which loads the
+        # kernels before it grows (half a second or more): the kill a tenth of a second after the start lands in
+        # the job, and the retried job runs whole (at 5 generations: a quarter of a second more)
         '[[jobs]]\ngrammar = "tree3d"\nseeds = "0-1"\nformats = ["glb", "usdc"]\n'
-        "options = { sides = 4, iterations = 7 }\n"
+        "options = { sides = 4, iterations = 5 }\n"
         '[[jobs]]\ngrammar = "abop-1.24a"\nseeds = "0-2"\nformats = ["glb"]\noptions = { iterations = 1 }\n',
     )
     starts: dict[str, int] = {}
@@ -222,9 +224,9 @@ def test_a_killed_worker_is_replaced_and_its_job_retried(tmp_path):
             return
         starts[event.job_id] = starts.get(event.job_id, 0) + 1
         pid = int(event.worker.rsplit(":", 1)[1])
-        # tree3d_s0's worker is killed once, half-way; tree3d_s1's every time it starts
+        # tree3d_s0's worker is killed once, in the job; tree3d_s1's every time it starts
         if event.job_id == "tree3d_s1" or (event.job_id == "tree3d_s0" and starts[event.job_id] == 1):
-            threading.Timer(0.5, kill, (pid,)).start()
+            threading.Timer(0.1, kill, (pid,)).start()
 
     result = batch(jobs, tmp_path / "out", workers=2, progress=progress)
     assert result.failed == ["tree3d_s1"]
