@@ -45,7 +45,8 @@ def pytest_sessionstart(session):
     machine code).  The default tree (a species: form, leaves) and the textbook tree3d take the paths most tests
     take, a polygon the turtle's rare ops (its kernel's second compilation), and tree3d is written as .glb and
     .usdc (the writers' kernels); warm, this costs about three seconds.  The two trees are shared with the
-    workers (tests/shared.py), which would otherwise each grow them again.
+    workers (tests/shared.py), which would otherwise each grow them again.  (tests/warm_up.py; from an empty cache
+    it splits what is left after the first run between this process and a helper process.)
 
     From an empty cache (a fresh clone, CI) the compiling starts with a user's first run, ``lsys3d generate``
     in a child process (tests/first_run.py): it compiles the default tree's kernels into the suite's cache
