@@ -253,7 +253,7 @@ def _rotate_points(points, base, start, stop):
         points[base + r, 2] = inner[r, 2]
 
 
-@kernel()
+@kernel(nogil=True)  # nogil as its callers: numba compiles int, min and max once per set of its callers' flags
 def _steps(length, dlength):
     """L-Py's ``nF(length, dlength)``: (whole steps, rest, segments drawn), as PlantGL's Turtle::nF counts them.
 
@@ -266,7 +266,7 @@ def _steps(length, dlength):
     return n, rest, n + (1 if rest > STEP_EPSILON else 0)
 
 
-@kernel()
+@kernel(nogil=True)  # (as _steps)
 def _rings(has_arg, arg):
     """The pieces of a generalized cylinder's connection: ``@Gc(n)``'s n (at least 1), else the default."""
     if not has_arg:
@@ -593,9 +593,8 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     n_cap = seg.start.shape[0]
     depth_of = np.empty(n_cap, np.int64)
     first_child = np.empty(n_cap, np.int64)  # (np.empty and a fill: see lsys3d.arrays.row_table)
-    first_child[:] = -1
     same_child = np.empty(n_cap, np.int64)  # first child of the same order
-    same_child[:] = -1
+    first_child[:] = same_child[:] = -1
     stack_f = np.empty((max_depth, 30))
     stack_i = np.empty((max_depth, 5), np.int64)
 
