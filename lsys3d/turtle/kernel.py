@@ -253,7 +253,7 @@ def _rotate_points(points, base, start, stop):
         points[base + r, 2] = inner[r, 2]
 
 
-@kernel()
+@kernel(nogil=True)  # nogil as its callers: numba compiles int, min and max once per set of its callers' flags
 def _steps(length, dlength):
     """L-Py's ``nF(length, dlength)``: (whole steps, rest, segments drawn), as PlantGL's Turtle::nF counts them.
 
@@ -266,7 +266,7 @@ def _steps(length, dlength):
     return n, rest, n + (1 if rest > STEP_EPSILON else 0)
 
 
-@kernel()
+@kernel(nogil=True)  # (as _steps)
 def _rings(has_arg, arg):
     """The pieces of a generalized cylinder's connection: ``@Gc(n)``'s n (at least 1), else the default."""
     if not has_arg:
@@ -508,7 +508,8 @@ def survey(program, modules):
     few, or out of range, for L-Py's ``nF`` and ``@Tp``).  The FORWARD count includes the segments of
     the ``nF`` modules, so it is the most segments the string draws.
     """
-    counts = np.zeros(N_OPS, np.int64)
+    counts = np.empty(N_OPS, np.int64)  # (np.empty and a fill: see lsys3d.arrays.row_table)
+    counts[:] = 0
     depth = 0
     deepest = 0
     symbols, arity, offsets, params = modules
@@ -550,7 +551,8 @@ def survey(program, modules):
 def dropped_modules(program, symbols, drop):
     """Modules inside a dropped branch: from a ``[`` whose ``drop`` is set to its matching ``]`` (or the end)."""
     m = symbols.shape[0]
-    out = np.zeros(m, np.bool_)
+    out = np.empty(m, np.bool_)
+    out[:] = False
     depth = 0  # bracket depth inside the branch being dropped; 0: not dropping
     for i in range(m):
         code = program.op[symbols[i]]
@@ -590,8 +592,9 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
     symbols, arity, offsets, params = modules
     n_cap = seg.start.shape[0]
     depth_of = np.empty(n_cap, np.int64)
-    first_child = np.full(n_cap, -1, np.int64)
-    same_child = np.full(n_cap, -1, np.int64)  # first child of the same order
+    first_child = np.empty(n_cap, np.int64)  # (np.empty and a fill: see lsys3d.arrays.row_table)
+    same_child = np.empty(n_cap, np.int64)  # first child of the same order
+    first_child[:] = same_child[:] = -1
     stack_f = np.empty((max_depth, 30))
     stack_i = np.empty((max_depth, 5), np.int64)
 
