@@ -149,6 +149,10 @@ class _Plan:
         self.random = any(p.random for p in productions)
         self.stochastic = self.random or any(p.cumulative is not None for p in pools.values())
         self.context = any(p.left or p.right for p in pools.values())
+        if self.context:  # the symbols context matching skips (by code), and the plain right contexts' tables
+            self.ignored = np.zeros(256, np.bool_)
+            self.ignored[list(self.ignore)] = True
+            self.plain_right: dict = {}
         self.sequences = any(p.following for p in pools.values())
         # cpfg's sub-L-systems: which L-system's rules rewrite a module depends on the ?(n) and $ before it
         self.lsystems = grammar.lsystem_main >= 0
@@ -664,9 +668,8 @@ class _Context:
     """Context matching on one bracketed string (ABOP section 1.8), for all candidate modules at once."""
 
     def __init__(self, plan: _Plan, ms: ModuleString):
-        ignored = np.zeros(256, np.bool_)
-        ignored[list(plan.ignore)] = True
-        self.ignored = ignored
+        self.ignored = plan.ignored
+        self.plan = plan
         self.ms = ms
         self.m = len(ms)
         self.code = plan.code
@@ -738,12 +741,16 @@ class _Context:
                 at = np.searchsorted(found[0], sel)
                 if len(at) and at[-1] < len(found[0]) and np.array_equal(found[0][at], sel):
                     return found[1][at], [v[at] for v in found[2]]
-            codes = np.array([-1 if s == "*" else self.code[s] for s, _ in key], np.int64)
-            arities = np.array([0 if s == "*" else n for s, n in key], np.int64)
+            tables = self.plan.plain_right.get(key)
+            if tables is None:  # the pattern's codes and arities, made once per derivation
+                codes = np.array([-1 if s == "*" else self.code[s] for s, _ in key], np.int64)
+                arities = np.array([0 if s == "*" else n for s, n in key], np.int64)
+                tables = self.plan.plain_right[key] = (codes, arities, int(arities.sum()))
+            codes, arities, n_values = tables
             ms = self.ms
             ok, values, done = right_plain(
-                ms.symbols, ms.arity, ms.offsets, ms.params, self.ignored, sel + 1, codes, arities,
-                int(arities.sum()), 16 * len(sel) + 4096,
+                ms.symbols, ms.arity, ms.offsets, ms.params, self.ignored, sel + 1, codes, arities, n_values,
+                16 * len(sel) + 4096,
             )  # fmt: skip
             if done:
                 self._plain[key] = (sel, ok, values)

@@ -80,7 +80,6 @@ __all__ = [
     "STATE",
     "answer_pass",
     "carries_out",
-    "count_marked",
     "follow_cut",
     "follow_production",
     "follows",
@@ -100,9 +99,8 @@ _NEUTRAL = (Op.NONE, Op.QUERY, Op.LEAF, Op.ORGAN)
 _STRUCTURAL = (Op.PUSH, Op.POP, Op.POLYGON_BEGIN, Op.POLYGON_END)
 
 
-_CARRIED_OUT = np.zeros(len(Op), np.bool_)  # the ops answer_pass steps through; a new Op is drawn until it does
-_CARRIED_OUT[[int(o) for o in Op if o <= Op.QUERY]] = True  # NONE .. QUERY (the ops after it came later)
-_NOT_CARRIED_OUT = np.flatnonzero(~_CARRIED_OUT)
+# the ops answer_pass steps through: NONE .. QUERY (the ops after it came later; a new Op is drawn until it does)
+_FIRST_NOT_CARRIED_OUT = int(Op.QUERY) + 1
 
 
 def carries_out(counts: np.ndarray, turtle) -> bool:
@@ -110,7 +108,7 @@ def carries_out(counts: np.ndarray, turtle) -> bool:
     that draws would: no op it does not step through (cpfg's sub-L-system scales, ``_``, generalized cylinders,
     or any op added to :class:`Op` after ``QUERY``), and not cpfg's bend after each move nor its newer tropisms
     (``tropisms``: they bend before each move whether or not the string switches them)."""
-    return not counts[_NOT_CARRIED_OUT].any() and turtle.bend != "cpfg" and not turtle.tropisms
+    return not counts[_FIRST_NOT_CARRIED_OUT:].any() and turtle.bend != "cpfg" and not turtle.tropisms
 
 
 def neutral_ops() -> np.ndarray:
@@ -176,15 +174,6 @@ def follow_production(origin, rewritten, lengths, op, symbols, new_symbols, coun
 def follow_cut(origin: np.ndarray, keep: np.ndarray) -> np.ndarray:
     """The origins after a cut that kept the modules ``keep`` (a mask of the old string)."""
     return np.flatnonzero(keep) if not len(origin) else origin[keep]
-
-
-@kernel(nogil=True)
-def count_marked(symbols, marked):
-    """How many of ``symbols`` ``marked`` (a ``(256,) bool`` by symbol id) marks: one pass, no mask built."""
-    n = 0
-    for s in symbols:
-        n += marked[s]
-    return n
 
 
 @inner()
@@ -380,11 +369,13 @@ def answer_pass(
     px = py = pz = hx = hy = hz = lx = ly = lz = ux = uy = uz = 0.0
     width = step = angle = elasticity = tx = ty = tz = 0.0
     cos_angle = sin_angle = 0.0
+    cos_of = math.nan  # the angle cos_angle and sin_angle are of (a turtle that starts with it needs no cosine)
     bend = False
     hanging = np.int64(0)
     depth = 0
     n_poly = 0
     start = -2  # the record a turtle starts from: -1 the initial state, >= 0 a row of old_states
+    start_at = start_row = np.int64(-1)  # the old module the last turtle started before, and its record's row
     if running:
         start = -1
     i = 0
@@ -422,6 +413,7 @@ def answer_pass(
                 start = _find(old_positions, old_count, origin[i - 1] + 1)
                 if start < 0:
                     return FOLLOW_LOST, i
+                start_at, start_row = origin[i - 1] + 1, start  # (where the change ends, it is often sought again)
             last_copy = origin[i - 1] if i > 0 else np.int64(-1)
         if start >= -1:  # a turtle starts here
             loaded = initial if start == -1 else old_states[start]
@@ -436,7 +428,9 @@ def answer_pass(
             n_poly = int(loaded[21])
             for k in range(min(n_poly, MAX_POLYGON_DEPTH)):
                 poly_open[k] = -1
-            cos_angle, sin_angle = _cos_sin(angle)
+            if angle != cos_of:  # (equal angles, even 0.0 and -0.0, have the same cosine and sine)
+                cos_angle, sin_angle = _cos_sin(angle)
+                cos_of = angle
             bend = tx != 0.0 or ty != 0.0 or tz != 0.0
             rel = 0
             entry_poly = n_poly
@@ -449,7 +443,7 @@ def answer_pass(
                 if rel == 0 and skipping == 0 and o != last_copy + 1:
                     # a change ends here: where the state is what it was, the copies from here on are known
                     a = last_copy + 1
-                    row = -1 if a == 0 else _find(old_positions, old_count, a)
+                    row = -1 if a == 0 else start_row if a == start_at else _find(old_positions, old_count, a)
                     if (a == 0 or row >= 0) and _neutral_range(program, neutral, old_symbols, a, o):
                         known = initial if a == 0 else old_states[row]
                         if _is_state(
@@ -673,6 +667,7 @@ def answer_pass(
             if not math.isfinite(angle):
                 return 11, i
             cos_angle, sin_angle = _cos_sin(angle)
+            cos_of = angle
         elif code == _ROLL_HORIZONTAL:
             norm = math.sqrt(hz * hz + hx * hx)
             if norm > 1e-12:
@@ -714,6 +709,7 @@ def answer_pass(
             if angle != row[14]:
                 angle = row[14]
                 cos_angle, sin_angle = _cos_sin(angle)
+                cos_of = angle
             elasticity = row[15]
             tx, ty, tz = row[16], row[17], row[18]
             hanging = np.int64(row[19])
