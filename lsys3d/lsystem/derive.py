@@ -149,10 +149,9 @@ class _Plan:
         self.random = any(p.random for p in productions)
         self.stochastic = self.random or any(p.cumulative is not None for p in pools.values())
         self.context = any(p.left or p.right for p in pools.values())
-        if self.context:  # the symbols context matching skips (by code), and the plain right contexts' tables
-            self.ignored = np.zeros(256, np.bool_)
-            self.ignored[list(self.ignore)] = True
-            self.plain_right: dict = {}
+        self.ignored = np.zeros(256, np.bool_)  # the symbols context matching skips, by code
+        self.ignored[list(self.ignore)] = True
+        self.plain_right: dict = {}  # the plain right contexts' codes and arities, by pattern (_Context.right)
         self.sequences = any(p.following for p in pools.values())
         # cpfg's sub-L-systems: which L-system's rules rewrite a module depends on the ?(n) and $ before it
         self.lsystems = grammar.lsystem_main >= 0
