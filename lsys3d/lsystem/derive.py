@@ -918,8 +918,11 @@ def _step(
                         keep &= ok
                         values += found
                 names = [n for pm in (*pool.left, *pool.right) for n in pm.formals]
-                env.update({name: v[keep] for name, v in zip(names, values, strict=True)})
-                sel = sel[keep]
+                if keep.all():  # (often: every apex has its query module after it)
+                    env.update(zip(names, values, strict=True))
+                else:
+                    env.update({name: v[keep] for name, v in zip(names, values, strict=True)})
+                    sel = sel[keep]
                 if not len(sel):
                     continue
             if prod0.predecessor.formals:

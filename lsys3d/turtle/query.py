@@ -60,6 +60,8 @@ _SURVEYED = {int(o) for o in (Op.RANDOM_TURN, Op.FORWARD_STEPS, Op.TROPISM_VECTO
     int(o) for o in Op if o > Op.QUERY
 }
 _NO_ROWS = np.zeros((0, ROW))  # no steerings kept
+_NO_STATES = np.zeros((0, 12))  # no query module listed
+_NO_DEPOSITS = np.zeros((0, 4))  # no plant's shade
 
 
 def asks_turtle(grammar: Grammar, commands: tuple[Command, ...]) -> bool:
@@ -122,8 +124,11 @@ class Answerer:
         # derivation made the string of the next pass in this step (trace was told): its arrays are its own,
         # held by no string derivation gave out, so the answers are written into its parameters, not a copy
         self._fresh = False
+        self._cut_room = _WHOLE  # the segments a pass cuts (reused by the passes)
+        self._found = np.zeros(6, np.int64)  # what a pass found, counted
+        self._carried = False  # whether the lean pass carried out the last string (carries_out)
 
-    def _compiled(self, alphabet) -> tuple[SymbolTable, kernel.Program, np.ndarray, bool, tuple, bool, np.ndarray]:
+    def _compiled(self, alphabet) -> tuple[SymbolTable, kernel.Program, np.ndarray, bool, tuple, bool, tuple]:
         if self._last is not None and self._last[0] is alphabet:  # no hashing of its 256 names each step
             return self._last[1]
         found = self._tables.get(alphabet)
@@ -148,8 +153,7 @@ class Answerer:
             counted = follow and _counted(g, table, code)
             if counted:
                 self._nesting = _nesting(g, op_of)
-            recorded_ops = np.zeros(len(table.op) and int(table.op.max()) + 1, np.bool_)
-            recorded_ops[table.op[recorded]] = True  # the ops of those symbols: their counts bound the records
+            recorded_ops = tuple(np.unique(table.op[recorded]).tolist())  # their counts bound the records
             found = (table, kernel_program(table), recorded, follow, answering(table), counted, recorded_ops)
             self._tables[alphabet] = found
         self._last = (alphabet, found)
@@ -186,11 +190,15 @@ class Answerer:
         arrays = kernel.Modules(modules.symbols, modules.arity, modules.offsets, modules.params)
         if counted and self._counts is not None and self.origin is not None:
             # derivation's changes were counted (trace): the string needs no survey (what it checks, the
-            # rules cannot write: _counted), only its limit
+            # rules cannot write: _counted), only its limit; nor can they write an op the lean pass does not carry
+            # out (they are surveyed ops), so a string it carried out is followed by one it carries out
             counts, max_depth = self._counts, self._depth
             check_segments(int(counts[Op.FORWARD]), self.max_segments)
+            carried = self._carried or incremental.carries_out(counts, self.turtle)
         else:
             counts, max_depth = surveyed(modules, table, program, arrays, self.max_segments)
+            carried = incremental.carries_out(counts, self.turtle)
+        self._carried = carried
         m = len(modules)
         origin, records = self.origin, self._records
         if not follow or counts[Op.RANDOM_TURN] or origin is None or records is None:
@@ -209,7 +217,7 @@ class Answerer:
             variation = self._unvaried
         args = (modules, table, program, arrays, max_depth, variation, recorded, counts)
         steering, steerings = self.steering, None
-        if not incremental.carries_out(counts, self.turtle):  # the turtle that draws them answers
+        if not carried:  # the turtle that draws them answers
             follow = False
             found = self._full_pass(modules)
             if steering is not None:
@@ -277,18 +285,20 @@ class Answerer:
         compiled = self._compiled(modules.alphabet)
         first, sign, slots = compiled[4]
         listed = n_query if not len(answered) or self._environment_asked(table, first) else 0  # (only ?E then)
-        query_module = np.empty(listed, np.int64)
-        query_state = np.empty((listed, 12))
-        cut = np.empty(int(counts[Op.FORWARD]) if self.environment is not None else 0, np.int64)
+        query_module = np.empty(listed, np.int64) if listed else _WHOLE
+        query_state = np.empty((listed, 12)) if listed else _NO_STATES
+        n_forward = int(counts[Op.FORWARD]) if self.environment is not None else 0
+        if len(self._cut_room) < n_forward:  # (reused: the cut segments found are read before the next pass)
+            self._cut_room = np.empty(max(n_forward, 2 * len(self._cut_room)), np.int64)
+        cut = self._cut_room[:n_forward]
         # at most: the modules of the ops of the symbols a rule may rewrite, and the cut segments
-        n_records = int(counts[: len(compiled[6])][compiled[6]].sum()) + len(cut)
+        n_records = sum(int(counts[op]) for op in compiled[6]) + n_forward
         positions, states = self._record_room[1]
         if len(positions) < n_records:
             size = max(n_records, 2 * len(positions))
             positions, states = self._record_room[1] = (np.empty(size, np.int64), np.empty((size, incremental.STATE)))
-        found = np.zeros(6, np.int64)
-        n_area = int(counts[Op.FORWARD] + counts[Op.LEAF]) if self.shading else 0
-        deposits = np.empty((n_area, 4))
+        found = self._found
+        deposits = np.empty((int(counts[Op.FORWARD] + counts[Op.LEAF]), 4)) if self.shading else _NO_DEPOSITS
         memo = self.steering
         steerings = memo.room(len(cut)) if memo is not None else None
         remembering = steerings is not None
