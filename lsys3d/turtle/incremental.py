@@ -177,11 +177,12 @@ def follow_cut(origin: np.ndarray, keep: np.ndarray) -> np.ndarray:
 
 
 @inner()
-def _neutral_range(program, neutral, old_symbols, a, b):
-    """Whether the old modules ``a:b`` leave the state as it was: neutral ops, and closed branches."""
+def _neutral_range(op, neutral, old_symbols, a, b):
+    """Whether the old modules ``a:b`` leave the state as it was: neutral ops (``op`` by symbol), and closed
+    branches."""
     depth = 0
     for j in range(a, b):
-        code = program.op[old_symbols[j]]
+        code = op[old_symbols[j]]
         if code == _PUSH:
             depth += 1
         elif code == _POP:
@@ -376,6 +377,7 @@ def answer_pass(
     n_poly = 0
     start = -2  # the record a turtle starts from: -1 the initial state, >= 0 a row of old_states
     start_at = start_row = np.int64(-1)  # the old module the last turtle started before, and its record's row
+    seek = np.int64(0)  # where the search for the next start's record begins
     if running:
         start = -1
     i = 0
@@ -410,10 +412,18 @@ def answer_pass(
             if i == 0:
                 start = -1
             else:
-                start = _find(old_positions, old_count, origin[i - 1] + 1)
+                # the changes come in the string's order, so do their records: sought on from the last one found
+                target = origin[i - 1] + 1
+                while seek < old_count and old_positions[seek] < target:
+                    seek += 1
+                start = (
+                    seek
+                    if seek < old_count and old_positions[seek] == target
+                    else _find(old_positions, old_count, target)
+                )
                 if start < 0:
                     return FOLLOW_LOST, i
-                start_at, start_row = origin[i - 1] + 1, start  # (where the change ends, it is often sought again)
+                start_at, start_row = target, start  # (where the change ends, it is often sought again)
             last_copy = origin[i - 1] if i > 0 else np.int64(-1)
         if start >= -1:  # a turtle starts here
             loaded = initial if start == -1 else old_states[start]
@@ -444,15 +454,14 @@ def answer_pass(
                     # a change ends here: where the state is what it was, the copies from here on are known
                     a = last_copy + 1
                     row = -1 if a == 0 else start_row if a == start_at else _find(old_positions, old_count, a)
-                    if (a == 0 or row >= 0) and _neutral_range(program, neutral, old_symbols, a, o):
-                        known = initial if a == 0 else old_states[row]
-                        if _is_state(
-                            known, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, width, step, angle, elasticity, tx,
-                            ty, tz, hanging, depth, n_poly,
-                        ):  # fmt: skip
-                            running = False
-                            resynced = i
-                            continue
+                    # (the state compared first: it seldom is the same, and then the modules need no look)
+                    if (a == 0 or row >= 0) and _is_state(
+                        initial if a == 0 else old_states[row], px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, width,
+                        step, angle, elasticity, tx, ty, tz, hanging, depth, n_poly,
+                    ) and _neutral_range(program.op, neutral, old_symbols, a, o):  # fmt: skip
+                        running = False
+                        resynced = i
+                        continue
                 last_copy = o
         if skipping > 0:
             if code == _PUSH:
