@@ -164,13 +164,13 @@ class SteeringMemo:
         return spare[0], spare[1]
 
     def room(self, n: int) -> np.ndarray | None:
-        """:attr:`rows`, with room for ``n`` more, or None when the memo is off.  Grown fourfold, so its rows
+        """:attr:`rows`, with room for ``n`` more, or None when the memo is off.  Grown sixteenfold, so its rows
         are seldom copied (the room no pass writes in is pages never touched)."""
         if self.full or self.count + n > MAX_ROWS:
             self._off()
             return None
         if len(self.rows) < self.count + n:
-            grown = np.empty((min(max(4 * len(self.rows), 2 * (self.count + n), 1024), MAX_ROWS), ROW))
+            grown = np.empty((min(max(16 * len(self.rows), 2 * (self.count + n), 1024), MAX_ROWS), ROW))
             grown[: self.count] = self.rows[: self.count]
             self.rows = grown
         return self.rows
