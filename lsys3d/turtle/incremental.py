@@ -141,12 +141,14 @@ def follows(grammar: Grammar, op_of) -> bool:
 
 
 @kernel(nogil=True)
-def follow_production(origin, rewritten, lengths, op, symbols, new_symbols, counts):
+def follow_production(origin, rewritten, lengths, op, symbols, new_symbols, counts, changes):
     """The new string's origins after a production step (``origin`` empty: the old string was the last pass's).
 
     ``rewritten`` and ``lengths`` as :data:`lsys3d.lsystem.derive.Trace` gives them: a copied module keeps
     its origin, a produced one gets -1.  ``counts`` (when not empty: the old string's modules of each op, by
     ``op[symbol]``) becomes the new string's: a rewritten module's op counted out, its successor's in.
+    ``changes`` (when not empty: one more than the modules rewritten) receives where each rewritten module's
+    successor starts in the new string, in order, then the new string's length (:func:`answer_pass`'s ``changes``).
     """
     m = rewritten.shape[0]
     total = 0
@@ -155,9 +157,14 @@ def follow_production(origin, rewritten, lengths, op, symbols, new_symbols, coun
     out = np.empty(total, np.int64)
     identity = origin.shape[0] == 0
     counting = counts.shape[0] > 0
+    listing = changes.shape[0] > 0
+    n_changes = 0
     k = 0
     for i in range(m):
         if rewritten[i]:
+            if listing:
+                changes[n_changes] = k
+                n_changes += 1
             if counting:
                 counts[op[symbols[i]]] -= 1
             for _ in range(lengths[i]):
@@ -168,6 +175,8 @@ def follow_production(origin, rewritten, lengths, op, symbols, new_symbols, coun
         else:
             out[k] = i if identity else origin[i]
             k += 1
+    if listing:
+        changes[n_changes] = total
     return out
 
 
@@ -281,6 +290,7 @@ def answer_pass(
     recorded,
     neutral,
     origin,
+    changes,
     old_symbols,
     old_positions,
     old_states,
@@ -347,6 +357,9 @@ def answer_pass(
     remembering = steered_at.shape[0] > 0
     n_steer = n_at = old_steer = np.int64(0)
     following = origin.shape[0] > 0
+    # where the changes start (the last entry: m), when derivation listed them: the copies between are jumped
+    jumping = following and changes.shape[0] > 0
+    next_change = np.int64(0)
 
     initial = np.empty(STATE)
     hx0, hy0 = _cos_sin(config.heading)
@@ -397,6 +410,18 @@ def answer_pass(
                         states[n_rec] = old_states[old_row]
                         n_rec += 1
                 i += 1
+                if jumping:  # the copies up to the next change (changes): their records are the last pass's
+                    while next_change < changes.shape[0] - 1 and changes[next_change] <= first:
+                        next_change += 1
+                    end = changes[next_change]
+                    while old_row < old_count and old_positions[old_row] <= o:
+                        old_row += 1
+                    while old_row < old_count and old_positions[old_row] < o + (end - first):
+                        positions[n_rec] = old_positions[old_row] - o + first
+                        states[n_rec] = old_states[old_row]
+                        n_rec += 1
+                        old_row += 1
+                    i = end
                 # the copies after it that keep their order and have no record: nothing to do (most of the string)
                 while i < m and origin[i] == origin[i - 1] + 1 and not recorded[symbols[i]]:
                     i += 1

@@ -124,6 +124,7 @@ class Answerer:
         # derivation made the string of the next pass in this step (trace was told): its arrays are its own,
         # held by no string derivation gave out, so the answers are written into its parameters, not a copy
         self._fresh = False
+        self._changes = _WHOLE  # where the changes of the one production step since the last pass start (trace)
         self._cut_room = _WHOLE  # the segments a pass cuts (reused by the passes)
         self._found = np.zeros(6, np.int64)  # what a pass found, counted
         self._carried = False  # whether the lean pass carried out the last string (carries_out)
@@ -161,7 +162,9 @@ class Answerer:
 
     def trace(self, kind, symbols, new_symbols, rewritten, lengths, persisting) -> None:
         """Follow one change derivation made to the string (:data:`lsys3d.lsystem.derive.Trace`)."""
+        first = not self._fresh  # the first change since the last pass
         self._fresh = True  # (derivation tells of a change as it makes the new string's arrays)
+        self._changes = _WHOLE
         if self.origin is None:
             self._counts = None
             return
@@ -174,9 +177,12 @@ class Answerer:
         else:
             counts = self._counts if self._counts is not None else _NO_COUNTS
             op = self._table.op if self._table is not None else _NO_OPS
+            # one production step from the last pass's string: where its changes start, for the pass to jump to
+            changes = np.empty(np.count_nonzero(rewritten) + 1, np.int64) if first and not len(self.origin) else _WHOLE
             self.origin = incremental.follow_production(
-                self.origin, rewritten, lengths, op, symbols, new_symbols, counts
+                self.origin, rewritten, lengths, op, symbols, new_symbols, counts, changes
             )
+            self._changes = changes
             if self._counts is not None:
                 self._depth += self._nesting
 
@@ -187,6 +193,7 @@ class Answerer:
         table, program, recorded, follow, answers, counted, _ = self._compiled(modules.alphabet)
         self._table = table
         fresh, self._fresh = self._fresh, False
+        changes, self._changes = self._changes, _WHOLE
         arrays = kernel.Modules(modules.symbols, modules.arity, modules.offsets, modules.params)
         if counted and self._counts is not None and self.origin is not None:
             # derivation's changes were counted (trace): the string needs no survey (what it checks, the
@@ -225,11 +232,11 @@ class Answerer:
         else:
             if steering is not None and (not len(origin) or steering.full):
                 steering.reset(self.scene)  # a pass over the whole string: it steers every segment again
-            found = self._pass(*args, origin, records, fresh)
+            found = self._pass(*args, origin, records, fresh, changes if len(origin) else _WHOLE)
             if found is None:  # a change the records cannot follow: the whole string
                 if steering is not None:
                     steering.reset(self.scene)
-                found = self._pass(*args, _WHOLE, None, fresh)
+                found = self._pass(*args, _WHOLE, None, fresh, _WHOLE)
             steerings, found = found[-1], found[:-1]
         query_module, query_state, cut, positions, states, deposits, answered = found
         out, origin = _written(
@@ -271,7 +278,9 @@ class Answerer:
             self._asked = (table, bool((first[table.op == Op.QUERY] < 0).any()))
         return self._asked[1]
 
-    def _pass(self, modules, table, program, arrays, max_depth, variation, recorded, counts, origin, records, fresh):
+    def _pass(
+        self, modules, table, program, arrays, max_depth, variation, recorded, counts, origin, records, fresh, changes
+    ):
         n_query = int(counts[Op.QUERY])
         # the answers from the turtle's state are written into the parameters as the pass meets them: into the
         # string's own when derivation just made them (``fresh``: no other string holds them), else into a copy
@@ -321,6 +330,7 @@ class Answerer:
             recorded,
             _NEUTRAL,
             origin,
+            changes,
             old_symbols,
             old_positions,
             old_states,
