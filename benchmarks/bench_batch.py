@@ -1,6 +1,6 @@
 """A library of 200 jobs (4 presets x 50 seeds) three ways, and a forest of 10,000 instances, all in one run.
 
-    python benchmarks/bench_batch.py [--seeds 50] [--skip-dask]
+    python benchmarks/bench_batch.py [--seeds 50] [--skip-dask] [--quick]
 
 1. Baseline: every job in this one process, one after the other (``run_job`` in a loop).
 2. ``lsys3d batch`` with the local runner: one worker process per core.  Ratio of
@@ -14,7 +14,8 @@
 
 The presets run at fewer generations than their own (tree3d 5, bush 5, monopodial 9,
 ternary 5: about half a second each), with natural variation so every seed differs, so
-that the three runs take minutes, not an hour.
+that the three runs take minutes, not an hour.  ``--quick`` (the test suite's smoke run) grows them at
+:data:`QUICK` generations instead: every step still runs, on jobs of a few hundredths of a second.
 """
 
 from __future__ import annotations
@@ -35,11 +36,12 @@ from lsys3d.library.forest import ForestOptions, forest
 from lsys3d.library.runners import cpu_count
 
 PRESETS = {"tree3d": 5, "bush": 5, "monopodial": 9, "ternary": 5}
+QUICK = {"tree3d": 3, "bush": 3, "monopodial": 6, "ternary": 3}
 
 
-def jobs_text(seeds: int) -> str:
+def jobs_text(seeds: int, presets: dict[str, int] = PRESETS) -> str:
     text = '[defaults]\nformats = ["glb", "usdc"]\n'
-    for name, n in PRESETS.items():
+    for name, n in presets.items():
         text += (
             f'\n[[jobs]]\ngrammar = "{name}"\nseeds = "0-{seeds - 1}"\n'
             f"options = {{ iterations = {n}, sides = 6, turtle = {{ angle_jitter = 8, length_jitter = 0.1 }} }}\n"
@@ -98,6 +100,7 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--seeds", type=int, default=50)
     parser.add_argument("--skip-dask", action="store_true")
+    parser.add_argument("--quick", action="store_true", help="the presets at fewer generations (QUICK)")
     args = parser.parse_args()
     cores = cpu_count()
     print(f"{len(PRESETS)} presets x {args.seeds} seeds, {cores} cores, load average {os.getloadavg()[0]:.1f}")
@@ -105,7 +108,7 @@ def main():
     with tempfile.TemporaryDirectory(prefix="bench-batch-") as tmp:
         tmp = Path(tmp)
         jobs_file = tmp / "jobs.toml"
-        jobs_file.write_text(jobs_text(args.seeds))
+        jobs_file.write_text(jobs_text(args.seeds, QUICK if args.quick else PRESETS))
 
         # 1. one process
         the = plan(jobs_file, tmp / "one")

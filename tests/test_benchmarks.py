@@ -29,7 +29,7 @@ SMOKE = {
     "blob_presets.py": ["--only", "koch", "--repeats", "1"],
     "bench_blender_regrow.py": ["--iterations", "3", "--repeat", "1"],  # in .venv-bpy's Python (skips without)
     "bench_botany.py": ["--quick", "--presets", "grass", "foxglove", "--check"],
-    "bench_batch.py": ["--seeds", "1", "--skip-dask"],  # the Dask cluster itself: test_batch.py
+    "bench_batch.py": ["--seeds", "1", "--skip-dask", "--quick"],  # the Dask cluster itself: test_batch.py
     "bench_derive.py": ["--quick"],
     "bench_environment.py": ["--iterations", "20", "--repeat", "1"],
     "bench_edit.py": ["--preset", "koch", "--edits", "1"],

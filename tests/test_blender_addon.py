@@ -14,6 +14,7 @@ import zipfile
 
 import pytest
 from validators import REPO, bpy_lsys3d_env, bpy_python, in_ci, require
+from wheels import lsys3d_wheel
 
 MARK = "LSYS3D-ADDON "
 
@@ -45,14 +46,17 @@ def addon(tmp_path_factory) -> dict:
 
 @pytest.fixture(scope="module")
 def cli_stats() -> dict:
-    proc = subprocess.run(
-        [sys.executable, "-m", "lsys3d", "stats", "tree3d", "--mesh", "--json"],
-        capture_output=True,
-        text=True,
-        check=True,
-        cwd=REPO,
-    )
-    return json.loads(proc.stdout)
+    """``lsys3d stats tree3d --mesh --json``, the command line's main in this process (a child would add its
+    interpreter, imports and kernels' loading: the JSON is the same)."""
+    import contextlib
+    import io
+
+    from lsys3d.cli import main
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["stats", "tree3d", "--mesh", "--json"]) == 0
+    return json.loads(out.getvalue())
 
 
 def test_add_plant_counts_equal_the_cli_stats(addon, cli_stats):
@@ -158,6 +162,8 @@ def test_the_extension_zip_installs_in_blender(tmp_path):
             "linux-x64",
             "--out",
             str(tmp_path),
+            "--wheel",  # lsys3d's wheel, built once in the run (tests/wheels.py)
+            str(lsys3d_wheel()),
         ],
         capture_output=True,
         text=True,

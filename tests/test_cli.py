@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 import subprocess
 import sys
 
@@ -15,6 +16,33 @@ from lsys3d.lsystem.grammar import GROUPS
 
 def run(*args, **kw):
     return subprocess.run([sys.executable, "-m", "lsys3d", *args], capture_output=True, text=True, **kw)
+
+
+@pytest.fixture
+def command(capsys, caplog):
+    """``command(*args)``: the command line's ``main`` run in this process, as ``(code, stdout, stderr)``.
+
+    For the tests of what a mistake prints: the program (``python -m lsys3d``, the console script) is
+    ``main`` and an exit with its code (tests/test_cli.py's subprocess tests run it whole), and a child
+    process per mistake costs an interpreter and lsys3d's imports each.  ``stderr`` is what the program's
+    stderr would hold: what ``main`` wrote to it (its error line, argparse's usage) and, after it, each
+    warning or error it logged, as the program's ``lsys3d: message`` lines (under pytest the log goes to
+    pytest's capture, not to stderr), so a stray warning still shows as a second line.  ``code`` is
+    ``main``'s return value, or its ``SystemExit`` code (argparse's usage errors).
+    """
+
+    def call(*args: str) -> tuple[int, str, str]:
+        capsys.readouterr()
+        caplog.clear()
+        try:
+            code = main(list(args))
+        except SystemExit as exc:
+            code = exc.code
+        out, err = capsys.readouterr()
+        logged = [f"lsys3d: {r.getMessage()}\n" for r in caplog.records if r.levelno >= logging.WARNING]
+        return code, out, err + "".join(logged)
+
+    return call
 
 
 def test_derive_prints_the_canonical_string(capsys):
@@ -74,28 +102,27 @@ def test_python_dash_m_and_entry_point_agree():
         ("axiom = \n", ":1:9: TOML syntax error"),
     ],
 )
-def test_grammar_errors_are_one_line_without_traceback(tmp_path, text, fragment):
+def test_grammar_errors_are_one_line_without_traceback(tmp_path, text, fragment, command):
     path = tmp_path / "bad.toml"
     path.write_text(text)
-    out = run("derive", str(path))
-    assert out.returncode == 1
-    assert out.stdout == ""
-    lines = out.stderr.strip().splitlines()
+    code, stdout, stderr = command("derive", str(path))  # a traceback would be this test's exception
+    assert code == 1
+    assert stdout == ""
+    lines = stderr.strip().splitlines()
     assert len(lines) == 1 and fragment in lines[0] and lines[0].startswith(f"lsys3d: error: {path}")
-    assert "Traceback" not in out.stderr
 
 
-def test_missing_preset_and_limit_errors():
-    out = run("derive", "nope")
-    assert out.returncode == 1 and "no bundled preset named 'nope'" in out.stderr
-    out = run("derive", "algae", "-n", "60")
-    assert out.returncode == 1 and "--max-modules" in out.stderr and "Traceback" not in out.stderr
+def test_missing_preset_and_limit_errors(command):
+    code, _, stderr = command("derive", "nope")
+    assert code == 1 and "no bundled preset named 'nope'" in stderr
+    code, _, stderr = command("derive", "algae", "-n", "60")
+    assert code == 1 and "--max-modules" in stderr and len(stderr.splitlines()) == 1
 
 
-def test_usage_errors_exit_2():
-    assert run("derive").returncode == 2
-    assert run("frobnicate").returncode == 2
-    assert run("derive", "koch", "-n", "x").returncode == 2
+def test_usage_errors_exit_2(command):
+    assert run("derive").returncode == 2  # the program's own exit status
+    assert command("frobnicate")[0] == 2
+    assert command("derive", "koch", "-n", "x")[0] == 2
 
 
 def test_stats_json_and_table(capsys):
@@ -139,17 +166,17 @@ def test_generate_options_reach_the_file(tmp_path, capsys):
     assert capsys.readouterr().out.count("wrote") == 1  # -q printed nothing
 
 
-def test_generate_refuses_before_working(tmp_path):
-    out = run("generate", "-o", str(tmp_path / "tree.fbx"))
-    assert out.returncode == 1 and "unknown suffix '.fbx'" in out.stderr and len(out.stderr.splitlines()) == 1
-    out = run("generate", "-o", str(tmp_path / "missing" / "tree.glb"))
-    assert out.returncode == 1 and "does not exist" in out.stderr
+def test_generate_refuses_before_working(tmp_path, command):
+    code, _, stderr = command("generate", "-o", str(tmp_path / "tree.fbx"))
+    assert code == 1 and "unknown suffix '.fbx'" in stderr and len(stderr.splitlines()) == 1
+    code, _, stderr = command("generate", "-o", str(tmp_path / "missing" / "tree.glb"))
+    assert code == 1 and "does not exist" in stderr
     (tmp_path / "old.glb").write_bytes(b"precious")
-    out = run("generate", "koch", "-n", "1", "--no-clobber", "-o", str(tmp_path / "old.glb"))
-    assert out.returncode == 1 and "file exists" in out.stderr
+    code, _, stderr = command("generate", "koch", "-n", "1", "--no-clobber", "-o", str(tmp_path / "old.glb"))
+    assert code == 1 and "file exists" in stderr
     assert (tmp_path / "old.glb").read_bytes() == b"precious"
-    out = run("generate", "algae", "-o", str(tmp_path / "a.glb"))
-    assert out.returncode == 1 and "nothing to mesh" in out.stderr and "Traceback" not in out.stderr
+    code, _, stderr = command("generate", "algae", "-o", str(tmp_path / "a.glb"))
+    assert code == 1 and "nothing to mesh" in stderr and len(stderr.splitlines()) == 1
     assert not (tmp_path / "a.glb").exists()
 
 
@@ -180,14 +207,14 @@ def test_quiet_and_verbose_after_the_subcommand(tmp_path, capsys):
     assert out.returncode == 0 and "lsys3d: union" in out.stderr
 
 
-def test_union_settings_from_the_command_line(tmp_path, capsys):
+def test_union_settings_from_the_command_line(tmp_path, capsys, command):
     assert main(["generate", "tree3d", "-n", "3", "--workers", "1", "-o", str(tmp_path / "t.glb")]) == 0
     assert main(["generate", "tree3d", "-n", "3", "--max-union-pairs", "5", "-o", str(tmp_path / "u.glb")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("lsys3d: error: union: more than 5 pairs of tube pieces may touch")
     assert not (tmp_path / "u.glb").exists()
-    out = run("generate", "tree3d", "--workers", "-1")
-    assert out.returncode == 2 and "--workers" in out.stderr
+    code, _, stderr = command("generate", "tree3d", "--workers", "-1")
+    assert code == 2 and "--workers" in stderr
 
 
 def test_the_union_shows_a_percentage_on_a_terminal(capsys):

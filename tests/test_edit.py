@@ -310,15 +310,16 @@ def test_a_full_queue_is_a_503_and_a_dead_worker_a_500(folder):
     import os
     import signal
 
-    slow = {"text": TREE3D, "iterations": 7}
+    slow = {"text": TREE3D, "iterations": 7}  # busy for the seconds the next requests take to queue
+    small = {"text": TREE3D, "iterations": 3}  # the replacement runs it whole: its size is not the point
     with _client(EditSettings(str(folder / "plant.toml"), workers=1, queue=1)) as c:
         _wait_ready(c, 1)
         with ThreadPoolExecutor(2) as pool:
             running = pool.submit(c.post, "/api/generate", json={**slow, "channel": "a"})
             _until(c, lambda s: s["busy"] == 1)
-            waiting = pool.submit(c.post, "/api/generate", json={**slow, "seed": 1, "channel": "b"})
+            waiting = pool.submit(c.post, "/api/generate", json={**small, "seed": 1, "channel": "b"})
             _until(c, lambda s: s["waiting"] == 1)
-            refused = c.post("/api/generate", json={**slow, "seed": 2, "channel": "c"})
+            refused = c.post("/api/generate", json={**small, "seed": 2, "channel": "c"})
             assert refused.status_code == 503 and "waiting" in refused.json()["error"]["message"]
             (pid,) = c.get("/api/status").json()["pids"]
             os.kill(pid, signal.SIGKILL)

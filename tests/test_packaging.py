@@ -8,17 +8,13 @@ import sys
 import zipfile
 from pathlib import Path
 
+from wheels import lsys3d_wheel
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_wheel_ships_the_presets(tmp_path):
-    wheels = tmp_path / "wheels"
-    subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheels), str(ROOT)],
-        check=True,
-        capture_output=True,
-    )
-    (wheel,) = wheels.glob("lsys3d-*.whl")
+    wheel = lsys3d_wheel()  # `pip wheel .`, once in the run (the Blender extension's test bundles it too)
     with zipfile.ZipFile(wheel) as archive:
         shipped = {name for name in archive.namelist() if name.startswith("lsys3d/")}
     # every module of the source tree is in the wheel (an import test alone can be fooled by the editable install)

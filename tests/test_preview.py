@@ -215,10 +215,14 @@ def test_bad_targets_and_options_are_refused_before_rendering(tmp_path):
         ("10x10x10", "must be a list of 2 whole numbers"),
     ],
 )
-def test_cli_size_usage_errors_exit_2(size, message):
-    proc = subprocess.run([sys.executable, "-m", "lsys3d", "preview", "--size", size], capture_output=True, text=True)
-    assert proc.returncode == 2
-    assert f"argument --size: {message}" in proc.stderr
+def test_cli_size_usage_errors_exit_2(size, message, capsys):
+    """The command line's parser, in this process (the program's own exit 2 for a usage error: the next test)."""
+    from lsys3d.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["preview", "--size", size])
+    assert stop.value.code == 2
+    assert f"argument --size: {message}" in capsys.readouterr().err
 
 
 def test_a_pose_bends_a_rigged_tree_in_blender(tmp_path):
@@ -284,12 +288,13 @@ def test_a_session_starts_blender_before_the_tree_and_stops_it_unused(tree, tmp_
     assert sorted(p.name for p in tmp_path.iterdir()) == ["used.png"]
 
 
-def test_cli_preview_quality_flag(tmp_path):
-    proc = subprocess.run(
-        [sys.executable, "-m", "lsys3d", "preview", "--help"], capture_output=True, text=True, check=True
-    )
-    assert "--quality {draft,final}" in proc.stdout
-    proc = subprocess.run(
+def test_cli_preview_quality_flag(tmp_path, capsys):
+    from lsys3d.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["preview", "--help"])
+    assert stop.value.code == 0 and "--quality {draft,final}" in capsys.readouterr().out
+    proc = subprocess.run(  # the program's own exit status for a usage error
         [sys.executable, "-m", "lsys3d", "preview", "--quality", "best"], capture_output=True, text=True
     )
     assert proc.returncode == 2 and "invalid choice: 'best'" in proc.stderr
