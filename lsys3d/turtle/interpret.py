@@ -306,8 +306,9 @@ def interpret(
     [-1.0, 1.0, 0.0]
     """
     return interpret_answering(
-        modules, options, seed, max_segments=max_segments, commands=commands, scene=scene, steering=steering
-    )[0]
+        modules, options, seed, max_segments=max_segments, commands=commands, scene=scene, steering=steering,
+        answers=False,
+    )[0]  # fmt: skip
 
 
 def interpret_answering(
@@ -319,8 +320,10 @@ def interpret_answering(
     commands: tuple[Command, ...] | None = None,
     scene: kernel.Scene | None = None,
     steering: SteeringMemo | None = None,
+    answers: bool = True,
 ) -> tuple[Skeleton, Answers]:
-    """:func:`interpret`, and what the pass tells derivation: query states and cut segments (:class:`Answers`)."""
+    """:func:`interpret`, and what the pass tells derivation: query states and cut segments (:class:`Answers`).
+    Without ``answers`` the query states are not kept (:func:`interpret`: the answers go unread)."""
     if isinstance(options, Grammar):
         if commands is None:
             commands = dialects.get(options.dialect).commands
@@ -371,7 +374,7 @@ def interpret_answering(
         np.empty(n_organ, np.int64),
         np.empty(n_organ, np.int64),
     )
-    n_query = int(counts[Op.QUERY])
+    n_query = int(counts[Op.QUERY]) if answers else 0
     query = kernel.QueryArrays(
         np.empty(n_query, np.int64),
         np.empty((n_query, 12)),

@@ -1005,13 +1005,14 @@ def run(program, modules, config, variation, max_depth, seg, poly, leaf, organ, 
                 if not (0.0 <= width <= far):
                     return 6, i, n_seg, n_pts, n_poly, n_leaf, n_organ, dropped
             elif code == _QUERY:
-                row = query.state[n_query]
-                row[0], row[1], row[2] = px, py, pz
-                row[3], row[4], row[5] = hx, hy, hz
-                row[6], row[7], row[8] = lx, ly, lz
-                row[9], row[10], row[11] = ux, uy, uz
-                query.module[n_query] = i
-                n_query += 1
+                if query.state.shape[0] > 0:  # (a turtle that only draws keeps no answers)
+                    row = query.state[n_query]
+                    row[0], row[1], row[2] = px, py, pz
+                    row[3], row[4], row[5] = hx, hy, hz
+                    row[6], row[7], row[8] = lx, ly, lz
+                    row[9], row[10], row[11] = ux, uy, uz
+                    query.module[n_query] = i
+                    n_query += 1
             elif code == _RANDOM_TURN:
                 if random_turn:
                     most = arg if has_arg else (program.factor[sym] if program.factor[sym] != 0.0 else angle)
