@@ -19,9 +19,9 @@ from lsys3d.lsystem.modules import ModuleString
 from lsys3d.turtle.commands import Op, symbol_table
 from lsys3d.turtle.environment import load_environment
 from lsys3d.turtle.interpret import interpret_answering
-from lsys3d.turtle.kernel import FAR_OUTSIDE
 from lsys3d.turtle.options import TurtleOptions
 from lsys3d.turtle.query import Answerer
+from lsys3d.turtle.scene import FAR_OUTSIDE
 
 _SLICES = {"P": (0, 1.0), "H": (3, 1.0), "L": (6, 1.0), "U": (9, 1.0), "R": (6, -1.0)}
 

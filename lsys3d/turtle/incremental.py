@@ -70,9 +70,9 @@ from .kernel import (  # numba sees the ops as these plain integers, declared on
     _orthonormal,
     _pair,
     _rotate,
-    _steer,
     _steps,
 )
+from .scene import _steer
 from .steering import write_steering
 
 __all__ = [

@@ -69,6 +69,7 @@ from ..streams import Stream, generator
 from . import kernel
 from .commands import COMMANDS, Command, Op, SymbolTable, symbol_table
 from .options import TurtleOptions
+from .scene import Scene
 from .sides import sides_in_force, with_sides
 from .skeleton import MAX_COORDINATE, Skeleton
 from .steering import SteeringMemo, not_steered
@@ -223,7 +224,7 @@ def movement_rows(tropisms) -> np.ndarray:
     return np.column_stack([rows[:, :4], np.cos(gamma), np.sin(gamma), rows[:, 5:]])
 
 
-NO_SCENE = kernel.Scene(np.zeros(3), np.ones(1), *(np.zeros((0, 0, 0)),) * 3, np.zeros(0))
+NO_SCENE = Scene(np.zeros(3), np.ones(1), *(np.zeros((0, 0, 0)),) * 3, np.zeros(0))
 """The kernel's scene when there is no environment."""
 
 
@@ -253,7 +254,7 @@ def interpret(
     *,
     max_segments: int = DEFAULT_MAX_SEGMENTS,
     commands: tuple[Command, ...] | None = None,
-    scene: kernel.Scene | None = None,
+    scene: Scene | None = None,
     steering: SteeringMemo | None = None,
 ) -> Skeleton:
     """Draw a module string with the 3D turtle.
@@ -318,7 +319,7 @@ def interpret_answering(
     *,
     max_segments: int = DEFAULT_MAX_SEGMENTS,
     commands: tuple[Command, ...] | None = None,
-    scene: kernel.Scene | None = None,
+    scene: Scene | None = None,
     steering: SteeringMemo | None = None,
     answers: bool = True,
 ) -> tuple[Skeleton, Answers]:

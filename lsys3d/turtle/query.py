@@ -40,8 +40,8 @@ from .interpret import (
     surveyed,
     turtle_config,
 )
-from .kernel import FAR_OUTSIDE
 from .options import TurtleOptions
+from .scene import FAR_OUTSIDE
 from .shadow import shade
 from .steering import ROW, SteeringMemo
 

@@ -1,6 +1,6 @@
 """The environment's steering of each segment, remembered by the turtle that answers derivation for the one that draws.
 
-With an environment, every segment is steered by the scene (:func:`lsys3d.turtle.kernel._steer`: adhesion,
+With an environment, every segment is steered by the scene (:func:`lsys3d.turtle.scene._steer`: adhesion,
 climbing, deflection, cuts) twice: by the lean pass that answers derivation between its steps
 (:mod:`lsys3d.turtle.incremental`) and again by the turtle that draws the last string
 (:func:`lsys3d.turtle.kernel.run`).  The lean pass writes each steering it makes as a row of
