@@ -249,7 +249,11 @@ def row_table(keys, h):  # pragma: no cover - compiled
     while (1 << bits) < 2 * n:
         bits += 1
     size = 1 << bits
-    table = np.full(size, -1, np.int32)
+    # np.empty and a fill, not np.full (nor np.zeros, np.ones, np.arange) in a kernel: numba compiles those for each
+    # type and each set of its callers' flags, with the np.empty they call, a few hundredths of a CPU second each on
+    # a first run, where the kernels' own np.empty is compiled already.  The same values.
+    table = np.empty(size, np.int32)
+    table[:] = -1
     shift = np.uint64(64 - bits)
     owner = np.empty(n, np.int64)
     for i in range(n):
@@ -293,7 +297,9 @@ def components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 @kernel(nogil=True)
 def _components(n, a, b):  # pragma: no cover - compiled
-    parent = np.arange(n, dtype=np.int64)
+    parent = np.empty(n, np.int64)  # (not np.arange: see row_table)
+    for i in range(n):
+        parent[i] = i
     for e in range(len(a)):
         x, y = a[e], b[e]
         while parent[x] != x:  # the roots, halving the paths on the way

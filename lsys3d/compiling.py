@@ -179,24 +179,25 @@ def _name(dispatcher) -> str:
 
 
 class _Only(event.Listener):
-    def __init__(self, own: tuple[str, ...]):
-        self.own = own
+    def __init__(self, own: tuple[str, ...], but: tuple[str, ...] = ()):
+        self.own, self.but = own, but
 
     def on_start(self, ev: event.Event) -> None:
         dispatcher = ev.data["dispatcher"]
-        if _own(dispatcher) and not _name(dispatcher).startswith(self.own):
-            raise ForeignKernel(f"lsys3d.compiling.only: {_name(dispatcher)} is not a kernel of {', '.join(self.own)}")
+        name = _name(dispatcher)
+        if _own(dispatcher) and (not name.startswith(self.own) or (self.but and name.startswith(self.but))):
+            raise ForeignKernel(f"lsys3d.compiling.only: {name} is not a kernel of {', '.join(self.own)}")
 
     def on_end(self, ev: event.Event) -> None:
         pass
 
 
 @contextlib.contextmanager
-def only(own: tuple[str, ...]) -> Iterator[None]:
+def only(own: tuple[str, ...], but: tuple[str, ...] = ()) -> Iterator[None]:
     """Raise :class:`ForeignKernel` where numba would compile one of lsys3d's kernels outside ``own`` (prefixes of
-    module names, or of a kernel's module and qualified name): what a helper process of :func:`ahead` runs
-    under."""
-    listener = _Only(tuple(own))
+    module names, or of a kernel's module and qualified name), or one of ``but`` (prefixes too: the spare
+    groups among them): what a helper process of :func:`ahead` runs under."""
+    listener = _Only(tuple(own), tuple(but))
     event.register("numba:compile", listener)
     try:
         yield
@@ -210,7 +211,11 @@ class Spare(NamedTuple):
     ``names`` are the prefixes of their names (module and qualified name: every kernel ``compile`` compiles,
     the kernels it calls too), ``compile`` compiles them (numba's ``compile`` with the signatures the pipeline
     calls them with).  None of them may be a kernel the main process compiles before it reaches the helper's
-    modules (it would claim them then), one the helper's own kernels call or one of another spare group.
+    modules (it would claim them then), one the helper's own kernels call or one of another spare group.  A
+    group may hold kernels of the helper's own modules that the pipeline calls late (the group's names take them
+    out of the helper's own), and its kernels may call helper's own ones that the helper compiles early (they
+    come from the cache by the time a process is idle; should one not, the main process waits for the helper
+    before compiling it, as for any of the helper's kernels).
     """
 
     names: tuple[str, ...]
@@ -265,7 +270,7 @@ def help_ahead(own: tuple[str, ...], run: Callable[[], None], spares: Sequence[S
     ``own``, then each of the ``spares`` the main process has not claimed yet (the collector seldom:
     :func:`seldom_collected`)."""
     with seldom_collected():
-        with only(own):
+        with only(own, but=tuple(name for spare in spares for name in spare.names)):
             run()
         folder = os.environ.get(_CLAIMS)
         for i, spare in enumerate(spares):
@@ -328,11 +333,12 @@ class Helper:
             log.debug("compiling: the helper %s failed (%d): %s", self.module, self.returncode, tail[0])
 
     def covers(self, dispatcher) -> bool:
-        """Whether this process must wait for the helper before compiling ``dispatcher``: one of the helper's
-        own kernels, or one of a spare group the helper claimed (this process claims the group if nobody has)."""
-        if _name(dispatcher).startswith(self.own):
-            return True
-        return any(spare.covers(dispatcher) and not self.spare_is_mine(i) for i, spare in enumerate(self.spares))
+        """Whether this process must wait for the helper before compiling ``dispatcher``: one of a spare group the
+        helper claimed (this process claims the group if nobody has), else one of the helper's own kernels."""
+        for i, spare in enumerate(self.spares):
+            if spare.covers(dispatcher):
+                return not self.spare_is_mine(i)
+        return _name(dispatcher).startswith(self.own)
 
     def spare_is_mine(self, i: int) -> bool:
         """Whether this process compiles the spare group ``i``: it claims it unless the helper was first."""
@@ -342,9 +348,10 @@ class Helper:
             return self._mine[i]
 
     def idle(self) -> None:
-        """The main process has nothing to do but wait for the helper: meanwhile it compiles the spare groups
-        the helper has not claimed (claiming each in turn, as the helper does when done with its own) and the
-        main-only kernels; nothing when the helper has ended (they are compiled where they are called)."""
+        """The main process has nothing to do but wait for the helper: meanwhile it compiles the main-only
+        kernels, then the spare groups the helper has not claimed (claiming each in turn, as the helper does when
+        done with its own: so a helper done first finds groups left to share); nothing when the helper has ended
+        (they are compiled where they are called)."""
         if not (self.spares or self._main_only) or self.process.poll() is not None:
             return
         with self._spare_lock:  # (reentrant: the gate asks spare_is_mine while they compile)
@@ -352,11 +359,11 @@ class Helper:
                 return
             self._idled = True
             start = time.perf_counter()
+            if self._main_only is not None:
+                self._main_only()
             for i, spare in enumerate(self.spares):
                 if self.spare_is_mine(i):
                     spare.compile()
-            if self._main_only is not None:
-                self._main_only()
         log.info("compiling: %.1f s compiling the spare kernels while the helper ran", time.perf_counter() - start)
 
 

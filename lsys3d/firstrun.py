@@ -2,17 +2,19 @@
 
 On a first run (an empty kernel cache) ``lsys3d generate`` starts ``python -m lsys3d.firstrun``, which compiles
 the cleanup's kernels (:mod:`lsys3d.mesh.precompile`) on the other core while the main process derives, draws,
-sweeps and unions.  The kernels the main process needs last, after the cleanup has begun (:data:`SPARES`: the
-cleanup's uv and each face's tube, the export's splitting of the vertices), go to whichever process is idle
-first, a group at a time: the helper compiles a group when it is done with the cleanup's kernels (and the
-groups before) and the main process has not claimed it; the main process compiles the groups the helper has
-not claimed while it waits for the helper (:meth:`Helper.idle <lsys3d.compiling.Helper.idle>`), and then
-:data:`MAIN_ONLY` too (the attributes' match, which calls a kernel the union compiles).  Either way they are
-out of the part of the run where the main process works alone, after the helper has ended.
+sweeps and unions.  The kernels the main process needs last, after the cleaning (:data:`SPARES`: the cleanup's
+uv and each face's tube, its normals and compacting, the export's splitting of the vertices), go to whichever
+process is idle first, a group at a time: the helper compiles a group when it is done with the cleanup's
+kernels (and the groups before) and the main process has not claimed it; the main process, while it waits for
+the helper (:meth:`Helper.idle <lsys3d.compiling.Helper.idle>`), compiles :data:`MAIN_ONLY` (the attributes'
+match, which calls a kernel the union compiles), then the groups the helper has not claimed.  Either way they
+are out of the part of the run where the main process works alone, after the helper has ended, and the two
+processes end their compiling close together (a group apart at most).
 
 They are compiled by signature (numba's ``compile``), for the types the pipeline calls them with (the default
-tree's: ``tests/test_compiling.py`` checks that it asks for no other), and compiled nothing else: the
-kernels they call are their group's alone (:attr:`Spare.names <lsys3d.compiling.Spare>`).
+tree's: ``tests/test_compiling.py`` checks that it asks for no other), and compile nothing else but the
+kernels of their group (:attr:`Spare.names <lsys3d.compiling.Spare>`) and the geometry's helpers the helper
+compiled first.
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ from . import compiling
 from .exchange.common import _first_uses, _number_others, _others
 from .look.attributes import _match
 from .mesh import precompile
+from .mesh.remesh.halfedge import _compact_faces, _corners_used
+from .mesh.remesh.normals import _corner_rows, _vertex_normal_sums
 from .mesh.sweep.uv import _face_kinds, _uv_at
 
 __all__ = ["MAIN_ONLY", "SIGNATURES", "SPARES", "ahead"]
@@ -35,7 +39,8 @@ def _c(dtype, ndim: int = 1) -> types.Array:
     return types.Array(dtype, ndim, "C")
 
 
-_I64, _F64, _I32, _U32, _F32 = types.int64, types.float64, types.int32, types.uint32, types.float32
+_I64, _F64, _I32, _U32, _F32, _B = types.int64, types.float64, types.int32, types.uint32, types.float32, types.boolean
+
 
 SIGNATURES = {
     # Tubes.face_kinds: face, offsets, sides, rings -> tube, cap
@@ -59,6 +64,28 @@ SIGNATURES = {
     _others: [(_c(_I64), _I64, _c(_U32, 2), _c(_U32, 2))],
     _number_others: [(_c(_I64), _c(_I64), _I64, _c(_U32))],
     _first_uses: [(_c(_I64), _c(_I32), _c(_I64))],
+    # remesh.compact: the half-edges' faces, the live faces, used; then the half-edges' faces, face_part,
+    # face_flat, face_source, the live faces, renumber, faces, part, flat, source (int64), lo, hi
+    _corners_used: [(_c(_I32, 2), _c(_I64), _c(_B))],
+    _compact_faces: [
+        (
+            _c(_I32, 2),
+            _c(_I32),
+            _c(_B),
+            _c(_I32),
+            _c(_I64),
+            _c(_I64),
+            _c(_I64, 2),
+            _c(_I64),
+            _c(_B),
+            _c(_I64),
+            _I64,
+            _I64,
+        )
+    ],
+    # remesh.corner_normals: points, faces, flat, vertex normals, some, (out,) lo, hi
+    _vertex_normal_sums: [(_c(_F64, 2), _c(_I64, 2), _c(_B), _c(_F64, 2), _c(_B), _I64, _I64)],
+    _corner_rows: [(_c(_F64, 2), _c(_I64, 2), _c(_B), _c(_F64, 2), _c(_B), _c(_F32, 3), _I64, _I64)],
 }
 """The spare kernels (:data:`SPARES`) and the signatures the pipeline calls them with."""
 
@@ -109,9 +136,23 @@ SPARES = (
         ),
         compile=_compile({k: SIGNATURES[k] for k in (_others, _number_others, _first_uses)}),
     ),
+    compiling.Spare(
+        names=("lsys3d.mesh.remesh.normals.",),  # _vertex_normal_sums, _corner_rows, _unit_normal
+        compile=_compile({k: SIGNATURES[k] for k in (_vertex_normal_sums, _corner_rows)}),
+    ),
+    compiling.Spare(
+        names=(
+            "lsys3d.mesh.remesh.halfedge._corners_used",
+            "lsys3d.mesh.remesh.halfedge._compact_faces",
+        ),
+        compile=_compile({k: SIGNATURES[k] for k in (_corners_used, _compact_faces)}),
+    ),
 )
-"""The kernels the main process calls last, in groups for whichever process is idle first: the cleanup's
-(1.3 CPU s of compiling), the export's (0.6); the kernels of one group call none of another's."""
+"""The kernels the main process calls last, in groups for whichever process is idle first, the longest first:
+the cleanup's uv (1.3 CPU s of compiling), the export's (0.6), the cleanup's normals (0.5) and its compacting
+(0.25); the kernels of one group call none of another's (the normals call the geometry's helpers, which the
+helper compiles first).  The caps a seam cuts (:func:`lsys3d.mesh.remesh.cut_caps`, after the compacting) are
+in none: only a tree with flat caps calls it (not the default tree), and it is compiled where it is called."""
 
 
 def ahead():

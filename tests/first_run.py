@@ -32,7 +32,8 @@ compiled, helped = [], []
 
 class Listener(event.Listener):
     def on_start(self, ev):
-        compiled.append(ev.data["dispatcher"].py_func.__module__)
+        func = ev.data["dispatcher"].py_func
+        compiled.append(f"{func.__module__}.{func.__qualname__}")
         helped.append(bool(compiling._helpers))
 
     def on_end(self, ev):
@@ -61,7 +62,7 @@ with open(sys.argv[2], "w") as f:
 def run(folder: Path, cache: Path | None = None, timeout: float = 900) -> dict:
     """``lsys3d generate -o folder/tree.glb`` in a child process with a terminal for stderr (numba's cache in
     ``cache`` if given, else the package's own); returns its record, also left in ``folder/first-run.json``:
-    ``returncode``, ``code`` (what ``main`` returned), ``compiled`` (the module of each kernel compiled, in
+    ``returncode``, ``code`` (what ``main`` returned), ``compiled`` (the module and name of each kernel compiled, in
     order), ``helped`` (whether a helper process was compiling meanwhile), ``loaded`` (this process's kernels
     found in the cache: none on a first run), ``stderr`` (what the terminal got), ``stdout`` and ``output``."""
     folder.mkdir(parents=True, exist_ok=True)

@@ -19,9 +19,9 @@ from lsys3d.lsystem.modules import ModuleString
 from lsys3d.turtle.commands import Op, symbol_table
 from lsys3d.turtle.environment import load_environment
 from lsys3d.turtle.interpret import interpret_answering
-from lsys3d.turtle.kernel import FAR_OUTSIDE
 from lsys3d.turtle.options import TurtleOptions
 from lsys3d.turtle.query import Answerer
+from lsys3d.turtle.scene import FAR_OUTSIDE
 
 _SLICES = {"P": (0, 1.0), "H": (3, 1.0), "L": (6, 1.0), "U": (9, 1.0), "R": (6, -1.0)}
 
@@ -135,6 +135,44 @@ def test_the_benchmark_plant_on_a_wall(tmp_path):
     counted, out = _same_generations(g, 40, load_environment(g))
     assert counted.followed == counted.calls - 1  # every pass after the first re-read only what changed
     assert out.count("F") > 200
+
+
+def test_rewritable_modules_left_as_they_are_between_the_changes(tmp_path):
+    # B grows at some steps only (by chance) and is copied at the others, its state recorded; the pass that jumps
+    # over the copies between one step's changes takes their records (and steerings) from the last pass, and a
+    # B rewritten later starts from that record
+    rules = [
+        "A(k) -> F(0.1)[+(50)B(0)?P(0,0,0)]/(90)A(k + 1)?P(0,0,0)",
+        "B(n) : uniform(0, 1) < 0.3 -> F(0.1)-(10)B(n + 1)?H(0,0,0)",
+        "?P(x, y, z) : y > 0.6 ->",
+    ]
+    env = {"support": _wall(tmp_path), "distance": 0.3, "adhesion": 0.6}
+    g = Grammar(
+        axiom="A(0)?P(0,0,0)",
+        rules=rules,
+        turtle={"heading": 90},
+        environment=env,
+        source=str(tmp_path / "g.toml"),
+    )
+    answerer = Answerer(TurtleOptions.from_grammar(g), dialects.get(g.dialect).commands, g.seed, None, grammar=g)
+    jumped, lost = [], []
+    original = answerer._pass
+
+    def listing(*args):
+        jumped.append(len(args[-1]) > 0)  # the changes the pass jumps between (empty: it walks the copies)
+        found = original(*args)
+        lost.append(found is None)  # it lost track of the changes: a pass over the whole string follows
+        return found
+
+    answerer._pass = listing
+    last = list(generations(g, 12, g.seed, between=answerer))[-1]
+    assert sum(jumped) >= 10 and not any(lost)
+    assert 0 < last.count("?P") < last.count("A") + last.count("B")  # some query modules rewritten away
+    counted, out = _same_generations(g, 12, load_environment(g))
+    assert counted.followed == counted.calls - 1
+    counted, out = _same_generations(g, 12)
+    assert counted.followed == counted.calls - 1
+    assert out.count("B") > 10
 
 
 @pytest.mark.parametrize("name", ["ivy-wall", "topiary", "tree-wall", "vine-post"])

@@ -228,8 +228,10 @@ def _grid(lo: np.ndarray, hi: np.ndarray, points: np.ndarray):
 def _match(points, origin, cell, dims, keys, key_offsets, boxes, lo, hi, a, b, w0, w1, depth, surface, tolerance):
     """Per point: the chosen segment (-1: none within reach) and the point's parameter along it (see nearest_branch)."""
     n = points.shape[0]
-    segment = np.full(n, -1, np.int64)
-    param = np.zeros(n)
+    segment = np.empty(n, np.int64)  # (np.empty and a fill: see lsys3d.arrays.row_table)
+    segment[:] = -1
+    param = np.empty(n)
+    param[:] = 0.0
     for p in range(n):
         x, y, z = points[p, 0], points[p, 1], points[p, 2]
         cx = np.int64(np.floor((x - origin[0]) / cell))

@@ -149,6 +149,9 @@ class _Plan:
         self.random = any(p.random for p in productions)
         self.stochastic = self.random or any(p.cumulative is not None for p in pools.values())
         self.context = any(p.left or p.right for p in pools.values())
+        self.ignored = np.zeros(256, np.bool_)  # the symbols context matching skips, by code
+        self.ignored[list(self.ignore)] = True
+        self.plain_right: dict = {}  # the right contexts' codes and arities, by pattern's id (_Context.right)
         self.sequences = any(p.following for p in pools.values())
         # cpfg's sub-L-systems: which L-system's rules rewrite a module depends on the ?(n) and $ before it
         self.lsystems = grammar.lsystem_main >= 0
@@ -664,9 +667,8 @@ class _Context:
     """Context matching on one bracketed string (ABOP section 1.8), for all candidate modules at once."""
 
     def __init__(self, plan: _Plan, ms: ModuleString):
-        ignored = np.zeros(256, np.bool_)
-        ignored[list(plan.ignore)] = True
-        self.ignored = ignored
+        self.ignored = plan.ignored
+        self.plan = plan
         self.ms = ms
         self.m = len(ms)
         self.code = plan.code
@@ -730,20 +732,27 @@ class _Context:
     def right(self, sel: np.ndarray, pattern) -> tuple[np.ndarray, list[np.ndarray]]:
         """Which modules ``sel`` have the right context ``pattern`` (``[`` and ``]`` allowed), and its values."""
         m = self.m
-        if self._tables is None and not self.ring and all(pm.symbol not in ("[", "]", self.skip) for pm in pattern):
-            # plain modules (a query module after its apex): one compiled walk, while the walks stay short
+        tables = self.plan.plain_right.get(id(pattern))  # (the plan's patterns live as long as it)
+        if tables is None:  # what a pattern of plain modules walks for, made once per derivation
+            plain = all(pm.symbol not in ("[", "]", self.skip) for pm in pattern)
             key = tuple((pm.symbol, len(pm.formals)) for pm in pattern)
+            codes = np.array([-1 if s == "*" else self.code[s] for s, _ in key] if plain else [], np.int64)
+            arities = np.array([0 if s == "*" else n for s, n in key], np.int64)
+            tables = self.plan.plain_right[id(pattern)] = (plain, key, codes, arities, int(arities.sum()), pattern)
+        plain, key, codes, arities, n_values, _ = tables
+        if self._tables is None and not self.ring and plain:
+            # plain modules (a query module after its apex): one compiled walk, while the walks stay short
             found = self._plain.get(key)
-            if found is not None and len(found[0]) >= len(sel):  # the same walks from more modules (a rule before)
+            if found is not None and len(found[0]) == len(sel) and np.array_equal(found[0], sel):
+                return found[1], list(found[2])  # the same walks (a rule before had the same candidates)
+            if found is not None and len(found[0]) > len(sel):  # the same walks from more modules (a rule before)
                 at = np.searchsorted(found[0], sel)
                 if len(at) and at[-1] < len(found[0]) and np.array_equal(found[0][at], sel):
                     return found[1][at], [v[at] for v in found[2]]
-            codes = np.array([-1 if s == "*" else self.code[s] for s, _ in key], np.int64)
-            arities = np.array([0 if s == "*" else n for s, n in key], np.int64)
             ms = self.ms
             ok, values, done = right_plain(
-                ms.symbols, ms.arity, ms.offsets, ms.params, self.ignored, sel + 1, codes, arities,
-                int(arities.sum()), 16 * len(sel) + 4096,
+                ms.symbols, ms.arity, ms.offsets, ms.params, self.ignored, sel + 1, codes, arities, n_values,
+                16 * len(sel) + 4096,
             )  # fmt: skip
             if done:
                 self._plain[key] = (sel, ok, values)
@@ -912,8 +921,11 @@ def _step(
                         keep &= ok
                         values += found
                 names = [n for pm in (*pool.left, *pool.right) for n in pm.formals]
-                env.update({name: v[keep] for name, v in zip(names, values, strict=True)})
-                sel = sel[keep]
+                if keep.all():  # (often: every apex has its query module after it)
+                    env.update(zip(names, values, strict=True))
+                else:
+                    env.update({name: v[keep] for name, v in zip(names, values, strict=True)})
+                    sel = sel[keep]
                 if not len(sel):
                     continue
             if prod0.predecessor.formals:

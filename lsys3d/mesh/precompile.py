@@ -3,10 +3,13 @@
 On a first run numba compiles the cleanup's kernels (:mod:`lsys3d.mesh.remesh`) when the pipeline reaches the
 cleanup, a third of all the compiling.  The helper process (``python -m lsys3d.firstrun``) compiles them
 meanwhile on the other core with :func:`run`: it runs the cleanup's own steps
-(:func:`lsys3d.mesh.cleanup._half_edges`, ``_clean``, ``remesh.compact``, ``_flat_faces``, ``smooth_normals``)
-on a small closed tube of two parts with a seam and flat caps, numpy-made, whose arrays have the types the
-union's bark has, so numba compiles and caches the signatures the real cleanup asks for; the main process then
-loads them from the cache.
+(:func:`lsys3d.mesh.cleanup._half_edges`, ``_clean``) on a small closed tube of two parts with a seam and flat
+caps, numpy-made, whose arrays have the types the union's bark has, so numba compiles and caches the signatures
+the real cleanup asks for; the main process then loads them from the cache.
+
+The kernels the cleanup calls after the cleaning (the compacting, the normals) are not its own: they are spare
+groups of :mod:`lsys3d.firstrun`, for whichever process is idle first; the caps a seam cuts
+(:func:`lsys3d.mesh.remesh.cut_caps`) are compiled where they are called, by a tree with flat caps only.
 
 It compiles nothing but kernels of :mod:`lsys3d.mesh.remesh` (its modules import nothing else of lsys3d):
 :data:`OWN` says so to :func:`lsys3d.compiling.ahead`, which stops this process at the first other kernel it
@@ -18,8 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import remesh
-from .cleanup import CleanupOptions, _clean, _executor, _flat_faces, _half_edges, _Surface, smooth_normals
+from .cleanup import CleanupOptions, _clean, _executor, _half_edges, _Surface
 from .remesh.clean import _sides
 from .remesh.clean import clean as _clean_kernel
 from .remesh.collar import collar
@@ -33,8 +35,7 @@ from .remesh.fair import (
     _vertex_normals,
     settle,
 )
-from .remesh.halfedge import _compact_faces, _corners_used, _leaving, _lock_pinches, _match, cut_caps, mark
-from .remesh.normals import _corner_rows, _vertex_normal_sums
+from .remesh.halfedge import _leaving, _lock_pinches, _match, mark
 from .remesh.rescue import _needs_rescue
 from .remesh.tube_faces import _tube_faces
 
@@ -48,9 +49,6 @@ ENTRIES = (
     _match,
     _lock_pinches,
     mark,
-    cut_caps,
-    _corners_used,
-    _compact_faces,
     _clean_kernel,
     _sides,
     collar,
@@ -63,8 +61,6 @@ ENTRIES = (
     _fair_finish,
     settle,
     _needs_rescue,
-    _vertex_normal_sums,
-    _corner_rows,
     _tube_faces,
 )
 """The kernels :func:`run` calls from Python (the others are compiled into them): when all have cached code,
@@ -126,6 +122,3 @@ def run() -> None:
         if isinstance(he, str):  # pragma: no cover - the tube is closed
             raise RuntimeError(f"lsys3d.mesh.precompile: {he}")
         _clean(he, options, 4 * len(faces), pool=pool)
-        points, faces, _, _, fsrc, _, _ = remesh.compact(he, pool)
-        flat = _flat_faces(faces, fsrc, tubes)
-        smooth_normals(points, faces, flat, pool)

@@ -124,7 +124,7 @@ def _bend(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e, by_angle):
     return _orthonormal(nhx, nhy, nhz, nlx, nly, nlz)
 
 
-@inner()
+@inner(nogil=True)  # (nogil as its callers: numba compiles min and max once per set of callers' flags)
 def _bend_after(hx, hy, hz, lx, ly, lz, ux, uy, uz, tx, ty, tz, e):
     """cpfg's tropism after a move (interpret.c ``bend``): H turns toward U by the angle whose sine is
     e (T.U), then toward L by the angle whose sine is e (T.L) (sines held to [-1, 1])."""

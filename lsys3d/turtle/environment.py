@@ -15,7 +15,7 @@ The meshes are read as data by the guarded model reader (:func:`lsys3d.external.
 A scene file given with ``--environment`` takes each mesh's role from its name (``support...``,
 ``obstacle...``, ``volume...``; any other mesh is an obstacle).
 
-The turtle asks the scene at every segment (:func:`lsys3d.turtle.kernel._steer`), so its questions cost
+The turtle asks the scene at every segment (:func:`lsys3d.turtle.scene._steer`), so its questions cost
 a few grid samples: each role's signed distance (positive outside the solid) is sampled once on a grid
 over the scene (``resolution`` cells along its longest side).  The distance is exact at the nodes within
 a band around the surface (trimesh's closest-point query, on an R-tree of the triangles) and the
@@ -42,7 +42,23 @@ from ..external import grammar_folder, load_scene, read_file, resolve
 from ..lsystem.grammar import table_error
 from ..lsystem.presets import bundled_folder
 from ..options import Options, merge_table, option
-from . import kernel
+from .scene import (
+    SCENE_ADHESION,
+    SCENE_CLEARANCE,
+    SCENE_CLIMB,
+    SCENE_DEFLECT,
+    SCENE_DISTANCE,
+    SCENE_HANG,
+    SCENE_LIGHT,
+    SCENE_LIGHT_POINT,
+    SCENE_PARAMS,
+    SCENE_PHOTOTROPISM,
+    SCENE_REACH,
+    SCENE_RELEASE,
+    SCENE_SOLID_SUPPORT,
+    Scene,
+    probe,
+)
 
 __all__ = [
     "GRID_CACHE_BYTES",
@@ -341,7 +357,7 @@ class Environment:
         parts = [m.trimesh() for m in self.meshes if m.role in roles]
         return trimesh.util.concatenate(parts) if parts else None
 
-    def scene(self) -> kernel.Scene:
+    def scene(self) -> Scene:
         """The kernel's view: signed distance grids per role and the steering parameters."""
         cached = self.__dict__.get("_scene")
         if cached is None:
@@ -528,7 +544,7 @@ def _cached_distance(meshes: tuple[SceneMesh, ...], origin, cell, shape, band: f
     return found
 
 
-def _build(env: Environment) -> kernel.Scene:
+def _build(env: Environment) -> Scene:
     o = env.options
     empty = np.zeros((0, 0, 0))
     if not env.meshes:
@@ -541,30 +557,30 @@ def _build(env: Environment) -> kernel.Scene:
     for role in ROLES:
         meshes = env.role(role)
         grids[role] = _cached_distance(meshes, origin, cell, shape, band, most) if meshes else empty
-    params = np.zeros(kernel.SCENE_PARAMS)
-    params[kernel.SCENE_DISTANCE] = o.distance
-    params[kernel.SCENE_ADHESION] = o.adhesion
-    params[kernel.SCENE_CLIMB] = o.climb
-    params[kernel.SCENE_HANG] = o.hang
-    params[kernel.SCENE_PHOTOTROPISM] = o.phototropism if (any(o.light) or o.light_point) else 0.0
+    params = np.zeros(SCENE_PARAMS)
+    params[SCENE_DISTANCE] = o.distance
+    params[SCENE_ADHESION] = o.adhesion
+    params[SCENE_CLIMB] = o.climb
+    params[SCENE_HANG] = o.hang
+    params[SCENE_PHOTOTROPISM] = o.phototropism if (any(o.light) or o.light_point) else 0.0
     if o.light_point:
-        params[kernel.SCENE_LIGHT : kernel.SCENE_LIGHT + 3] = o.light_point
-        params[kernel.SCENE_LIGHT_POINT] = 1.0
+        params[SCENE_LIGHT : SCENE_LIGHT + 3] = o.light_point
+        params[SCENE_LIGHT_POINT] = 1.0
     else:
-        params[kernel.SCENE_LIGHT : kernel.SCENE_LIGHT + 3] = o.light
-    params[kernel.SCENE_DEFLECT] = 1.0 if o.mode == "deflect" else 0.0
+        params[SCENE_LIGHT : SCENE_LIGHT + 3] = o.light
+    params[SCENE_DEFLECT] = 1.0 if o.mode == "deflect" else 0.0
     # a tenth of a cell more: between the nodes near a solid's edge or corner the trilinear distance is a
     # little larger than the true one
-    params[kernel.SCENE_CLEARANCE] = o.clearance + 0.1 * cell
-    params[kernel.SCENE_SOLID_SUPPORT] = 1.0 if all(m.closed for m in env.role("support")) else 0.0
-    params[kernel.SCENE_REACH] = _reach(o) if _reach(o) > 0 else 4.0 * cell
-    params[kernel.SCENE_RELEASE] = o.release
+    params[SCENE_CLEARANCE] = o.clearance + 0.1 * cell
+    params[SCENE_SOLID_SUPPORT] = 1.0 if all(m.closed for m in env.role("support")) else 0.0
+    params[SCENE_REACH] = _reach(o) if _reach(o) > 0 else 4.0 * cell
+    params[SCENE_RELEASE] = o.release
     log.info("environment: %d mesh(es), grid %s of %.4g m", len(env.meshes), "x".join(map(str, shape)), cell)
-    return kernel.Scene(np.asarray(origin, np.float64), np.array([cell]), grids["obstacle"], grids["volume"],
+    return Scene(np.asarray(origin, np.float64), np.array([cell]), grids["obstacle"], grids["volume"],
                         grids["support"], params)  # fmt: skip
 
 
-def _probe(scene: kernel.Scene, points: np.ndarray) -> np.ndarray:
+def _probe(scene: Scene, points: np.ndarray) -> np.ndarray:
     out = np.empty((len(points), 2))
-    kernel.probe(scene, points, out)
+    probe(scene, points, out)
     return out

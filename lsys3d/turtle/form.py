@@ -275,11 +275,13 @@ def _per_order(values: tuple, order: np.ndarray, shift: int = 0) -> np.ndarray:
 @kernel(nogil=True)
 def _tip_counts(parent):  # pragma: no cover - compiled
     n = len(parent)
-    children = np.zeros(n, np.int64)
+    children = np.empty(n, np.int64)  # (np.empty and a fill: see lsys3d.arrays.row_table)
+    children[:] = 0
     for i in range(n):
         if parent[i] >= 0:
             children[parent[i]] += 1
-    count = np.zeros(n, np.int64)
+    count = np.empty(n, np.int64)
+    count[:] = 0
     for i in range(n - 1, -1, -1):
         if children[i] == 0:
             count[i] += 1
@@ -316,7 +318,8 @@ def pipe_widths(parent: np.ndarray, tip_width: float, exponent: float) -> np.nda
 def _along(parent, length, same):  # pragma: no cover - compiled
     """Distance from each segment's start to the base of its run of ``same`` segments (a parent not ``same``: 0)."""
     n = len(parent)
-    out = np.zeros(n)
+    out = np.empty(n)  # (np.empty and a fill: see lsys3d.arrays.row_table)
+    out[:] = 0.0
     for i in range(n):
         p = parent[i]
         if p >= 0 and same[i] and same[p]:
@@ -389,14 +392,17 @@ def _place(
     up axes and the tropisms, computed from the heading it has by then.
     """
     n = len(seg)
-    q = np.zeros((n, 3, 3))
-    sc = np.ones(n)
+    q = np.empty((n, 3, 3))  # (np.empty and a fill: see lsys3d.arrays.row_table)
+    q[:] = 0.0
+    sc = np.empty(n)
+    sc[:] = 1.0
     p0 = np.empty((n, 3))
     p1 = np.empty((n, 3))
     cur = np.empty((3, 3))
     tmp = np.empty((3, 3))
     bend = np.empty((3, 3))
-    w = np.zeros(3)
+    w = np.empty(3)
+    w[:] = 0.0
     h = np.empty(3)
     lv = np.empty(3)
     uv = np.empty(3)

@@ -70,9 +70,9 @@ from .kernel import (  # numba sees the ops as these plain integers, declared on
     _orthonormal,
     _pair,
     _rotate,
-    _steer,
     _steps,
 )
+from .scene import _steer
 from .steering import write_steering
 
 __all__ = [
@@ -80,7 +80,6 @@ __all__ = [
     "STATE",
     "answer_pass",
     "carries_out",
-    "count_marked",
     "follow_cut",
     "follow_production",
     "follows",
@@ -100,9 +99,8 @@ _NEUTRAL = (Op.NONE, Op.QUERY, Op.LEAF, Op.ORGAN)
 _STRUCTURAL = (Op.PUSH, Op.POP, Op.POLYGON_BEGIN, Op.POLYGON_END)
 
 
-_CARRIED_OUT = np.zeros(len(Op), np.bool_)  # the ops answer_pass steps through; a new Op is drawn until it does
-_CARRIED_OUT[[int(o) for o in Op if o <= Op.QUERY]] = True  # NONE .. QUERY (the ops after it came later)
-_NOT_CARRIED_OUT = np.flatnonzero(~_CARRIED_OUT)
+# the ops answer_pass steps through: NONE .. QUERY (the ops after it came later; a new Op is drawn until it does)
+_FIRST_NOT_CARRIED_OUT = int(Op.QUERY) + 1
 
 
 def carries_out(counts: np.ndarray, turtle) -> bool:
@@ -110,7 +108,7 @@ def carries_out(counts: np.ndarray, turtle) -> bool:
     that draws would: no op it does not step through (cpfg's sub-L-system scales, ``_``, generalized cylinders,
     or any op added to :class:`Op` after ``QUERY``), and not cpfg's bend after each move nor its newer tropisms
     (``tropisms``: they bend before each move whether or not the string switches them)."""
-    return not counts[_NOT_CARRIED_OUT].any() and turtle.bend != "cpfg" and not turtle.tropisms
+    return not counts[_FIRST_NOT_CARRIED_OUT:].any() and turtle.bend != "cpfg" and not turtle.tropisms
 
 
 def neutral_ops() -> np.ndarray:
@@ -143,12 +141,14 @@ def follows(grammar: Grammar, op_of) -> bool:
 
 
 @kernel(nogil=True)
-def follow_production(origin, rewritten, lengths, op, symbols, new_symbols, counts):
+def follow_production(origin, rewritten, lengths, op, symbols, new_symbols, counts, changes):
     """The new string's origins after a production step (``origin`` empty: the old string was the last pass's).
 
     ``rewritten`` and ``lengths`` as :data:`lsys3d.lsystem.derive.Trace` gives them: a copied module keeps
     its origin, a produced one gets -1.  ``counts`` (when not empty: the old string's modules of each op, by
     ``op[symbol]``) becomes the new string's: a rewritten module's op counted out, its successor's in.
+    ``changes`` (when not empty: one more than the modules rewritten) receives where each rewritten module's
+    successor starts in the new string, in order, then the new string's length (:func:`answer_pass`'s ``changes``).
     """
     m = rewritten.shape[0]
     total = 0
@@ -157,9 +157,14 @@ def follow_production(origin, rewritten, lengths, op, symbols, new_symbols, coun
     out = np.empty(total, np.int64)
     identity = origin.shape[0] == 0
     counting = counts.shape[0] > 0
+    listing = changes.shape[0] > 0
+    n_changes = 0
     k = 0
     for i in range(m):
         if rewritten[i]:
+            if listing:
+                changes[n_changes] = k
+                n_changes += 1
             if counting:
                 counts[op[symbols[i]]] -= 1
             for _ in range(lengths[i]):
@@ -170,6 +175,8 @@ def follow_production(origin, rewritten, lengths, op, symbols, new_symbols, coun
         else:
             out[k] = i if identity else origin[i]
             k += 1
+    if listing:
+        changes[n_changes] = total
     return out
 
 
@@ -178,21 +185,13 @@ def follow_cut(origin: np.ndarray, keep: np.ndarray) -> np.ndarray:
     return np.flatnonzero(keep) if not len(origin) else origin[keep]
 
 
-@kernel(nogil=True)
-def count_marked(symbols, marked):
-    """How many of ``symbols`` ``marked`` (a ``(256,) bool`` by symbol id) marks: one pass, no mask built."""
-    n = 0
-    for s in symbols:
-        n += marked[s]
-    return n
-
-
 @inner()
-def _neutral_range(program, neutral, old_symbols, a, b):
-    """Whether the old modules ``a:b`` leave the state as it was: neutral ops, and closed branches."""
+def _neutral_range(op, neutral, old_symbols, a, b):
+    """Whether the old modules ``a:b`` leave the state as it was: neutral ops (``op`` by symbol), and closed
+    branches."""
     depth = 0
     for j in range(a, b):
-        code = program.op[old_symbols[j]]
+        code = op[old_symbols[j]]
         if code == _PUSH:
             depth += 1
         elif code == _POP:
@@ -291,6 +290,7 @@ def answer_pass(
     recorded,
     neutral,
     origin,
+    changes,
     old_symbols,
     old_positions,
     old_states,
@@ -357,6 +357,9 @@ def answer_pass(
     remembering = steered_at.shape[0] > 0
     n_steer = n_at = old_steer = np.int64(0)
     following = origin.shape[0] > 0
+    # where the changes start (the last entry: m), when derivation listed them: the copies between are jumped
+    jumping = following and changes.shape[0] > 0
+    next_change = np.int64(0)
 
     initial = np.empty(STATE)
     hx0, hy0 = _cos_sin(config.heading)
@@ -380,11 +383,14 @@ def answer_pass(
     px = py = pz = hx = hy = hz = lx = ly = lz = ux = uy = uz = 0.0
     width = step = angle = elasticity = tx = ty = tz = 0.0
     cos_angle = sin_angle = 0.0
+    cos_of = math.nan  # the angle cos_angle and sin_angle are of (a turtle that starts with it needs no cosine)
     bend = False
     hanging = np.int64(0)
     depth = 0
     n_poly = 0
     start = -2  # the record a turtle starts from: -1 the initial state, >= 0 a row of old_states
+    start_at = start_row = np.int64(-1)  # the old module the last turtle started before, and its record's row
+    seek = np.int64(0)  # where the search for the next start's record begins
     if running:
         start = -1
     i = 0
@@ -404,6 +410,18 @@ def answer_pass(
                         states[n_rec] = old_states[old_row]
                         n_rec += 1
                 i += 1
+                if jumping:  # the copies up to the next change (changes): their records are the last pass's
+                    while next_change < changes.shape[0] - 1 and changes[next_change] <= first:
+                        next_change += 1
+                    end = changes[next_change]
+                    while old_row < old_count and old_positions[old_row] <= o:
+                        old_row += 1
+                    while old_row < old_count and old_positions[old_row] < o + (end - first):
+                        positions[n_rec] = old_positions[old_row] - o + first
+                        states[n_rec] = old_states[old_row]
+                        n_rec += 1
+                        old_row += 1
+                    i = end
                 # the copies after it that keep their order and have no record: nothing to do (most of the string)
                 while i < m and origin[i] == origin[i - 1] + 1 and not recorded[symbols[i]]:
                     i += 1
@@ -419,9 +437,18 @@ def answer_pass(
             if i == 0:
                 start = -1
             else:
-                start = _find(old_positions, old_count, origin[i - 1] + 1)
+                # the changes come in the string's order, so do their records: sought on from the last one found
+                target = origin[i - 1] + 1
+                while seek < old_count and old_positions[seek] < target:
+                    seek += 1
+                start = (
+                    seek
+                    if seek < old_count and old_positions[seek] == target
+                    else _find(old_positions, old_count, target)
+                )
                 if start < 0:
                     return FOLLOW_LOST, i
+                start_at, start_row = target, start  # (where the change ends, it is often sought again)
             last_copy = origin[i - 1] if i > 0 else np.int64(-1)
         if start >= -1:  # a turtle starts here
             loaded = initial if start == -1 else old_states[start]
@@ -436,7 +463,9 @@ def answer_pass(
             n_poly = int(loaded[21])
             for k in range(min(n_poly, MAX_POLYGON_DEPTH)):
                 poly_open[k] = -1
-            cos_angle, sin_angle = _cos_sin(angle)
+            if angle != cos_of:  # (equal angles, even 0.0 and -0.0, have the same cosine and sine)
+                cos_angle, sin_angle = _cos_sin(angle)
+                cos_of = angle
             bend = tx != 0.0 or ty != 0.0 or tz != 0.0
             rel = 0
             entry_poly = n_poly
@@ -449,16 +478,15 @@ def answer_pass(
                 if rel == 0 and skipping == 0 and o != last_copy + 1:
                     # a change ends here: where the state is what it was, the copies from here on are known
                     a = last_copy + 1
-                    row = -1 if a == 0 else _find(old_positions, old_count, a)
-                    if (a == 0 or row >= 0) and _neutral_range(program, neutral, old_symbols, a, o):
-                        known = initial if a == 0 else old_states[row]
-                        if _is_state(
-                            known, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, width, step, angle, elasticity, tx,
-                            ty, tz, hanging, depth, n_poly,
-                        ):  # fmt: skip
-                            running = False
-                            resynced = i
-                            continue
+                    row = -1 if a == 0 else start_row if a == start_at else _find(old_positions, old_count, a)
+                    # (the state compared first: it seldom is the same, and then the modules need no look)
+                    if (a == 0 or row >= 0) and _is_state(
+                        initial if a == 0 else old_states[row], px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, width,
+                        step, angle, elasticity, tx, ty, tz, hanging, depth, n_poly,
+                    ) and _neutral_range(program.op, neutral, old_symbols, a, o):  # fmt: skip
+                        running = False
+                        resynced = i
+                        continue
                 last_copy = o
         if skipping > 0:
             if code == _PUSH:
@@ -673,6 +701,7 @@ def answer_pass(
             if not math.isfinite(angle):
                 return 11, i
             cos_angle, sin_angle = _cos_sin(angle)
+            cos_of = angle
         elif code == _ROLL_HORIZONTAL:
             norm = math.sqrt(hz * hz + hx * hx)
             if norm > 1e-12:
@@ -714,6 +743,7 @@ def answer_pass(
             if angle != row[14]:
                 angle = row[14]
                 cos_angle, sin_angle = _cos_sin(angle)
+                cos_of = angle
             elasticity = row[15]
             tx, ty, tz = row[16], row[17], row[18]
             hanging = np.int64(row[19])

@@ -69,6 +69,7 @@ from ..streams import Stream, generator
 from . import kernel
 from .commands import COMMANDS, Command, Op, SymbolTable, symbol_table
 from .options import TurtleOptions
+from .scene import Scene
 from .sides import sides_in_force, with_sides
 from .skeleton import MAX_COORDINATE, Skeleton
 from .steering import SteeringMemo, not_steered
@@ -223,7 +224,7 @@ def movement_rows(tropisms) -> np.ndarray:
     return np.column_stack([rows[:, :4], np.cos(gamma), np.sin(gamma), rows[:, 5:]])
 
 
-NO_SCENE = kernel.Scene(np.zeros(3), np.ones(1), *(np.zeros((0, 0, 0)),) * 3, np.zeros(0))
+NO_SCENE = Scene(np.zeros(3), np.ones(1), *(np.zeros((0, 0, 0)),) * 3, np.zeros(0))
 """The kernel's scene when there is no environment."""
 
 
@@ -253,7 +254,7 @@ def interpret(
     *,
     max_segments: int = DEFAULT_MAX_SEGMENTS,
     commands: tuple[Command, ...] | None = None,
-    scene: kernel.Scene | None = None,
+    scene: Scene | None = None,
     steering: SteeringMemo | None = None,
 ) -> Skeleton:
     """Draw a module string with the 3D turtle.
@@ -306,8 +307,9 @@ def interpret(
     [-1.0, 1.0, 0.0]
     """
     return interpret_answering(
-        modules, options, seed, max_segments=max_segments, commands=commands, scene=scene, steering=steering
-    )[0]
+        modules, options, seed, max_segments=max_segments, commands=commands, scene=scene, steering=steering,
+        answers=False,
+    )[0]  # fmt: skip
 
 
 def interpret_answering(
@@ -317,10 +319,12 @@ def interpret_answering(
     *,
     max_segments: int = DEFAULT_MAX_SEGMENTS,
     commands: tuple[Command, ...] | None = None,
-    scene: kernel.Scene | None = None,
+    scene: Scene | None = None,
     steering: SteeringMemo | None = None,
+    answers: bool = True,
 ) -> tuple[Skeleton, Answers]:
-    """:func:`interpret`, and what the pass tells derivation: query states and cut segments (:class:`Answers`)."""
+    """:func:`interpret`, and what the pass tells derivation: query states and cut segments (:class:`Answers`).
+    Without ``answers`` the query states are not kept (:func:`interpret`: the answers go unread)."""
     if isinstance(options, Grammar):
         if commands is None:
             commands = dialects.get(options.dialect).commands
@@ -371,7 +375,7 @@ def interpret_answering(
         np.empty(n_organ, np.int64),
         np.empty(n_organ, np.int64),
     )
-    n_query = int(counts[Op.QUERY])
+    n_query = int(counts[Op.QUERY]) if answers else 0
     query = kernel.QueryArrays(
         np.empty(n_query, np.int64),
         np.empty((n_query, 12)),

@@ -40,8 +40,8 @@ from .interpret import (
     surveyed,
     turtle_config,
 )
-from .kernel import FAR_OUTSIDE
 from .options import TurtleOptions
+from .scene import FAR_OUTSIDE
 from .shadow import shade
 from .steering import ROW, SteeringMemo
 
@@ -60,6 +60,8 @@ _SURVEYED = {int(o) for o in (Op.RANDOM_TURN, Op.FORWARD_STEPS, Op.TROPISM_VECTO
     int(o) for o in Op if o > Op.QUERY
 }
 _NO_ROWS = np.zeros((0, ROW))  # no steerings kept
+_NO_STATES = np.zeros((0, 12))  # no query module listed
+_NO_DEPOSITS = np.zeros((0, 4))  # no plant's shade
 
 
 def asks_turtle(grammar: Grammar, commands: tuple[Command, ...]) -> bool:
@@ -115,9 +117,19 @@ class Answerer:
         # None: unknown; empty: the last pass's string itself, its modules unchanged
         self.origin: np.ndarray | None = None
         self._records = None  # the last pass's string's symbols, and the states it recorded (positions, states)
+        # the arrays passes record in, in turn: the last pass's records, and room for the next pass's (reused, so
+        # a pass writes its records in memory already paged in)
+        self._record_room = [(_WHOLE, np.zeros((0, incremental.STATE))), (_WHOLE, np.zeros((0, incremental.STATE)))]
         self.steering = steering if environment is not None else None  # where its steerings are kept
+        # derivation made the string of the next pass in this step (trace was told): its arrays are its own,
+        # held by no string derivation gave out, so the answers are written into its parameters, not a copy
+        self._fresh = False
+        self._changes = _WHOLE  # where the changes of the one production step since the last pass start (trace)
+        self._cut_room = _WHOLE  # the segments a pass cuts (reused by the passes)
+        self._found = np.zeros(6, np.int64)  # what a pass found, counted
+        self._carried = False  # whether the lean pass carried out the last string (carries_out)
 
-    def _compiled(self, alphabet) -> tuple[SymbolTable, kernel.Program, np.ndarray, bool, tuple]:
+    def _compiled(self, alphabet) -> tuple[SymbolTable, kernel.Program, np.ndarray, bool, tuple, bool, tuple]:
         if self._last is not None and self._last[0] is alphabet:  # no hashing of its 256 names each step
             return self._last[1]
         found = self._tables.get(alphabet)
@@ -142,13 +154,17 @@ class Answerer:
             counted = follow and _counted(g, table, code)
             if counted:
                 self._nesting = _nesting(g, op_of)
-            found = (table, kernel_program(table), recorded, follow, answering(table), counted)
+            recorded_ops = tuple(np.unique(table.op[recorded]).tolist())  # their counts bound the records
+            found = (table, kernel_program(table), recorded, follow, answering(table), counted, recorded_ops)
             self._tables[alphabet] = found
         self._last = (alphabet, found)
         return found
 
     def trace(self, kind, symbols, new_symbols, rewritten, lengths, persisting) -> None:
         """Follow one change derivation made to the string (:data:`lsys3d.lsystem.derive.Trace`)."""
+        first = not self._fresh  # the first change since the last pass
+        self._fresh = True  # (derivation tells of a change as it makes the new string's arrays)
+        self._changes = _WHOLE
         if self.origin is None:
             self._counts = None
             return
@@ -161,9 +177,12 @@ class Answerer:
         else:
             counts = self._counts if self._counts is not None else _NO_COUNTS
             op = self._table.op if self._table is not None else _NO_OPS
+            # one production step from the last pass's string: where its changes start, for the pass to jump to
+            changes = np.empty(np.count_nonzero(rewritten) + 1, np.int64) if first and not len(self.origin) else _WHOLE
             self.origin = incremental.follow_production(
-                self.origin, rewritten, lengths, op, symbols, new_symbols, counts
+                self.origin, rewritten, lengths, op, symbols, new_symbols, counts, changes
             )
+            self._changes = changes
             if self._counts is not None:
                 self._depth += self._nesting
 
@@ -171,16 +190,22 @@ class Answerer:
 
     def __call__(self, modules: ModuleString, step: int = 0) -> ModuleString:
         """The string with its query modules filled and the branches the environment cut removed."""
-        table, program, recorded, follow, answers, counted = self._compiled(modules.alphabet)
+        table, program, recorded, follow, answers, counted, _ = self._compiled(modules.alphabet)
         self._table = table
+        fresh, self._fresh = self._fresh, False
+        changes, self._changes = self._changes, _WHOLE
         arrays = kernel.Modules(modules.symbols, modules.arity, modules.offsets, modules.params)
         if counted and self._counts is not None and self.origin is not None:
             # derivation's changes were counted (trace): the string needs no survey (what it checks, the
-            # rules cannot write: _counted), only its limit
+            # rules cannot write: _counted), only its limit; nor can they write an op the lean pass does not carry
+            # out (they are surveyed ops), so a string it carried out is followed by one it carries out
             counts, max_depth = self._counts, self._depth
             check_segments(int(counts[Op.FORWARD]), self.max_segments)
+            carried = self._carried or incremental.carries_out(counts, self.turtle)
         else:
             counts, max_depth = surveyed(modules, table, program, arrays, self.max_segments)
+            carried = incremental.carries_out(counts, self.turtle)
+        self._carried = carried
         m = len(modules)
         origin, records = self.origin, self._records
         if not follow or counts[Op.RANDOM_TURN] or origin is None or records is None:
@@ -199,7 +224,7 @@ class Answerer:
             variation = self._unvaried
         args = (modules, table, program, arrays, max_depth, variation, recorded, counts)
         steering, steerings = self.steering, None
-        if not incremental.carries_out(counts, self.turtle):  # the turtle that draws them answers
+        if not carried:  # the turtle that draws them answers
             follow = False
             found = self._full_pass(modules)
             if steering is not None:
@@ -207,11 +232,11 @@ class Answerer:
         else:
             if steering is not None and (not len(origin) or steering.full):
                 steering.reset(self.scene)  # a pass over the whole string: it steers every segment again
-            found = self._pass(*args, origin, records)
+            found = self._pass(*args, origin, records, fresh, changes if len(origin) else _WHOLE)
             if found is None:  # a change the records cannot follow: the whole string
                 if steering is not None:
                     steering.reset(self.scene)
-                found = self._pass(*args, _WHOLE, None)
+                found = self._pass(*args, _WHOLE, None, fresh, _WHOLE)
             steerings, found = found[-1], found[:-1]
         query_module, query_state, cut, positions, states, deposits, answered = found
         out, origin = _written(
@@ -253,21 +278,36 @@ class Answerer:
             self._asked = (table, bool((first[table.op == Op.QUERY] < 0).any()))
         return self._asked[1]
 
-    def _pass(self, modules, table, program, arrays, max_depth, variation, recorded, counts, origin, records):
+    def _pass(
+        self, modules, table, program, arrays, max_depth, variation, recorded, counts, origin, records, fresh, changes
+    ):
         n_query = int(counts[Op.QUERY])
-        # the answers from the turtle's state are written into a copy of the parameters as the pass meets them
-        answered = modules.params.copy() if n_query else _NO_PARAMS
-        first, sign, slots = self._compiled(modules.alphabet)[4]
+        # the answers from the turtle's state are written into the parameters as the pass meets them: into the
+        # string's own when derivation just made them (``fresh``: no other string holds them), else into a copy
+        # (a pass that loses track and one over the whole string after it write the same answers where they read)
+        if fresh and n_query and modules.params.flags.owndata:
+            modules.params.setflags(write=True)
+            answered = modules.params.view()  # (a view that writes: the string's array stays read-only)
+            modules.params.setflags(write=False)
+        else:
+            answered = modules.params.copy() if n_query else _NO_PARAMS
+        compiled = self._compiled(modules.alphabet)
+        first, sign, slots = compiled[4]
         listed = n_query if not len(answered) or self._environment_asked(table, first) else 0  # (only ?E then)
-        query_module = np.empty(listed, np.int64)
-        query_state = np.empty((listed, 12))
-        cut = np.empty(int(counts[Op.FORWARD]) if self.environment is not None else 0, np.int64)
-        n_records = incremental.count_marked(modules.symbols, recorded) + len(cut)  # rewritable modules, cut segments
-        positions = np.empty(n_records, np.int64)
-        states = np.empty((n_records, incremental.STATE))
-        found = np.zeros(6, np.int64)
-        n_area = int(counts[Op.FORWARD] + counts[Op.LEAF]) if self.shading else 0
-        deposits = np.empty((n_area, 4))
+        query_module = np.empty(listed, np.int64) if listed else _WHOLE
+        query_state = np.empty((listed, 12)) if listed else _NO_STATES
+        n_forward = int(counts[Op.FORWARD]) if self.environment is not None else 0
+        if len(self._cut_room) < n_forward:  # (reused: the cut segments found are read before the next pass)
+            self._cut_room = np.empty(max(n_forward, 2 * len(self._cut_room)), np.int64)
+        cut = self._cut_room[:n_forward]
+        # at most: the modules of the ops of the symbols a rule may rewrite, and the cut segments
+        n_records = sum(int(counts[op]) for op in compiled[6]) + n_forward
+        positions, states = self._record_room[1]
+        if len(positions) < n_records:
+            size = max(n_records, 2 * len(positions))
+            positions, states = self._record_room[1] = (np.empty(size, np.int64), np.empty((size, incremental.STATE)))
+        found = self._found
+        deposits = np.empty((int(counts[Op.FORWARD] + counts[Op.LEAF]), 4)) if self.shading else _NO_DEPOSITS
         memo = self.steering
         steerings = memo.room(len(cut)) if memo is not None else None
         remembering = steerings is not None
@@ -290,6 +330,7 @@ class Answerer:
             recorded,
             _NEUTRAL,
             origin,
+            changes,
             old_symbols,
             old_positions,
             old_states,
@@ -316,6 +357,7 @@ class Answerer:
             return None
         if status != kernel.OK:
             raise module_error(modules, table, int(bad), kernel.MESSAGES[status])
+        self._record_room.reverse()  # this pass's records are the last pass's now
         n_query, n_cut, n_rec, n_dep, n_steer, n_at = found.tolist()
         return (
             query_module[:n_query],
@@ -406,7 +448,8 @@ def _written(
                 params[offsets[has] + slot] = values[has, slot]
     symbols, arity_all = modules.symbols, modules.arity
     if not len(cut):
-        out = modules if params is modules.params else modules.with_params(params)
+        same = params is modules.params or params.base is modules.params  # (answered in the string's own)
+        out = modules if same else modules.with_params(params)
         return out, _WHOLE
     keep = cut_mask(table.op[symbols] == Op.PUSH, table.op[symbols] == Op.POP, cut)
     bud = environment.options.bud if environment is not None else ""

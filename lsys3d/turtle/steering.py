@@ -1,6 +1,6 @@
 """The environment's steering of each segment, remembered by the turtle that answers derivation for the one that draws.
 
-With an environment, every segment is steered by the scene (:func:`lsys3d.turtle.kernel._steer`: adhesion,
+With an environment, every segment is steered by the scene (:func:`lsys3d.turtle.scene._steer`: adhesion,
 climbing, deflection, cuts) twice: by the lean pass that answers derivation between its steps
 (:mod:`lsys3d.turtle.incremental`) and again by the turtle that draws the last string
 (:func:`lsys3d.turtle.kernel.run`).  The lean pass writes each steering it makes as a row of
@@ -27,6 +27,10 @@ import math
 from collections import namedtuple
 
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from ..compiling import inner
 
@@ -36,6 +40,9 @@ IN = 14
 """Numbers that go into a steering: position, H, L, U, the segment's length, whether the branch hangs."""
 ROW = IN + 11
 """Numbers in a row: :data:`IN`, then H, L, U after steering, cut (1.0/0.0) and hanging after it."""
+AHEAD = 8
+"""How many segments ahead :func:`recall` asks the CPU to fetch a row (the rows are met out of their order:
+each fetched while the turtle draws the segments before it)."""
 MAX_ROWS = 1_000_000
 """The most rows a memo keeps (200 MB); past that it forgets them and the drawing turtle steers again."""
 
@@ -55,6 +62,30 @@ def _same(a, b):
     return a == b and (a != 0.0 or math.copysign(1.0, a) == math.copysign(1.0, b))
 
 
+@intrinsic
+def _prefetch(typingctx, rows, r, c):
+    """Ask the CPU to bring ``rows[r, c]`` (a 2D array's) into its caches: LLVM's ``llvm.prefetch`` (read,
+    high locality), a hint that changes no result."""
+    if not (isinstance(rows, types.Array) and rows.ndim == 2 and isinstance(r, types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        array_type = signature.args[0]
+        array = context.make_array(array_type)(context, builder, args[0])
+        row = context.cast(builder, args[1], signature.args[1], types.intp)
+        column = context.cast(builder, args[2], signature.args[2], types.intp)
+        at = cgutils.get_item_pointer(context, builder, array_type, array, [row, column], wraparound=False)
+        byte = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        hint = ir.FunctionType(ir.VoidType(), [byte, i32, i32, i32])
+        prefetch = cgutils.get_or_insert_function(builder.module, hint, "llvm.prefetch.p0")
+        read, near, data = ir.Constant(i32, 0), ir.Constant(i32, 3), ir.Constant(i32, 1)
+        builder.call(prefetch, [builder.bitcast(at, byte), read, near, data])
+        return context.get_dummy_value()
+
+    return types.void(rows, r, c), codegen
+
+
 @inner(inline="always")
 def recall(position, at_row, rows, k, i, px, py, pz, hx, hy, hz, lx, ly, lz, ux, uy, uz, length, hanging):
     """The row of ``rows`` that holds module ``i``'s steering (:data:`Steered`'s arrays) if its inputs are
@@ -62,6 +93,8 @@ def recall(position, at_row, rows, k, i, px, py, pz, hx, hy, hz, lx, ly, lz, ux,
     n = position.shape[0]
     while k < n and position[k] < i:
         k += 1
+    if k + AHEAD < n:  # the row of a segment further on, fetched while this one and those before it are drawn
+        _prefetch(rows, at_row[k + AHEAD], 0)
     if k == n or position[k] != i:
         return -1, k
     r = at_row[k]
@@ -131,13 +164,13 @@ class SteeringMemo:
         return spare[0], spare[1]
 
     def room(self, n: int) -> np.ndarray | None:
-        """:attr:`rows`, with room for ``n`` more, or None when the memo is off.  Grown fourfold, so its rows
+        """:attr:`rows`, with room for ``n`` more, or None when the memo is off.  Grown sixteenfold, so its rows
         are seldom copied (the room no pass writes in is pages never touched)."""
         if self.full or self.count + n > MAX_ROWS:
             self._off()
             return None
         if len(self.rows) < self.count + n:
-            grown = np.empty((min(max(4 * len(self.rows), 2 * (self.count + n), 1024), MAX_ROWS), ROW))
+            grown = np.empty((min(max(16 * len(self.rows), 2 * (self.count + n), 1024), MAX_ROWS), ROW))
             grown[: self.count] = self.rows[: self.count]
             self.rows = grown
         return self.rows

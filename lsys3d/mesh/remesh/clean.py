@@ -103,7 +103,7 @@ def _snap(he, f, k, rules):
     """
     faces, p, flags = he.faces, he.points, he.flags
     g = 3 * f + k
-    t = he.opp[g]
+    t = np.int64(he.opp[g])
     u, w, x = faces[f, k], faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]
     d = _apex(faces, t)
     if x == d or (flags[u] | flags[w] | flags[x] | flags[d]) & LOCKED or flags[x] & FEATURE:
@@ -238,7 +238,8 @@ def clean(he, rules, region, side, own, spawned):
     buf_b = np.empty(_MAX_RING, np.int64)
     lengths = np.empty(3)
     order = np.empty(3, np.int64)
-    queued = np.zeros(fcap, np.bool_)
+    queued = np.empty(fcap, np.bool_)
+    queued[:] = False
     stack = np.empty(fcap, np.int64)
     top = 0
     everywhere = len(region) == 0
@@ -252,7 +253,8 @@ def clean(he, rules, region, side, own, spawned):
             queued[f] = True
             stack[top] = f
             top += 1
-    done = np.zeros(5, np.int64)  # collapses, flips, snaps, fan splits, fallback collapses
+    done = np.empty(5, np.int64)  # collapses, flips, snaps, fan splits, fallback collapses
+    done[:] = 0
     rounds = 0 if everywhere else 3  # a second cleaning of a region does not look everywhere again
     while top > 0 and done[0] + done[1] + done[2] + done[3] + done[4] < rules.max_operations:
         top -= 1
@@ -375,7 +377,8 @@ def _sides(he, axis, cut, width, side, band, near):
     """:func:`halves`' passes: each face's side, the vertices with faces on both, ``width + 1`` rings more."""
     faces, p = he.faces, he.points
     nv, nf = he.counts[0], he.counts[1]
-    reach = np.zeros(nv, np.int64)  # bit s: the vertex has a face of side s (int64: one np.zeros fewer to compile)
+    reach = np.empty(nv, np.int64)  # bit s: the vertex has a face of side s
+    reach[:] = 0
     for f in range(nf):
         if not he.face_alive[f]:
             continue
@@ -387,7 +390,8 @@ def _sides(he, axis, cut, width, side, band, near):
         reach[c] |= 1 << s
     # the distance in edges from a vertex with faces on both sides, up to width + 1: breadth first from those
     far = width + 2
-    dist = np.full(nv, far, np.int64)
+    dist = np.empty(nv, np.int64)
+    dist[:] = far
     queue = np.empty(nv, np.int64)
     top = 0
     for v in range(nv):

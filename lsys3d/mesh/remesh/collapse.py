@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .geometry import _aspect, _aspect_xyz, _cross, _length, _moved_corners, _normal, _normal_xyz
 from .halfedge import (
     FEATURE,
@@ -31,7 +33,7 @@ def _collapse_topology_ok(he, h, buf_a, buf_b):
     a = _org(faces, h)
     b = _dst(faces, h)
     c = _apex(faces, h)
-    d = _apex(faces, he.opp[h])
+    d = _apex(faces, np.int64(he.opp[h]))
     if a == b or c == d or (he.flags[a] | he.flags[b]) & LOCKED or he.flags[a] & PINNED:
         return False
     if _valence(he, c, 3) <= 3 or _valence(he, d, 3) <= 3:
@@ -62,7 +64,7 @@ def _collapse_geometry_ok(he, h, x, y, z, limit):
     faces, p = he.faces, he.points
     a = _org(faces, h)
     b = _dst(faces, h)
-    t = he.opp[h]
+    t = np.int64(he.opp[h])
     worst_old = max(_aspect(p, a, b, _apex(faces, h)), _aspect(p, b, a, _apex(faces, t)))
     worst_new = 0.0
     for end in range(2):
@@ -116,7 +118,7 @@ def _collapse(he, h, x, y, z):
     faces, opp, out = he.faces, he.opp, he.out
     a = _org(faces, h)
     b = _dst(faces, h)
-    t = opp[h]
+    t = np.int64(opp[h])
     f0, f1 = h // 3, t // 3
     h1, h2 = _nxt(h), _prv(h)  # b->c, c->a
     t1, t2 = _nxt(t), _prv(t)  # a->d, d->b
@@ -233,10 +235,10 @@ def _try_collapse(he, h, limit, short, buf_a, buf_b):
         return -1  # two rim vertices, but not along the rim
     tiny = _length(he.points, a, b) < 1e-3 * min(he.scale[a], he.scale[b])
     # a vertex of three neighbours across the edge would be left with two: merge it away first
-    for apex in (_apex(faces, h), _apex(faces, he.opp[h])):
+    for apex in (_apex(faces, h), _apex(faces, np.int64(he.opp[h]))):
         if _valence(he, apex, 3) == 3 and not (he.flags[apex] & LOCKED):
             best, best_length = -1, 1e300
-            g0 = he.out[apex]
+            g0 = np.int64(he.out[apex])
             g = g0
             while True:
                 n = _dst(faces, g)

@@ -22,13 +22,16 @@ def collar(he, width, closeness):
     """
     faces, p = he.faces, he.points
     nv = he.counts[0]
-    reach = np.zeros(nv)  # metres still to go from the best seam vertex
-    span = np.zeros(nv)  # that seam vertex's collar width in metres
+    reach = np.empty(nv)  # metres still to go from the best seam vertex
+    reach[:] = 0.0
+    span = np.empty(nv)  # that seam vertex's collar width in metres
+    span[:] = 0.0
     # the vertices whose reach grew, to go on from (each in the queue at most once): a worklist from the seams
     # instead of sweeps over every face until none changes (a fraction of the work; the same answer but where
     # two paths tie within the 1e-12 below: the first found wins)
     queue = np.empty(max(nv, 1), np.int64)
-    queued = np.zeros(nv, np.bool_)
+    queued = np.empty(nv, np.bool_)
+    queued[:] = False
     head, size = 0, 0
     for v in range(nv):
         if he.vertex_alive[v] and he.out[v] >= 0 and he.flags[v] & SEAM:
@@ -44,11 +47,11 @@ def collar(he, width, closeness):
         queued[u] = False
         if reach[u] <= 0.0:
             continue
-        h0 = he.out[u]
+        h0 = np.int64(he.out[u])
         g = h0
         while True:
             w = _dst(faces, g)
-            left = reach[u] - _length(p, u, w)
+            left = reach[u] - _length(p, np.int32(u), w)  # (int32, as elsewhere: compiled once)
             # the seam whose collar is left the larger share of wins
             if left > 0.0 and (span[w] == 0.0 or left * span[w] > reach[w] * span[u] * (1.0 + 1e-12)):
                 reach[w] = left

@@ -50,7 +50,7 @@ def fair(he, closeness, iterations, step, reach, inward, pool=None):
     in_two(pool, _valences, (he, around, first[1:]), 0, na // 2, na)
     first = np.cumsum(first)
     nbr = np.empty(first[na], np.int64)
-    in_two(pool, _neighbours, (he, around, first, nbr), 0, na // 2, na)
+    in_two(pool, _neighbours, (he.faces, he.out, he.opp, around, first, nbr), 0, na // 2, na)
     p = he.points
     start = p[members]  # where the collar was
     # each vertex moves along its normal before the fairing (the moves are a fraction of a side; recomputing
@@ -59,7 +59,7 @@ def fair(he, closeness, iterations, step, reach, inward, pool=None):
     in_two(pool, _vertex_normals, (he, members, normal), 0, m // 2, m)
     lap = np.zeros((na, 3))
     target = np.zeros((m, 3))
-    moving = (he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target)
+    moving = (p, he.scale, members, slot, first, nbr, lap, normal, start, step, reach, inward, target)
     for _ in range(iterations):
         in_two(pool, _laplacians, (p, around, first, nbr, lap), 0, na // 2, na)
         in_two(pool, _fair_targets, moving, 0, m // 2, m)
@@ -80,7 +80,8 @@ def _fair_setup(he, closeness):
             m += 1
     members = chosen[:m]
     # the collar and its neighbours (where the Laplacian is needed)
-    slot = np.full(nv, -1, np.int64)
+    slot = np.empty(nv, np.int64)
+    slot[:] = -1
     around = np.empty(nv, np.int64)
     na = 0
     for v in members:
@@ -88,7 +89,7 @@ def _fair_setup(he, closeness):
             slot[v] = na
             around[na] = v
             na += 1
-        h0 = he.out[v]
+        h0 = np.int64(he.out[v])
         g = h0
         while True:
             w = _dst(faces, g)
@@ -110,13 +111,14 @@ def _valences(he, around, count, lo, hi):
 
 
 @kernel(nogil=True)
-def _neighbours(he, around, first, nbr, lo, hi):
-    """The neighbours of ``around[lo:hi]`` into ``nbr[first[i]:first[i + 1]]``."""
+def _neighbours(faces, out, opp, around, first, nbr, lo, hi):
+    """The neighbours of ``around[lo:hi]`` into ``nbr[first[i]:first[i + 1]]`` (``faces``, ``out``, ``opp``: the
+    half-edges')."""
     for i in range(lo, hi):
-        g = he.out[around[i]]
+        g = np.int64(out[around[i]])
         for k in range(first[i], first[i + 1]):
-            nbr[k] = _dst(he.faces, g)
-            g = he.opp[_prv(g)]
+            nbr[k] = _dst(faces, g)
+            g = opp[_prv(g)]
 
 
 @kernel(nogil=True)
@@ -144,9 +146,9 @@ def _laplacians(p, around, first, nbr, lap, lo, hi):
 
 
 @kernel(nogil=True)
-def _fair_targets(he, members, slot, first, nbr, lap, normal, start, step, reach, inward, target, lo, hi):
-    """One Jacobi step of :func:`fair`, second pass: where ``members[lo:hi]`` move (into ``target``)."""
-    p = he.points
+def _fair_targets(p, scale, members, slot, first, nbr, lap, normal, start, step, reach, inward, target, lo, hi):
+    """One Jacobi step of :func:`fair`, second pass: where ``members[lo:hi]`` move (into ``target``; ``p`` and
+    ``scale``: the half-edges' points and scale)."""
     for i in range(lo, hi):
         v = members[i]
         j = slot[v]
@@ -171,7 +173,7 @@ def _fair_targets(he, members, slot, first, nbr, lap, normal, start, step, reach
         tz = p[v, 2] - 0.5 * step * along * nz
         ox, oy, oz = tx - start[i, 0], ty - start[i, 1], tz - start[i, 2]
         far = math.sqrt(ox * ox + oy * oy + oz * oz)
-        limit = reach * he.scale[v]
+        limit = reach * scale[v]
         if far > limit:
             tx, ty, tz = (
                 start[i, 0] + ox * limit / far,
@@ -202,7 +204,7 @@ def _fair_finish(he, closeness, members, start):
             v = members[i]
             if p[v, 0] == start[i, 0] and p[v, 1] == start[i, 1] and p[v, 2] == start[i, 2]:
                 continue
-            h0 = he.out[v]
+            h0 = np.int64(he.out[v])
             g = h0
             while True:
                 f = g // 3
@@ -293,14 +295,15 @@ def _give_back_volume(he, closeness, members, start):
     """
     faces, p = he.faces, he.points
     m = len(members)
-    slot = np.full(he.counts[0], -1, np.int64)
+    slot = np.empty(he.counts[0], np.int64)
+    slot[:] = -1
     for i in range(m):
         slot[members[i]] = i
     parent = np.empty(m, np.int64)
     for i in range(m):
         parent[i] = i
     for i in range(m):
-        h0 = he.out[members[i]]
+        h0 = np.int64(he.out[members[i]])
         g = h0
         while True:
             j = slot[_dst(faces, g)]
@@ -325,9 +328,12 @@ def _give_back_volume(he, closeness, members, start):
     for i in range(m):
         v = members[i]
         share[i] = closeness[v] * he.scale[v]
-    gained = np.zeros(m)
-    slope = np.zeros(m)
-    lam = np.zeros(m)
+    gained = np.empty(m)
+    gained[:] = 0.0
+    slope = np.empty(m)
+    slope[:] = 0.0
+    lam = np.empty(m)
+    lam[:] = 0.0
     for i in range(m):  # the volume's slope, at the faired collar (the second step reuses it)
         _, gx, gy, gz = _fan_volume(p, faces, he, members[i])
         slope[root[i]] += share[i] * (gx * normal[i, 0] + gy * normal[i, 1] + gz * normal[i, 2])

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from .geometry import _aspect, _edges_distance, _normal
 from .halfedge import FEATURE, LOCKED, _apex, _dst, _half_edge, _leaf_inner, _nxt, _org, _prv, _valence
 
@@ -17,7 +19,7 @@ def _flip_ok(he, h, tolerance):
     Seam and rim edges are never flipped.
     """
     faces, p = he.faces, he.points
-    t = he.opp[h]
+    t = np.int64(he.opp[h])
     f0, f1 = h // 3, t // 3
     if he.face_part[f0] != he.face_part[f1]:
         return False
@@ -55,7 +57,7 @@ def _flip_ok(he, h, tolerance):
 def _flip(he, h):
     """Flip the edge of half-edge ``h`` (faces ``a b c`` and ``b a d`` become ``c a d`` and ``d b c``)."""
     faces, opp, out = he.faces, he.opp, he.out
-    t = opp[h]
+    t = np.int64(opp[h])
     f0, f1 = h // 3, t // 3
     h1, h2 = _nxt(h), _prv(h)  # b->c, c->a
     t1, t2 = _nxt(t), _prv(t)  # a->d, d->b

@@ -30,6 +30,12 @@ collapsed into it."""
 _MAX_RING = 256  # a vertex with more neighbours than this is left alone
 
 
+# Kernels allocate with np.empty and a fill (``a[:] = 0``), not np.zeros or np.full: numba compiles its np.zeros
+# (with the np.empty and the fill it calls) for each type and each set of its callers' flags, a few hundredths of
+# a CPU second each on a first run, where the np.empty the kernels call is compiled already.  The same bits.
+# The kernels Python calls take the arrays of a HalfEdges they use rather than all of it where they call no helper
+# that takes it: numba makes each a CPython wrapper that unboxes every array passed, for a whole HalfEdges about
+# 0.07 CPU s of a first run's compiling (against a few hundredths for three arrays).
 # The helpers that allocate nothing are compiled without numba's reference counts: with them, a call counted each
 # of the 14 arrays of a HalfEdges up on entry and down on return, atomic operations that numba could not prune
 # around the calls (any of which may raise), a fifth of the cleanup's time on abop-1.24a (measured with perf).
@@ -148,7 +154,8 @@ def in_two(pool, kernel, args: tuple, lo: int, middle: int, hi: int) -> tuple:
 def _leaving(faces, nv, half, head):
     """Fill the half-edges leaving each vertex ``half[start[v]:start[v + 1]]`` and their ends ``head``; start."""
     nf = len(faces)
-    start = np.zeros(nv + 1, np.int64)
+    start = np.empty(nv + 1, np.int64)
+    start[:] = 0
     for f in range(nf):
         for k in range(3):
             start[faces[f, k] + 1] += 1
@@ -255,26 +262,26 @@ def build(
     )
     shares = in_two(pool, lambda lo, hi: {name: make() for name, make in made[lo:hi]}, (), 0, 6, len(made))
     he = HalfEdges(**shares[0], **shares[1], opp=opp, counts=np.array([nv, nf, vcap, fcap], np.int64))
-    in_two(pool, _lock_pinches, (he, np.bincount(org, minlength=nv)), 0, nv // 2, nv)
+    in_two(pool, _lock_pinches, (he.out, he.opp, he.flags, np.bincount(org, minlength=nv)), 0, nv // 2, nv)
     return he
 
 
 @kernel(nogil=True)
-def _lock_pinches(he, incidence, lo, hi):
+def _lock_pinches(out, opp, flags, incidence, lo, hi):
     """Lock each vertex ``lo .. hi - 1`` whose faces are not one fan (two cones touching at a point): a walk
-    around it meets fewer faces than it has (``incidence``)."""
+    around it meets fewer faces than it has (``incidence``).  ``out``, ``opp``, ``flags``: the half-edges'."""
     for v in range(lo, hi):
-        h0 = he.out[v]
+        h0 = out[v]
         n = 0
         if h0 >= 0:
             h = h0
             while True:
                 n += 1
-                h = he.opp[_prv(h)]
+                h = opp[_prv(h)]
                 if h == h0 or n > 100000:
                     break
         if n != incidence[v]:
-            he.flags[v] |= LOCKED
+            flags[v] |= LOCKED
 
 
 def compact(he: HalfEdges, pool=None):
@@ -292,7 +299,8 @@ def compact(he: HalfEdges, pool=None):
     n = len(fa)
     faces, part, source = np.empty((n, 3), np.int64), np.empty(n, np.int64), np.empty(n, np.int64)
     flat = np.empty(n, bool)
-    in_two(pool, _compact_faces, (he, fa, renumber, faces, part, flat, source), 0, n // 2, n)
+    into = (fa, renumber, faces, part, flat, source)
+    in_two(pool, _compact_faces, (he.faces, he.face_part, he.face_flat, he.face_source, *into), 0, n // 2, n)
     origin, flags = he.vertex_origin[keep].astype(np.int64), he.flags[keep].astype(np.int64)
     return he.points[keep], faces, part, flat, source, origin, flags  # int64 whatever the half-edges' index type
 
@@ -307,15 +315,16 @@ def _corners_used(faces, fa, used):
 
 
 @kernel(nogil=True)
-def _compact_faces(he, fa, renumber, faces, part, flat, source, lo, hi):
-    """:func:`compact`'s faces ``fa[lo:hi]``: corners renumbered, part, flatness and source."""
+def _compact_faces(he_faces, he_part, he_flat, he_source, fa, renumber, faces, part, flat, source, lo, hi):
+    """:func:`compact`'s faces ``fa[lo:hi]``: corners renumbered, part, flatness and source (from the
+    half-edges' ``faces``, ``face_part``, ``face_flat`` and ``face_source``)."""
     for i in range(lo, hi):
         f = fa[i]
         for k in range(3):
-            faces[i, k] = renumber[he.faces[f, k]]
-        part[i] = he.face_part[f]
-        flat[i] = he.face_flat[f]
-        source[i] = he.face_source[f]
+            faces[i, k] = renumber[he_faces[f, k]]
+        part[i] = he_part[f]
+        flat[i] = he_flat[f]
+        source[i] = he_source[f]
 
 
 @kernel(nogil=True)
@@ -328,12 +337,14 @@ def cut_caps(faces, part, cap, ncaps):  # pragma: no cover - compiled
     for f in range(len(faces)):
         for k in range(3):
             nv = max(nv, faces[f, k] + 1)
-    near = np.zeros(nv, np.bool_)
+    near = np.empty(nv, np.bool_)
+    near[:] = False
     for f in range(len(faces)):
         if cap[f] >= 0:
             for k in range(3):
                 near[faces[f, k]] = True
-    start = np.zeros(nv + 1, np.int64)
+    start = np.empty(nv + 1, np.int64)
+    start[:] = 0
     for f in range(len(faces)):
         for k in range(3):
             if near[faces[f, k]]:
@@ -348,7 +359,8 @@ def cut_caps(faces, part, cap, ncaps):  # pragma: no cover - compiled
             if near[v]:
                 around[fill[v]] = f
                 fill[v] += 1
-    cut = np.zeros(ncaps, np.bool_)
+    cut = np.empty(ncaps, np.bool_)
+    cut[:] = False
     for f in range(len(faces)):
         if cap[f] < 0 or cut[cap[f]]:
             continue
@@ -391,6 +403,10 @@ def mark(he, nf, part, cap, flat, cut):
                 flags[faces[f, (k + 1) % 3]] |= FEATURE
 
 
+# A half-edge computed (3 f + k, _nxt...) is int64, one read from the arrays (opp, out) int32: those passed on to
+# _nxt, _apex and _dst are made int64 (np.int64(opp[h]), a walk's start np.int64(out[v])), so that each is
+# compiled for one type (a second costs a first run a few hundredths of a CPU second; _prv still takes both:
+# the walks that only count or mark).
 @inner(nogil=True)
 def _nxt(h):
     return h - 2 if h % 3 == 2 else h + 1
@@ -425,7 +441,7 @@ def _apex(faces, h):
 @_inline_inner
 def _ring(he, v, buf):
     """Neighbours of ``v`` into ``buf``; their number, or -1 if more than fit."""
-    h0 = he.out[v]
+    h0 = np.int64(he.out[v])
     h = h0
     n = 0
     while True:
@@ -455,7 +471,7 @@ def _valence(he, v, most=_MAX_RING):
 @_inline_inner
 def _half_edge(he, u, w):
     """The half-edge from ``u`` to ``w``, or -1."""
-    h0 = he.out[u]
+    h0 = np.int64(he.out[u])
     h = h0
     n = 0
     while True:

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ...compiling import kernel
-from .geometry import _cross, _normal
+from .geometry import _cross, _normal_xyz
 from .halfedge import _leaf_inner, in_two
 
 
@@ -80,8 +80,9 @@ def _corner_rows(points, faces, flat, vn, some, out, lo, hi):  # pragma: no cove
 
 @_leaf_inner
 def _unit_normal(p, a, b, c):
-    """Triangle ``a b c``'s unit normal and whether it has area (+Y when it has none)."""
-    nx, ny, nz = _normal(p, a, b, c)
+    """Triangle ``a b c``'s unit normal and whether it has area (+Y when it has none).  (From the coordinates:
+    :func:`~lsys3d.mesh.remesh.geometry._normal` is compiled for the half-edges' int32 corners, these are int64.)"""
+    nx, ny, nz = _normal_xyz(p[a, 0], p[a, 1], p[a, 2], p[b, 0], p[b, 1], p[b, 2], p[c, 0], p[c, 1], p[c, 2])
     n = math.sqrt(nx * nx + ny * ny + nz * nz)
     if n > 0.0:
         return nx / n, ny / n, nz / n, True

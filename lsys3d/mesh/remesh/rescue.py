@@ -20,7 +20,7 @@ from .split import _split_edge
 def _flip_volume(he, h):
     """How far flipping the edge of half-edge ``h`` moves the surface, on average (see :func:`_collapse_volume`)."""
     faces, p = he.faces, he.points
-    a, b, c, d = _org(faces, h), _dst(faces, h), _apex(faces, h), _apex(faces, he.opp[h])
+    a, b, c, d = _org(faces, h), _dst(faces, h), _apex(faces, h), _apex(faces, np.int64(he.opp[h]))
     ex, ey, ez = p[b, 0] - p[a, 0], p[b, 1] - p[a, 1], p[b, 2] - p[a, 2]
     cx, cy, cz = _cross(
         p[c, 0] - p[a, 0], p[c, 1] - p[a, 1], p[c, 2] - p[a, 2], p[d, 0] - p[a, 0], p[d, 1] - p[a, 1], p[d, 2] - p[a, 2]
@@ -109,8 +109,10 @@ def _rescue(he, worst, height, flip, now):
     # whether an operation on it is allowed depend on nothing farther, and a look that changes nothing has no
     # effect, so the result is that of looking at every face every round, at the cost of the changes.
     # ``now``: look at it this round
-    again = np.zeros(len(faces), np.bool_)  # and the next
-    seen = np.zeros(len(p) + 1, np.int64)  # per vertex, the last walk that reached it; the walks' count last
+    again = np.empty(len(faces), np.bool_)  # and the next
+    again[:] = False
+    seen = np.empty(len(p) + 1, np.int64)  # per vertex, the last walk that reached it; the walks' count last
+    seen[:] = 0
     queue = np.empty(_NEAR_QUEUE, np.int64)
     for _ in range(12):
         changed = 0

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ...compiling import inner
 from .halfedge import FEATURE, PINNED, _apex, _dst, _leaf_inner, _nxt, _org, _prv
 
@@ -31,7 +33,7 @@ def _split_edge(he, h, t):
         return -1
     if he.flags[_org(faces, h)] & he.flags[_dst(faces, h)] & PINNED:
         return -1
-    o = opp[h]
+    o = np.int64(opp[h])
     f0, f1 = h // 3, o // 3
     a = _org(faces, h)
     b = _dst(faces, h)

@@ -276,7 +276,8 @@ def _closed_edges(faces, nverts, near, use_near, like):  # pragma: no cover - co
     the sorted reverses (one set maps one to one onto the other).  A vertex's
     list is short; a long one (many triangles at one point) is sorted.
     """
-    start = np.zeros(nverts + 1, np.int64)
+    start = np.empty(nverts + 1, np.int64)  # (np.empty and a fill: see lsys3d.arrays.row_table)
+    start[:] = 0
     for f in range(len(faces)):
         for k in range(3):
             a, b = faces[f, k], faces[f, (k + 1) % 3]

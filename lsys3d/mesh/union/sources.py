@@ -39,7 +39,8 @@ def _far_from_source(vertices, faces, source, points, wedge_point, tube_faces, r
     ``np.linalg.norm`` x, y, z; ``mean`` divides the sum by 3), so the answer
     is the same as the vectorised distance's at every face.
     """
-    out = np.zeros(len(faces), np.bool_)
+    out = np.empty(len(faces), np.bool_)  # (np.empty and a fill: see lsys3d.arrays.row_table)
+    out[:] = False
     p = np.empty(3)
     tri = np.empty((3, 3))
     for f in range(len(faces)):

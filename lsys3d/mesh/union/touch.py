@@ -186,7 +186,8 @@ def _piece_extent(points, ring_first, ring_sides, ring_lo, ring_hi, g0, g1, p, q
     ``p q``) and box, in one pass over the points in place; the arithmetic is numpy's, in its order
     (``np.einsum``'s dot products sum x, z then y; ``np.linalg.norm`` x, y, z), so they are the same bits."""
     n = len(g0)
-    radius = np.zeros(n)
+    radius = np.empty(n)  # (np.empty and a fill: see lsys3d.arrays.row_table)
+    radius[:] = 0.0
     lo = np.empty((n, 3))
     hi = np.empty((n, 3))
     for k in range(n):
