@@ -29,10 +29,11 @@ from pathlib import Path
 
 from numba.core import event
 
-#: What the helper compiles (prefixes of a kernel's module and name): the turtle kernel and the helpers it calls,
-#: the incremental turtle and the derivation's walks.
+#: What the helper compiles (prefixes of a kernel's module and name): the turtle kernel and the helpers it calls
+#: (the scene's steering and probe, the bending), the incremental turtle and the derivation's walks.
 HELPER_OWN = (
     "lsys3d.turtle.kernel",
+    "lsys3d.turtle.scene",
     "lsys3d.turtle.bending",
     "lsys3d.turtle.steering",
     "lsys3d.turtle.incremental",
