@@ -8,14 +8,25 @@ test does not set its own count.
 from __future__ import annotations
 
 import os
+import re
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
 import first_run
 import pytest
 import shared
+import warm_up
 from hypothesis import settings
+
+# Bytecode caches for the suite's own processes, as for any project: with PYTHONDONTWRITEBYTECODE set (as on the
+# machines the suite's times are measured on) pytest rewrote every test module and every lsys3d module it imports
+# (lsys3d is a pytest plugin's package: pytest rewrites its asserts too) in every worker and every inner pytest
+# run (tests/test_golden.py) again, 3 CPU s a worker and 0.8 s a run; pytest reads its cached rewrites whatever
+# the variable says, so the first process to rewrite a module writes it for the others (and the next runs).
+# _byte_compile() below does the same for the plain imports of the lsys3d children the tests start.
+sys.dont_write_bytecode = False
 
 settings.register_profile("default", derandomize=True, print_blob=True)
 settings.register_profile("fuzz", derandomize=False, max_examples=2000, print_blob=True)
@@ -34,7 +45,8 @@ def pytest_sessionstart(session):
     machine code).  The default tree (a species: form, leaves) and the textbook tree3d take the paths most tests
     take, a polygon the turtle's rare ops (its kernel's second compilation), and tree3d is written as .glb and
     .usdc (the writers' kernels); warm, this costs about three seconds.  The two trees are shared with the
-    workers (tests/shared.py), which would otherwise each grow them again.
+    workers (tests/shared.py), which would otherwise each grow them again.  (tests/warm_up.py; from an empty cache
+    it splits what is left after the first run between this process and a helper process.)
 
     From an empty cache (a fresh clone, CI) the compiling starts with a user's first run, ``lsys3d generate``
     in a child process (tests/first_run.py): it compiles the default tree's kernels into the suite's cache
@@ -53,6 +65,7 @@ def pytest_sessionstart(session):
         run = tempfile.mkdtemp(prefix="lsys3d-tests-")
         os.environ[shared.SHARED] = run
         session.config.add_cleanup(lambda: shutil.rmtree(run, ignore_errors=True))
+    _byte_compile()
     folder = None
     if first_run.cache_is_empty():
         # a fresh clone: the first compiling is a user's first run, done once for real (tests/first_run.py)
@@ -62,25 +75,27 @@ def pytest_sessionstart(session):
     result = yield  # pytest-xdist starts the workers
     if folder is not None:
         first_run.run(folder)
-    _warm_up()
+    warm_up.warm_up(cold=folder is not None)
     return result
 
 
-def _warm_up() -> None:
-    """The default tree and tree3d grown (and shared), a polygon drawn, tree3d written as .glb and .usdc."""
-    from grown import grown
+def _byte_compile() -> None:
+    """lsys3d's modules (and the tests' helper modules) byte-compiled into their ``__pycache__``, where numba
+    keeps the kernels, before the workers start, unless they are already.
 
-    import lsys3d
-    from lsys3d.turtle import interpret
+    With ``PYTHONDONTWRITEBYTECODE`` set (as on the machines the suite's times are measured on) Python never
+    writes them, so every process compiled the modules it imports from their source: each worker, and each of
+    the hundreds of ``python -m lsys3d`` and ``python -c`` children the tests start (0.2-0.3 CPU s each for
+    the pipeline's modules).  Python reads a ``.pyc`` whatever that variable says; this writes them once
+    (compileall, in well under a second; a file already compiled is skipped).
+    """
+    import compileall
+    import importlib.util
 
-    for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
-        grown(preset)  # and left for the workers' tests of these presets
-    # the turtle kernel's other compilation, for strings with its rare ops (lsys3d.turtle.kernel.RARE_OPS: a polygon)
-    polygon = lsys3d.Grammar(axiom="F{.f+f+f+f}F")
-    interpret(polygon.axiom_modules, polygon)
-    with tempfile.TemporaryDirectory(prefix="lsys3d-precompile-") as scratch:
-        for suffix in (".glb", ".usdc"):  # the writers' kernels, which most CLI tests' subprocesses call
-            lsys3d.export(grown("tree3d"), os.path.join(scratch, f"tree3d{suffix}"))
+    package = importlib.util.find_spec("lsys3d").submodule_search_locations[0]
+    not_imported = re.compile(r"(^|[/\\])(test_[^/\\]*|conftest)\.py$")  # pytest rewrites those (assertions)
+    for folder in (package, os.path.dirname(__file__)):
+        compileall.compile_dir(folder, quiet=1, rx=not_imported)
 
 
 def pytest_collection_modifyitems(session, config, items):

@@ -2,6 +2,9 @@
 // Usage: node tools/gltf_validate.mjs FILE
 // Prints the validator's report as JSON on stdout; exit 0 when the file was validated (whatever it found),
 // 2 when it could not be read, the validator rejected it or is not installed (run `npm ci` first).
+// node tools/gltf_validate.mjs --serve: one file name a line on stdin (a JSON string), one line of JSON back for
+// each ({"report": ...} or {"error": "..."}), until stdin ends: tests/validators.py keeps one such process, so
+// the suite's hundred files pay node's start and the validator's warm-up once.
 // tests/validators.py reads the report.
 import { readFile } from 'node:fs/promises';
 import { createRequire } from 'node:module';
@@ -21,16 +24,11 @@ try {
   process.exit(2);
 }
 
-const file = process.argv[2];
-if (!file) {
-  console.error('usage: node tools/gltf_validate.mjs FILE.glb|FILE.gltf');
-  process.exit(2);
-}
-const full = path.resolve(file);
-try {
+async function validate(file) {
+  const full = path.resolve(file);
   const bytes = new Uint8Array(await readFile(full));
   const ext = path.extname(full).toLowerCase();
-  const report = await validator.validateBytes(bytes, {
+  return validator.validateBytes(bytes, {
     uri: path.basename(full),
     format: ext === '.glb' ? 'glb' : 'gltf',
     maxIssues: 0, // no limit
@@ -38,8 +36,31 @@ try {
     externalResourceFunction: async (uri) =>
       new Uint8Array(await readFile(path.resolve(path.dirname(full), decodeURIComponent(uri)))),
   });
-  process.stdout.write(JSON.stringify(report) + '\n');
-} catch (err) {
-  console.error(`${file}: ${err}`);
+}
+
+const file = process.argv[2];
+if (!file) {
+  console.error('usage: node tools/gltf_validate.mjs FILE.glb|FILE.gltf (or --serve)');
   process.exit(2);
+}
+if (file === '--serve') {
+  const { createInterface } = await import('node:readline');
+  for await (const line of createInterface({ input: process.stdin, crlfDelay: Infinity })) {
+    let name = line;
+    let answer;
+    try {
+      name = JSON.parse(line);
+      answer = { report: await validate(name) };
+    } catch (err) {
+      answer = { error: `${name}: ${err}` };
+    }
+    process.stdout.write(JSON.stringify(answer) + '\n');
+  }
+} else {
+  try {
+    process.stdout.write(JSON.stringify(await validate(file)) + '\n');
+  } catch (err) {
+    console.error(`${file}: ${err}`);
+    process.exit(2);
+  }
 }
