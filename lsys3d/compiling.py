@@ -281,7 +281,8 @@ def help_ahead(own: tuple[str, ...], run: Callable[[], None], spares: Sequence[S
 
 class Helper:
     """A process compiling the kernels of the modules ``own`` into numba's cache (see :func:`ahead`), and the
-    groups of ``spares`` it claims first (``claims``: the folder of the files whose creation claims them)."""
+    groups of ``spares`` it claims first (``claims``: the folder of the files whose creation claims them);
+    ``path``: folders put before this lsys3d on its ``PYTHONPATH`` (for a ``module`` outside lsys3d)."""
 
     def __init__(
         self,
@@ -290,6 +291,7 @@ class Helper:
         spares: Sequence[Spare] = (),
         claims: str | None = None,
         main_only: Callable[[], None] | None = None,
+        path: Sequence[str] = (),
     ):
         self.module = module
         self.own = tuple(own)
@@ -297,7 +299,7 @@ class Helper:
         self._mine: dict[int, bool] = {}  # the spare groups claimed so far: by this process (True) or the helper
         self._idled = False
         root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # this lsys3d, not another install's
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([*path, root, *filter(None, [os.environ.get("PYTHONPATH")])]))
         env.pop(_CLAIMS, None)
         if spares and claims:
             env[_CLAIMS] = claims
@@ -400,12 +402,14 @@ def ahead(
     entries: Iterable[CPUDispatcher],
     spares: Sequence[Spare] = (),
     main_only: Callable[[], None] | None = None,
+    path: Sequence[str] = (),
 ) -> Iterator[Helper | None]:
     """While the block runs, compile the kernels of the modules ``own`` in a helper process, ``python -m
     module``, if any of ``entries`` (the kernels it calls first) has no cached code: on a first run only.
     Each group of ``spares`` goes to whichever process is idle first (:class:`Spare`; the helper's module
     calls :func:`help_ahead` with the same ones, in the same order); ``main_only`` is what this process
-    compiles while it waits for the helper (kernels that call ones it compiles before).
+    compiles while it waits for the helper (kernels that call ones it compiles before); ``path``: folders the
+    helper's module needs on its ``PYTHONPATH`` besides this lsys3d (one outside the package, e.g. the tests').
 
     Yields the :class:`Helper`, or None when everything is cached.  The block must call :func:`wait` before
     it calls into those modules; should it compile one of their kernels first, it waits for the helper
@@ -417,7 +421,7 @@ def ahead(
         return
     folder = tempfile.mkdtemp(prefix="lsys3d-compiling-") if spares else None
     try:
-        helper = Helper(module, own, spares, folder, main_only)
+        helper = Helper(module, own, spares, folder, main_only, path)
     except OSError as exc:  # no process to be had: this one compiles everything, as without a helper
         log.debug("compiling: no helper %s: %s", module, exc)
         if folder:

@@ -15,19 +15,16 @@ and grows the species of :data:`MAIN_PRESETS` (trees the headroom test of tests/
 species tests would grow anyway, now grown on a core that would idle).  The helper compiles only the kernels
 of :data:`HELPER_OWN` (``compiling.only`` stops it at any other: it then fails, and what it did not compile is
 compiled where it is needed); this process waits for the helper before compiling one of those (a gate on
-numba's compile event), so no kernel is compiled by both at once.
+numba's compile event), so no kernel is compiled by both at once: the first run's machinery,
+:func:`lsys3d.compiling.ahead` with this file as the helper's module.
 """
 
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
-
-from numba.core import event
 
 #: What the helper compiles (prefixes of a kernel's module and name): the turtle kernel and the helpers it calls
 #: (the scene's steering and probe, the bending), the incremental turtle and the derivation's walks.
@@ -94,6 +91,7 @@ def warm_up(cold: bool) -> None:
     from grown import grown
 
     import lsys3d
+    from lsys3d import compiling
 
     if not (cold and os.environ.get(shared.SHARED)):
         for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
@@ -101,60 +99,24 @@ def warm_up(cold: bool) -> None:
         _polygon()
         _write_tree3d()
         return
-    root = str(Path(lsys3d.__file__).resolve().parent.parent)  # this lsys3d, not another install's
-    path = os.pathsep.join([str(Path(__file__).resolve().parent), root, *filter(None, [os.environ.get("PYTHONPATH")])])
-    with tempfile.TemporaryFile() as err:
-        helper = subprocess.Popen(
-            [sys.executable, "-m", "warm_up"],
-            env=dict(os.environ, PYTHONPATH=path),
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL,
-            stderr=err,
-        )
-        gate = _Gate(helper)
-        event.register("numba:compile", gate)
-        try:
-            for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
-                grown(preset)
-            _write_tree3d()
-            for preset in MAIN_PRESETS:
-                grown(preset)
-        except BaseException:
-            helper.kill()
-            raise
-        finally:
-            event.unregister("numba:compile", gate)
-            helper.wait()
-        if helper.returncode:  # what it did not compile is compiled where the tests need it
-            err.seek(0)
-            tail = err.read().decode(errors="replace").strip().splitlines()[-1:] or [""]
-            sys.stderr.write(f"tests/warm_up.py: the helper failed ({helper.returncode}): {tail[0]}\n")
+    from lsys3d.turtle.incremental import answer_pass
 
-
-class _Gate(event.Listener):
-    """In this process, while the helper runs: before compiling one of the helper's kernels, wait for it."""
-
-    def __init__(self, helper: subprocess.Popen):
-        self.helper = helper
-
-    def on_start(self, ev: event.Event) -> None:
-        d = ev.data["dispatcher"]
-        if f"{d.py_func.__module__}.{d.py_func.__qualname__}".startswith(HELPER_OWN) and self.helper.poll() is None:
-            start = time.perf_counter()
-            self.helper.wait()
-            sys.stderr.write(f"tests/warm_up.py: waited {time.perf_counter() - start:.1f} s for the helper\n")
-
-    def on_end(self, ev: event.Event) -> None:
-        pass
+    here = str(Path(__file__).resolve().parent)  # (the helper's module, warm_up, is this file)
+    with compiling.ahead("warm_up", HELPER_OWN, (answer_pass,), path=(here,)) as helper:
+        for preset in (lsys3d.DEFAULT_PRESET, "tree3d"):
+            grown(preset)
+        _write_tree3d()
+        for preset in MAIN_PRESETS:
+            grown(preset)
+    if helper is not None and helper.returncode:  # what it did not compile is compiled where the tests need it
+        sys.stderr.write(f"tests/warm_up.py: the helper failed ({helper.returncode})\n")
 
 
 def _helper() -> None:
     """The helper process: the polygon and the query, compiling no kernel outside :data:`HELPER_OWN`."""
     from lsys3d import compiling
 
-    with compiling.seldom_collected(), compiling.only(HELPER_OWN):
-        _polygon()
-        _query()
+    compiling.help_ahead(HELPER_OWN, lambda: (_polygon(), _query()))
 
 
 if __name__ == "__main__":
