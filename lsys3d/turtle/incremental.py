@@ -204,6 +204,21 @@ def _neutral_range(op, neutral, old_symbols, a, b):
 
 
 @inner()
+def _carry(old_at, old_rows, k, count, lo, hi, shift, at, rows, n):
+    """The last pass's entries at old modules ``lo:hi`` (``old_at[:count]``, sorted, from ``k`` on) carried into
+    ``at`` and ``rows`` from ``n`` on, their modules moved by ``shift``: where the copies' records and steerings
+    are in the new string.  Returns where the next search starts and the new ``n``."""
+    while k < count and old_at[k] < lo:
+        k += 1
+    while k < count and old_at[k] < hi:
+        at[n] = old_at[k] + shift
+        rows[n] = old_rows[k]
+        n += 1
+        k += 1
+    return k, n
+
+
+@inner()
 def _find(positions, count, j):
     """The row of ``positions[:count]`` (sorted) that holds ``j``, or -1."""
     k = search_left(positions[:count], j)
@@ -403,36 +418,27 @@ def answer_pass(
             if not change or i == resynced:
                 first = i
                 if recorded[sym]:
-                    while old_row < old_count and old_positions[old_row] < o:
-                        old_row += 1
-                    if old_row < old_count and old_positions[old_row] == o:
-                        positions[n_rec] = i
-                        states[n_rec] = old_states[old_row]
-                        n_rec += 1
+                    old_row, n_rec = _carry(
+                        old_positions, old_states, old_row, old_count, o, o + 1, first - o, positions, states, n_rec
+                    )
                 i += 1
                 if jumping:  # the copies up to the next change (changes): their records are the last pass's
                     while next_change < changes.shape[0] - 1 and changes[next_change] <= first:
                         next_change += 1
                     end = changes[next_change]
-                    while old_row < old_count and old_positions[old_row] <= o:
-                        old_row += 1
-                    while old_row < old_count and old_positions[old_row] < o + (end - first):
-                        positions[n_rec] = old_positions[old_row] - o + first
-                        states[n_rec] = old_states[old_row]
-                        n_rec += 1
-                        old_row += 1
+                    old_row, n_rec = _carry(
+                        old_positions, old_states, old_row, old_count, o + 1, o + (end - first), first - o, positions,
+                        states, n_rec,
+                    )  # fmt: skip
                     i = end
                 # the copies after it that keep their order and have no record: nothing to do (most of the string)
                 while i < m and origin[i] == origin[i - 1] + 1 and not recorded[symbols[i]]:
                     i += 1
                 if remembering:  # the steerings of the copies' segments: where the last pass found them
-                    while old_steer < old_steered_at.shape[0] and old_steered_at[old_steer] < o:
-                        old_steer += 1
-                    while old_steer < old_steered_at.shape[0] and old_steered_at[old_steer] < o + (i - first):
-                        steered_at[n_at] = old_steered_at[old_steer] - o + first
-                        steered_row[n_at] = old_steered_row[old_steer]
-                        n_at += 1
-                        old_steer += 1
+                    old_steer, n_at = _carry(
+                        old_steered_at, old_steered_row, old_steer, old_steered_at.shape[0], o, o + (i - first),
+                        first - o, steered_at, steered_row, n_at,
+                    )  # fmt: skip
                 continue
             if i == 0:
                 start = -1
