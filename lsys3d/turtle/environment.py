@@ -471,17 +471,23 @@ def _signed_distance(meshes: tuple[SceneMesh, ...], origin, cell, shape, band: f
     nodes = np.stack(np.meshgrid(*[np.arange(n) for n in shape], indexing="ij"), -1).reshape(-1, 3)
     points = origin + nodes * cell
     samples, owner = _surface_points(mesh, 0.5 * cell)
-    tree = cKDTree(samples)
-    distance, _ = tree.query(points, k=1, distance_upper_bound=most, workers=-1)
+    # the nearest sample's distance is the same whatever the tree's shape; this one answers the grid's many
+    # queries that find nothing within ``most`` in about half the time of the default (topiary, ivy-wall)
+    bound = cKDTree(samples, leafsize=64, balanced_tree=False, compact_nodes=False)
+    distance, _ = bound.query(points, k=1, distance_upper_bound=most, workers=-1)
     distance = np.minimum(distance, most)
     near = np.flatnonzero(distance <= band)
     if len(near):
-        _, idx = tree.query(points[near], k=4, workers=-1)
-        candidates = owner[idx]  # (k, 4) triangles
-        pts = np.repeat(points[near], candidates.shape[1], axis=0)
-        closest = trimesh.triangles.closest_point(mesh.triangles[candidates.reshape(-1)], pts)
-        exact = np.linalg.norm(closest - pts, axis=1).reshape(candidates.shape).min(axis=1)
-        distance[near] = exact
+        _, idx = cKDTree(samples).query(points[near], k=4, workers=-1)
+        candidates = np.sort(owner[idx], axis=1)  # (k, 4) triangles
+        # each (node, triangle) pair once: the nearest samples often lie on one triangle
+        first = np.ones(candidates.shape, bool)
+        first[:, 1:] = candidates[:, 1:] != candidates[:, :-1]
+        row = np.broadcast_to(near[:, None], candidates.shape)[first]
+        closest = trimesh.triangles.closest_point(mesh.triangles[candidates[first]], points[row])
+        gap = np.full(candidates.shape, np.inf)
+        gap[first] = np.linalg.norm(closest - points[row], axis=1)
+        distance[near] = gap.min(axis=1)
     if closed:
         inside = mesh.contains(points)
         distance = np.where(inside, -distance, distance)
