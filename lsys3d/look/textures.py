@@ -181,16 +181,10 @@ class _Grid:
         y = (self.v + warp_v) * nv + np.zeros((1, self.n))
         ix, iy = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
         fx, fy = x - ix, y - iy
-        f1 = np.full(x.shape, np.inf)
-        f2 = np.full(x.shape, np.inf)
-        cell = np.zeros(x.shape, np.int64)
-        du = np.zeros(x.shape)
-        dv = np.zeros(x.shape)
-        # the neighbours' columns and rows (wrapped) once, then each of the 9 cells updates the nearest two in place
-        columns = _wrapped(ix, nu)
-        rows = {dy: r * nu for dy, r in _wrapped(iy, nv).items()}
-        index = np.empty(x.shape, np.int64)
-        closer = np.empty(x.shape, bool)
+        f1, f2 = np.full(x.shape, np.inf), np.full(x.shape, np.inf)
+        cell, index, closer = np.zeros(x.shape, np.int64), np.empty(x.shape, np.int64), np.empty(x.shape, bool)
+        du, dv = np.zeros(x.shape), np.zeros(x.shape)
+        columns, rows = _wrapped(ix, nu), {dy: r * nu for dy, r in _wrapped(iy, nv).items()}  # then updated in place
         for dy in (-1, 0, 1):
             for dx in (-1, 0, 1):
                 np.add(rows[dy], columns[dx], out=index)
@@ -199,11 +193,8 @@ class _Grid:
                 d = np.hypot(ox, oy)
                 np.less(d, f1, out=closer)
                 np.minimum(f2, d, out=f2)
-                np.copyto(f2, f1, where=closer)
-                np.copyto(f1, d, where=closer)
-                np.copyto(cell, index, where=closer)
-                np.copyto(du, ox, where=closer)
-                np.copyto(dv, oy, where=closer)
+                for field, new in ((f2, f1), (f1, d), (cell, index), (du, ox), (dv, oy)):  # f2 before f1 changes
+                    np.copyto(field, new, where=closer)
         return f1, f2, cell, du, dv
 
 
@@ -237,11 +228,7 @@ def _smoothstep(a: float, b: float, x):
 def _mix(a, b, t):
     """``a`` to ``b`` (colours ``(3,)``) by ``t`` ``(n, n)``: ``(n, n, 3)``."""
     t = np.asarray(t)[..., None]
-    out, more = np.asarray(a) * (1.0 - t), np.asarray(b) * t
-    if out.shape != more.shape:
-        return out + more
-    out += more  # in place: one array of (n, n, 3) fewer
-    return out
+    return np.asarray(a) * (1.0 - t) + np.asarray(b) * t
 
 
 def _count(tile_size: float, feature: float, least: int = 1) -> int:
@@ -1091,10 +1078,9 @@ def normal_map(height: np.ndarray, relief: float) -> np.ndarray:
 
 
 def _image(name: str, pixels: np.ndarray) -> Image:
-    # what check_image would read back from these bytes (png_bytes' own form), without inflating them again
-    height, width = pixels.shape[:2]
-    alpha = pixels.ndim == 3 and pixels.shape[2] in (2, 4)
-    return Image(name, png_bytes(pixels, _PNG_LEVEL), "image/png", width, height, alpha, "procedural")
+    alpha = pixels.ndim == 3 and pixels.shape[2] in (2, 4)  # as check_image reads png_bytes' bytes, not inflated
+    h, w = pixels.shape[:2]
+    return Image(name, png_bytes(pixels, _PNG_LEVEL), "image/png", w, h, alpha, "procedural")
 
 
 def _key(kind: str, seed: int, resolution: int, colors, tile_size) -> str:
