@@ -98,6 +98,11 @@ SUBSTITUTIONS = {
         "ivy-wall -n 20 --scene -o ivy.glb",
         "the ivy's 90 generations cost 10 CPU s (30: 1.9 warm); --scene writes the wall beside it at 20 (0.6 s)",
     ),
+    "batch jobs.toml -o library/": (
+        "batch jobs.toml -o library/ --workers 1",
+        "one worker process grows the jobs file's four small jobs as one per core does (the same files, manifest "
+        "and library.usda) for 1.5 CPU s less: a second worker's start; tests/test_batch.py runs two workers",
+    ),
     "generate tree -o tree.usda": (
         "generate tree -n 3 -o tree.usda",
         "the flat tree's union takes 5-6 s at its own 5 generations; the flags are the point",
