@@ -138,7 +138,9 @@ test, so the entry goes the day the command works."""
 
 FILES = {
     "my_plant.toml": 'axiom = "A"\nangle = 30\niterations = 3\nrules = ["A -> F[+A][-A]FA"]\n',
-    "my_oak.toml": 'axiom = "A"\nangle = 25\niterations = 4\nrules = ["A -> F[&A]/[&A]/[&A]"]\n',
+    # two branches a node: docs/golden.md records, checks and updates it at 6 generations (64 tips, 0.08 CPU s
+    # for each of the three; three branches, 729 tips: 0.75)
+    "my_oak.toml": 'axiom = "A"\nangle = 25\niterations = 4\nrules = ["A -> F[&A]/[&A]"]\n',
     "jobs.toml": (
         '[defaults]\nformats = ["glb", "usdc"]\n\n'
         '[[jobs]]\ngrammar = "tree3d"\nseeds = "0-1"\noptions = { iterations = 3 }\n\n'
