@@ -17,7 +17,6 @@ from validators import REPO, gltf_issues, validate_gltf
 
 from lsys3d.lsystem.presets import preset_text
 
-
 #: tree3d at 4 generations, typed down to 3 in the page: every edit regrows and unions it in the server's
 #: workers, and the page's checks (fewer triangles, soup then union, errors, sliders, views, levels of detail,
 #: export, save and reload) read the same at 4 as at the preset's 6, for a seventh of the CPU per growth
