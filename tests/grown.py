@@ -20,4 +20,11 @@ def grown(name: str):
 
 def species() -> list[str]:
     """The bundled presets of the group ``species``, sorted."""
-    return [name for name in lsys3d.list_presets() if preset_info(name).group == "species"]
+    return list(_species())
+
+
+@functools.cache
+def _species() -> tuple[str, ...]:
+    # (read once per process: the parametrize lists of three test modules ask while pytest collects, and each
+    # preset's group means loading the whole preset)
+    return tuple(name for name in lsys3d.list_presets() if preset_info(name).group == "species")

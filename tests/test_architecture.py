@@ -10,11 +10,13 @@
 from __future__ import annotations
 
 import ast
+import functools
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from shared import shared
 
 PACKAGE = Path(__file__).resolve().parents[1] / "lsys3d"
 
@@ -117,13 +119,16 @@ def _imports(module: str) -> tuple[list[tuple[str, int]], list[tuple[str, int]]]
 
     Imports under ``if TYPE_CHECKING:`` are left out: they never run.
     """
-    tree = ast.parse(MODULES[module].read_text(encoding="utf-8"))
+    text = MODULES[module].read_text(encoding="utf-8")
+    tree = ast.parse(text)
+    # an import is a statement: only a call of import_module hides in an expression (most of a module's nodes)
+    statements_only = "import_module" not in text
     top: list[tuple[str, int]] = []
     late: list[tuple[str, int]] = []
 
     def walk(node: ast.AST, in_function: bool) -> None:
         for child in ast.iter_child_nodes(node):
-            if _type_checking(child):
+            if _type_checking(child) or (statements_only and isinstance(child, ast.expr)):
                 continue
             inside = in_function or isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda)
             if isinstance(child, ast.Import | ast.ImportFrom):
@@ -140,7 +145,11 @@ def _imports(module: str) -> tuple[list[tuple[str, int]], list[tuple[str, int]]]
     return top, late
 
 
-IMPORTS = {m: _imports(m) for m in MODULES}
+@functools.cache
+def _all_imports() -> dict[str, tuple[list[tuple[str, int]], list[tuple[str, int]]]]:
+    """:func:`_imports` of every module, read when a test first asks (not while pytest collects the suite, in
+    every worker), once in the run (tests/shared.py)."""
+    return shared("architecture-imports", lambda: {m: _imports(m) for m in MODULES})
 
 
 def _existing(name: str) -> str:
@@ -175,7 +184,7 @@ def test_every_module_has_a_stage():
 def test_no_module_imports_a_later_stage(module):
     mine = _stage(module)
     wrong = []
-    for target, line in IMPORTS[module][0]:
+    for target, line in _all_imports()[module][0]:
         target = _existing(target)
         theirs = _stage(target)
         if mine == -1 and theirs != -1:
@@ -189,7 +198,7 @@ def _graph() -> dict[str, set[str]]:
     """Module-level import edges.  Importing ``a.b.c`` first runs the packages ``a`` and ``a.b``: an import
     depends on those packages too, unless they already enclose the importer (then they are running already)."""
     graph: dict[str, set[str]] = {m: set() for m in MODULES}
-    for module, (top, _) in IMPORTS.items():
+    for module, (top, _) in _all_imports().items():
         enclosing = {module.rsplit(".", k)[0] for k in range(module.count(".") + 1)}
         for target, _line in top:
             target = _existing(target)
@@ -261,7 +270,7 @@ def test_no_import_cycle():
 def test_few_imports_inside_functions():
     late = [
         f"{MODULES[m].relative_to(PACKAGE.parent)}:{line} {target}"
-        for m, (_, inside) in sorted(IMPORTS.items())
+        for m, (_, inside) in sorted(_all_imports().items())
         if m not in ENTRY_POINTS
         for target, line in inside
     ]
@@ -269,7 +278,7 @@ def test_few_imports_inside_functions():
 
 
 def test_the_import_reader_sees_late_imports():
-    top, inside = IMPORTS["lsys3d.cli"]
+    top, inside = _all_imports()["lsys3d.cli"]
     assert any(t.startswith("lsys3d.") for t, _ in top)
     assert any(t.startswith("lsys3d.") for t, _ in inside)  # the subcommands' modules, loaded when they run
 

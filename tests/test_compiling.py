@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ast
+import functools
 import importlib
 import json
 import os
@@ -10,12 +11,14 @@ import pkgutil
 import re
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import first_run
 import numba
 import numpy as np
 import pytest
+from shared import shared
 
 from lsys3d import compiling
 
@@ -193,60 +196,13 @@ def test_the_main_process_waits_for_the_helper_before_compiling_a_spare_kernel_t
     assert log == []  # no idling: the helper had ended
 
 
-_SPARE_SIGNATURES = """
+_DEFAULT_TREE = """
 import json, sys
 import lsys3d
-from lsys3d import firstrun
-
-lsys3d.export(lsys3d.generate(lsys3d.load(lsys3d.DEFAULT_PRESET)), sys.argv[1])
-out = {}
-for table in (firstrun.SIGNATURES, firstrun.MAIN_ONLY):
-    for k, declared in table.items():
-        out[k.py_func.__qualname__] = [sorted(map(str, k.signatures)), sorted(str(tuple(s)) for s in declared)]
-print(json.dumps(out))
-"""
-
-_SPARE_ALONE = """
 from lsys3d import compiling, firstrun
 from lsys3d.mesh import precompile
 
-with compiling.only(precompile.OWN, but=tuple(name for spare in firstrun.SPARES for name in spare.names)):
-    precompile.run()  # the helper's own kernels first, as in the helper
-for spare in firstrun.SPARES:
-    with compiling.only(spare.names):  # as in the helper
-        spare.compile()
-print("ok")
-"""
-
-
-def test_the_spare_kernels_are_compiled_for_the_signatures_the_default_tree_asks_for(tmp_path):
-    """The default tree calls the spare kernels with the signatures firstrun declares, no other, and SIGNATURES
-    holds the kernels of SPARES; compiled after the helper's own kernels (in an empty cache), each spare group
-    compiles nothing outside its names, as the helper needs."""
-    command = [sys.executable, "-c", _SPARE_SIGNATURES, str(tmp_path / "tree.glb")]
-    out = subprocess.run(command, capture_output=True, text=True, check=True)
-    for name, (called, declared) in json.loads(out.stdout.splitlines()[-1]).items():
-        assert called == declared, name
-    from lsys3d import firstrun
-
-    for kernel in firstrun.SIGNATURES:
-        assert [spare for spare in firstrun.SPARES if spare.covers(kernel)], kernel
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
-    out = subprocess.run([sys.executable, "-c", _SPARE_ALONE], capture_output=True, text=True, env=env)
-    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
-
-
-def _no_process(*args, **kw):
-    raise AssertionError("a warm run started a helper process")
-
-
-_SIGNATURES = """
-import json
-import lsys3d
-from lsys3d import compiling, firstrun
-from lsys3d.mesh import precompile
-
-def signatures():
+def own_signatures():
     own = [
         k
         for k in compiling.kernels()
@@ -254,23 +210,108 @@ def signatures():
     ]
     return {f"{k.py_func.__module__}.{k.py_func.__qualname__}": len(k.signatures) for k in own if k.signatures}
 
-with compiling.only(precompile.OWN):
-    precompile.run()
-helped = signatures()
-lsys3d.generate(lsys3d.load(lsys3d.DEFAULT_PRESET))
+with compiling.only(precompile.OWN, but=tuple(name for spare in firstrun.SPARES for name in spare.names)):
+    precompile.run()  # as in the helper
+helped = own_signatures()
+lsys3d.export(lsys3d.generate(lsys3d.load(lsys3d.DEFAULT_PRESET)), sys.argv[1])
+spares = {}
+for table in (firstrun.SIGNATURES, firstrun.MAIN_ONLY):
+    for k, declared in table.items():
+        spares[k.py_func.__qualname__] = [sorted(map(str, k.signatures)), sorted(str(tuple(s)) for s in declared)]
 entries = sorted(f"{k.py_func.__module__}.{k.py_func.__qualname__}" for k in precompile.ENTRIES)
-print(json.dumps([helped, signatures(), entries]))
+print(json.dumps({"helped": helped, "after": own_signatures(), "entries": entries, "spares": spares}))
 """
+
+
+@functools.cache
+def _default_tree() -> dict:
+    """What the default tree asks of the helper's kernels and of the spare ones, from a process of its own with the
+    suite's (warm) cache: ``helped``, the signatures of the helper's own kernels after it ran alone (the number of
+    each kernel's); ``after``, the same after the default tree was grown and written; ``entries``, precompile's
+    ENTRIES; ``spares``, each spare (and main-only) kernel's signatures called and declared.  One process for the
+    two tests below (once in the run: tests/shared.py)."""
+
+    def run() -> dict:
+        with tempfile.TemporaryDirectory(prefix="lsys3d-default-tree-") as scratch:
+            command = [sys.executable, "-c", _DEFAULT_TREE, os.path.join(scratch, "tree.glb")]
+            out = subprocess.run(command, capture_output=True, text=True, check=True)
+        return json.loads(out.stdout.splitlines()[-1])
+
+    return shared("compiling-default-tree", run)
+
+
+_SPARE_ALONE = """
+import json, shutil, sys
+from pathlib import Path
+from lsys3d import compiling, firstrun
+from lsys3d.mesh import precompile
+
+# the helper's own kernels' cache files, copied from the suite's cache into this process's empty one
+sources = json.loads(sys.argv[1])
+for k in compiling.kernels():
+    name = f"{k.py_func.__module__}.{k.py_func.__qualname__}"
+    if name in sources:
+        Path(k._cache._cache_path).mkdir(parents=True, exist_ok=True)
+        base = k._cache._cache_file._index_name[: -len(".nbi")]
+        for path in Path(sources[name]).glob(f"{base}.*"):
+            shutil.copyfile(path, Path(k._cache._cache_path) / path.name)
+with compiling.only(precompile.OWN, but=tuple(name for spare in firstrun.SPARES for name in spare.names)):
+    precompile.run()  # the helper's own kernels first, as in the helper (loaded: copied above)
+for spare in firstrun.SPARES:
+    with compiling.only(spare.names):  # as in the helper
+        spare.compile()
+print("ok")
+"""
+
+
+def _helpers_own_cache() -> dict[str, str]:
+    """The helper's own kernels (precompile.OWN's, but the spare groups') and the folder of each one's files in
+    this process's cache (the suite's)."""
+    from lsys3d import firstrun
+    from lsys3d.mesh import precompile
+
+    return {
+        f"{k.py_func.__module__}.{k.py_func.__qualname__}": k._cache._cache_path
+        for k in compiling.kernels()
+        if k.py_func.__module__.startswith(precompile.OWN) and not any(s.covers(k) for s in firstrun.SPARES)
+    }
+
+
+def test_the_spare_kernels_are_compiled_for_the_signatures_the_default_tree_asks_for(tmp_path):
+    """The default tree calls the spare kernels with the signatures firstrun declares, no other, and SIGNATURES
+    holds the kernels of SPARES; compiled after the helper's own kernels in a cache that holds nothing else (but
+    numba's), each spare group compiles nothing outside its names, as the helper needs.
+
+    The helper's own kernels are not compiled again for it (13 CPU s in a cache of its own): their files are
+    copied from the suite's cache into an empty one (every kernel of precompile.OWN's modules but the spare
+    groups', each with the signatures the suite compiled: the helper's, and any a test asked for besides), so a
+    spare group that calls any other lsys3d kernel (or a spare kernel of another group) compiles it, which
+    ``only`` stops.  A spare group that would need one of the helper's own kernels for a signature the helper
+    does not compile is the first-run test's to see: its main process would compile that kernel (never one of
+    the helper's, that test asserts)."""
+    for name, (called, declared) in _default_tree()["spares"].items():
+        assert called == declared, name
+    from lsys3d import firstrun
+
+    for kernel in firstrun.SIGNATURES:
+        assert [spare for spare in firstrun.SPARES if spare.covers(kernel)], kernel
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    command = [sys.executable, "-c", _SPARE_ALONE, json.dumps(_helpers_own_cache())]
+    out = subprocess.run(command, capture_output=True, text=True, env=env)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-2000:]
+
+
+def _no_process(*args, **kw):
+    raise AssertionError("a warm run started a helper process")
 
 
 def test_the_helper_compiles_the_signatures_the_default_trees_cleanup_asks_for():
     """What the helper compiles is what the cleanup of the default tree calls, type for type (but the spare
     groups'): the tree asks for no signature of the cleanup's kernels that the helper did not make, and ENTRIES
     are the kernels the helper calls from Python (the ones the main process checks the cache for)."""
-    out = subprocess.run([sys.executable, "-c", _SIGNATURES], capture_output=True, text=True, check=True)
-    helped, after, entries = json.loads(out.stdout.splitlines()[-1])
-    assert after == helped
-    assert sorted(helped) == entries
+    tree = _default_tree()
+    assert tree["after"] == tree["helped"]
+    assert sorted(tree["helped"]) == tree["entries"]
 
 
 @pytest.mark.slow
@@ -341,15 +382,19 @@ def test_no_python_code_names_a_kernel_compiled_for_kernels_only():
     other kernels (a name shared with a plain function counts too: rename one of them)."""
     root = Path(compiling.__file__).parent.parent
     sources = [p for d in ("lsys3d", "tests", "benchmarks", "tools") for p in (root / d).rglob("*.py")]
-    trees = {p: ast.parse(p.read_text(encoding="utf-8")) for p in sources}
+    texts = {p: p.read_text(encoding="utf-8") for p in sources}
+    # (only the files whose text could hold what is looked for are parsed: every decorator of an inner kernel has
+    # "inner" in its name, and a file that does not hold a kernel's name as a word cannot name it)
     inner = {
         node.name: p.relative_to(root)
-        for p, tree in trees.items()
-        for node in ast.walk(tree)
+        for p, text in texts.items()
+        if "inner" in text
+        for node in ast.walk(ast.parse(text))
         if isinstance(node, ast.FunctionDef) and _kernel_decorated(node) == "inner"
     }
     assert len(inner) > 50
-    named = set().union(*(_python_names(tree) for tree in trees.values()))
+    word = re.compile(r"\b(?:" + "|".join(map(re.escape, sorted(inner))) + r")\b")
+    named = set().union(*(_python_names(ast.parse(text)) for text in texts.values() if word.search(text)))
     assert {name: str(path) for name, path in inner.items() if name in named} == {}
 
 
