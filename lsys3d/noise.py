@@ -49,6 +49,8 @@ _GRADIENTS = np.array(
     dtype=np.float64,
 )
 
+_GX, _GY, _GZ = (np.ascontiguousarray(_GRADIENTS[:, i]) for i in range(3))
+
 PERLIN_BOUND = 1.0364
 """The largest ``|value|`` the unscaled noise can reach, rounded up; :func:`perlin3` divides by it.
 
@@ -109,16 +111,17 @@ def _improved(p: np.ndarray, perm: np.ndarray, period=(0, 0, 0)) -> np.ndarray:
     c = cell.astype(np.int64)
     xs, ys, zs = (_corners(c[:, i], period[i]) for i in range(3))
     u = _fade(f)
+    # each axis's offsets from the cell's two corners and their weights, once (contiguous columns)
+    offset = [(np.ascontiguousarray(f[:, i]), f[:, i] - 1) for i in range(3)]
+    weight = [(1.0 - u[:, i], np.ascontiguousarray(u[:, i])) for i in range(3)]
     out = np.zeros(len(p))
     for dx, dy in ((0, 0), (0, 1), (1, 0), (1, 1)):
         row = perm[perm[xs[dx]] + ys[dy]]
-        wx = u[:, 0] if dx else 1.0 - u[:, 0]
-        wy = u[:, 1] if dy else 1.0 - u[:, 1]
+        wxy = weight[0][dx] * weight[1][dy]
         for dz in (0, 1):
-            g = _GRADIENTS[perm[row + zs[dz]] & 15]
-            d = g[:, 0] * (f[:, 0] - dx) + g[:, 1] * (f[:, 1] - dy) + g[:, 2] * (f[:, 2] - dz)
-            wz = u[:, 2] if dz else 1.0 - u[:, 2]
-            out += wx * wy * wz * d
+            h = perm[row + zs[dz]] & 15
+            d = _GX[h] * offset[0][dx] + _GY[h] * offset[1][dy] + _GZ[h] * offset[2][dz]
+            out += wxy * weight[2][dz] * d
     return out
 
 

@@ -44,6 +44,7 @@ SMOKE = {
     "bench_union_scale.py": ["--plant", "3", "--no-fern", "--compare", "0", "--no-naive"],
     "compile_profile.py": ["--top", "5", "--", "generate", "koch", "-o", "koch.glb"],  # warm: nothing compiled
     "dense_census.py": [str(BENCHMARKS.parent / "tests/corpus/lpy/real/abop_chap1_lsystem1.4.lpy")],
+    "preset_bytes.py": ["out", "--only", "snowflake", "algae"],  # one written, one skipped (draws nothing)
     "profile_memory.py": ["koch", "-n", "2"],
 }
 

@@ -437,10 +437,13 @@ def split_tangents(arrays: MeshArrays) -> np.ndarray:
     normals = arrays.split_normals.astype(np.float64)
     uv = arrays.split_uv.astype(np.float64) if arrays.split_uv is not None else np.zeros((len(points), 2))
     tri = arrays.split_index.reshape(-1, 3).astype(np.int64)
-    e1 = points[tri[:, 1]] - points[tri[:, 0]]
-    e2 = points[tri[:, 2]] - points[tri[:, 0]]
-    d1 = uv[tri[:, 1]] - uv[tri[:, 0]]
-    d2 = uv[tri[:, 2]] - uv[tri[:, 0]]
+    # the corners' rows by np.take on contiguous index columns, the first corner's once (the same values)
+    i0, i1, i2 = (np.ascontiguousarray(tri[:, k]) for k in range(3))
+    p0, q0 = np.take(points, i0, axis=0), np.take(uv, i0, axis=0)
+    e1 = np.take(points, i1, axis=0) - p0
+    e2 = np.take(points, i2, axis=0) - p0
+    d1 = np.take(uv, i1, axis=0) - q0
+    d2 = np.take(uv, i2, axis=0) - q0
     det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
     # dP/du and dP/dv of each face, times |det| (so a face's weight grows with its uv and 3D size)
     sign = np.sign(det)[:, None]

@@ -35,7 +35,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..images import Image, check_image, png_bytes
+from ..images import Image, png_bytes
 from ..noise import perlin3
 from ..streams import Stream
 
@@ -176,28 +176,32 @@ class _Grid:
         from the nearest point).
         """
         point = 0.5 + jitter * (self.rng(layer).random((nv, nu, 2)) - 0.5)
+        px, py = np.ascontiguousarray(point[..., 0]).reshape(-1), np.ascontiguousarray(point[..., 1]).reshape(-1)
         x = (self.u + warp_u) * nu + np.zeros((self.n, 1))
         y = (self.v + warp_v) * nv + np.zeros((1, self.n))
         ix, iy = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
         fx, fy = x - ix, y - iy
-        f1 = np.full(x.shape, np.inf)
-        f2 = np.full(x.shape, np.inf)
-        cell = np.zeros(x.shape, np.int64)
-        du = np.zeros(x.shape)
-        dv = np.zeros(x.shape)
+        f1, f2 = np.full(x.shape, np.inf), np.full(x.shape, np.inf)
+        cell, index, closer = np.zeros(x.shape, np.int64), np.empty(x.shape, np.int64), np.empty(x.shape, bool)
+        du, dv = np.zeros(x.shape), np.zeros(x.shape)
+        columns, rows = _wrapped(ix, nu), {dy: r * nu for dy, r in _wrapped(iy, nv).items()}  # then updated in place
         for dy in (-1, 0, 1):
             for dx in (-1, 0, 1):
-                cx, cy = (ix + dx) % nu, (iy + dy) % nv
-                ox = fx - (dx + point[cy, cx, 0])
-                oy = fy - (dy + point[cy, cx, 1])
+                np.add(rows[dy], columns[dx], out=index)
+                ox = fx - (dx + px[index])
+                oy = fy - (dy + py[index])
                 d = np.hypot(ox, oy)
-                closer = d < f1
-                f2 = np.where(closer, f1, np.minimum(f2, d))
-                f1 = np.where(closer, d, f1)
-                cell = np.where(closer, cy * nu + cx, cell)
-                du = np.where(closer, ox, du)
-                dv = np.where(closer, oy, dv)
+                np.less(d, f1, out=closer)
+                np.minimum(f2, d, out=f2)
+                for field, new in ((f2, f1), (f1, d), (cell, index), (du, ox), (dv, oy)):  # f2 before f1 changes
+                    np.copyto(field, new, where=closer)
         return f1, f2, cell, du, dv
+
+
+def _wrapped(i: np.ndarray, n: int) -> dict[int, np.ndarray]:
+    """``(i + d) % n`` for ``d`` in -1, 0, 1 (one modulo, then the ends wrapped)."""
+    i = i % n
+    return {-1: np.where(i == 0, n - 1, i - 1), 0: i, 1: np.where(i == n - 1, 0, i + 1)}
 
 
 def _resample(field: np.ndarray, n: int) -> np.ndarray:
@@ -1074,9 +1078,9 @@ def normal_map(height: np.ndarray, relief: float) -> np.ndarray:
 
 
 def _image(name: str, pixels: np.ndarray) -> Image:
-    data = png_bytes(pixels, _PNG_LEVEL)
-    mime, width, height, alpha = check_image(data)
-    return Image(name, data, mime, width, height, alpha, "procedural")
+    alpha = pixels.ndim == 3 and pixels.shape[2] in (2, 4)  # as check_image reads png_bytes' bytes, not inflated
+    h, w = pixels.shape[:2]
+    return Image(name, png_bytes(pixels, _PNG_LEVEL), "image/png", w, h, alpha, "procedural")
 
 
 def _key(kind: str, seed: int, resolution: int, colors, tile_size) -> str:

@@ -20,7 +20,8 @@ a few grid samples: each role's signed distance (positive outside the solid) is 
 over the scene (``resolution`` cells along its longest side).  The distance is exact at the nodes within
 a band around the surface (trimesh's closest-point query, on an R-tree of the triangles) and the
 Euclidean distance transform of the surface's voxels (scipy) elsewhere; the sign of a closed mesh comes
-from trimesh's ray-cast inside test (Embree when ``embreex`` is installed).  Between two nodes it is
+from trimesh's ray-cast inside test (Embree when ``embreex`` is installed), asked once per region of nodes
+clear of the surface.  Between two nodes it is
 trilinear, which is exact for a plane.  ``?E`` modules are answered by the same grids, and the light they
 receive by a ray toward the light against the scene's meshes.
 """
@@ -471,21 +472,95 @@ def _signed_distance(meshes: tuple[SceneMesh, ...], origin, cell, shape, band: f
     nodes = np.stack(np.meshgrid(*[np.arange(n) for n in shape], indexing="ij"), -1).reshape(-1, 3)
     points = origin + nodes * cell
     samples, owner = _surface_points(mesh, 0.5 * cell)
-    tree = cKDTree(samples)
-    distance, _ = tree.query(points, k=1, distance_upper_bound=most, workers=-1)
+    # the nearest sample's distance is the same whatever the tree's shape; this one answers the grid's many
+    # queries that find nothing within ``most`` in about half the time of the default (topiary, ivy-wall)
+    bound = cKDTree(samples, leafsize=64, balanced_tree=False, compact_nodes=False)
+    distance, _ = bound.query(points, k=1, distance_upper_bound=most, workers=-1)
     distance = np.minimum(distance, most)
+    # the samples lie within a third of a cell of every surface point: beyond 1.5 cells a node is a cell clear
+    clear = distance > 1.5 * cell
     near = np.flatnonzero(distance <= band)
     if len(near):
-        _, idx = tree.query(points[near], k=4, workers=-1)
-        candidates = owner[idx]  # (k, 4) triangles
-        pts = np.repeat(points[near], candidates.shape[1], axis=0)
-        closest = trimesh.triangles.closest_point(mesh.triangles[candidates.reshape(-1)], pts)
-        exact = np.linalg.norm(closest - pts, axis=1).reshape(candidates.shape).min(axis=1)
-        distance[near] = exact
+        _, idx = cKDTree(samples).query(points[near], k=4, workers=-1)
+        candidates = np.sort(owner[idx], axis=1)  # (k, 4) triangles
+        # each (node, triangle) pair once: the nearest samples often lie on one triangle
+        first = np.ones(candidates.shape, bool)
+        first[:, 1:] = candidates[:, 1:] != candidates[:, :-1]
+        row = np.broadcast_to(near[:, None], candidates.shape)[first]
+        closest = trimesh.triangles.closest_point(mesh.triangles[candidates[first]], points[row])
+        gap = np.full(candidates.shape, np.inf)
+        gap[first] = np.linalg.norm(closest - points[row], axis=1)
+        distance[near] = gap.min(axis=1)
     if closed:
-        inside = mesh.contains(points)
-        distance = np.where(inside, -distance, distance)
+        distance = np.where(_inside(mesh, points, shape, clear), -distance, distance)
     return np.ascontiguousarray(distance.reshape(shape))
+
+
+def _inside(mesh, points: np.ndarray, shape, clear: np.ndarray) -> np.ndarray:
+    """trimesh's ray-cast inside test at the grid's nodes, asked once per region of nodes clear of the surface.
+
+    ``clear`` marks the nodes more than a cell from the surface: a node and its neighbour (a cell away) of
+    which one is clear lie on the same side, so each 6-connected region of clear nodes is inside or outside as
+    a whole. The test is asked at the other nodes and at the first and last node of each region; a region
+    whose two answers differ (the ray test's own doubt) has it asked at each of its nodes. The same answers as
+    asking every node (topiary's grid: 0.5 CPU s -> 0.05).
+    """
+    from scipy import ndimage
+
+    labels, count = ndimage.label(clear.reshape(shape))
+    labels = labels.reshape(-1)
+    inside = np.zeros(len(points), bool)
+    first = last = np.empty(0, np.int64)
+    if count:  # label 0: the nodes not clear
+        first = np.unique(labels, return_index=True)[1][1:]
+        last = len(labels) - 1 - np.unique(labels[::-1], return_index=True)[1][1:]
+    ask = np.union1d(np.flatnonzero(labels == 0), np.concatenate([first, last]))
+    inside[ask] = _ray_inside(mesh, points[ask])
+    if count:
+        agree = np.ones(count + 1, bool)
+        agree[1:] = inside[first] == inside[last]
+        side = np.zeros(count + 1, bool)
+        side[1:] = inside[first]
+        region = labels > 0
+        settled = region & agree[labels]
+        inside[settled] = side[labels[settled]]
+        doubt = np.flatnonzero(region & ~agree[labels])
+        if len(doubt):
+            inside[doubt] = _ray_inside(mesh, points[doubt])
+    return inside
+
+
+_RAYS = (np.array([0.4395064455, 0.617598629942, 0.652231566745]), np.array([-0.5183, 0.3079, 0.7979]))
+"""The directions of :func:`_ray_inside`'s rays: trimesh's own, then a fixed one where it takes a random one."""
+
+
+def _ray_inside(mesh, points: np.ndarray) -> np.ndarray:
+    """trimesh's inside test (``Trimesh.contains``) with its second try along a fixed direction: the same
+    answer in every process.
+
+    From each point inside the mesh's bounds a ray goes both ways along one direction: inside when both cross
+    the surface an odd number of times, outside when both an even number; a point whose two rays disagree, both
+    crossing something (on the surface, or the ray grazing an edge), is asked again along another direction
+    (trimesh takes a random one, so a node on the surface could come out inside in one process and outside in
+    another: four nodes of ivy-wall's wall did) and stays outside if they still disagree.
+    """
+    from trimesh.bounds import contains
+
+    inside = np.zeros(len(points), bool)
+    todo = np.flatnonzero(contains(mesh.bounds, points))
+    for direction in _RAYS:
+        if not len(todo):
+            break
+        rays = np.tile(direction, (len(todo), 1))
+        _, ray, _ = mesh.ray.intersects_location(
+            np.vstack((points[todo], points[todo])), np.vstack((rays, -rays)), multiple_hits=True
+        )
+        hits = np.bincount(ray, minlength=2 * len(todo)).reshape(2, -1)
+        odd = hits % 2 == 1
+        agree = odd[0] == odd[1]
+        inside[todo[agree]] = odd[0][agree]
+        todo = todo[~agree & (hits > 0).all(axis=0)]
+    return inside
 
 
 def _surface_points(mesh, spacing: float) -> tuple[np.ndarray, np.ndarray]:

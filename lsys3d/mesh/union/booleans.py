@@ -51,12 +51,19 @@ def manifold_of(part: Part, where: str) -> manifold3d.Manifold:
     """A Manifold of the part, its status checked."""
     mesh = manifold3d.Mesh64(
         vert_properties=part.props,
-        tri_verts=part.tri.astype(np.uint64),
-        merge_from_vert=part.merge_from.astype(np.uint64),
-        merge_to_vert=part.merge_to.astype(np.uint64),
-        face_id=part.face_id.astype(np.uint64),
+        tri_verts=_unsigned(part.tri),
+        merge_from_vert=_unsigned(part.merge_from),
+        merge_to_vert=_unsigned(part.merge_to),
+        face_id=_unsigned(part.face_id),
     )
     return check(manifold3d.Manifold(mesh), where)
+
+
+def _unsigned(index: np.ndarray) -> np.ndarray:
+    """Indices (>= 0) as the ``uint64`` manifold3d takes: int64's bytes seen as uint64 (no copy), else converted."""
+    if index.dtype == np.int64:
+        return np.ascontiguousarray(index).view(np.uint64)
+    return index.astype(np.uint64)
 
 
 def part_of(manifold: manifold3d.Manifold) -> Part:
