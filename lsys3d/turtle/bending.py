@@ -36,8 +36,10 @@ from .commands import Axis
 
 __all__ = ["MOVEMENT_COLUMNS", "TWIST", "carry_up", "movement_adjust", "movement_elasticity"]
 
-_AXIS_U = int(Axis.U)
+# the turtle's axes as numba sees them (plain integers), declared once here for the turtle's kernels
+_AXIS_H = int(Axis.H)
 _AXIS_L = int(Axis.L)
+_AXIS_U = int(Axis.U)
 
 TWIST = 1.0
 """A movement row's kind: 0 a tropism (``tropism:``), 1 a twist (``torque:``)."""

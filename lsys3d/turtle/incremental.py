@@ -33,11 +33,10 @@ import numpy as np
 from ..arrays import search_left
 from ..compiling import inner, kernel
 from ..lsystem.grammar import Grammar
+from .bending import _AXIS_H, _AXIS_L
 from .commands import Op
 from .kernel import (  # numba sees the ops as these plain integers, declared once in kernel.py
     _ANGLE_FACTOR,
-    _AXIS_H,
-    _AXIS_L,
     _ELASTICITY,
     _FORWARD,
     _FORWARD_STEPS,

@@ -18,6 +18,8 @@ import numpy as np
 
 from ..compiling import inner, kernel
 from .bending import (
+    _AXIS_H,
+    _AXIS_L,
     _bend,
     _bend_after,
     _cos_sin,
@@ -28,7 +30,7 @@ from .bending import (
     movement_adjust,
     movement_elasticity,
 )
-from .commands import N_OPS, Axis, Op, Organ
+from .commands import N_OPS, Op, Organ
 from .scene import Scene, _steer  # the scene as the kernel sees it, and the steering of a segment
 from .skeleton import MAX_COORDINATE
 from .steering import recall, recalled_steering
@@ -128,8 +130,6 @@ _SUB_LSYSTEM = int(Op.SUB_LSYSTEM)
 _MOVEMENT_ELASTICITY = int(Op.MOVEMENT_ELASTICITY)
 _MOVEMENT_FRAME = int(Op.MOVEMENT_FRAME)
 _SIDES = int(Op.SIDES)  # read after the kernel's pass (lsys3d.turtle.sides)
-_AXIS_L = int(Axis.L)
-_AXIS_H = int(Axis.H)
 
 RARE_OPS = (
     Op.MOVEMENT_ELASTICITY,
