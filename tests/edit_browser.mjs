@@ -1,10 +1,11 @@
 // The editor in headless Chromium (tests/test_edit_browser.py): type, see the tree change, an inline error on
 // its line, a slider, export a .glb, save and reload. Prints one JSON object of what it saw.
-// usage: node tests/edit_browser.mjs URL OUTDIR CHROMIUM ARGS_JSON
+// usage: node tests/edit_browser.mjs URL OUTDIR CHROMIUM ARGS_JSON [START TYPED]
+// (START: the grammar's text whose last character is typed over with TYPED; default "iterations = 6", "5")
 import path from 'node:path';
 import { launch } from '../tools/chromium.mjs';
 
-const [url, outdir, executablePath, argsJson] = process.argv.slice(2);
+const [url, outdir, executablePath, argsJson, start = 'iterations = 6', typed = '5'] = process.argv.slice(2);
 const browser = await launch(executablePath, argsJson);
 const out = { errors: [] };
 try {
@@ -29,9 +30,9 @@ try {
   await settled();
   out.trianglesBefore = await triangles();
 
-  // type into the editor: iterations 6 -> 5 (real key presses)
-  await select('iterations = 6', 'iterations = '.length, 1);
-  await page.keyboard.type('5');
+  // type into the editor: the iterations' digit (6 -> 5 by default; real key presses)
+  await select(start, start.length - 1, 1);
+  await page.keyboard.type(typed);
   await page.waitForFunction((n) => window.lsys3d.viewer.triangles !== n, out.trianglesBefore, { timeout: 60000 });
   out.trianglesSoup = await triangles();
   out.kindAfterTyping = await page.evaluate(() => window.lsys3d.state.shown.kind);

@@ -94,7 +94,14 @@ def test_the_recipe_survives_save_and_reopen_and_regrows_the_same(addon):
     keys = ("vertices", "faces", "leaves", "recipe", "position_sum")
     assert {k: reopened[k] for k in keys} == {k: first[k] for k in keys}
     assert {k: regrown[k] for k in keys} == {k: first[k] for k in keys}
-    assert addon["regrown_seed_5"]["recipe"]["seed"] == 5  # the panel's other seed is kept in the recipe
+    # the panel's other seed, on the stochastic plant: kept in the recipe, and another plant in the same object
+    seed_5, seed_1 = addon["regrown_seed_5"], addon["stochastic_1"]
+    assert seed_5["recipe"]["seed"] == 5 and seed_5["name"] == seed_1["name"]
+    assert (seed_5["vertices"], seed_5["faces"], seed_5["position_sum"]) != (
+        seed_1["vertices"],
+        seed_1["faces"],
+        seed_1["position_sum"],
+    )
     # plants of one look share their materials, and a regrow reuses them (no bark.001 left behind)
     assert addon["stochastic_1"]["materials"] == addon["regrown_seed_5"]["materials"] == ["bark"]
 

@@ -1,7 +1,9 @@
 """Blender imports our files: bark vertex count, upright tree, materials, leaves drawn.
 
 Blender runs as ``bpy`` in its own environment (``.venv-bpy``, Python 3.11,
-``bpy==5.0.1``), one child process per import; see ``tests/validators.py``.
+``bpy==5.0.1``) in a child process; see ``tests/validators.py``.  The files of a test's cases are imported
+by one Blender, one after another, each into an empty scene (``validators.blender_imports``): a Blender start
+(half a CPU second) once, not once per file.
 """
 
 from __future__ import annotations
@@ -31,10 +33,19 @@ def tree():
     return fx.make_tree()
 
 
-@pytest.mark.parametrize("name, options", CASES, ids=[c[0] for c in CASES])
-def test_blender_imports(tree, tmp_path, name, options):
-    path = export(tree, tmp_path / name, options)
-    report = validators.blender_import(path)
+@pytest.fixture(scope="module")
+def imported(tree, tmp_path_factory) -> dict:
+    """Every case's file, exported, and Blender's report of it (one Blender for the six)."""
+    folder = tmp_path_factory.mktemp("export_blender")
+    paths = [export(tree, folder / name, options) for name, options in CASES]
+    return dict(
+        zip([name for name, _ in CASES], zip(paths, validators.blender_imports(paths), strict=True), strict=True)
+    )
+
+
+@pytest.mark.parametrize("name", [c[0] for c in CASES])
+def test_blender_imports(tree, imported, name):
+    path, report = imported[name]
     objects = {o["name"]: o for o in report["objects"]}
     bark = objects.get("bark")
     assert bark is not None, sorted(objects)
@@ -65,12 +76,23 @@ def test_blender_imports(tree, tmp_path, name, options):
         assert materials[m.name]["roughness"] == pytest.approx(m.roughness, abs=1e-3)
 
 
-@pytest.mark.parametrize("name", ["oak.glb", "palm.glb", "spruce.usdz"])
-def test_blender_imports_species(tmp_path, name):
+SPECIES = ["oak.glb", "palm.glb", "spruce.usdz"]
+
+
+@pytest.fixture(scope="module")
+def species_imported(tmp_path_factory) -> dict:
+    """Each species' file and Blender's report of it (one Blender for the three)."""
+    folder = tmp_path_factory.mktemp("species")
+    paths = [export(grown(name.split(".")[0]), folder / name) for name in SPECIES]
+    return dict(zip(SPECIES, validators.blender_imports(paths), strict=True))
+
+
+@pytest.mark.parametrize("name", SPECIES)
+def test_blender_imports_species(species_imported, name):
     """A few species (a broadleaf, the palm, a conifer with cards) import whole, unrepaired, with their bark
     material textured."""
     tree = grown(name.split(".")[0])
-    report = validators.blender_import(export(tree, tmp_path / name))
+    report = species_imported[name]
     objects = {o["name"]: o for o in report["objects"]}
     assert objects["bark"]["faces"] == len(tree.bark.faces)
     assert objects["bark"]["unique_positions"] == len(tree.bark.vertices)

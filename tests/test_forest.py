@@ -165,9 +165,23 @@ def test_usd_forest_in_the_librarys_units_and_up_axis(tmp_path):
     assert np.abs(positions[:, :2]).max() > 100  # centimetres
 
 
-def test_blender_opens_the_usd_forest(library, tmp_path):
-    path = forest(library, tmp_path / "forest.usdc", ForestOptions(area=(80, 60), count=30, seed=2))
-    report = validators.blender_import(path)
+@pytest.fixture(scope="module")
+def in_blender(library, tmp_path_factory) -> dict:
+    """A USD forest (30 trees) and a glTF forest (50) of the library, and Blender's reports of them: one Blender
+    imports both, each into an empty scene."""
+    folder = tmp_path_factory.mktemp("forests")
+    paths = {
+        "usdc": forest(library, folder / "forest.usdc", ForestOptions(area=(80, 60), count=30, seed=2)),
+        "glb": forest(library, folder / "forest.glb", ForestOptions(area=(80, 60), count=50, seed=3)),
+    }
+    return {
+        kind: (path, report)
+        for (kind, path), report in zip(paths.items(), validators.blender_imports(list(paths.values())), strict=True)
+    }
+
+
+def test_blender_opens_the_usd_forest(in_blender):
+    _, report = in_blender["usdc"]
     assert not any(o.get("repaired") for o in report["objects"])
     assert report["drawn_instances"] >= 30
     lo, hi = np.array(report["drawn_bbox"])
@@ -183,8 +197,8 @@ def glb_json(path) -> dict:
     return json.loads(data[20 : 20 + length])
 
 
-def test_glb_forest_instances_each_asset_once(library, tmp_path):
-    path = forest(library, tmp_path / "forest.glb", ForestOptions(area=(80, 60), count=50, seed=3))
+def test_glb_forest_instances_each_asset_once(in_blender):
+    path, imported = in_blender["glb"]
     report = validators.validate_gltf(path)
     assert validators.gltf_issues(report, 0) == [] and validators.gltf_issues(report, 1) == []
     assert {m["code"] for m in report["issues"]["messages"]} <= validators.HARMLESS_INFOS
@@ -199,9 +213,8 @@ def test_glb_forest_instances_each_asset_once(library, tmp_path):
         per_asset[translation] = doc["accessors"][translation]["count"]
     assert sum(per_asset.values()) == 50
     assert len(doc["materials"]) == 2  # bark and leaf, shared by every asset
-    report = validators.blender_import(path)
-    assert not any(o.get("repaired") for o in report["objects"])
-    lo, hi = np.array(report["drawn_bbox"])
+    assert not any(o.get("repaired") for o in imported["objects"])
+    lo, hi = np.array(imported["drawn_bbox"])
     assert hi[0] - lo[0] > 40 and hi[1] - lo[1] > 30
 
 

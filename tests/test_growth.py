@@ -322,30 +322,45 @@ def test_cli(tmp_path):
 
 
 # -- players ----------------------------------------------------------------------------------------------------
-def blender_frames(path, frames_wanted) -> dict:
+def blender_frames(paths, frames_wanted) -> list[dict]:
+    """``tools/blender_growth.py``'s report of each file at the frames wanted: one Blender plays them in turn."""
     python = validators.bpy_python()
     validators.require(python is not None and python.exists(), "Blender (bpy) is not installed")
     script = validators.REPO / "tools" / "blender_growth.py"
     proc = subprocess.run(
-        [str(python), str(script), str(path), *map(str, frames_wanted)], capture_output=True, text=True, timeout=600
+        [str(python), str(script), *map(str, paths), *map(str, frames_wanted)],
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
-    line = [ln for ln in proc.stdout.splitlines() if ln.startswith(validators.BLENDER_MARK)][-1]
-    return json.loads(line[len(validators.BLENDER_MARK) :])
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith(validators.BLENDER_MARK)]
+    assert len(lines) == len(paths), proc.stdout[-2000:]
+    return [json.loads(line[len(validators.BLENDER_MARK) :]) for line in lines]
 
 
 def height(box) -> float:
     return box[1][2] - box[0][2]  # Blender: Z up
 
 
-@pytest.mark.parametrize("suffix", [".glb", ".usda"])
-def test_blender_plays_the_growth(tmp_path, suffix):
+BLENDER_SUFFIXES = [".glb", ".usda"]
+
+
+@pytest.fixture(scope="module")
+def blender_played(tmp_path_factory) -> dict:
+    """herb-growing's growth in each format, played by one Blender at frame 0, a tenth, half and the end."""
+    tree = grown("herb-growing")  # (the wind never passes through the rest pose: its lean is never 0)
+    folder = tmp_path_factory.mktemp("blender_growth")
+    paths = [export(tree, folder / f"herb{suffix}") for suffix in BLENDER_SUFFIXES]
+    end = round(SECONDS * FPS)
+    return dict(zip(BLENDER_SUFFIXES, blender_frames(paths, [0, round(0.1 * end), end // 2, end]), strict=True))
+
+
+@pytest.mark.parametrize("suffix", BLENDER_SUFFIXES)
+def test_blender_plays_the_growth(blender_played, suffix):
     """Blender imports the growth, and its own armature deformation grows the bark from (almost) nothing to the
     static tree: a tenth into the clip the bark is at most 15% of its height, the last frame is the rest form."""
-    tree = grown("herb-growing")  # (the wind never passes through the rest pose: its lean is never 0)
-    path = export(tree, tmp_path / f"herb{suffix}")
-    end = round(SECONDS * FPS)
-    report = blender_frames(path, [0, round(0.1 * end), end // 2, end])
+    report = blender_played[suffix]
     rest = report["rest"]
     size = np.linalg.norm(np.subtract(*rest["bark"]))
     first, tenth, half, last = report["frames"]
@@ -372,22 +387,27 @@ class _Quiet(http.server.SimpleHTTPRequestHandler):
         pass
 
 
-@pytest.mark.parametrize("name", ["herb-growing", "tree3d"])
-def test_three_js_plays_the_growth(tmp_path, name):
-    """three.js (GLTFLoader, AnimationMixer, SkinnedMesh.getVertexPosition) in headless Chromium grows the plant."""
+THREE_PLANTS = ["herb-growing", "tree3d"]
+
+
+@pytest.fixture(scope="module")
+def three_played(tmp_path_factory) -> dict:
+    """Each plant's .glb played by three.js, a page each in one headless Chromium: its result, or the failure."""
     require_browser()
-    tree = grown(name)
-    export(tree, tmp_path / "herb.glb")
-    shutil.copy(validators.REPO / "tools" / "three_growth.html", tmp_path / "index.html")
-    (tmp_path / "three").symlink_to(validators.REPO / "node_modules" / "three")
-    handler = functools.partial(_Quiet, directory=str(tmp_path))
+    folder = tmp_path_factory.mktemp("three_growth")
+    for name in THREE_PLANTS:
+        export(grown(name), folder / f"{name}.glb")
+    shutil.copy(validators.REPO / "tools" / "three_growth.html", folder / "index.html")
+    (folder / "three").symlink_to(validators.REPO / "node_modules" / "three")
+    handler = functools.partial(_Quiet, directory=str(folder))
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
     threading.Thread(target=server.serve_forever, daemon=True).start()
     try:
-        times = [0.0, 0.1 * SECONDS, 0.5 * SECONDS, SECONDS]
-        url = f"http://127.0.0.1:{server.server_address[1]}/index.html?glb=herb.glb&times={','.join(map(str, times))}"
+        times = ",".join(map(str, [0.0, 0.1 * SECONDS, 0.5 * SECONDS, SECONDS]))
+        base = f"http://127.0.0.1:{server.server_address[1]}/index.html"
+        urls = [f"{base}?glb={name}.glb&times={times}" for name in THREE_PLANTS]
         proc = subprocess.run(
-            ["node", str(SCRIPT), url, str(CHROMIUM), json.dumps(CHROMIUM_ARGS)],
+            ["node", str(SCRIPT), json.dumps(urls), str(CHROMIUM), json.dumps(CHROMIUM_ARGS)],
             capture_output=True,
             text=True,
             timeout=300,
@@ -396,7 +416,15 @@ def test_three_js_plays_the_growth(tmp_path, name):
     finally:
         server.shutdown()
     assert proc.returncode == 0, proc.stderr[-2000:]
-    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    lines = proc.stdout.strip().splitlines()[-len(THREE_PLANTS) :]
+    return dict(zip(THREE_PLANTS, map(json.loads, lines), strict=True))
+
+
+@pytest.mark.parametrize("name", THREE_PLANTS)
+def test_three_js_plays_the_growth(three_played, name):
+    """three.js (GLTFLoader, AnimationMixer, SkinnedMesh.getVertexPosition) in headless Chromium grows the plant."""
+    tree = grown(name)
+    result = three_played[name]
     assert "failure" not in result and result["errors"] == [], result
     assert result["clip"] == "growth" and result["duration"] == pytest.approx(SECONDS)
     first, tenth, half, last = result["frames"]

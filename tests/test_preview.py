@@ -86,17 +86,16 @@ def test_front_view_of_tree3d(tree, tmp_path):
     assert brown.sum() > 20, f"{brown.sum()} brown pixels"
 
 
-def test_cli_preview_iso_view_not_square(tmp_path):
+def test_cli_preview_iso_view_not_square(tmp_path, monkeypatch, capsys):
+    """The command, through the command line's main in this process (its Blender a child as ever; the
+    program's own exit statuses: the usage-error and no-Blender tests)."""
+    from lsys3d.cli import main
+
     out = tmp_path / "bush.png"
     args = ["preview", "tree3d", "-n", "3", "--size", "160x120", "--view", "iso", "--samples", "4"]
-    proc = subprocess.run(
-        [sys.executable, "-m", "lsys3d", *args, "--blender", bpy_python(), "-o", str(out)],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-    )
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.startswith(f"wrote {out}: 160x120, iso view")
+    monkeypatch.chdir(tmp_path)
+    assert main([*args, "--blender", bpy_python(), "-o", str(out)]) == 0, capsys.readouterr().err
+    assert capsys.readouterr().out.startswith(f"wrote {out}: 160x120, iso view")
     image = read_png(out)
     assert image.shape == (120, 160, 3)
     mask = object_mask(image)

@@ -208,20 +208,30 @@ def bpy_lsys3d_env(python: Path) -> dict:
 
 def blender_import(path: Path, timeout: float = 600) -> dict:
     """Import ``path`` into Blender in a child process; the report of ``tools/blender_import.py``."""
+    return blender_imports([path], timeout)[0]
+
+
+def blender_imports(paths: list[Path], timeout: float = 600) -> list[dict]:
+    """Import each of ``paths`` into one Blender in a child process (each into an empty scene, as
+    :func:`blender_import` does, for one Blender start); their reports, in order."""
     python = bpy_python()
     require(
         python is not None and python.exists(),
         "Blender (bpy) is not installed: python3.11 -m venv .venv-bpy && .venv-bpy/bin/pip install bpy==5.0.1 "
         "(or set LSYS3D_BPY_PYTHON)",
     )
+    names = ", ".join(str(p) for p in paths)
     proc = subprocess.run(
-        [str(python), str(BLENDER_SCRIPT), str(path)], capture_output=True, text=True, timeout=timeout, cwd=REPO
+        [str(python), str(BLENDER_SCRIPT), *map(str, paths)], capture_output=True, text=True, timeout=timeout, cwd=REPO
     )
     if proc.returncode < 0:
-        pytest.fail(f"Blender crashed (signal {-proc.returncode}) importing {path}:\n{proc.stderr[-2000:]}")
+        pytest.fail(f"Blender crashed (signal {-proc.returncode}) importing {names}:\n{proc.stderr[-2000:]}")
     if proc.returncode != 0:
-        pytest.fail(f"Blender import of {path} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
+        pytest.fail(f"Blender import of {names} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith(BLENDER_MARK)]
-    if not lines:
-        pytest.fail(f"Blender import of {path} printed no report:\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
-    return json.loads(lines[-1][len(BLENDER_MARK) :])
+    if len(lines) != len(paths):
+        pytest.fail(
+            f"Blender import of {names} printed {len(lines)} reports, not {len(paths)}:\n"
+            f"{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}"
+        )
+    return [json.loads(line[len(BLENDER_MARK) :]) for line in lines]

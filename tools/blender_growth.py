@@ -2,14 +2,15 @@
 
 Run it with the interpreter of the Blender environment (``.venv-bpy``)::
 
-    .venv-bpy/bin/python tools/blender_growth.py tree.glb 0 12 120
+    .venv-bpy/bin/python tools/blender_growth.py tree.glb [tree.usda ...] 0 12 120
 
 imports the file (glTF or USD), makes the growth its armature's action (glTF: the animation named
 ``growth``; USD: the one animation, wind and growth together), and at each frame given lets Blender
 evaluate the armature deformation (glTF keys are seconds, which Blender places at its 24 frames a second;
 USD keys are time codes, kept as frames).  Prints one line, ``LSYS3D-BLENDER `` then JSON: the action's
 frame range, and per frame and per deformed mesh its world bounding box (Blender's Z up) and the largest
-distance of a vertex from where it is in the mesh's rest (unposed) form.
+distance of a vertex from where it is in the mesh's rest (unposed) form.  Several files are played one
+after another in one Blender (the scene emptied to its factory settings before each), a line each, in order.
 """
 
 import json
@@ -79,5 +80,8 @@ def main(path, wanted):
 
 
 if __name__ == "__main__":
-    main(os.path.abspath(sys.argv[1]), [int(x) for x in sys.argv[2:]])
+    args = sys.argv[1:]
+    paths = [a for a in args if not a.lstrip("-").isdigit()]  # the files, then the frames (whole numbers)
+    for path in paths:
+        main(os.path.abspath(path), [int(x) for x in args[len(paths) :]])
     os._exit(0)  # skip Blender's atexit teardown
