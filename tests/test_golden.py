@@ -24,8 +24,6 @@ from lsys3d.stats import report
 from lsys3d.testing import TABLE_ROWS, assert_matches_golden
 from lsys3d.turtle import interpret
 
-pytest_plugins = ["pytester"]
-
 GOLDEN = Path(__file__).parent / "golden"
 PRESETS = lsys3d.list_presets()
 
@@ -388,17 +386,19 @@ def _failure_section(lines: list[str]) -> list[str]:
 
 
 @pytest.mark.slow  # a pytest run in a subprocess
-def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pytester):
+def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(tmp_path):
     """The table first, no traceback through lsys3d's source nor a repr of the tree, at most 25 lines.  The golden
-    file is recorded here, as the example's test would record it (the inner run of the test above records it)."""
-    pytester.makepyfile(test_trees=EXAMPLE_TEST)
-    assert_matches_golden(
-        lsys3d.generate("koch", iterations=2, seed=7), pytester.path / "golden" / "koch.json", update=True
-    )
-    changed = _tamper_everything(pytester.path / "golden" / "koch.json")
-    result = pytester.runpytest_subprocess(*INNER)
-    result.assert_outcomes(failed=1)
-    section = _failure_section(result.outlines)
+    file is recorded here, as the example's test would record it (the inner run of the test above records it);
+    not under pytester's fixture, which would take the modules this generate imports out of sys.modules again
+    (numba's, whose registrations then fail when they are imported a second time)."""
+    (tmp_path / "test_trees.py").write_text(EXAMPLE_TEST.strip() + "\n")  # as pytester's makepyfile wrote it
+    golden = tmp_path / "golden" / "koch.json"
+    assert_matches_golden(lsys3d.generate("koch", iterations=2, seed=7), golden, update=True)
+    changed = _tamper_everything(golden)
+    result = _pytest(tmp_path, "--basetemp", str(tmp_path / "basetemp"))
+    assert result.returncode == 1 and "1 failed" in result.stdout, result.stdout + result.stderr
+    outlines = result.stdout.splitlines()
+    section = _failure_section(outlines)
     assert len(section) <= 25, "\n".join(section)
     first = section[1]
     line = 1 + EXAMPLE_TEST.strip().splitlines().index(
@@ -409,10 +409,10 @@ def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pyteste
     assert section[2].split() == ["key", "golden", "now", "change"]
     assert f"and {changed - TABLE_ROWS} more ({changed - TABLE_ROWS} of them failed)" in "\n".join(section)
     assert section[-1] == "to record the new counts: pytest --lsys3d-update-golden (or LSYS3D_UPDATE_GOLDEN=1)"
-    text = result.stdout.str()
+    text = result.stdout
     assert "def test_koch_counts" not in text and "assert_matches_golden(" not in text and "Tree(" not in text
     assert "testing.py" not in text and "Traceback" not in text
-    summary = next(line for line in result.outlines if line.startswith("FAILED test_trees.py::test_koch_counts"))
+    summary = next(line for line in outlines if line.startswith("FAILED test_trees.py::test_koch_counts"))
     assert summary.startswith("FAILED test_trees.py::test_koch_counts - /")  # with the message's start
 
 
