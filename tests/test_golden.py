@@ -24,8 +24,6 @@ from lsys3d.stats import report
 from lsys3d.testing import TABLE_ROWS, assert_matches_golden
 from lsys3d.turtle import interpret
 
-pytest_plugins = ["pytester"]
-
 GOLDEN = Path(__file__).parent / "golden"
 PRESETS = lsys3d.list_presets()
 
@@ -309,17 +307,55 @@ def _pytest(folder: Path, *args):
     )
 
 
-@pytest.mark.slow  # three pytest runs in subprocesses
-def test_pytest_plugin_option_records_golden_files(tmp_path):
-    """The example a user copies: fails without a golden file, records it with the plugin's option."""
-    (tmp_path / "test_trees.py").write_text(textwrap.dedent(EXAMPLE_TEST))
-    first = _pytest(tmp_path)
-    assert first.returncode == 1 and "no golden file yet" in first.stdout
-    second = _pytest(tmp_path, "--lsys3d-update-golden")
-    assert second.returncode == 0, second.stdout + second.stderr
-    assert read_golden(tmp_path / "golden" / "koch.json")[0].seed == 7
-    third = _pytest(tmp_path)
+RECORDED_IN_A_TEMPORARY_FOLDER = """
+
+def test_records_in_a_temporary_folder(tmp_path):
+    tree = lsys3d.generate("koch", iterations=1, seed=7)
+    assert_matches_golden(tree, tmp_path / "elsewhere.json")
+    assert (tmp_path / "elsewhere.json").exists()
+"""
+
+
+@pytest.mark.slow  # five pytest runs in subprocesses
+def test_pytest_plugin_option_records_golden_files_and_lists_what_it_changed(tmp_path):
+    """The example a user copies: fails without a golden file (``--tb=long`` still shows the whole traceback,
+    for whoever asks), records it with the plugin's option and lists it, then passes; an update lists what it
+    changed, and nothing when nothing changed.
+
+    One user's session, run after run on the same folder (five inner pytest runs, each ~1.3 CPU s: it was
+    three tests of three runs each, two of which recorded the same file first)."""
+    (tmp_path / "test_trees.py").write_text(textwrap.dedent(EXAMPLE_TEST + RECORDED_IN_A_TEMPORARY_FOLDER))
+    path = tmp_path / "golden" / "koch.json"
+
+    def run(*args):  # the inner runs' tmp_path inside the project's folder, as pytester puts it
+        return _pytest(tmp_path, "--basetemp", str(tmp_path / "basetemp"), *args)
+
+    first = run("--tb=long", "-k", "test_koch_counts")
+    assert first.returncode == 1 and "no golden file yet" in first.stdout, first.stdout + first.stderr
+    assert "def test_koch_counts" in first.stdout  # --tb=long: the traceback through the test's own source
+    recorded = run("--lsys3d-update-golden")
+    assert recorded.returncode == 0 and "2 passed" in recorded.stdout, recorded.stdout + recorded.stderr
+    pytest.LineMatcher(recorded.stdout.splitlines()).fnmatch_lines(
+        ["*= lsys3d golden files updated =*", f"updated {path}: recorded (a new golden file*"]
+    )
+    # the summary lists the project's golden files: one a test records in a temporary folder is not among them
+    assert "elsewhere.json" not in recorded.stdout
+    assert read_golden(path)[0].seed == 7
+    third = run("-k", "test_koch_counts")
     assert third.returncode == 0, third.stdout + third.stderr
+    _, counts = read_golden(path)
+    _edit(path, lambda d: d["report"]["bark"].update(faces=d["report"]["bark"]["faces"] + 6))
+    again = run("--lsys3d-update-golden")
+    assert again.returncode == 0 and "2 passed" in again.stdout, again.stdout + again.stderr
+    faces = counts["bark"]["faces"]
+    pytest.LineMatcher(again.stdout.splitlines()).fnmatch_lines(
+        [f"updated {path}: 1 key", f"  bark.faces: {faces + 6:,} -> {faces:,}  -6 (*%)"]
+    )
+    assert read_golden(path)[1] == counts
+    quiet = run("--lsys3d-update-golden")
+    assert quiet.returncode == 0, quiet.stdout + quiet.stderr
+    # nothing changed in the project's golden files (the temporary one was recorded again), nothing listed
+    assert "lsys3d golden files updated" not in quiet.stdout
 
 
 def _tamper_everything(path: Path) -> int:
@@ -349,15 +385,20 @@ def _failure_section(lines: list[str]) -> list[str]:
     return lines[start:end]
 
 
-@pytest.mark.slow  # three pytest runs in subprocesses
-def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pytester):
-    """The table first, no traceback through lsys3d's source nor a repr of the tree, at most 25 lines."""
-    pytester.makepyfile(test_trees=EXAMPLE_TEST)
-    pytester.runpytest_subprocess(*INNER, "--lsys3d-update-golden").assert_outcomes(passed=1)
-    changed = _tamper_everything(pytester.path / "golden" / "koch.json")
-    result = pytester.runpytest_subprocess(*INNER)
-    result.assert_outcomes(failed=1)
-    section = _failure_section(result.outlines)
+@pytest.mark.slow  # a pytest run in a subprocess
+def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(tmp_path):
+    """The table first, no traceback through lsys3d's source nor a repr of the tree, at most 25 lines.  The golden
+    file is recorded here, as the example's test would record it (the inner run of the test above records it);
+    not under pytester's fixture, which would take the modules this generate imports out of sys.modules again
+    (numba's, whose registrations then fail when they are imported a second time)."""
+    (tmp_path / "test_trees.py").write_text(EXAMPLE_TEST.strip() + "\n")  # as pytester's makepyfile wrote it
+    golden = tmp_path / "golden" / "koch.json"
+    assert_matches_golden(lsys3d.generate("koch", iterations=2, seed=7), golden, update=True)
+    changed = _tamper_everything(golden)
+    result = _pytest(tmp_path, "--basetemp", str(tmp_path / "basetemp"))
+    assert result.returncode == 1 and "1 failed" in result.stdout, result.stdout + result.stderr
+    outlines = result.stdout.splitlines()
+    section = _failure_section(outlines)
     assert len(section) <= 25, "\n".join(section)
     first = section[1]
     line = 1 + EXAMPLE_TEST.strip().splitlines().index(
@@ -368,44 +409,11 @@ def test_a_golden_failure_in_pytest_is_short_and_reads_like_an_assertion(pyteste
     assert section[2].split() == ["key", "golden", "now", "change"]
     assert f"and {changed - TABLE_ROWS} more ({changed - TABLE_ROWS} of them failed)" in "\n".join(section)
     assert section[-1] == "to record the new counts: pytest --lsys3d-update-golden (or LSYS3D_UPDATE_GOLDEN=1)"
-    text = result.stdout.str()
+    text = result.stdout
     assert "def test_koch_counts" not in text and "assert_matches_golden(" not in text and "Tree(" not in text
     assert "testing.py" not in text and "Traceback" not in text
-    summary = next(line for line in result.outlines if line.startswith("FAILED test_trees.py::test_koch_counts"))
+    summary = next(line for line in outlines if line.startswith("FAILED test_trees.py::test_koch_counts"))
     assert summary.startswith("FAILED test_trees.py::test_koch_counts - /")  # with the message's start
-    # --tb=long still shows the whole traceback, for whoever asks
-    long = pytester.runpytest_subprocess(*INNER, "--tb=long")
-    assert "def test_koch_counts" in long.stdout.str()
-
-
-RECORDED_IN_A_TEMPORARY_FOLDER = """
-
-def test_records_in_a_temporary_folder(tmp_path):
-    tree = lsys3d.generate("koch", iterations=1, seed=7)
-    assert_matches_golden(tree, tmp_path / "elsewhere.json")
-    assert (tmp_path / "elsewhere.json").exists()
-"""
-
-
-@pytest.mark.slow  # three pytest runs in subprocesses
-def test_pytest_update_lists_what_it_changed(pytester):
-    pytester.makepyfile(test_trees=EXAMPLE_TEST + RECORDED_IN_A_TEMPORARY_FOLDER)
-    first = pytester.runpytest_subprocess(*INNER, "--lsys3d-update-golden")
-    first.assert_outcomes(passed=2)
-    path = pytester.path / "golden" / "koch.json"
-    first.stdout.fnmatch_lines(["*= lsys3d golden files updated =*", f"updated {path}: recorded (a new golden file*"])
-    # the summary lists the project's golden files: one a test records in a temporary folder is not among them
-    assert "elsewhere.json" not in first.stdout.str()
-    _, recorded = read_golden(path)
-    _edit(path, lambda d: d["report"]["bark"].update(faces=d["report"]["bark"]["faces"] + 6))
-    again = pytester.runpytest_subprocess(*INNER, "--lsys3d-update-golden")
-    again.assert_outcomes(passed=2)
-    faces = recorded["bark"]["faces"]
-    again.stdout.fnmatch_lines([f"updated {path}: 1 key", f"  bark.faces: {faces + 6:,} -> {faces:,}  -6 (*%)"])
-    assert read_golden(path)[1] == recorded
-    quiet = pytester.runpytest_subprocess(*INNER, "--lsys3d-update-golden")
-    # nothing changed in the project's golden files (the temporary one was recorded again), nothing listed
-    assert "lsys3d golden files updated" not in quiet.stdout.str()
 
 
 # ---------------------------------------------------------------- determinism across processes

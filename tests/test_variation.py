@@ -256,7 +256,10 @@ def test_displacement_is_a_fraction_of_the_local_radius(amount):
     assert not np.allclose(n, plain.wedge_normal, atol=1e-3)
 
 
-@pytest.mark.parametrize(("name", "n"), [("tree3d", 4), ("monopodial", 6), ("abop-1.24c", 3)])
+# abop-1.24c at 2 generations, not 3: one rule of equal segments at fixed angles, so its 64 segments hold every
+# junction its 512 do, and its displaced tubes overlap beyond their junctions too (the union is 89% of their
+# volume, 80% at 3); the union of 212,160 tube faces took 4.6 CPU s, of 26,544 0.3 s
+@pytest.mark.parametrize(("name", "n"), [("tree3d", 4), ("monopodial", 6), ("abop-1.24c", 2)])
 def test_displaced_union_stays_watertight_and_whole(name, n):
     g = load_preset(name, iterations=n)
     sk = interpret(derive(g), g)
