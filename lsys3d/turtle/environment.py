@@ -18,12 +18,12 @@ A scene file given with ``--environment`` takes each mesh's role from its name (
 The turtle asks the scene at every segment (:func:`lsys3d.turtle.scene._steer`), so its questions cost
 a few grid samples: each role's signed distance (positive outside the solid) is sampled once on a grid
 over the scene (``resolution`` cells along its longest side).  The distance is exact at the nodes within
-a band around the surface (trimesh's closest-point query, on an R-tree of the triangles) and the
-Euclidean distance transform of the surface's voxels (scipy) elsewhere; the sign of a closed mesh comes
-from trimesh's ray-cast inside test (Embree when ``embreex`` is installed), asked once per region of nodes
-clear of the surface.  Between two nodes it is
-trilinear, which is exact for a plane.  ``?E`` modules are answered by the same grids, and the light they
-receive by a ray toward the light against the scene's meshes.
+a band around the surface (trimesh's closest-point query to the triangles of the nearest surface samples)
+and, elsewhere, the distance to the nearest of points sampled on the triangles every half cell (a k-d
+tree, scipy; within a third of a cell); the sign of a closed mesh comes from the ray-cast inside test
+(trimesh's rays, Embree when ``embreex`` is installed), asked once per region of nodes clear of the
+surface.  Between two nodes it is trilinear, which is exact for a plane.  ``?E`` modules are answered by
+the same grids, and the light they receive by a ray toward the light against the scene's meshes.
 """
 
 from __future__ import annotations
