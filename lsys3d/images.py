@@ -31,7 +31,16 @@ import numpy as np
 from .errors import AssetError, clip
 from .external import read_file
 
-__all__ = ["MAX_IMAGE_BYTES", "MAX_IMAGE_SIDE", "Image", "check_image", "png_bytes", "png_pixels", "read_image"]
+__all__ = [
+    "MAX_IMAGE_BYTES",
+    "MAX_IMAGE_SIDE",
+    "Image",
+    "check_image",
+    "png_bytes",
+    "png_image",
+    "png_pixels",
+    "read_image",
+]
 
 MAX_IMAGE_BYTES = 64 << 20
 """Largest texture file read, in bytes."""
@@ -264,6 +273,19 @@ def png_bytes(pixels: np.ndarray, level: int = 9) -> bytes:
         + chunk(b"IDAT", zlib.compress(raw.tobytes(), level))
         + chunk(b"IEND", b"")
     )
+
+
+def png_image(name: str, pixels: np.ndarray, level: int = 9, source: str = "") -> Image:
+    """``pixels`` encoded by :func:`png_bytes` as an :class:`Image`: its size and alpha read from the pixels'
+    shape, which is what :func:`check_image` would read back from the bytes (without inflating them).
+
+    >>> image = png_image("a.png", np.zeros((2, 3, 4), np.uint8))
+    >>> (image.mime, image.width, image.height, image.alpha) == check_image(image.data)
+    True
+    """
+    data = png_bytes(pixels, level)
+    alpha = pixels.ndim == 3 and pixels.shape[2] in (2, 4)  # png_bytes' grey + alpha and RGBA colour types
+    return Image(name, data, "image/png", pixels.shape[1], pixels.shape[0], alpha, source)
 
 
 def png_pixels(data: bytes) -> np.ndarray:

@@ -35,7 +35,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..images import Image, png_bytes
+from ..images import Image, png_image
 from ..noise import perlin3
 from ..streams import Stream
 
@@ -1078,9 +1078,7 @@ def normal_map(height: np.ndarray, relief: float) -> np.ndarray:
 
 
 def _image(name: str, pixels: np.ndarray) -> Image:
-    alpha = pixels.ndim == 3 and pixels.shape[2] in (2, 4)  # as check_image reads png_bytes' bytes, not inflated
-    h, w = pixels.shape[:2]
-    return Image(name, png_bytes(pixels, _PNG_LEVEL), "image/png", w, h, alpha, "procedural")
+    return png_image(name, pixels, _PNG_LEVEL, "procedural")
 
 
 def _key(kind: str, seed: int, resolution: int, colors, tile_size) -> str:
