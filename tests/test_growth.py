@@ -324,19 +324,7 @@ def test_cli(tmp_path):
 # -- players ----------------------------------------------------------------------------------------------------
 def blender_frames(paths, frames_wanted) -> list[dict]:
     """``tools/blender_growth.py``'s report of each file at the frames wanted: one Blender plays them in turn."""
-    python = validators.bpy_python()
-    validators.require(python is not None and python.exists(), "Blender (bpy) is not installed")
-    script = validators.REPO / "tools" / "blender_growth.py"
-    proc = subprocess.run(
-        [str(python), str(script), *map(str, paths), *map(str, frames_wanted)],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith(validators.BLENDER_MARK)]
-    assert len(lines) == len(paths), proc.stdout[-2000:]
-    return [json.loads(line[len(validators.BLENDER_MARK) :]) for line in lines]
+    return validators.blender_reports(validators.REPO / "tools" / "blender_growth.py", paths, frames_wanted)
 
 
 def height(box) -> float:

@@ -214,6 +214,12 @@ def blender_import(path: Path, timeout: float = 600) -> dict:
 def blender_imports(paths: list[Path], timeout: float = 600) -> list[dict]:
     """Import each of ``paths`` into one Blender in a child process (each into an empty scene, as
     :func:`blender_import` does, for one Blender start); their reports, in order."""
+    return blender_reports(BLENDER_SCRIPT, paths, timeout=timeout)
+
+
+def blender_reports(script: Path, paths: list[Path], args=(), timeout: float = 600) -> list[dict]:
+    """Run a Blender tool (``tools/blender_*.py``: one ``LSYS3D-BLENDER`` report line per file, in order) on
+    ``paths`` and then ``args`` in one Blender in a child process; the reports, one per file."""
     python = bpy_python()
     require(
         python is not None and python.exists(),
@@ -222,16 +228,21 @@ def blender_imports(paths: list[Path], timeout: float = 600) -> list[dict]:
     )
     names = ", ".join(str(p) for p in paths)
     proc = subprocess.run(
-        [str(python), str(BLENDER_SCRIPT), *map(str, paths)], capture_output=True, text=True, timeout=timeout, cwd=REPO
+        [str(python), str(script), *map(str, paths), *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=REPO,
     )
     if proc.returncode < 0:
-        pytest.fail(f"Blender crashed (signal {-proc.returncode}) importing {names}:\n{proc.stderr[-2000:]}")
+        crashed = f"Blender crashed (signal {-proc.returncode}) in {script.name} with {names}"
+        pytest.fail(f"{crashed}:\n{proc.stderr[-2000:]}")
     if proc.returncode != 0:
-        pytest.fail(f"Blender import of {names} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
+        pytest.fail(f"Blender ({script.name}) with {names} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith(BLENDER_MARK)]
     if len(lines) != len(paths):
         pytest.fail(
-            f"Blender import of {names} printed {len(lines)} reports, not {len(paths)}:\n"
+            f"Blender ({script.name}) with {names} printed {len(lines)} reports, not {len(paths)}:\n"
             f"{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}"
         )
     return [json.loads(line[len(BLENDER_MARK) :]) for line in lines]
