@@ -753,9 +753,12 @@ DERIVE_CAP = 3 << 29  # 1.5 GiB of address space: derivation and printing (a bar
 MESH_CAP = 3 << 30  # 3 GiB for commands that load USD and build meshes (USD alone maps ~0.9 GiB)
 
 
-def run_lsys3d(argv, cwd: Path, *, cap: int = DERIVE_CAP, fsize: int | None = None, timeout: float = 60, env=None):
+def run_lsys3d(
+    argv, cwd: Path, *, cap: int = DERIVE_CAP, fsize: int | None = None, timeout: float = 60, env=None, script=None
+):
     """``python -m lsys3d argv`` in a subprocess whose address space is capped (RLIMIT_AS), and optionally its
-    file size (RLIMIT_FSIZE: a write past it fails with EFBIG; Python ignores SIGXFSZ)."""
+    file size (RLIMIT_FSIZE: a write past it fails with EFBIG; Python ignores SIGXFSZ); with ``script``, that
+    Python text runs with ``argv`` instead of ``-m lsys3d`` (several commands in one process, the same limits)."""
     import resource
 
     def limits():
@@ -764,7 +767,7 @@ def run_lsys3d(argv, cwd: Path, *, cap: int = DERIVE_CAP, fsize: int | None = No
             resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
 
     return subprocess.run(
-        [sys.executable, "-m", "lsys3d", *argv],
+        [sys.executable, *(["-c", script] if script else ["-m", "lsys3d"]), *argv],
         cwd=cwd,
         preexec_fn=limits,
         capture_output=True,
@@ -895,16 +898,14 @@ def test_grammar_parsing_is_linear_in_the_number_of_rules(tmp_path):
     one_error_line(proc, "same.toml:4:10: unclosed '(' after 'F'")
 
 
-# ``lsys3d derive FILE`` for each file in turn in one process (the suite pays Python's start-up once), under the
-# memory cap of run_lsys3d; prints each file's exit status and output as JSON.
+# ``lsys3d derive FILE`` for each file in turn in one process (the suite pays Python's start-up once), run by
+# run_lsys3d (its memory cap); prints each file's exit status and output as JSON.
 DERIVE_EACH = """
-import contextlib, io, json, resource, sys
+import contextlib, io, json, sys
 from lsys3d.cli import main
 
-cap = int(sys.argv[1])
-resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
 results = {}
-for name in sys.argv[2:]:
+for name in sys.argv[1:]:
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         code = main(["derive", name])
@@ -929,13 +930,7 @@ def test_native_readers_are_linear_in_the_size_of_the_file(tmp_path):
     (tmp_path / "long.ls").write_text("1\n30\n10\n" + "F+" * 300_000 + "\n@\n")
     # the first rule for A applies (in L-Py and cpfg, rules without weights are no stochastic alternatives)
     expected = {"many.lpy": "A(2)", "bodies.lpy": "B(2)", "many.l": "A(2)", "long.ls": None}
-    proc = subprocess.run(
-        [sys.executable, "-c", DERIVE_EACH, str(DERIVE_CAP), *expected],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    proc = run_lsys3d(list(expected), tmp_path, script=DERIVE_EACH, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     results = json.loads(proc.stdout)
     assert list(results) == list(expected)
